@@ -1,0 +1,153 @@
+#include "client-cli/commands.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <boost/program_options.hpp>
+#include <chrono>
+#include <cmath>
+#include <ostream>
+
+#include "client-cli/mesh_file.hpp"
+#include "client-cli/volume_file.hpp"
+#include "server/mesh/region_mesher.hpp"
+#include "server/mesh/volume_mesher.hpp"
+#include "server/world/terrain_generator.hpp"
+
+namespace vox::cli {
+namespace po = boost::program_options;
+namespace {
+
+constexpr const char* kUsage =
+    "usage: voxel-cli COMMAND [options]\n"
+    "commands:\n"
+    "  mesh INPUT --out FILE   mesh a volume file offline (text or raw float32)\n"
+    "  demo --out FILE         generate terrain around the origin and mesh it\n"
+    "Run 'voxel-cli COMMAND --help' for a command's options.\n";
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// Parses args into vm; returns -1 to continue, else an exit code (help printed, bad usage).
+int parse(const std::vector<std::string>& args, const po::options_description& opts,
+          const po::positional_options_description* positional, const char* synopsis, po::variables_map& vm,
+          std::ostream& out, std::ostream& err) {
+  try {
+    po::command_line_parser parser(args);
+    parser.options(opts);
+    if (positional != nullptr) parser.positional(*positional);
+    po::store(parser.run(), vm);
+    if (vm.count("help")) {
+      out << synopsis << "\n" << opts;
+      return 0;
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    err << "voxel-cli: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  return -1;
+}
+
+}  // namespace
+
+int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  po::options_description opts("voxel-cli mesh options");
+  opts.add_options()("help,h", "show this help")("input", po::value<std::string>()->required(), "volume file")(
+      "out,o", po::value<std::string>()->required(), "output mesh: .obj, .ply or .txt (seed 002 format)")(
+      "dims", po::value<std::string>(), "X,Y,Z: INPUT is raw float32 little-endian, x fastest")(
+      "iso", po::value<float>()->default_value(0.0f), "surface level")(
+      "invert", po::bool_switch(), "solid where the value is below --iso (Bourke's convention)")(
+      "threads", po::value<int>()->default_value(0), "worker threads, 0 = all cores");
+  po::positional_options_description positional;
+  positional.add("input", 1);
+  po::variables_map vm;
+  const int rc = parse(args, opts, &positional,
+                       "usage: voxel-cli mesh INPUT --out OUTPUT [--dims X,Y,Z] [--iso V] [--invert] [--threads N]", vm,
+                       out, err);
+  if (rc >= 0) return rc;
+
+  const std::string input = vm["input"].as<std::string>(), output = vm["out"].as<std::string>();
+  mesh::VolumeMeshOptions options;
+  options.iso = vm["iso"].as<float>();
+  options.invert = vm["invert"].as<bool>();
+  options.threads = vm["threads"].as<int>();
+  if (!std::isfinite(options.iso)) {
+    err << "voxel-cli: error: --iso must be a finite number\n";
+    return 2;
+  }
+  if (options.threads < 0 || options.threads > 1024) {
+    err << "voxel-cli: error: --threads must be between 0 and 1024\n";
+    return 2;
+  }
+  try {
+    mesh_format_for(output);  // refuse a bad extension before doing any work
+    std::optional<std::array<int, 3>> dims;
+    if (vm.count("dims")) dims = parse_dims(vm["dims"].as<std::string>());
+    const mesh::Volume volume = read_volume(input, dims);
+    const auto t0 = Clock::now();
+    const mesh::QuantizedVolume quantized = mesh::quantize_volume(volume, options);
+    const mesh::ChunkMesh result = mesh::mesh_volume(quantized, options.threads);
+    const double ms = ms_since(t0);
+    write_mesh(output, result);
+    out << "meshed " << volume.dims[0] << "x" << volume.dims[1] << "x" << volume.dims[2] << " samples: "
+        << result.vertex_count() << " vertices, " << result.triangle_count() << " triangles in " << ms << " ms -> "
+        << output << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    err << "voxel-cli: error: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  po::options_description opts("voxel-cli demo options");
+  opts.add_options()("help,h", "show this help")("out,o", po::value<std::string>()->default_value("demo.obj"),
+                                                 "output mesh: .obj, .ply or .txt")(
+      "seed", po::value<uint64_t>()->default_value(1), "world seed")(
+      "radius", po::value<int>()->default_value(4), "half-width of the area in chunks (1..16)");
+  po::variables_map vm;
+  const int rc = parse(args, opts, nullptr, "usage: voxel-cli demo [--out FILE] [--seed N] [--radius R]", vm, out, err);
+  if (rc >= 0) return rc;
+  const int radius = vm["radius"].as<int>();
+  if (radius < 1 || radius > 16) {
+    err << "voxel-cli: error: --radius must be between 1 and 16\n";
+    return 2;
+  }
+  const std::string output = vm["out"].as<std::string>();
+  try {
+    mesh_format_for(output);
+    const world::TerrainGenerator generator(vm["seed"].as<uint64_t>());
+    const mesh::ChunkBox box{{-radius, -3, -radius}, {radius - 1, 2, radius - 1}};
+    const auto t0 = Clock::now();
+    std::vector<world::Chunk> chunks(box.count());
+    tbb::parallel_for(size_t{0}, chunks.size(), [&](size_t i) { chunks[i] = generator.generate(box.at(i)); });
+    world::ChunkMap map;
+    for (size_t i = 0; i < chunks.size(); ++i) map.insert(box.at(i), std::move(chunks[i]));
+    const double gen_ms = ms_since(t0);
+    const auto t1 = Clock::now();
+    const mesh::ChunkMesh result = mesh::mesh_region(map, box);
+    const double mesh_ms = ms_since(t1);
+    write_mesh(output, result);
+    out << "demo world seed " << generator.seed() << ": " << box.count() << " chunks generated in " << gen_ms
+        << " ms, meshed in " << mesh_ms << " ms: " << result.vertex_count() << " vertices, "
+        << result.triangle_count() << " triangles -> " << output << "\n";
+    return 0;
+  } catch (const std::exception& e) {
+    err << "voxel-cli: error: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  if (args.empty() || args[0] == "--help" || args[0] == "-h" || args[0] == "help") {
+    (args.empty() ? err : out) << kUsage;
+    return args.empty() ? 2 : 0;
+  }
+  const std::vector<std::string> rest(args.begin() + 1, args.end());
+  if (args[0] == "mesh") return mesh_command(rest, out, err);
+  if (args[0] == "demo") return demo_command(rest, out, err);
+  err << "voxel-cli: unknown command '" << args[0] << "'\n" << kUsage;
+  return 2;
+}
+
+}  // namespace vox::cli

@@ -1,0 +1,16 @@
+// voxel-cli's commands as a library, so tests run them in-process as well as through the
+// executable. Each returns the process exit code: 0 ok, 1 failure, 2 bad usage.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace vox::cli {
+
+int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+}  // namespace vox::cli

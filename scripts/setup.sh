@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# One setup step for voxeld on Debian 12: install the packages the project needs (only
+# those missing), then configure and build with CMake (through ccache when present).
+#   scripts/setup.sh            install + build
+#   scripts/setup.sh run        ... then start the demo (see README)
+#   scripts/setup.sh test       ... then run the whole test suite with ctest
+set -euo pipefail
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+build="${VOXEL_BUILD_DIR:-$root/build}"
+mode="${1:-build}"
+
+packages=(
+  build-essential cmake pkg-config ccache
+  libboost-dev libboost-program-options-dev
+  libtbb-dev libprotobuf-dev protobuf-compiler libzstd-dev libspdlog-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev libmeshoptimizer-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}"
+  sudo_cmd=()
+  [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+launcher=()
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE="${VOXEL_BUILD_TYPE:-Release}" "${launcher[@]}" ${VOXEL_CMAKE_ARGS:-} >/dev/null
+jobs="$(nproc)"
+cmake --build "$build" -j "$jobs"
+
+case "$mode" in
+  build) ;;
+  run)
+    shift || true
+    exec "$build/bin/voxel-cli" demo --out "$build/demo.obj" "$@"
+    ;;
+  test)
+    cd "$build"
+    exec ctest --output-on-failure -j "$jobs" --timeout 900
+    ;;
+  *) echo "usage: scripts/setup.sh [build|run|test]" >&2; exit 2 ;;
+esac

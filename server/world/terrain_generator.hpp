@@ -1,0 +1,51 @@
+// Deterministic terrain from a 64-bit seed: fBm hills, 3D-noise caves in a depth band,
+// materials by depth. Chunks far above the hills (air) or below the cave band (rock) are
+// recognised from the 32x32 column heights alone and returned uniform without sampling
+// any 3D noise.
+#pragma once
+
+#include <cstdint>
+
+#include "world/chunk.hpp"
+#include "world/gradient_noise.hpp"
+
+namespace vox::world {
+
+enum TerrainMaterial : Material { kGrass = 1, kDirt = 2, kStone = 3, kSand = 4 };
+
+struct TerrainParams {
+  float sea_level = 0.0f;          // mean surface height (voxels)
+  float hill_height = 28.0f;       // surface varies by about +-hill_height
+  float hill_wavelength = 160.0f;  // voxels per lowest-octave period
+  int hill_octaves = 5;
+  float cave_wavelength = 40.0f;
+  float cave_threshold = 0.35f;  // air where cave noise exceeds this
+  float cave_top_depth = 8.0f;   // caves start this far below the surface...
+  float cave_bottom_depth = 96.0f;  // ...and stop this far below
+};
+
+class TerrainGenerator {
+ public:
+  explicit TerrainGenerator(uint64_t seed, TerrainParams params = {});
+
+  Chunk generate(ChunkCoord c) const;
+  // The sample the chunk containing (x, y, z) holds there; bit-identical to generate().
+  Sample sample_at(int32_t x, int32_t y, int32_t z) const;
+  float height_at(int32_t x, int32_t z) const;
+
+  uint64_t seed() const { return seed_; }
+  const TerrainParams& params() const { return params_; }
+
+ private:
+  static constexpr int kCaveStep = 4;  // caves are noise on a 4-voxel lattice, trilinear between
+  float cave_lattice(int32_t i, int32_t j, int32_t k) const;
+  Sample make_sample(float height, int32_t y, const float* cave_corners, float fx, float fy,
+                     float fz) const;
+
+  uint64_t seed_;
+  TerrainParams params_;
+  GradientNoise hills_;
+  GradientNoise caves_;
+};
+
+}  // namespace vox::world

@@ -1,0 +1,91 @@
+#include <gtest/gtest.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
+
+#include "server/world/terrain_generator.hpp"
+
+namespace vox::world {
+namespace {
+
+std::vector<ChunkCoord> region(int r) {
+  std::vector<ChunkCoord> coords;
+  for (int z = -r; z < r; ++z)
+    for (int y = -4; y < 2; ++y)
+      for (int x = -r; x < r; ++x) coords.push_back({x, y, z});
+  return coords;
+}
+
+TEST(TerrainGenerator, SameSeedGivesIdenticalChunksWhateverThreadsOrOrder) {
+  const TerrainGenerator gen(42);
+  const auto coords = region(3);
+  std::vector<Chunk> serial;
+  for (const auto& c : coords) serial.push_back(gen.generate(c));
+
+  for (int threads : {1, 2, 4}) {
+    std::vector<size_t> order(coords.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::shuffle(order.begin(), order.end(), std::mt19937(threads));
+    std::vector<Chunk> parallel(coords.size());
+    tbb::task_arena arena(threads);
+    arena.execute([&] {
+      tbb::parallel_for(size_t{0}, order.size(), [&](size_t k) { parallel[order[k]] = TerrainGenerator(42).generate(coords[order[k]]); });
+    });
+    for (size_t i = 0; i < coords.size(); ++i) ASSERT_EQ(parallel[i], serial[i]) << "chunk " << i << " threads " << threads;
+  }
+}
+
+TEST(TerrainGenerator, DifferentSeedsGiveDifferentTerrain) {
+  EXPECT_NE(TerrainGenerator(1).height_at(100, 100), TerrainGenerator(2).height_at(100, 100));
+}
+
+TEST(TerrainGenerator, PointSamplesEqualChunkSamples) {
+  const TerrainGenerator gen(7);
+  std::mt19937 rng(3);
+  for (const ChunkCoord c : {ChunkCoord{0, -1, 0}, ChunkCoord{-2, 0, 3}, ChunkCoord{1, -2, -1}}) {
+    const Chunk chunk = gen.generate(c);
+    for (int k = 0; k < 500; ++k) {
+      const int x = static_cast<int>(rng() % 32), y = static_cast<int>(rng() % 32), z = static_cast<int>(rng() % 32);
+      ASSERT_EQ(chunk.at(x, y, z), gen.sample_at(c.x * 32 + x, c.y * 32 + y, c.z * 32 + z));
+    }
+  }
+}
+
+TEST(TerrainGenerator, SkyAndDeepRockAreUniform) {
+  const TerrainGenerator gen(9);
+  const Chunk sky = gen.generate({0, 10, 0});
+  ASSERT_TRUE(sky.is_uniform());
+  EXPECT_FALSE(is_solid(sky.uniform_value().density));
+  const Chunk rock = gen.generate({0, -10, 0});
+  ASSERT_TRUE(rock.is_uniform());
+  EXPECT_EQ(rock.uniform_value(), (Sample{kDensityMax, kStone}));
+}
+
+TEST(TerrainGenerator, SurfaceHasThreeMaterialsByDepthAndCaves) {
+  const TerrainGenerator gen(5);
+  std::set<Material> materials;
+  size_t cave_air = 0;
+  for (const auto& c : region(3)) {
+    const Chunk chunk = gen.generate(c);
+    for (int i = 0; i < kChunkVolume; ++i) {
+      const Sample s = chunk.at(i);
+      if (is_solid(s.density)) materials.insert(s.material);
+    }
+    // Air well below the local surface is a cave.
+    for (int z = 0; z < 32; z += 4)
+      for (int x = 0; x < 32; x += 4)
+        for (int y = 0; y < 32; ++y) {
+          const int wy = c.y * 32 + y;
+          if (gen.height_at(c.x * 32 + x, c.z * 32 + z) - wy > 12 && !is_solid(chunk.at(x, y, z).density)) ++cave_air;
+        }
+  }
+  EXPECT_GE(materials.size(), 3u);
+  EXPECT_TRUE(materials.count(kGrass) && materials.count(kDirt) && materials.count(kStone));
+  EXPECT_GT(cave_air, 0u);
+}
+
+}  // namespace
+}  // namespace vox::world
