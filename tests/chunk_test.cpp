@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <cmath>
 
 #include "server/world/chunk.hpp"
 #include "server/world/chunk_map.hpp"

@@ -1,35 +1,19 @@
-// Joins chunk meshes into one world-space mesh. Vertices on chunk faces (a local
-// coordinate of exactly 0 or 32) are bit-identical to their twins in the neighbouring
-// chunk, so they are merged by exact position; interior vertices are copied as they are.
+// Joins the meshes of a dense grid of chunks into one mesh. Vertices on chunk faces
+// (a local coordinate of exactly 0 or 32) are bit-identical to their twins in the
+// neighbouring chunk, so each is kept once: by the chunk where it has local coordinate 0
+// (the "owner"); the chunk where it sits at 32 points its triangles at the owner's copy.
+// Runs in parallel over chunks.
 #pragma once
 
-#include <cstdint>
-#include <unordered_map>
-#include <vector>
+#include <array>
+#include <span>
 
 #include "mesh/chunk_mesh.hpp"
 
 namespace vox::mesh {
 
-class MeshWelder {
- public:
-  void reserve(size_t vertices, size_t indices);
-  // `origin` is the chunk's world position (32 * chunk coordinate).
-  void add(const ChunkMesh& part, Vec3f origin);
-  ChunkMesh take() { return std::move(out_); }
-
- private:
-  struct Key {
-    uint32_t x, y, z;
-    bool operator==(const Key&) const = default;
-  };
-  struct KeyHash {
-    size_t operator()(const Key& k) const noexcept;
-  };
-
-  ChunkMesh out_;
-  std::unordered_map<Key, uint32_t, KeyHash> face_vertices_;
-  std::vector<uint32_t> remap_;
-};
+// parts[i] is the chunk at grid position (i % g.x, i / g.x % g.y, i / g.x / g.y); its
+// world origin is origin + 32 * grid position. `threads` 0 uses all cores.
+ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> grid, Vec3f origin, int threads = 0);
 
 }  // namespace vox::mesh

@@ -42,14 +42,10 @@ std::vector<ChunkMesh> mesh_chunks(const world::ChunkMap& map, const ChunkBox& b
 
 ChunkMesh mesh_region(const world::ChunkMap& map, const ChunkBox& box, int threads) {
   const std::vector<ChunkMesh> meshes = mesh_chunks(map, box, threads);
-  MeshWelder welder;
-  for (size_t i = 0; i < meshes.size(); ++i) {
-    const world::ChunkCoord c = box.at(i);
-    welder.add(meshes[i], Vec3f{static_cast<float>(c.x * world::kChunkSize),
-                                static_cast<float>(c.y * world::kChunkSize),
-                                static_cast<float>(c.z * world::kChunkSize)});
-  }
-  return welder.take();
+  const float k = static_cast<float>(world::kChunkSize);
+  return weld_chunk_grid(meshes, {box.hi.x - box.lo.x + 1, box.hi.y - box.lo.y + 1, box.hi.z - box.lo.z + 1},
+                         Vec3f{k * static_cast<float>(box.lo.x), k * static_cast<float>(box.lo.y), k * static_cast<float>(box.lo.z)},
+                         threads);
 }
 
 }  // namespace vox::mesh

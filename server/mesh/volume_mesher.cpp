@@ -89,20 +89,7 @@ ChunkMesh mesh_volume(const QuantizedVolume& volume, int threads) {
     });
   });
 
-  MeshWelder welder;
-  size_t vertices = 0, indices = 0;
-  for (const ChunkMesh& p : parts) {
-    vertices += p.vertex_count();
-    indices += p.indices.size();
-  }
-  welder.reserve(vertices, indices);
-  for (size_t i = 0; i < chunk_count; ++i) {
-    const auto cx = static_cast<int>(i % chunks[0]), cy = static_cast<int>(i / chunks[0] % chunks[1]),
-               cz = static_cast<int>(i / chunks[0] / chunks[1]);
-    welder.add(parts[i], Vec3f{static_cast<float>(cx * kChunkSize), static_cast<float>(cy * kChunkSize),
-                               static_cast<float>(cz * kChunkSize)});
-  }
-  return welder.take();
+  return weld_chunk_grid(parts, chunks, Vec3f{}, threads);
 }
 
 }  // namespace vox::mesh

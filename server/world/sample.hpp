@@ -6,7 +6,7 @@
 // Material 0 means "none" (air); solid materials are 1..255.
 #pragma once
 
-#include <cmath>
+#include <algorithm>
 #include <cstdint>
 
 namespace vox::world {
@@ -24,12 +24,14 @@ struct Sample {
   friend constexpr bool operator==(const Sample&, const Sample&) = default;
 };
 
-// d is clamped to [-1, 1]; NaN maps to air (-1). Sign-preserving, see above.
+// d is clamped to [-1, 1]; NaN maps to air (-1); rounds half away from zero, except that
+// a positive d never gives 0 (sign-preserving, see above). Branch-free so that loops over
+// many samples vectorise.
 inline Density quantize_density(float d) {
-  if (!(d > -1.0f)) return kDensityMin;  // also catches NaN
-  if (d >= 1.0f) return kDensityMax;
-  const long q = std::lround(d * 32767.0f);
-  if (d > 0.0f && q == 0) return 1;
+  const float c = std::min(d > -1.0f ? d : -1.0f, 1.0f);  // NaN compares false: -1
+  const float scaled = c * 32767.0f;
+  int q = static_cast<int>(scaled + (scaled >= 0.0f ? 0.5f : -0.5f));
+  q += (q == 0) & (c > 0.0f);
   return static_cast<Density>(q);
 }
 
