@@ -85,18 +85,27 @@ Sample TerrainGenerator::sample_at(int32_t x, int32_t y, int32_t z) const {
                      static_cast<float>(floor_mod(z, kCaveStep)) * step);
 }
 
-Chunk TerrainGenerator::generate(ChunkCoord c) const {
-  const int32_t x0 = c.x * kChunkSize, y0 = c.y * kChunkSize, z0 = c.z * kChunkSize;
-  std::array<float, kChunkSize * kChunkSize> heights;
-  float hmin = INFINITY, hmax = -INFINITY;
+ColumnHeights TerrainGenerator::column(int32_t cx, int32_t cz) const {
+  ColumnHeights col;
+  col.min = INFINITY;
+  col.max = -INFINITY;
   for (int z = 0; z < kChunkSize; ++z) {
     for (int x = 0; x < kChunkSize; ++x) {
-      const float h = height_at(x0 + x, z0 + z);
-      heights[x + kChunkSize * z] = h;
-      hmin = std::min(hmin, h);
-      hmax = std::max(hmax, h);
+      const float h = height_at(cx * kChunkSize + x, cz * kChunkSize + z);
+      col.height[x + kChunkSize * z] = h;
+      col.min = std::min(col.min, h);
+      col.max = std::max(col.max, h);
     }
   }
+  return col;
+}
+
+Chunk TerrainGenerator::generate(ChunkCoord c) const { return generate(c, column(c.x, c.z)); }
+
+Chunk TerrainGenerator::generate(ChunkCoord c, const ColumnHeights& column) const {
+  const int32_t y0 = c.y * kChunkSize;
+  const auto& heights = column.height;
+  const float hmin = column.min, hmax = column.max;
   const float y_top = static_cast<float>(y0 + kChunkSize - 1);
   const float y_bottom = static_cast<float>(y0);
   // Open sky: every depth <= -4, so every density clamps to -1.

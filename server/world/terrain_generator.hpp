@@ -4,6 +4,7 @@
 // any 3D noise.
 #pragma once
 
+#include <array>
 #include <cstdint>
 
 #include "world/chunk.hpp"
@@ -24,11 +25,22 @@ struct TerrainParams {
   float cave_bottom_depth = 96.0f;  // ...and stop this far below
 };
 
+// Surface heights of the 32x32 columns of one chunk column (all chunks with the same x, z
+// share them), and their range.
+struct ColumnHeights {
+  std::array<float, kChunkSize * kChunkSize> height;  // x + 32 * z
+  float min = 0, max = 0;
+};
+
 class TerrainGenerator {
  public:
   explicit TerrainGenerator(uint64_t seed, TerrainParams params = {});
 
   Chunk generate(ChunkCoord c) const;
+  // The same chunk from precomputed heights of its column (column(c.x, c.z)); generating a
+  // vertical stack of chunks computes the heights once.
+  Chunk generate(ChunkCoord c, const ColumnHeights& heights) const;
+  ColumnHeights column(int32_t cx, int32_t cz) const;
   // The sample the chunk containing (x, y, z) holds there; bit-identical to generate().
   Sample sample_at(int32_t x, int32_t y, int32_t z) const;
   float height_at(int32_t x, int32_t z) const;

@@ -1,0 +1,49 @@
+#include "pipeline/mesh_store.hpp"
+
+namespace vox::pipeline {
+
+size_t MeshVersion::memory_bytes() const {
+  return sizeof(MeshVersion) + mesh.positions.capacity() * sizeof(mesh::Vec3f) +
+         mesh.normals.capacity() * sizeof(mesh::Vec3f) + mesh.materials.capacity() + mesh.indices.capacity() * 4;
+}
+
+MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {
+  Shard& s = shard(c);
+  std::lock_guard lock(s.mutex);
+  auto it = s.meshes.find(c);
+  return it == s.meshes.end() ? nullptr : it->second;
+}
+
+void MeshStore::publish(MeshVersionPtr mesh) {
+  const size_t added = mesh->memory_bytes();
+  MeshVersionPtr old;  // released after the lock, so a last reference is freed outside it
+  {
+    Shard& s = shard(mesh->coord);
+    std::lock_guard lock(s.mutex);
+    auto& slot = s.meshes[mesh->coord];
+    old = std::move(slot);
+    slot = std::move(mesh);
+  }
+  if (old) {
+    bytes_.fetch_sub(old->memory_bytes(), std::memory_order_relaxed);
+  } else {
+    count_.fetch_add(1, std::memory_order_relaxed);
+  }
+  bytes_.fetch_add(added, std::memory_order_relaxed);
+}
+
+void MeshStore::erase(world::ChunkCoord c) {
+  MeshVersionPtr old;
+  {
+    Shard& s = shard(c);
+    std::lock_guard lock(s.mutex);
+    auto it = s.meshes.find(c);
+    if (it == s.meshes.end()) return;
+    old = std::move(it->second);
+    s.meshes.erase(it);
+  }
+  count_.fetch_sub(1, std::memory_order_relaxed);
+  bytes_.fetch_sub(old->memory_bytes(), std::memory_order_relaxed);
+}
+
+}  // namespace vox::pipeline

@@ -1,0 +1,191 @@
+#include "world/edit_apply.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace vox::world {
+namespace {
+
+constexpr Material kDefaultFill = 2;  // dirt, for a brush adding without a material
+constexpr float kStampRamp = 0.5f;    // density per voxel across a stamp's boundary
+
+float falloff_smooth(float d2, float r2) {
+  const float u = 1.0f - d2 / r2;
+  return u * u;
+}
+
+float dist2(const Vec3& c, int x, int y, int z) {
+  const float dx = static_cast<float>(x) - c.x, dy = static_cast<float>(y) - c.y, dz = static_cast<float>(z) - c.z;
+  return dx * dx + dy * dy + dz * dz;
+}
+
+// Calls fn(x, y, z, sample) -> new sample for every sample of chunk c inside box; writes
+// and records the changes.
+template <class Fn>
+ChangedBox for_each_sample(const VoxelBox& box, ChunkCoord c, Chunk& chunk, Fn&& fn) {
+  ChangedBox changed;
+  const int32_t o[3] = {c.x * kChunkSize, c.y * kChunkSize, c.z * kChunkSize};
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::max(0, box.lo[a] - o[a]);
+    hi[a] = std::min(kChunkSize - 1, box.hi[a] - o[a]);
+    if (lo[a] > hi[a]) return changed;
+  }
+  for (int z = lo[2]; z <= hi[2]; ++z)
+    for (int y = lo[1]; y <= hi[1]; ++y)
+      for (int x = lo[0]; x <= hi[0]; ++x) {
+        const Sample old = chunk.at(x, y, z);
+        const Sample now = fn(o[0] + x, o[1] + y, o[2] + z, old);
+        if (now == old) continue;
+        chunk.set(x, y, z, now);
+        changed.add(x, y, z);
+      }
+  if (changed.changed) chunk.compact();
+  return changed;
+}
+
+Sample with_density(Sample old, float d) {
+  Sample s{quantize_density(d), old.material};
+  if (!is_solid(s.density)) s.material = kAir;
+  return s;
+}
+
+float box_sdf(const Stamp& s, int x, int y, int z) {
+  const float p[3] = {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
+  const float lo[3] = {s.min.x, s.min.y, s.min.z}, hi[3] = {s.max.x, s.max.y, s.max.z};
+  float outside2 = 0, inside = -INFINITY;
+  for (int a = 0; a < 3; ++a) {
+    const float q = std::fabs(p[a] - 0.5f * (lo[a] + hi[a])) - 0.5f * (hi[a] - lo[a]);
+    if (q > 0) outside2 += q * q;
+    inside = std::max(inside, q);
+  }
+  return std::sqrt(outside2) + std::min(inside, 0.0f);
+}
+
+}  // namespace
+
+Sample SampleSnapshot::at(int32_t x, int32_t y, int32_t z) const {
+  const int32_t nx = box.hi[0] - box.lo[0] + 1, ny = box.hi[1] - box.lo[1] + 1;
+  return samples[static_cast<size_t>(x - box.lo[0]) +
+                 static_cast<size_t>(nx) * (static_cast<size_t>(y - box.lo[1]) + static_cast<size_t>(ny) * (z - box.lo[2]))];
+}
+
+SampleSnapshot take_snapshot(const ChunkMap& map, const VoxelBox& box) {
+  SampleSnapshot snap;
+  snap.box = box;
+  snap.samples.reserve(static_cast<size_t>(box.hi[0] - box.lo[0] + 1) * (box.hi[1] - box.lo[1] + 1) *
+                       (box.hi[2] - box.lo[2] + 1));
+  for (int32_t z = box.lo[2]; z <= box.hi[2]; ++z)
+    for (int32_t y = box.lo[1]; y <= box.hi[1]; ++y)
+      for (int32_t x = box.lo[0]; x <= box.hi[0]; ++x) snap.samples.push_back(map.sample_at(x, y, z));
+  return snap;
+}
+
+VoxelBox smooth_read_box(const Smooth& s) {
+  VoxelBox b = touched_box(Edit{s});
+  for (int a = 0; a < 3; ++a) {
+    --b.lo[a];
+    ++b.hi[a];
+  }
+  return b;
+}
+
+void ChangedBox::add(int x, int y, int z) {
+  changed = true;
+  const int p[3] = {x, y, z};
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::min(lo[a], p[a]);
+    hi[a] = std::max(hi[a], p[a]);
+  }
+}
+
+ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot) {
+  const VoxelBox box = touched_box(edit);
+  if (const auto* b = std::get_if<Brush>(&edit)) {
+    const float r2 = b->radius * b->radius, sign = b->remove ? -1.0f : 1.0f;
+    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+      const float d2 = dist2(b->center, x, y, z);
+      if (d2 >= r2) return old;
+      Sample s = with_density(old, dequantize_density(old.density) + sign * b->strength * falloff_smooth(d2, r2));
+      if (is_solid(s.density) && !b->remove) {
+        if (b->material) s.material = *b->material;
+        else if (!is_solid(old.density) || old.material == kAir) s.material = kDefaultFill;
+      }
+      return s;
+    });
+  }
+  if (const auto* e = std::get_if<Explosion>(&edit)) {
+    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+      const float d = std::sqrt(dist2(e->center, x, y, z));
+      if (d >= e->radius) return old;
+      const float u = 1.0f - d / e->radius;
+      return with_density(old, dequantize_density(old.density) - e->power * u * u);
+    });
+  }
+  if (const auto* sm = std::get_if<Smooth>(&edit)) {
+    const float r2 = sm->radius * sm->radius;
+    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+      const float d2 = dist2(sm->center, x, y, z);
+      if (d2 >= r2) return old;
+      float sum = 0;
+      Sample densest{kDensityMin, kAir};
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const Sample n = snapshot->at(x + dx, y + dy, z + dz);
+            sum += dequantize_density(n.density);
+            if (n.density > densest.density) densest = n;
+          }
+      const float before = dequantize_density(snapshot->at(x, y, z).density);
+      Sample s = with_density(old, before + sm->strength * falloff_smooth(d2, r2) * (sum / 27.0f - before));
+      if (is_solid(s.density) && s.material == kAir) s.material = densest.material == kAir ? kDefaultFill : densest.material;
+      return s;
+    });
+  }
+  if (const auto* p = std::get_if<Paint>(&edit)) {
+    const float r2 = p->radius * p->radius;
+    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+      if (!is_solid(old.density) || dist2(p->center, x, y, z) >= r2) return old;
+      return Sample{old.density, p->material};
+    });
+  }
+  const auto& st = std::get<Stamp>(edit);
+  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+    const float sdf = st.shape == Stamp::Shape::kSphere ? std::sqrt(dist2(st.center, x, y, z)) - st.radius
+                                                        : box_sdf(st, x, y, z);
+    const float shape = std::clamp(-sdf * kStampRamp, -1.0f, 1.0f);
+    const float before = dequantize_density(old.density);
+    if (st.solid) {
+      if (shape <= before) return old;
+      Sample s = with_density(old, shape);
+      if (is_solid(s.density)) s.material = st.material;
+      return s;
+    }
+    if (-shape >= before) return old;
+    return with_density(old, -shape);
+  });
+}
+
+void append_dirty_chunks(ChunkCoord c, const ChangedBox& changed, std::vector<ChunkCoord>& out) {
+  if (!changed.changed) return;
+  int from[3], to[3];
+  for (int a = 0; a < 3; ++a) {
+    from[a] = changed.lo[a] <= 1 ? -1 : 0;
+    to[a] = changed.hi[a] >= kChunkSize - 1 ? 1 : 0;
+  }
+  for (int dz = from[2]; dz <= to[2]; ++dz)
+    for (int dy = from[1]; dy <= to[1]; ++dy)
+      for (int dx = from[0]; dx <= to[0]; ++dx) out.push_back(c.offset(dx, dy, dz));
+}
+
+std::vector<ChunkCoord> chunks_overlapping(const VoxelBox& box) {
+  const ChunkCoord lo = chunk_of_voxel(box.lo[0], box.lo[1], box.lo[2]);
+  const ChunkCoord hi = chunk_of_voxel(box.hi[0], box.hi[1], box.hi[2]);
+  std::vector<ChunkCoord> out;
+  for (int32_t z = lo.z; z <= hi.z; ++z)
+    for (int32_t y = lo.y; y <= hi.y; ++y)
+      for (int32_t x = lo.x; x <= hi.x; ++x) out.push_back({x, y, z});
+  return out;
+}
+
+}  // namespace vox::world

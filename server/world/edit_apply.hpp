@@ -1,0 +1,45 @@
+// Applying a validated edit to one chunk's samples, and which chunks' meshes then change.
+// Point-wise edits (brush, explosion, paint, stamp) read only the sample they write, so
+// the chunks an edit touches can be processed in parallel. Smooth reads neighbours: it
+// reads a snapshot taken before any chunk changes.
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "world/chunk.hpp"
+#include "world/chunk_map.hpp"
+#include "world/edit.hpp"
+
+namespace vox::world {
+
+// Pre-edit samples of a box (world coordinates, inclusive), x fastest.
+struct SampleSnapshot {
+  VoxelBox box;
+  std::vector<Sample> samples;
+  Sample at(int32_t x, int32_t y, int32_t z) const;
+};
+SampleSnapshot take_snapshot(const ChunkMap& map, const VoxelBox& box);
+// Smooth reads one sample around its touched box.
+VoxelBox smooth_read_box(const Smooth& s);
+
+// Local bounds (0..31) of the samples an edit changed in one chunk.
+struct ChangedBox {
+  bool changed = false;
+  std::array<int, 3> lo{kChunkSize, kChunkSize, kChunkSize}, hi{-1, -1, -1};
+  void add(int x, int y, int z);
+};
+
+// Applies `edit` to the samples of chunk `c` that it touches. `snapshot` is required for
+// Smooth (pre-edit values around the edit) and ignored otherwise.
+ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot);
+
+// The chunks whose meshes read a changed sample of chunk c: c itself, and a neighbour
+// across each face, edge or corner within 2 samples (its cells reach our samples 0, 1)
+// or 1 sample (its gradient reaches our sample 31).
+void append_dirty_chunks(ChunkCoord c, const ChangedBox& changed, std::vector<ChunkCoord>& out);
+
+// The chunks a voxel box overlaps.
+std::vector<ChunkCoord> chunks_overlapping(const VoxelBox& box);
+
+}  // namespace vox::world

@@ -1,0 +1,287 @@
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <random>
+#include <thread>
+
+#include "server/pipeline/world_pipeline.hpp"
+#include "tests/mesh_test_util.hpp"
+
+namespace vox::pipeline {
+namespace {
+
+using world::ChunkCoord;
+using world::kChunkSize;
+
+constexpr uint64_t kSeed = 17;
+
+// A 3x3x3-chunk box around the surface of seed kSeed near the origin.
+mesh::ChunkBox surface_box() {
+  const world::TerrainGenerator gen(kSeed);
+  const int cy = world::floor_div(static_cast<int>(std::floor(gen.height_at(48, 48))), kChunkSize) - 1;
+  return {{0, cy, 0}, {2, cy + 2, 2}};
+}
+
+// Random edits of every type inside the box, a third of them centred on chunk faces,
+// edges and corners.
+std::vector<world::Edit> random_edits(const mesh::ChunkBox& box, size_t n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<world::Edit> edits;
+  for (size_t k = 0; k < n; ++k) {
+    const int lo[3] = {box.lo.x, box.lo.y, box.lo.z};
+    float c[3];
+    for (int a = 0; a < 3; ++a) {
+      c[a] = static_cast<float>(lo[a] * kChunkSize) + unit(rng) * 3 * kChunkSize;
+      if (k % 3 == 0) c[a] = static_cast<float>((lo[a] + 1 + static_cast<int>(rng() % 2)) * kChunkSize) - 0.5f + unit(rng);
+    }
+    const world::Vec3 at{c[0], c[1], c[2]};
+    const float r = 1.5f + unit(rng) * 6;
+    switch (k % 6) {
+      case 0: edits.push_back(world::Brush{at, r, 0.2f + unit(rng), false, world::Material(1 + rng() % 4)}); break;
+      case 1: edits.push_back(world::Brush{at, r, 0.2f + unit(rng), true, std::nullopt}); break;
+      case 2: edits.push_back(world::Explosion{at, r + 2, 0.5f + unit(rng)}); break;
+      case 3: edits.push_back(world::Smooth{at, r, 0.3f + 0.7f * unit(rng)}); break;
+      case 4: edits.push_back(world::Paint{at, r, world::Material(1 + rng() % 4)}); break;
+      default: {
+        world::Stamp s;
+        s.shape = (k / 6) % 2 ? world::Stamp::Shape::kSphere : world::Stamp::Shape::kBox;
+        s.center = at;
+        s.radius = r;
+        s.min = {c[0] - r, c[1] - r / 2, c[2] - r};
+        s.max = {c[0] + r, c[1] + r / 2, c[2] + r};
+        s.solid = (k / 12) % 2 == 0;
+        s.material = 4;
+        edits.push_back(s);
+      }
+    }
+  }
+  return edits;
+}
+
+std::vector<EditResult> apply_all(WorldPipeline& p, const std::vector<world::Edit>& edits) {
+  std::vector<std::future<EditResult>> futures;
+  for (const auto& e : edits) futures.push_back(p.submit(e));
+  std::vector<EditResult> results;
+  for (auto& f : futures) results.push_back(f.get());
+  return results;
+}
+
+std::vector<mesh::ChunkMesh> published_meshes(const WorldPipeline& p, const mesh::ChunkBox& box) {
+  std::vector<mesh::ChunkMesh> out;
+  for (size_t i = 0; i < box.count(); ++i) {
+    const MeshVersionPtr m = p.meshes().get(box.at(i));
+    EXPECT_TRUE(m) << "no mesh for chunk " << i;
+    out.push_back(m ? m->mesh : mesh::ChunkMesh{});
+  }
+  return out;
+}
+
+TEST(WorldPipeline, PublishedMeshesEqualReferenceAfterRandomEdits) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();
+  const auto results = apply_all(p, random_edits(box, 90, 5));
+  for (const auto& r : results) ASSERT_TRUE(r.accepted) << r.message;
+  const auto chunked = test::world_triangles(published_meshes(p, box), box);
+  std::vector<test::Triangle> reference;
+  p.inspect([&](const world::ChunkMap& map) {
+    reference = test::reference_marching_cubes([&](int x, int y, int z) { return map.sample_at(x, y, z).density; },
+                                               {box.lo.x * 32, box.lo.y * 32, box.lo.z * 32},
+                                               {(box.hi.x + 1) * 32, (box.hi.y + 1) * 32, (box.hi.z + 1) * 32});
+  });
+  ASSERT_GT(reference.size(), 100u);
+  EXPECT_EQ(chunked.size(), reference.size());
+  EXPECT_EQ(test::unmatched_triangles(chunked, reference, 1e-4f), 0u);
+  EXPECT_EQ(test::unmatched_triangles(reference, chunked, 1e-4f), 0u);
+}
+
+// Densities and meshes of the box and its margin after the edits, for comparison.
+struct WorldImage {
+  std::vector<world::Sample> samples;
+  std::vector<mesh::ChunkMesh> meshes;
+};
+WorldImage run_with_threads(int threads, const std::vector<world::Edit>& edits, const mesh::ChunkBox& box) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = threads});
+  p.load(box).get();
+  apply_all(p, edits);
+  WorldImage image;
+  image.meshes = published_meshes(p, box);
+  p.inspect([&](const world::ChunkMap& map) {
+    for (int z = box.lo.z * 32 - 32; z < (box.hi.z + 2) * 32; ++z)
+      for (int y = box.lo.y * 32 - 32; y < (box.hi.y + 2) * 32; ++y)
+        for (int x = box.lo.x * 32 - 32; x < (box.hi.x + 2) * 32; ++x) image.samples.push_back(map.sample_at(x, y, z));
+  });
+  return image;
+}
+
+TEST(WorldPipeline, SameEditsGiveIdenticalWorldWhateverTheThreadCount) {
+  const mesh::ChunkBox box = surface_box();
+  const auto edits = random_edits(box, 60, 9);
+  const WorldImage one = run_with_threads(1, edits, box);
+  for (int threads : {2, 4}) {
+    const WorldImage other = run_with_threads(threads, edits, box);
+    EXPECT_TRUE(one.samples == other.samples) << threads << " threads";
+    ASSERT_EQ(one.meshes.size(), other.meshes.size());
+    for (size_t i = 0; i < one.meshes.size(); ++i) {
+      EXPECT_TRUE(one.meshes[i].positions == other.meshes[i].positions && one.meshes[i].indices == other.meshes[i].indices &&
+                  one.meshes[i].normals == other.meshes[i].normals && one.meshes[i].materials == other.meshes[i].materials)
+          << "chunk " << i << " with " << threads << " threads";
+    }
+  }
+}
+
+TEST(WorldPipeline, RefusedEditChangesNothingAndSaysWhy) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();
+  const uint64_t before = p.meshes().get(box.at(13))->version;
+  const EditResult r = p.submit(world::Explosion{{48, std::nanf(""), 48}, 8, 2}).get();
+  EXPECT_FALSE(r.accepted);
+  EXPECT_EQ(r.reason, world::RefusalReason::kNotFinite);
+  EXPECT_TRUE(r.changed_chunks.empty());
+  const EditResult big = p.submit(world::Explosion{{48, 0, 48}, 100, 2}).get();
+  EXPECT_EQ(big.reason, world::RefusalReason::kBadRadius);
+  EXPECT_EQ(p.meshes().get(box.at(13))->version, before);
+  EXPECT_EQ(p.stats().edits_refused, 2u);
+}
+
+TEST(WorldPipeline, EditReportsOnlyTheChunksWhoseMeshChanged) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();
+  std::vector<std::vector<ChunkCoord>> notified;
+  std::mutex m;
+  p.subscribe([&](const std::vector<ChunkCoord>& changed) {
+    std::lock_guard lock(m);
+    notified.push_back(changed);
+  });
+  // A surface point at least 5 samples away from every chunk face.
+  const world::TerrainGenerator gen(kSeed);
+  int x = 0, z = 0;
+  float h = 0;
+  bool found = false;
+  for (int i = 0; i < 40 * 40 && !found; ++i) {
+    x = 16 + 32 * (i % 40);
+    z = 16 + 32 * (i / 40);
+    h = gen.height_at(x, z);
+    const int local_y = world::floor_mod(static_cast<int>(std::floor(h)), 32);
+    found = local_y >= 5 && local_y <= 26;
+  }
+  ASSERT_TRUE(found);
+  const ChunkCoord c = world::chunk_of_voxel(x, static_cast<int>(std::floor(h)), z);
+  p.load({c, c}).get();
+  const uint64_t before = p.meshes().get(c)->version;
+  const EditResult r = p.submit(world::Brush{{static_cast<float>(x), h, static_cast<float>(z)}, 2, 1.0f}).get();
+  ASSERT_TRUE(r.accepted);
+  ASSERT_EQ(r.changed_chunks.size(), 1u);
+  EXPECT_EQ(r.changed_chunks[0], c);
+  EXPECT_GT(p.meshes().get(c)->version, before);
+  std::lock_guard lock(m);
+  ASSERT_FALSE(notified.empty());
+  EXPECT_EQ(notified.back(), std::vector<ChunkCoord>{c});
+}
+
+TEST(WorldPipeline, EditThatChangesNoMeshPublishesNothing) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  p.load({{0, -8, 0}, {0, -8, 0}}).get();  // deep rock
+  const uint64_t before = p.meshes().get({0, -8, 0})->version;
+  const EditResult r = p.submit(world::Brush{{16, -8 * 32 + 16, 16}, 4, 1.0f}).get();
+  EXPECT_TRUE(r.accepted);
+  EXPECT_TRUE(r.changed_chunks.empty());
+  EXPECT_EQ(p.meshes().get({0, -8, 0})->version, before);
+  EXPECT_TRUE(p.meshes().get({0, -8, 0})->mesh.empty());
+}
+
+TEST(WorldPipeline, LoadsOnDemandAndReportsMemory) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();
+  for (size_t i = 0; i < box.count(); ++i) EXPECT_TRUE(p.meshes().get(box.at(i)));
+  const PipelineStats s = p.stats();
+  EXPECT_EQ(s.loaded_chunks, 125u);  // the box and its one-chunk margin
+  EXPECT_EQ(s.mesh_count, 27u);
+  EXPECT_GT(s.chunk_bytes, 0u);
+  EXPECT_GT(s.mesh_bytes, 0u);
+}
+
+TEST(WorldPipeline, EvictsUnusedUnmodifiedChunksButKeepsModifiedOnes) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .evict_after = std::chrono::milliseconds(0)});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();
+  const world::TerrainGenerator gen(kSeed);
+  const EditResult r = p.submit(world::Explosion{{48, gen.height_at(48, 48), 48}, 6, 2}).get();
+  ASSERT_TRUE(r.accepted);
+  ASSERT_FALSE(r.changed_chunks.empty());
+  p.submit(world::Paint{{0, 0, 0}, 1, 2}).get();  // one more batch: eviction runs after each
+  size_t modified_kept = 0;
+  p.inspect([&](const world::ChunkMap& map) {
+    for (const auto& [c, chunk] : map) modified_kept += chunk.is_uniform() ? 0 : 1;
+  });
+  const PipelineStats s = p.stats();
+  EXPECT_GT(s.chunks_evicted, 0u);
+  EXPECT_GT(s.modified_chunks, 0u);
+  EXPECT_EQ(s.loaded_chunks, s.modified_chunks);
+  EXPECT_GT(modified_kept, 0u);
+}
+
+TEST(WorldPipeline, ConcurrentWritersAndReadersSeeConsistentVersions) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();
+  std::atomic<bool> done{false};
+  std::atomic<size_t> reads{0};
+  auto reader = [&] {
+    std::map<size_t, uint64_t> seen;
+    while (!done.load()) {
+      for (size_t i = 0; i < box.count(); ++i) {
+        const MeshVersionPtr m = p.meshes().get(box.at(i));
+        ASSERT_TRUE(m);
+        EXPECT_GE(m->version, seen[i]) << "a reader saw a version go back";
+        seen[i] = m->version;
+        for (uint32_t index : m->mesh.indices) ASSERT_LT(index, m->mesh.vertex_count());
+        ++reads;
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  threads.emplace_back(reader);
+  threads.emplace_back(reader);
+  std::vector<std::thread> writers;
+  std::atomic<size_t> accepted{0};
+  for (uint32_t w = 0; w < 4; ++w) {
+    writers.emplace_back([&, w] {
+      for (const auto& r : apply_all(p, random_edits(box, 50, 100 + w))) accepted += r.accepted;
+    });
+  }
+  for (auto& t : writers) t.join();
+  done = true;
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(accepted.load(), 200u);
+  EXPECT_GT(reads.load(), 0u);
+  EXPECT_EQ(p.stats().edits_applied, 200u);
+}
+
+TEST(WorldPipeline, StopRefusesWhatIsStillQueued) {
+  auto p = std::make_unique<WorldPipeline>(PipelineConfig{.seed = kSeed, .threads = 1});
+  const mesh::ChunkBox box = surface_box();
+  std::vector<std::future<EditResult>> futures;
+  for (const auto& e : random_edits(box, 30, 3)) futures.push_back(p->submit(e));
+  p->stop();
+  size_t refused = 0;
+  for (auto& f : futures) {
+    const EditResult r = f.get();
+    if (!r.accepted) {
+      EXPECT_EQ(r.reason, world::RefusalReason::kShuttingDown);
+      ++refused;
+    }
+  }
+  const EditResult late = p->submit(world::Brush{{0, 0, 0}, 2, 1}).get();
+  EXPECT_EQ(late.reason, world::RefusalReason::kShuttingDown);
+  (void)refused;  // how many made it before the stop depends on timing
+}
+
+}  // namespace
+}  // namespace vox::pipeline
