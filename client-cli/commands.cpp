@@ -1,7 +1,5 @@
 #include "client-cli/commands.hpp"
 
-#include <tbb/parallel_for.h>
-
 #include <boost/program_options.hpp>
 #include <chrono>
 #include <cmath>
@@ -11,6 +9,7 @@
 #include "client-cli/volume_file.hpp"
 #include "server/mesh/region_mesher.hpp"
 #include "server/mesh/volume_mesher.hpp"
+#include "server/world/parallel.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace vox::cli {
@@ -120,7 +119,8 @@ int demo_command(const std::vector<std::string>& args, std::ostream& out, std::o
     const mesh::ChunkBox box{{-radius, -3, -radius}, {radius - 1, 2, radius - 1}};
     const auto t0 = Clock::now();
     std::vector<world::Chunk> chunks(box.count());
-    tbb::parallel_for(size_t{0}, chunks.size(), [&](size_t i) { chunks[i] = generator.generate(box.at(i)); });
+    tbb::task_arena arena(arena_concurrency(0));
+    parallel_for_index(arena, chunks.size(), [&](size_t i) { chunks[i] = generator.generate(box.at(i)); });
     world::ChunkMap map;
     for (size_t i = 0; i < chunks.size(); ++i) map.insert(box.at(i), std::move(chunks[i]));
     const double gen_ms = ms_since(t0);

@@ -44,8 +44,22 @@ case "$mode" in
     exec "$build/bin/voxel-cli" demo --out "$build/demo.obj" "$@"
     ;;
   test)
-    cd "$build"
-    exec ctest --output-on-failure -j "$jobs" --timeout 900
+    (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900)
+    # The same tests under AddressSanitizer+UndefinedBehaviorSanitizer and under
+    # ThreadSanitizer (set VOXEL_SKIP_SANITIZERS=1 to skip them locally).
+    if [ "${VOXEL_SKIP_SANITIZERS:-0}" != 1 ]; then
+      for san in address,undefined thread; do
+        sbuild="$build-${san//,/-}"
+        echo "setup: tests under -fsanitize=$san ($sbuild)"
+        cmake -S "$root" -B "$sbuild" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXEL_SANITIZE="$san" \
+          -DVOXEL_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null
+        cmake --build "$sbuild" -j "$jobs"
+        (cd "$sbuild" && \
+          ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+          TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$root/tests/tsan.supp" \
+          ctest --output-on-failure -j "$jobs" --timeout 1800)
+      done
+    fi
     ;;
   *) echo "usage: scripts/setup.sh [build|run|test]" >&2; exit 2 ;;
 esac

@@ -1,11 +1,10 @@
 #include <gtest/gtest.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <random>
 #include <set>
 
+#include "server/world/parallel.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace vox::world {
@@ -31,9 +30,7 @@ TEST(TerrainGenerator, SameSeedGivesIdenticalChunksWhateverThreadsOrOrder) {
     std::shuffle(order.begin(), order.end(), std::mt19937(threads));
     std::vector<Chunk> parallel(coords.size());
     tbb::task_arena arena(threads);
-    arena.execute([&] {
-      tbb::parallel_for(size_t{0}, order.size(), [&](size_t k) { parallel[order[k]] = TerrainGenerator(42).generate(coords[order[k]]); });
-    });
+    parallel_for_index(arena, order.size(), [&](size_t k) { parallel[order[k]] = TerrainGenerator(42).generate(coords[order[k]]); });
     for (size_t i = 0; i < coords.size(); ++i) ASSERT_EQ(parallel[i], serial[i]) << "chunk " << i << " threads " << threads;
   }
 }

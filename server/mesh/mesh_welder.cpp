@@ -1,14 +1,12 @@
 #include "mesh/mesh_welder.hpp"
 
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
-
 #include <bit>
 #include <cstdint>
 #include <unordered_map>
 #include <vector>
 
 #include "world/chunk_coord.hpp"
+#include "world/parallel.hpp"
 
 namespace vox::mesh {
 namespace {
@@ -54,12 +52,12 @@ ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> g
   auto world_of = [](const Vec3f& l, const Vec3f& o) { return Vec3f{l.x + o.x, l.y + o.y, l.z + o.z}; };
 
   std::vector<PartPlan> plans(n);
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(threads));
   ChunkMesh out;
   std::vector<size_t> vertex_base(n + 1, 0), index_base(n + 1, 0);
-  arena.execute([&] {
+  {
     // 1. Which vertices each chunk owns.
-    tbb::parallel_for(size_t{0}, n, [&](size_t i) {
+    parallel_for_index(arena, n, [&](size_t i) {
       const ChunkMesh& p = parts[i];
       PartPlan& plan = plans[i];
       const auto g = grid_pos(i);
@@ -87,7 +85,7 @@ ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> g
     out.materials.resize(vertex_base[n]);
     out.indices.resize(index_base[n]);
     // 2. Copy owned vertices; point foreign ones at their owner's copy; remap indices.
-    tbb::parallel_for(size_t{0}, n, [&](size_t i) {
+    parallel_for_index(arena, n, [&](size_t i) {
       const ChunkMesh& p = parts[i];
       PartPlan& plan = plans[i];
       const auto g = grid_pos(i);
@@ -113,7 +111,7 @@ ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> g
       uint32_t* dst = out.indices.data() + index_base[i];
       for (uint32_t index : p.indices) *dst++ = global[index];
     });
-  });
+  }
   return out;
 }
 

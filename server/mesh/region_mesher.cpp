@@ -1,14 +1,12 @@
 #include "mesh/region_mesher.hpp"
 
-#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <memory>
 
 #include "mesh/marching_cubes.hpp"
 #include "mesh/mesh_welder.hpp"
+#include "world/parallel.hpp"
 
 namespace vox::mesh {
 namespace {
@@ -27,15 +25,11 @@ world::ChunkCoord ChunkBox::at(size_t i) const {
 std::vector<ChunkMesh> mesh_chunks(const world::ChunkMap& map, const ChunkBox& box, int threads) {
   std::vector<ChunkMesh> meshes(box.count());
   tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers([] { return std::make_unique<Worker>(); });
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, meshes.size()), [&](const tbb::blocked_range<size_t>& r) {
-      Worker& w = *workers.local();
-      for (size_t i = r.begin(); i != r.end(); ++i) {
-        gather_padded_block(map, box.at(i), w.block);
-        mesh_chunk(w.block, w.scratch, meshes[i]);
-      }
-    });
+  tbb::task_arena arena(arena_concurrency(threads));
+  parallel_for_index(arena, meshes.size(), [&](size_t i) {
+    Worker& w = *workers.local();
+    gather_padded_block(map, box.at(i), w.block);
+    mesh_chunk(w.block, w.scratch, meshes[i]);
   });
   return meshes;
 }

@@ -1,9 +1,6 @@
 #include "mesh/volume_mesher.hpp"
 
-#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,6 +9,7 @@
 
 #include "mesh/marching_cubes.hpp"
 #include "mesh/mesh_welder.hpp"
+#include "world/parallel.hpp"
 
 namespace vox::mesh {
 namespace {
@@ -67,28 +65,22 @@ ChunkMesh mesh_volume(const QuantizedVolume& volume, int threads) {
   const size_t chunk_count = static_cast<size_t>(chunks[0]) * chunks[1] * chunks[2];
   std::vector<ChunkMesh> parts(chunk_count);
 
-  tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers(
-      [] { return std::make_unique<Worker>(); });
-  tbb::task_arena arena(threads > 0 ? threads : tbb::task_arena::automatic);
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, chunk_count), [&](const tbb::blocked_range<size_t>& range) {
-      Worker& w = *workers.local();
-      if (!w.materials_set) {
-        std::fill_n(w.block.material.get(), kBlockVolume, world::Material{1});
-        w.materials_set = true;
-      }
-      for (size_t i = range.begin(); i != range.end(); ++i) {
-        const int cx = static_cast<int>(i % chunks[0]);
-        const int cy = static_cast<int>(i / chunks[0] % chunks[1]);
-        const int cz = static_cast<int>(i / chunks[0] / chunks[1]);
-        const std::array<int, 3> origin{cx * kChunkSize, cy * kChunkSize, cz * kChunkSize};
-        for (int a = 0; a < 3; ++a) w.block.cells[a] = std::min(kChunkSize, volume.dims[a] - 1 - origin[a]);
-        gather_from_volume(volume, origin, w.block);
-        mesh_chunk(w.block, w.scratch, parts[i]);
-      }
-    });
+  tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers([] { return std::make_unique<Worker>(); });
+  tbb::task_arena arena(arena_concurrency(threads));
+  parallel_for_index(arena, chunk_count, [&](size_t i) {
+    Worker& w = *workers.local();
+    if (!w.materials_set) {
+      std::fill_n(w.block.material.get(), kBlockVolume, world::Material{1});
+      w.materials_set = true;
+    }
+    const int cx = static_cast<int>(i % chunks[0]);
+    const int cy = static_cast<int>(i / chunks[0] % chunks[1]);
+    const int cz = static_cast<int>(i / chunks[0] / chunks[1]);
+    const std::array<int, 3> origin{cx * kChunkSize, cy * kChunkSize, cz * kChunkSize};
+    for (int a = 0; a < 3; ++a) w.block.cells[a] = std::min(kChunkSize, volume.dims[a] - 1 - origin[a]);
+    gather_from_volume(volume, origin, w.block);
+    mesh_chunk(w.block, w.scratch, parts[i]);
   });
-
   return weld_chunk_grid(parts, chunks, Vec3f{}, threads);
 }
 

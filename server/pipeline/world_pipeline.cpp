@@ -1,8 +1,6 @@
 #include "pipeline/world_pipeline.hpp"
 
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <map>
@@ -11,6 +9,7 @@
 
 #include "mesh/marching_cubes.hpp"
 #include "world/edit_apply.hpp"
+#include "world/parallel.hpp"
 
 namespace vox::pipeline {
 
@@ -34,7 +33,7 @@ using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
 }  // namespace
 
 struct WorldPipeline::State {
-  explicit State(int threads) : arena(threads > 0 ? threads : tbb::task_arena::automatic) {}
+  explicit State(int threads) : arena(arena_concurrency(threads)) {}
 
   struct ChunkInfo {
     bool modified = false;
@@ -62,12 +61,10 @@ struct WorldPipeline::State {
     if (columns.empty()) return 0;
     std::vector<std::pair<std::pair<int32_t, int32_t>, std::vector<int32_t>>> work(columns.begin(), columns.end());
     std::vector<std::vector<world::Chunk>> made(work.size());
-    arena.execute([&] {
-      tbb::parallel_for(size_t{0}, work.size(), [&](size_t i) {
-        const auto& [xz, ys] = work[i];
-        const world::ColumnHeights heights = gen.column(xz.first, xz.second);
-        for (int32_t y : ys) made[i].push_back(gen.generate({xz.first, y, xz.second}, heights));
-      });
+    parallel_for_index(arena, work.size(), [&](size_t i) {
+      const auto& [xz, ys] = work[i];
+      const world::ColumnHeights heights = gen.column(xz.first, xz.second);
+      for (int32_t y : ys) made[i].push_back(gen.generate({xz.first, y, xz.second}, heights));
     });
     size_t generated = 0;
     for (size_t i = 0; i < work.size(); ++i) {
@@ -266,10 +263,8 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
     if (touched.size() == 1) {
       changed[0] = world::apply_edit(task.edit, touched[0], *targets[0], snap);
     } else {
-      st.arena.execute([&] {
-        tbb::parallel_for(size_t{0}, touched.size(), [&](size_t i) {
-          changed[i] = world::apply_edit(task.edit, touched[i], *targets[i], snap);
-        });
+      parallel_for_index(st.arena, touched.size(), [&](size_t i) {
+        changed[i] = world::apply_edit(task.edit, touched[i], *targets[i], snap);
       });
     }
     for (size_t i = 0; i < touched.size(); ++i) {
@@ -286,16 +281,14 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
   std::vector<std::shared_ptr<MeshVersion>> fresh(dirty.size());
   std::vector<MeshVersionPtr> previous(dirty.size());
   for (size_t i = 0; i < dirty.size(); ++i) previous[i] = meshes_.get(dirty[i]);
-  st.arena.execute([&] {
-    tbb::parallel_for(size_t{0}, dirty.size(), [&](size_t i) {
-      MeshWorker& w = *st.workers.local();
-      auto version = std::make_shared<MeshVersion>();
-      version->coord = dirty[i];
-      mesh::gather_padded_block(st.chunks, dirty[i], w.block);
-      mesh::mesh_chunk(w.block, w.scratch, version->mesh);
-      if (previous[i] && same_mesh(previous[i]->mesh, version->mesh)) return;
-      fresh[i] = std::move(version);
-    });
+  parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
+    MeshWorker& w = *st.workers.local();
+    auto version = std::make_shared<MeshVersion>();
+    version->coord = dirty[i];
+    mesh::gather_padded_block(st.chunks, dirty[i], w.block);
+    mesh::mesh_chunk(w.block, w.scratch, version->mesh);
+    if (previous[i] && same_mesh(previous[i]->mesh, version->mesh)) return;
+    fresh[i] = std::move(version);
   });
   std::vector<ChunkCoord> published;
   CoordSet published_set;

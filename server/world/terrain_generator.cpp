@@ -15,15 +15,15 @@ constexpr float kCaveNoiseLimit = 1.5f;
 
 constexpr int kLattice = kChunkSize / 4 + 1;
 
-inline float trilinear(const float* c, float fx, float fy, float fz) {
-  const float x00 = c[0] + fx * (c[1] - c[0]);
-  const float x10 = c[2] + fx * (c[3] - c[2]);
-  const float x01 = c[4] + fx * (c[5] - c[4]);
-  const float x11 = c[6] + fx * (c[7] - c[6]);
-  const float y0 = x00 + fy * (x10 - x00);
-  const float y1 = x01 + fy * (x11 - x01);
-  return y0 + fz * (y1 - y0);
+// Cave noise between lattice points: bilinear in x then z on the lattice levels below and
+// above, then linear in y. Chunk generation computes the per-level values once per
+// column and reuses them; both paths use these same two functions, so results match.
+inline float cave_level(float c00, float c10, float c01, float c11, float fx, float fz) {
+  const float x0 = c00 + fx * (c10 - c00);
+  const float x1 = c01 + fx * (c11 - c01);
+  return x0 + fz * (x1 - x0);
 }
+inline float cave_between(float below, float above, float fy) { return below + fy * (above - below); }
 
 }  // namespace
 
@@ -47,18 +47,15 @@ float TerrainGenerator::cave_lattice(int32_t i, int32_t j, int32_t k) const {
   return std::clamp(n, -kCaveNoiseLimit, kCaveNoiseLimit);
 }
 
-// cave_corners: the 8 lattice values around the sample (x fastest), or null when the
-// whole chunk lies outside the cave band.
-Sample TerrainGenerator::make_sample(float height, int32_t y, const float* cave_corners,
-                                     float fx, float fy, float fz) const {
+Sample TerrainGenerator::make_sample(float height, int32_t y, const float* cave) const {
   const float depth = height - static_cast<float>(y);
+  if (depth <= -1.0f / kSurfaceRamp) return Sample{kDensityMin, kAir};  // open air: density clamps to -1
   float d = depth * kSurfaceRamp;
   const float band = std::clamp(
       std::min(depth - params_.cave_top_depth, params_.cave_bottom_depth - depth) / kCaveBandFade,
       0.0f, 1.0f);
-  if (band > 0.0f && cave_corners != nullptr) {
-    const float c = trilinear(cave_corners, fx, fy, fz);
-    const float solidity = (params_.cave_threshold - c) * kCaveRamp + (1.0f - band) * kCaveSealed;
+  if (band > 0.0f && cave != nullptr) {
+    const float solidity = (params_.cave_threshold - *cave) * kCaveRamp + (1.0f - band) * kCaveSealed;
     d = std::min(d, solidity);
   }
   Sample s{quantize_density(d), kAir};
@@ -77,12 +74,16 @@ Sample TerrainGenerator::make_sample(float height, int32_t y, const float* cave_
 Sample TerrainGenerator::sample_at(int32_t x, int32_t y, int32_t z) const {
   const float height = height_at(x, z);
   const int32_t i = floor_div(x, kCaveStep), j = floor_div(y, kCaveStep), k = floor_div(z, kCaveStep);
-  float corners[8];
-  for (int c = 0; c < 8; ++c) corners[c] = cave_lattice(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2));
   const float step = 1.0f / kCaveStep;
-  return make_sample(height, y, corners, static_cast<float>(floor_mod(x, kCaveStep)) * step,
-                     static_cast<float>(floor_mod(y, kCaveStep)) * step,
-                     static_cast<float>(floor_mod(z, kCaveStep)) * step);
+  const float fx = static_cast<float>(floor_mod(x, kCaveStep)) * step, fy = static_cast<float>(floor_mod(y, kCaveStep)) * step,
+              fz = static_cast<float>(floor_mod(z, kCaveStep)) * step;
+  float level[2];
+  for (int l = 0; l < 2; ++l) {
+    level[l] = cave_level(cave_lattice(i, j + l, k), cave_lattice(i + 1, j + l, k), cave_lattice(i, j + l, k + 1),
+                          cave_lattice(i + 1, j + l, k + 1), fx, fz);
+  }
+  const float cave = cave_between(level[0], level[1], fy);
+  return make_sample(height, y, &cave);
 }
 
 ColumnHeights TerrainGenerator::column(int32_t cx, int32_t cz) const {
@@ -131,23 +132,22 @@ Chunk TerrainGenerator::generate(ChunkCoord c, const ColumnHeights& column) cons
   Density* dens = chunk.densities();
   Material* mats = chunk.materials();
   constexpr float kStepInv = 1.0f / kCaveStep;
-  float corners[8];
+  std::array<float, kLattice> levels;  // cave noise of this column at each lattice level
   for (int z = 0; z < kChunkSize; ++z) {
-    for (int y = 0; y < kChunkSize; ++y) {
-      for (int x = 0; x < kChunkSize; ++x) {
-        const float* cave_corners = nullptr;
-        if (caves) {
-          const int li = x / kCaveStep, lj = y / kCaveStep, lk = z / kCaveStep;
-          for (int n = 0; n < 8; ++n) {
-            corners[n] = lattice[(li + (n & 1)) + kLattice * ((lj + ((n >> 1) & 1)) +
-                                                              kLattice * (lk + (n >> 2)))];
-          }
-          cave_corners = corners;
+    for (int x = 0; x < kChunkSize; ++x) {
+      const float height = heights[x + kChunkSize * z];
+      if (caves) {
+        const int li = x / kCaveStep, lk = z / kCaveStep;
+        const float fx = static_cast<float>(x % kCaveStep) * kStepInv, fz = static_cast<float>(z % kCaveStep) * kStepInv;
+        for (int j = 0; j < kLattice; ++j) {
+          const auto at = [&](int di, int dk) { return lattice[(li + di) + kLattice * (j + kLattice * (lk + dk))]; };
+          levels[j] = cave_level(at(0, 0), at(1, 0), at(0, 1), at(1, 1), fx, fz);
         }
-        const Sample s = make_sample(heights[x + kChunkSize * z], y0 + y, cave_corners,
-                                     static_cast<float>(x % kCaveStep) * kStepInv,
-                                     static_cast<float>(y % kCaveStep) * kStepInv,
-                                     static_cast<float>(z % kCaveStep) * kStepInv);
+      }
+      for (int y = 0; y < kChunkSize; ++y) {
+        float cave = 0;
+        if (caves) cave = cave_between(levels[y / kCaveStep], levels[y / kCaveStep + 1], static_cast<float>(y % kCaveStep) * kStepInv);
+        const Sample s = make_sample(height, y0 + y, caves ? &cave : nullptr);
         const int idx = Chunk::index(x, y, z);
         dens[idx] = s.density;
         mats[idx] = s.material;

@@ -51,8 +51,8 @@ class TerrainGenerator {
  private:
   static constexpr int kCaveStep = 4;  // caves are noise on a 4-voxel lattice, trilinear between
   float cave_lattice(int32_t i, int32_t j, int32_t k) const;
-  Sample make_sample(float height, int32_t y, const float* cave_corners, float fx, float fy,
-                     float fz) const;
+  // `cave` is the interpolated cave noise, or null when the chunk lies outside the band.
+  Sample make_sample(float height, int32_t y, const float* cave) const;
 
   uint64_t seed_;
   TerrainParams params_;
