@@ -24,18 +24,6 @@ namespace {
 using world::Density;
 constexpr int kStride[3] = {1, kBlockSide, kBlockSide * kBlockSide};
 
-// Bourke edge -> (axis, offset of its lower sample in the cell).
-struct EdgeSlot {
-  int8_t axis, dx, dy, dz;
-};
-constexpr EdgeSlot kEdgeSlot[12] = {
-    {0, 0, 0, 0}, {1, 1, 0, 0}, {0, 0, 1, 0}, {1, 0, 0, 0}, {0, 0, 0, 1}, {1, 1, 0, 1},
-    {0, 0, 1, 1}, {1, 0, 0, 1}, {2, 0, 0, 0}, {2, 1, 0, 0}, {2, 1, 1, 0}, {2, 0, 1, 0},
-};
-
-constexpr int row_of(int y, int z) { return y + kRowsPerAxis * z; }
-constexpr uint64_t low_bits(int n) { return n >= 64 ? ~0ull : (1ull << n) - 1; }
-
 // Bit x of the result is set when sample x of the row (x in 0..32) is solid.
 inline uint64_t classify_row(const Density* row) {
 #if defined(__SSE2__)
@@ -64,30 +52,16 @@ inline Vec3f gradient(const Density* d, int i) {
 }  // namespace
 
 void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
-  const int nx = in.cells[0], ny = in.cells[1], nz = in.cells[2];
+  const int ny = in.cells[1], nz = in.cells[2];
   const Density* dens = in.density.get();
   const world::Material* mats = in.material.get();
 
   // --- 1. classify samples [0, n] on each axis ---------------------------------------
   for (int z = 0; z <= nz; ++z)
-    for (int y = 0; y <= ny; ++y) s.solid[row_of(y, z)] = classify_row(dens + PaddedBlock::index(0, y, z));
+    for (int y = 0; y <= ny; ++y) s.solid[detail::row_of(y, z)] = classify_row(dens + PaddedBlock::index(0, y, z));
 
   // --- 2. cut edges per row and axis; first vertex index of each (row, axis) ---------
-  const uint64_t x_edges = low_bits(nx), yz_edges = low_bits(nx + 1);
-  uint32_t vertex_count = 0;
-  for (int z = 0; z <= nz; ++z) {
-    for (int y = 0; y <= ny; ++y) {
-      const int r = row_of(y, z);
-      const uint64_t row = s.solid[r];
-      s.cut[0][r] = (row ^ (row >> 1)) & x_edges;
-      s.cut[1][r] = y < ny ? (row ^ s.solid[row_of(y + 1, z)]) & yz_edges : 0;
-      s.cut[2][r] = z < nz ? (row ^ s.solid[row_of(y, z + 1)]) & yz_edges : 0;
-      for (int a = 0; a < 3; ++a) {
-        s.first_vertex[a][r] = vertex_count;
-        vertex_count += static_cast<uint32_t>(std::popcount(s.cut[a][r]));
-      }
-    }
-  }
+  const uint32_t vertex_count = index_cut_edges(s, in.cells);
 
   // --- 3. one vertex per cut edge -----------------------------------------------------
   out.positions.resize(vertex_count);
@@ -99,7 +73,7 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   bool on_corner = false;  // some vertex sits exactly on a sample: check for flat triangles
   for (int z = 0; z <= nz; ++z) {
     for (int y = 0; y <= ny; ++y) {
-      const int r = row_of(y, z);
+      const int r = detail::row_of(y, z);
       for (int a = 0; a < 3; ++a) {
         for (uint64_t bits = s.cut[a][r]; bits != 0; bits &= bits - 1) {
           const int x = std::countr_zero(bits);
@@ -128,53 +102,59 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   }
 
   // --- 4. triangles of the cells whose corners differ ---------------------------------
-  size_t mixed_cells = 0;
-  const uint64_t cell_bits = low_bits(nx);
-  for (int z = 0; z < nz; ++z) {
-    for (int y = 0; y < ny; ++y) {
-      const uint64_t r00 = s.solid[row_of(y, z)], r10 = s.solid[row_of(y + 1, z)],
-                     r01 = s.solid[row_of(y, z + 1)], r11 = s.solid[row_of(y + 1, z + 1)];
-      const uint64_t all = r00 & r10 & r01 & r11, any = r00 | r10 | r01 | r11;
-      mixed_cells += std::popcount(~(all & (all >> 1)) & (any | (any >> 1)) & cell_bits);
-    }
-  }
-  out.indices.resize(mixed_cells * 15);
-  uint32_t* idx = out.indices.data();
+  out.indices.resize(max_triangles(s, in.cells) * 3);
   const Vec3f* vpos = out.positions.data();
-  for (int z = 0; z < nz; ++z) {
-    for (int y = 0; y < ny; ++y) {
-      const uint64_t r00 = s.solid[row_of(y, z)], r10 = s.solid[row_of(y + 1, z)],
-                     r01 = s.solid[row_of(y, z + 1)], r11 = s.solid[row_of(y + 1, z + 1)];
-      const uint64_t all = r00 & r10 & r01 & r11, any = r00 | r10 | r01 | r11;
-      for (uint64_t cells = ~(all & (all >> 1)) & (any | (any >> 1)) & cell_bits; cells != 0;
-           cells &= cells - 1) {
-        const int x = std::countr_zero(cells);
-        // Bourke corner order: (0,0,0) (1,0,0) (1,1,0) (0,1,0), then the same at z + 1.
-        const unsigned cube_index =
-            static_cast<unsigned>(((r00 >> x) & 3) | (((r10 >> (x + 1)) & 1) << 2) |
-                                  (((r10 >> x) & 1) << 3) | (((r01 >> x) & 3) << 4) |
-                                  (((r11 >> (x + 1)) & 1) << 6) | (((r11 >> x) & 1) << 7));
-        uint32_t vertex[12];
-        for (unsigned edges = edgeTable[cube_index]; edges != 0; edges &= edges - 1) {
-          const int e = std::countr_zero(edges);
-          const EdgeSlot slot = kEdgeSlot[e];
-          const int r = row_of(y + slot.dy, z + slot.dz);
-          vertex[e] = s.first_vertex[slot.axis][r] +
-                      static_cast<uint32_t>(std::popcount(s.cut[slot.axis][r] & low_bits(x + slot.dx)));
-        }
-        const int8_t* tri = triTable[cube_index].data();
-        for (; *tri >= 0; tri += 3) {
-          const uint32_t a = vertex[tri[0]], b = vertex[tri[1]], c = vertex[tri[2]];
-          if (on_corner && (vpos[a] == vpos[b] || vpos[b] == vpos[c] || vpos[a] == vpos[c])) continue;
-          idx[0] = a;
-          idx[1] = b;
-          idx[2] = c;
-          idx += 3;
-        }
+  const size_t triangles = emit_triangles(s, in.cells, out.indices.data(), [&](uint32_t a, uint32_t b, uint32_t c) {
+    return !on_corner || !(vpos[a] == vpos[b] || vpos[b] == vpos[c] || vpos[a] == vpos[c]);
+  });
+  out.indices.resize(triangles * 3);
+}
+
+uint32_t index_cut_edges(MeshScratch& s, const std::array<int, 3>& cells) {
+  const int nx = cells[0], ny = cells[1], nz = cells[2];
+  const uint64_t x_edges = detail::low_bits(nx), yz_edges = detail::low_bits(nx + 1);
+  uint32_t vertex_count = 0;
+  for (int z = 0; z <= nz; ++z) {
+    for (int y = 0; y <= ny; ++y) {
+      const int r = detail::row_of(y, z);
+      const uint64_t row = s.solid[r];
+      s.cut[0][r] = (row ^ (row >> 1)) & x_edges;
+      s.cut[1][r] = y < ny ? (row ^ s.solid[detail::row_of(y + 1, z)]) & yz_edges : 0;
+      s.cut[2][r] = z < nz ? (row ^ s.solid[detail::row_of(y, z + 1)]) & yz_edges : 0;
+      for (int a = 0; a < 3; ++a) {
+        s.first_vertex[a][r] = vertex_count;
+        vertex_count += static_cast<uint32_t>(std::popcount(s.cut[a][r]));
       }
     }
   }
-  out.indices.resize(static_cast<size_t>(idx - out.indices.data()));
+  return vertex_count;
+}
+
+size_t table_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
+  static const auto kCount = [] {
+    std::array<uint8_t, 256> count{};
+    for (int c = 0; c < 256; ++c)
+      while (count[c] < 5 && triTable[c][3 * count[c]] >= 0) ++count[c];
+    return count;
+  }();
+  size_t total = 0;
+  for (int z = 0; z < cells[2]; ++z) {
+    for (int y = 0; y < cells[1]; ++y) {
+      const uint64_t r00 = s.solid[detail::row_of(y, z)], r10 = s.solid[detail::row_of(y + 1, z)],
+                     r01 = s.solid[detail::row_of(y, z + 1)], r11 = s.solid[detail::row_of(y + 1, z + 1)];
+      for (uint64_t left = detail::mixed_cells(s, cells[0], y, z); left != 0; left &= left - 1) {
+        total += kCount[detail::cube_index(r00, r10, r01, r11, std::countr_zero(left))];
+      }
+    }
+  }
+  return total;
+}
+
+size_t max_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
+  size_t mixed = 0;
+  for (int z = 0; z < cells[2]; ++z)
+    for (int y = 0; y < cells[1]; ++y) mixed += std::popcount(detail::mixed_cells(s, cells[0], y, z));
+  return mixed * 5;
 }
 
 }  // namespace vox::mesh

@@ -23,7 +23,30 @@ struct MeshScratch {
 
 // Meshes cells [0, in.cells) of the block into `out` (cleared first). Vertices on the
 // block's faces depend only on the samples of that face, so neighbouring chunks produce
-// bit-identical vertices there (in world space).
+// bit-identical vertices there (in world space). Afterwards scratch.solid holds the
+// samples' solid bits (rows 0..cells), which the mesh codec transmits.
 void mesh_chunk(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out);
 
+// The topology half of the mesher, shared with the mesh codec's decoder, which rebuilds a
+// mesh from the solid bits. Both read scratch.solid for rows y <= cells[1], z <= cells[2]
+// (bits x <= cells[0]).
+//
+// Fills scratch.cut and scratch.first_vertex; returns the vertex count. Vertices are
+// numbered row by row (row = y + 33 z), in each row x-edges, then y-edges, then z-edges,
+// each by increasing x.
+uint32_t index_cut_edges(MeshScratch& scratch, const std::array<int, 3>& cells);
+// Upper bound of the triangle count (5 per cell whose corners differ).
+size_t max_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells);
+// The number of triangles the tables give for these solid rows (before any zero-area
+// triangle is dropped).
+size_t table_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells);
+// Writes the triangles of every cell whose corners differ, cells in (z, y, x) order, each
+// cell's triangles in triTable order, as vertex index triples into `out` (room for
+// max_triangles). keep(a, b, c) decides whether a triangle is written. Returns the number
+// of triangles written.
+template <class Keep>
+size_t emit_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells, uint32_t* out, Keep&& keep);
+
 }  // namespace vox::mesh
+
+#include "mesh/marching_cubes_emit.inl"

@@ -1,0 +1,233 @@
+#include "proto/mesh_codec.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+#include "proto/crc32c.hpp"
+
+namespace vox::proto {
+namespace {
+
+using mesh::kRowsPerAxis;
+constexpr size_t kHeaderBytes = 16;
+constexpr size_t kChecksumBytes = 4;
+constexpr uint32_t kMaxVertices = 3 * kRowsPerAxis * kRowsPerAxis * kRowsPerAxis;
+constexpr uint32_t kMaxTriangles = 5 * 32 * 32 * 32;
+
+size_t row_bytes(int cells_x) { return static_cast<size_t>(cells_x + 1 + 7) / 8; }
+size_t rows_section_bytes(const std::array<int, 3>& cells) {
+  return row_bytes(cells[0]) * static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
+}
+int row_of(int y, int z) { return y + kRowsPerAxis * z; }
+
+void put_u32(uint8_t* p, uint32_t v) {
+  for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
+}
+uint32_t get_u32(const uint8_t* p) {
+  return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 | static_cast<uint32_t>(p[2]) << 16 |
+         static_cast<uint32_t>(p[3]) << 24;
+}
+
+float sign_not_zero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
+
+// Calls fn(vertex, axis, x, y, z) for every vertex in vertex order.
+template <class Fn>
+void for_each_vertex(const mesh::MeshScratch& t, const std::array<int, 3>& cells, Fn&& fn) {
+  uint32_t v = 0;
+  for (int z = 0; z <= cells[2]; ++z)
+    for (int y = 0; y <= cells[1]; ++y)
+      for (int a = 0; a < 3; ++a)
+        for (uint64_t bits = t.cut[a][row_of(y, z)]; bits != 0; bits &= bits - 1) fn(v++, a, std::countr_zero(bits), y, z);
+}
+
+}  // namespace
+
+std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n) {
+  const float l1 = std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z);
+  float px = l1 > 0 ? n.x / l1 : 0.0f, py = l1 > 0 ? n.y / l1 : 0.0f;
+  if (n.z < 0.0f) {
+    const float ox = (1.0f - std::fabs(py)) * sign_not_zero(px), oy = (1.0f - std::fabs(px)) * sign_not_zero(py);
+    px = ox;
+    py = oy;
+  }
+  auto q = [](float p) { return static_cast<uint8_t>(std::lround(std::clamp(p * 0.5f + 0.5f, 0.0f, 1.0f) * 255.0f)); };
+  return {q(px), q(py)};
+}
+
+mesh::Vec3f decode_normal(uint8_t u, uint8_t v) {
+  float x = static_cast<float>(u) / 255.0f * 2.0f - 1.0f, y = static_cast<float>(v) / 255.0f * 2.0f - 1.0f;
+  const float z = 1.0f - std::fabs(x) - std::fabs(y);
+  if (z < 0.0f) {
+    const float ox = (1.0f - std::fabs(y)) * sign_not_zero(x), oy = (1.0f - std::fabs(x)) * sign_not_zero(y);
+    x = ox;
+    y = oy;
+  }
+  const float inv = 1.0f / std::sqrt(x * x + y * y + z * z);
+  return {x * inv, y * inv, z * inv};
+}
+
+void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std::array<int, 3>& cells,
+                 CodecScratch& scratch, Bytes& out) {
+  const auto vertices = static_cast<uint32_t>(m.vertex_count());
+  const auto triangles = static_cast<uint32_t>(m.triangle_count());
+
+  // Triangles the mesher dropped (zero area): their ordinals in the table-derived order.
+  scratch.triangles.clear();  // reused as the dropped list
+  if (mesh::table_triangles(t, cells) != triangles) {
+    std::vector<uint32_t>& dropped = scratch.triangles;
+    size_t next = 0;
+    uint32_t ordinal = 0;
+    // Walks the table-derived triangles against the mesh's; writes nothing (keep is false).
+    mesh::emit_triangles(t, cells, nullptr, [&](uint32_t a, uint32_t b, uint32_t c) {
+      const bool kept = next < triangles && m.indices[3 * next] == a && m.indices[3 * next + 1] == b &&
+                        m.indices[3 * next + 2] == c;
+      if (kept) ++next;
+      else dropped.push_back(ordinal);
+      ++ordinal;
+      return false;
+    });
+  }
+  const auto dropped = static_cast<uint32_t>(scratch.triangles.size());
+
+  const size_t rb = row_bytes(cells[0]);
+  const size_t size = kHeaderBytes + rows_section_bytes(cells) + 5 * size_t{vertices} + 4 * size_t{dropped} + kChecksumBytes;
+  out.resize(size);
+  uint8_t* p = out.data();
+  p[0] = kMeshFormat;
+  for (int a = 0; a < 3; ++a) p[1 + a] = static_cast<uint8_t>(cells[a]);
+  put_u32(p + 4, vertices);
+  put_u32(p + 8, triangles);
+  put_u32(p + 12, dropped);
+  p += kHeaderBytes;
+
+  // Solid rows, each xor-ed with the row before it (z-major, then y).
+  uint64_t previous = 0;
+  for (int z = 0; z <= cells[2]; ++z) {
+    for (int y = 0; y <= cells[1]; ++y) {
+      const uint64_t row = t.solid[row_of(y, z)] & mesh::detail::low_bits(cells[0] + 1);
+      const uint64_t x = row ^ previous;
+      previous = row;
+      for (size_t b = 0; b < rb; ++b) *p++ = static_cast<uint8_t>(x >> (8 * b));
+    }
+  }
+
+  // Per-vertex planes: fraction low bytes, fraction high bytes, normal u, normal v, material.
+  uint8_t* frac_lo = p;
+  uint8_t* frac_hi = frac_lo + vertices;
+  uint8_t* nu = frac_hi + vertices;
+  uint8_t* nv = nu + vertices;
+  uint8_t* mat = nv + vertices;
+  uint8_t prev_u = 0, prev_v = 0, prev_m = 0;
+  for_each_vertex(t, cells, [&](uint32_t v, int a, int x, int y, int z) {
+    const mesh::Vec3f pos = m.positions[v];
+    const int lower[3] = {x, y, z};
+    const float frac = (&pos.x)[a] - static_cast<float>(lower[a]);
+    const auto q = static_cast<uint16_t>(std::clamp(std::lround(frac * kFractionSteps), 0L, long{kFractionSteps}));
+    frac_lo[v] = static_cast<uint8_t>(q);
+    frac_hi[v] = static_cast<uint8_t>(q >> 8);
+    const auto n = encode_normal(m.normals[v]);
+    nu[v] = static_cast<uint8_t>(n[0] - prev_u);
+    nv[v] = static_cast<uint8_t>(n[1] - prev_v);
+    mat[v] = static_cast<uint8_t>(m.materials[v] - prev_m);
+    prev_u = n[0];
+    prev_v = n[1];
+    prev_m = m.materials[v];
+  });
+  p = mat + vertices;
+  for (uint32_t d : scratch.triangles) {
+    put_u32(p, d);
+    p += 4;
+  }
+  put_u32(p, crc32c(out.data(), size - kChecksumBytes));
+}
+
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits, CodecScratch& scratch) {
+  if (in.size() > limits.max_encoding_bytes) return Error{"mesh encoding larger than the limit"};
+  if (in.size() < kHeaderBytes + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
+  if (in[0] != kMeshFormat) return Error{"unknown mesh format " + std::to_string(in[0])};
+  const std::array<int, 3> cells{in[1], in[2], in[3]};
+  for (int c : cells) {
+    if (c < 1 || c > 32) return Error{"cells per axis must be 1..32"};
+  }
+  const uint32_t vertices = get_u32(in.data() + 4), triangles = get_u32(in.data() + 8), dropped = get_u32(in.data() + 12);
+  if (vertices > kMaxVertices || triangles > kMaxTriangles || dropped > kMaxTriangles) {
+    return Error{"mesh encoding declares impossible counts"};
+  }
+  const size_t expected = kHeaderBytes + rows_section_bytes(cells) + 5 * size_t{vertices} + 4 * size_t{dropped} + kChecksumBytes;
+  if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
+  if (crc32c(in.data(), in.size() - kChecksumBytes) != get_u32(in.data() + in.size() - kChecksumBytes)) {
+    return Error{"mesh encoding checksum mismatch (corrupt, or a delta against the wrong base)"};
+  }
+
+  mesh::MeshScratch& t = scratch.topology;
+  const uint8_t* p = in.data() + kHeaderBytes;
+  const size_t rb = row_bytes(cells[0]);
+  const uint64_t valid = mesh::detail::low_bits(cells[0] + 1);
+  uint64_t previous = 0;
+  for (int z = 0; z <= cells[2]; ++z) {
+    for (int y = 0; y <= cells[1]; ++y) {
+      uint64_t x = 0;
+      for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(*p++) << (8 * b);
+      if (x & ~valid) return Error{"solid row has bits beyond the chunk"};
+      previous ^= x;
+      t.solid[row_of(y, z)] = previous;
+    }
+  }
+  if (mesh::index_cut_edges(t, cells) != vertices) return Error{"vertex count does not match the solid rows"};
+
+  const uint8_t* frac_lo = p;
+  const uint8_t* frac_hi = frac_lo + vertices;
+  const uint8_t* nu = frac_hi + vertices;
+  const uint8_t* nv = nu + vertices;
+  const uint8_t* mat = nv + vertices;
+  const uint8_t* drop = mat + vertices;
+
+  mesh::ChunkMesh m;
+  m.positions.resize(vertices);
+  m.normals.resize(vertices);
+  m.materials.resize(vertices);
+  bool bad_fraction = false;
+  uint8_t u = 0, v = 0, material = 0;
+  for_each_vertex(t, cells, [&](uint32_t i, int a, int x, int y, int z) {
+    const unsigned q = frac_lo[i] | static_cast<unsigned>(frac_hi[i]) << 8;
+    bad_fraction |= q > kFractionSteps;
+    mesh::Vec3f pos{static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
+    (&pos.x)[a] += static_cast<float>(q) / kFractionSteps;
+    m.positions[i] = pos;
+    u = static_cast<uint8_t>(u + nu[i]);
+    v = static_cast<uint8_t>(v + nv[i]);
+    material = static_cast<uint8_t>(material + mat[i]);
+    m.normals[i] = decode_normal(u, v);
+    m.materials[i] = material;
+  });
+  if (bad_fraction) return Error{"edge fraction over 1024"};
+
+  // Triangles: every table triangle of the mixed cells, minus the dropped ordinals.
+  uint32_t previous_drop = 0;
+  for (uint32_t k = 0; k < dropped; ++k) {
+    const uint32_t d = get_u32(drop + 4 * k);
+    if (k > 0 && d <= previous_drop) return Error{"dropped triangle list out of order"};
+    previous_drop = d;
+  }
+  m.indices.resize(mesh::max_triangles(t, cells) * 3);
+  uint32_t ordinal = 0, next_drop = 0;
+  const size_t written = mesh::emit_triangles(t, cells, m.indices.data(), [&](uint32_t, uint32_t, uint32_t) {
+    const bool drop_it = next_drop < dropped && get_u32(drop + 4 * next_drop) == ordinal;
+    next_drop += drop_it ? 1 : 0;
+    ++ordinal;
+    return !drop_it;
+  });
+  if (next_drop != dropped) return Error{"dropped triangle beyond the last triangle"};
+  if (written != triangles) return Error{"triangle count does not match the solid rows"};
+  m.indices.resize(written * 3);
+  return m;
+}
+
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits) {
+  static thread_local CodecScratch scratch;
+  return decode_mesh(encoding, limits, scratch);
+}
+
+}  // namespace vox::proto

@@ -1,0 +1,52 @@
+// The chunk mesh encoding (docs/PROTOCOL.md, "Mesh encoding"): pure functions, no I/O.
+//
+// A chunk mesh from the marching-cubes mesher is fixed by the samples' solid bits (which
+// give the cut edges, the vertex order and, through the published tables, the triangles)
+// plus, per vertex, the fraction along its edge, a normal and a material. The encoding
+// sends exactly that: solid-bit rows xor-ed with the previous row, then per-vertex byte
+// planes. Indices are not sent, so inserting vertices never rewrites later indices, and
+// a local edit changes a local run of bytes in each section (good for zstd deltas).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "mesh/chunk_mesh.hpp"
+#include "mesh/marching_cubes.hpp"
+#include "proto/result.hpp"
+
+namespace vox::proto {
+
+using Bytes = std::vector<uint8_t>;
+
+inline constexpr uint8_t kMeshFormat = 1;
+inline constexpr int kFractionSteps = 1024;  // edge fraction step: 1/1024 voxel
+
+struct DecodeLimits {
+  size_t max_encoding_bytes = size_t{4} << 20;  // an encoding (decompressed) over this is refused
+};
+
+// Scratch reused across calls: once warm, encode and decode allocate only the output.
+struct CodecScratch {
+  mesh::MeshScratch topology;
+  std::vector<uint32_t> triangles;
+};
+
+// `topology` is the mesher's scratch right after mesh_chunk() produced `mesh` (its solid
+// rows, cut edges and vertex numbering for `cells`). Appends the encoding to `out`
+// (cleared first).
+void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology, const std::array<int, 3>& cells,
+                 CodecScratch& scratch, Bytes& out);
+
+// Rebuilds the mesh; never trusts the bytes: any inconsistency is an error value.
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits,
+                                    CodecScratch& scratch);
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits = {});
+
+// Octahedral normal in two bytes (docs/PROTOCOL.md): encode and decode.
+std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n);
+mesh::Vec3f decode_normal(uint8_t u, uint8_t v);
+
+}  // namespace vox::proto

@@ -1,0 +1,259 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
+#include "server/mesh/marching_cubes.hpp"
+#include "server/world/edit_apply.hpp"
+#include "server/world/gradient_noise.hpp"
+#include "server/world/terrain_generator.hpp"
+
+namespace vox::proto {
+namespace {
+
+using mesh::ChunkMesh;
+using world::ChunkCoord;
+
+struct Encoded {
+  ChunkMesh mesh;
+  Bytes encoding;
+};
+
+Encoded mesh_and_encode(const mesh::PaddedBlock& block) {
+  static mesh::MeshScratch topology;
+  static CodecScratch scratch;
+  Encoded e;
+  mesh::mesh_chunk(block, topology, e.mesh);
+  encode_mesh(e.mesh, topology, block.cells, scratch, e.encoding);
+  return e;
+}
+
+Encoded mesh_and_encode(const world::ChunkMap& map, ChunkCoord c) {
+  static mesh::PaddedBlock block;
+  mesh::gather_padded_block(map, c, block);
+  return mesh_and_encode(block);
+}
+
+void expect_same_mesh(const ChunkMesh& original, const ChunkMesh& decoded) {
+  ASSERT_EQ(decoded.vertex_count(), original.vertex_count());
+  ASSERT_EQ(decoded.indices, original.indices);
+  for (size_t v = 0; v < original.vertex_count(); ++v) {
+    const auto& a = original.positions[v];
+    const auto& b = decoded.positions[v];
+    ASSERT_NEAR(a.x, b.x, 0.5f / kFractionSteps + 1e-5f);
+    ASSERT_NEAR(a.y, b.y, 0.5f / kFractionSteps + 1e-5f);
+    ASSERT_NEAR(a.z, b.z, 0.5f / kFractionSteps + 1e-5f);
+    const auto& n = original.normals[v];
+    const auto& m = decoded.normals[v];
+    ASSERT_GT(n.x * m.x + n.y * m.y + n.z * m.z, 0.999f) << "normal off by more than 2.6 degrees";
+    ASSERT_EQ(original.materials[v], decoded.materials[v]);
+  }
+}
+
+world::ChunkMap terrain(uint64_t seed, int r) {
+  const world::TerrainGenerator gen(seed);
+  world::ChunkMap map;
+  for (int z = -r - 1; z <= r; ++z)
+    for (int y = -3; y <= 2; ++y)
+      for (int x = -r - 1; x <= r; ++x) map.insert({x, y, z}, gen.generate({x, y, z}));
+  return map;
+}
+
+TEST(MeshCodec, RoundTripsTerrainChunks) {
+  const world::ChunkMap map = terrain(3, 2);
+  size_t non_empty = 0;
+  for (int z = -2; z < 2; ++z)
+    for (int y = -2; y < 2; ++y)
+      for (int x = -2; x < 2; ++x) {
+        const Encoded e = mesh_and_encode(map, {x, y, z});
+        auto decoded = decode_mesh(e.encoding);
+        ASSERT_TRUE(decoded) << decoded.error();
+        expect_same_mesh(e.mesh, *decoded);
+        non_empty += e.mesh.empty() ? 0 : 1;
+      }
+  EXPECT_GT(non_empty, 10u);
+}
+
+TEST(MeshCodec, RoundTripsWorstCaseAndExactZeros) {
+  mesh::PaddedBlock block;
+  const world::GradientNoise noise(3);
+  std::mt19937 rng(1);
+  for (int z = -1; z <= 33; ++z)
+    for (int y = -1; y <= 33; ++y)
+      for (int x = -1; x <= 33; ++x) {
+        const int i = mesh::PaddedBlock::index(x, y, z);
+        block.density[i] = world::quantize_density(noise.noise3(x * 0.93f + 0.31f, y * 0.87f + 0.17f, z * 0.91f + 0.53f));
+        if (rng() % 7 == 0) block.density[i] = 0;  // samples exactly on the surface: dropped triangles
+        block.material[i] = static_cast<world::Material>(1 + rng() % 200);
+      }
+  const Encoded e = mesh_and_encode(block);
+  ASSERT_GT(e.mesh.triangle_count(), 50000u);
+  const size_t table_triangles = [&] {
+    mesh::MeshScratch t;
+    ChunkMesh m;
+    mesh::mesh_chunk(block, t, m);
+    return mesh::max_triangles(t, block.cells);
+  }();
+  ASSERT_LT(e.mesh.triangle_count(), table_triangles) << "the case should include dropped triangles";
+  auto decoded = decode_mesh(e.encoding);
+  ASSERT_TRUE(decoded) << decoded.error();
+  expect_same_mesh(e.mesh, *decoded);
+}
+
+TEST(MeshCodec, DecodedNeighboursShareBitIdenticalFaceVertices) {
+  const world::ChunkMap map = terrain(5, 1);
+  for (int y = -2; y < 2; ++y) {
+    const auto a = decode_mesh(mesh_and_encode(map, {0, y, 0}).encoding);
+    const auto b = decode_mesh(mesh_and_encode(map, {1, y, 0}).encoding);
+    ASSERT_TRUE(a && b);
+    std::vector<std::array<float, 3>> fa, fb;
+    for (const auto& p : a->positions)
+      if (p.x == 32.0f) fa.push_back({p.x, p.y, p.z});
+    for (const auto& p : b->positions)
+      if (p.x == 0.0f) fb.push_back({p.x + 32.0f, p.y, p.z});
+    std::sort(fa.begin(), fa.end());
+    std::sort(fb.begin(), fb.end());
+    EXPECT_EQ(fa, fb);
+  }
+}
+
+TEST(MeshCodec, DeltaRebuildsTheNewEncodingForEveryEditType) {
+  const world::TerrainGenerator gen(7);
+  const std::vector<world::Edit> edits = {
+      world::Brush{{16, 0, 16}, 2, 1.0f, false, world::Material{5}}, world::Brush{{16, 0, 16}, 3, 0.8f, true, std::nullopt},
+      world::Explosion{{10, 0, 20}, 5, 2}, world::Smooth{{16, 0, 16}, 4, 1.0f}, world::Paint{{16, 0, 16}, 4, 9},
+      world::Stamp{world::Stamp::Shape::kSphere, {}, {}, {20, 0, 12}, 3, true, 4}};
+  ZstdCodec zstd;
+  for (size_t k = 0; k < edits.size(); ++k) {
+    world::ChunkMap map;
+    for (int z = -1; z <= 1; ++z)
+      for (int y = -2; y <= 1; ++y)
+        for (int x = -1; x <= 1; ++x) map.insert({x, y, z}, gen.generate({x, y, z}));
+    world::Edit edit = edits[k];
+    // Put the edit on the surface of chunk column (0, 0).
+    std::visit([&](auto& e) {
+      if constexpr (requires { e.center; }) e.center.y = gen.height_at(static_cast<int>(e.center.x), static_cast<int>(e.center.z));
+    }, edit);
+    const ChunkCoord c = world::chunk_of_voxel(16, static_cast<int>(std::floor(gen.height_at(16, 16))), 16);
+    const Encoded before = mesh_and_encode(map, c);
+    for (const ChunkCoord t : world::chunks_overlapping(world::touched_box(edit))) {
+      if (world::Chunk* chunk = map.find(t)) {
+        std::optional<world::SampleSnapshot> snap;
+        if (auto* s = std::get_if<world::Smooth>(&edit)) snap = world::take_snapshot(map, world::smooth_read_box(*s));
+        world::apply_edit(edit, t, *chunk, snap ? &*snap : nullptr);
+      }
+    }
+    const Encoded after = mesh_and_encode(map, c);
+    ASSERT_NE(before.encoding, after.encoding) << "edit " << k << " should change the chunk";
+    std::vector<uint8_t> full, delta;
+    zstd.compress(after.encoding, {}, full);
+    zstd.compress(after.encoding, before.encoding, delta);
+    EXPECT_LT(delta.size(), full.size()) << "edit " << k;
+    auto rebuilt = zstd.decompress(delta, before.encoding, 1 << 22);
+    ASSERT_TRUE(rebuilt) << rebuilt.error();
+    EXPECT_EQ(*rebuilt, after.encoding);
+    auto decoded = decode_mesh(*rebuilt);
+    ASSERT_TRUE(decoded) << decoded.error();
+    expect_same_mesh(after.mesh, *decoded);
+    // Against the wrong base the result never decodes as a mesh.
+    const Encoded other = mesh_and_encode(map, c.offset(1, 0, 0));
+    auto wrong = zstd.decompress(delta, other.encoding, 1 << 22);
+    if (wrong) {
+      EXPECT_FALSE(decode_mesh(*wrong)) << "edit " << k;
+    }
+  }
+}
+
+TEST(MeshCodec, RejectsEveryTruncation) {
+  const world::ChunkMap map = terrain(3, 1);
+  const Encoded e = mesh_and_encode(map, {0, -1, 0});
+  ASSERT_FALSE(e.mesh.empty());
+  for (size_t n = 0; n < e.encoding.size(); ++n) {
+    EXPECT_FALSE(decode_mesh(std::span(e.encoding).first(n))) << "length " << n;
+  }
+  ZstdCodec zstd;
+  std::vector<uint8_t> frame;
+  zstd.compress(e.encoding, {}, frame);
+  for (size_t n = 0; n < frame.size(); ++n) {
+    auto out = zstd.decompress(std::span(frame).first(n), {}, 1 << 22);
+    EXPECT_FALSE(out && decode_mesh(*out)) << "frame length " << n;
+  }
+}
+
+TEST(MeshCodec, RejectsBombsAndFramesWithoutSize) {
+  ZstdCodec zstd;
+  std::vector<uint8_t> zeros(8 << 20, 0), frame;
+  zstd.compress(zeros, {}, frame);
+  EXPECT_LT(frame.size(), 2000u);
+  auto r = zstd.decompress(frame, {}, DecodeLimits{}.max_encoding_bytes);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().find("over the limit"), std::string::npos);
+  // A frame that lies about its size: patch the declared size down.
+  std::vector<uint8_t> small(1000, 7), f2;
+  zstd.compress(small, {}, f2);
+  EXPECT_TRUE(zstd.decompress(f2, {}, 1000));
+  EXPECT_FALSE(zstd.decompress(f2, {}, 999));
+  EXPECT_FALSE(zstd.decompress(std::vector<uint8_t>{1, 2, 3, 4, 5, 6, 7, 8}, {}, 1000));
+  // Counts in the header that cannot fit a chunk.
+  Bytes fake(64, 0);
+  fake[0] = kMeshFormat;
+  fake[1] = fake[2] = fake[3] = 32;
+  fake[7] = 0x7F;  // 2^30 vertices
+  EXPECT_FALSE(decode_mesh(fake));
+  fake[0] = 9;
+  auto bad_version = decode_mesh(fake);
+  ASSERT_FALSE(bad_version);
+  EXPECT_NE(bad_version.error().find("unknown mesh format"), std::string::npos);
+}
+
+// Fuzz: mutated and random buffers through decompress + decode never crash or hang.
+TEST(MeshCodec, SurvivesMutatedAndRandomInput) {
+  const world::ChunkMap map = terrain(11, 1);
+  std::vector<Bytes> seeds;
+  for (int y = -2; y < 2; ++y) seeds.push_back(mesh_and_encode(map, {0, y, 0}).encoding);
+  ZstdCodec zstd;
+  std::mt19937 rng(123);
+  size_t decoded_ok = 0;
+  for (int round = 0; round < 4000; ++round) {
+    Bytes buf = seeds[static_cast<size_t>(round) % seeds.size()];
+    const bool compressed = round % 2 == 1;
+    if (compressed) {
+      Bytes frame;
+      zstd.compress(buf, {}, frame);
+      buf = frame;
+    }
+    if (round % 10 == 0) {
+      buf.resize(rng() % 4096);
+      for (auto& b : buf) b = static_cast<uint8_t>(rng());
+    } else {
+      const int flips = 1 + static_cast<int>(rng() % 8);
+      for (int f = 0; f < flips && !buf.empty(); ++f) buf[rng() % buf.size()] ^= static_cast<uint8_t>(1 + rng() % 255);
+      if (rng() % 4 == 0 && !buf.empty()) buf.resize(rng() % buf.size());
+    }
+    if (compressed) {
+      auto out = zstd.decompress(buf, {}, DecodeLimits{}.max_encoding_bytes);
+      if (out) decoded_ok += decode_mesh(*out) ? 1 : 0;
+    } else {
+      decoded_ok += decode_mesh(buf) ? 1 : 0;
+    }
+  }
+  EXPECT_LT(decoded_ok, 40u) << "the checksum should catch nearly every corruption";
+}
+
+TEST(MeshCodec, OctahedralNormalsRoundTrip) {
+  std::mt19937 rng(4);
+  std::normal_distribution<float> g;
+  for (int i = 0; i < 20000; ++i) {
+    mesh::Vec3f n{g(rng), g(rng), g(rng)};
+    const float l = std::sqrt(n.x * n.x + n.y * n.y + n.z * n.z);
+    n = {n.x / l, n.y / l, n.z / l};
+    const auto e = encode_normal(n);
+    const auto d = decode_normal(e[0], e[1]);
+    ASSERT_GT(n.x * d.x + n.y * d.y + n.z * d.z, 0.999f);
+  }
+}
+
+}  // namespace
+}  // namespace vox::proto
