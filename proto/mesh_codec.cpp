@@ -17,9 +17,6 @@ constexpr uint32_t kMaxVertices = 3 * kRowsPerAxis * kRowsPerAxis * kRowsPerAxis
 constexpr uint32_t kMaxTriangles = 5 * 32 * 32 * 32;
 
 size_t row_bytes(int cells_x) { return static_cast<size_t>(cells_x + 1 + 7) / 8; }
-size_t rows_section_bytes(const std::array<int, 3>& cells) {
-  return row_bytes(cells[0]) * static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
-}
 int row_of(int y, int z) { return y + kRowsPerAxis * z; }
 
 void put_u32(uint8_t* p, uint32_t v) {
@@ -46,13 +43,15 @@ void for_each_vertex(const mesh::MeshScratch& t, const std::array<int, 3>& cells
 
 std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n) {
   const float l1 = std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z);
-  float px = l1 > 0 ? n.x / l1 : 0.0f, py = l1 > 0 ? n.y / l1 : 0.0f;
+  const float inv = l1 > 0 ? 1.0f / l1 : 0.0f;
+  float px = n.x * inv, py = n.y * inv;
   if (n.z < 0.0f) {
     const float ox = (1.0f - std::fabs(py)) * sign_not_zero(px), oy = (1.0f - std::fabs(px)) * sign_not_zero(py);
     px = ox;
     py = oy;
   }
-  auto q = [](float p) { return static_cast<uint8_t>(std::lround(std::clamp(p * 0.5f + 0.5f, 0.0f, 1.0f) * 255.0f)); };
+  // Round to nearest (the value is >= 0, so adding 0.5 and truncating rounds).
+  auto q = [](float p) { return static_cast<uint8_t>(std::clamp(p * 0.5f + 0.5f, 0.0f, 1.0f) * 255.0f + 0.5f); };
   return {q(px), q(py)};
 }
 
@@ -91,8 +90,24 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
   }
   const auto dropped = static_cast<uint32_t>(scratch.triangles.size());
 
+  // Solid rows xor-ed with the row before them (z-major, then y); only rows whose xor is
+  // not zero are sent, flagged in a bitmap (one bit per row, LSB first).
   const size_t rb = row_bytes(cells[0]);
-  const size_t size = kHeaderBytes + rows_section_bytes(cells) + 5 * size_t{vertices} + 4 * size_t{dropped} + kChecksumBytes;
+  const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
+  std::array<uint64_t, mesh::kRows>& diff = scratch.row_diff;
+  size_t nonzero = 0;
+  uint64_t previous = 0;
+  size_t r = 0;
+  for (int z = 0; z <= cells[2]; ++z) {
+    for (int y = 0; y <= cells[1]; ++y, ++r) {
+      const uint64_t row = t.solid[row_of(y, z)] & mesh::detail::low_bits(cells[0] + 1);
+      diff[r] = row ^ previous;
+      previous = row;
+      nonzero += diff[r] != 0 ? 1 : 0;
+    }
+  }
+  const size_t size = kHeaderBytes + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} + 4 * size_t{dropped} +
+                      kChecksumBytes;
   out.resize(size);
   uint8_t* p = out.data();
   p[0] = kMeshFormat;
@@ -101,16 +116,12 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
   put_u32(p + 8, triangles);
   put_u32(p + 12, dropped);
   p += kHeaderBytes;
-
-  // Solid rows, each xor-ed with the row before it (z-major, then y).
-  uint64_t previous = 0;
-  for (int z = 0; z <= cells[2]; ++z) {
-    for (int y = 0; y <= cells[1]; ++y) {
-      const uint64_t row = t.solid[row_of(y, z)] & mesh::detail::low_bits(cells[0] + 1);
-      const uint64_t x = row ^ previous;
-      previous = row;
-      for (size_t b = 0; b < rb; ++b) *p++ = static_cast<uint8_t>(x >> (8 * b));
-    }
+  std::memset(p, 0, (rows + 7) / 8);
+  for (r = 0; r < rows; ++r) p[r / 8] = static_cast<uint8_t>(p[r / 8] | (diff[r] != 0 ? 1u << (r % 8) : 0u));
+  p += (rows + 7) / 8;
+  for (r = 0; r < rows; ++r) {
+    if (diff[r] == 0) continue;
+    for (size_t b = 0; b < rb; ++b) *p++ = static_cast<uint8_t>(diff[r] >> (8 * b));
   }
 
   // Per-vertex planes: fraction low bytes, fraction high bytes, normal u, normal v, material.
@@ -124,7 +135,7 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
     const mesh::Vec3f pos = m.positions[v];
     const int lower[3] = {x, y, z};
     const float frac = (&pos.x)[a] - static_cast<float>(lower[a]);
-    const auto q = static_cast<uint16_t>(std::clamp(std::lround(frac * kFractionSteps), 0L, long{kFractionSteps}));
+    const auto q = static_cast<uint16_t>(std::clamp(frac * kFractionSteps + 0.5f, 0.0f, float{kFractionSteps}));
     frac_lo[v] = static_cast<uint8_t>(q);
     frac_hi[v] = static_cast<uint8_t>(q >> 8);
     const auto n = encode_normal(m.normals[v]);
@@ -143,7 +154,9 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
   put_u32(p, crc32c(out.data(), size - kChecksumBytes));
 }
 
-Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits, CodecScratch& scratch) {
+std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits, CodecScratch& scratch,
+                                 mesh::ChunkMesh& m) {
+  m.clear();
   if (in.size() > limits.max_encoding_bytes) return Error{"mesh encoding larger than the limit"};
   if (in.size() < kHeaderBytes + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
   if (in[0] != kMeshFormat) return Error{"unknown mesh format " + std::to_string(in[0])};
@@ -155,23 +168,35 @@ Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLim
   if (vertices > kMaxVertices || triangles > kMaxTriangles || dropped > kMaxTriangles) {
     return Error{"mesh encoding declares impossible counts"};
   }
-  const size_t expected = kHeaderBytes + rows_section_bytes(cells) + 5 * size_t{vertices} + 4 * size_t{dropped} + kChecksumBytes;
-  if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
   if (crc32c(in.data(), in.size() - kChecksumBytes) != get_u32(in.data() + in.size() - kChecksumBytes)) {
     return Error{"mesh encoding checksum mismatch (corrupt, or a delta against the wrong base)"};
   }
+  const size_t rb = row_bytes(cells[0]);
+  const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
+  const size_t bitmap = (rows + 7) / 8;
+  if (in.size() < kHeaderBytes + bitmap + kChecksumBytes) return Error{"mesh encoding truncated (row bitmap)"};
+  const uint8_t* flags = in.data() + kHeaderBytes;
+  size_t nonzero = 0;
+  for (size_t r = 0; r < rows; ++r) nonzero += (flags[r / 8] >> (r % 8)) & 1;
+  for (size_t r = rows; r < bitmap * 8; ++r) {
+    if ((flags[r / 8] >> (r % 8)) & 1) return Error{"row bitmap flags rows beyond the chunk"};
+  }
+  const size_t expected = kHeaderBytes + bitmap + nonzero * rb + 5 * size_t{vertices} + 4 * size_t{dropped} + kChecksumBytes;
+  if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
 
   mesh::MeshScratch& t = scratch.topology;
-  const uint8_t* p = in.data() + kHeaderBytes;
-  const size_t rb = row_bytes(cells[0]);
+  const uint8_t* p = flags + bitmap;
   const uint64_t valid = mesh::detail::low_bits(cells[0] + 1);
   uint64_t previous = 0;
+  size_t r = 0;
   for (int z = 0; z <= cells[2]; ++z) {
-    for (int y = 0; y <= cells[1]; ++y) {
-      uint64_t x = 0;
-      for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(*p++) << (8 * b);
-      if (x & ~valid) return Error{"solid row has bits beyond the chunk"};
-      previous ^= x;
+    for (int y = 0; y <= cells[1]; ++y, ++r) {
+      if ((flags[r / 8] >> (r % 8)) & 1) {
+        uint64_t x = 0;
+        for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(*p++) << (8 * b);
+        if (x == 0 || (x & ~valid)) return Error{"solid row is zero or has bits beyond the chunk"};
+        previous ^= x;
+      }
       t.solid[row_of(y, z)] = previous;
     }
   }
@@ -184,7 +209,6 @@ Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLim
   const uint8_t* mat = nv + vertices;
   const uint8_t* drop = mat + vertices;
 
-  mesh::ChunkMesh m;
   m.positions.resize(vertices);
   m.normals.resize(vertices);
   m.materials.resize(vertices);
@@ -193,9 +217,10 @@ Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLim
   for_each_vertex(t, cells, [&](uint32_t i, int a, int x, int y, int z) {
     const unsigned q = frac_lo[i] | static_cast<unsigned>(frac_hi[i]) << 8;
     bad_fraction |= q > kFractionSteps;
-    mesh::Vec3f pos{static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
-    (&pos.x)[a] += static_cast<float>(q) / kFractionSteps;
-    m.positions[i] = pos;
+    const float f = static_cast<float>(q) * (1.0f / kFractionSteps);
+    // Selects instead of indexing a member by axis, which would force pos through memory.
+    m.positions[i] = {static_cast<float>(x) + (a == 0 ? f : 0.0f), static_cast<float>(y) + (a == 1 ? f : 0.0f),
+                      static_cast<float>(z) + (a == 2 ? f : 0.0f)};
     u = static_cast<uint8_t>(u + nu[i]);
     v = static_cast<uint8_t>(v + nv[i]);
     material = static_cast<uint8_t>(material + mat[i]);
@@ -211,17 +236,31 @@ Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLim
     if (k > 0 && d <= previous_drop) return Error{"dropped triangle list out of order"};
     previous_drop = d;
   }
-  m.indices.resize(mesh::max_triangles(t, cells) * 3);
+  // The buffer holds the declared table triangles; a mixed-cell pattern that yields more
+  // is refused instead of written past the end.
+  const size_t declared = size_t{triangles} + dropped;
+  m.indices.resize(declared * 3);
   uint32_t ordinal = 0, next_drop = 0;
   const size_t written = mesh::emit_triangles(t, cells, m.indices.data(), [&](uint32_t, uint32_t, uint32_t) {
+    if (ordinal >= declared) {
+      ++ordinal;
+      return false;
+    }
     const bool drop_it = next_drop < dropped && get_u32(drop + 4 * next_drop) == ordinal;
     next_drop += drop_it ? 1 : 0;
     ++ordinal;
     return !drop_it;
   });
+  if (ordinal != declared) return Error{"triangle count does not match the solid rows"};
   if (next_drop != dropped) return Error{"dropped triangle beyond the last triangle"};
   if (written != triangles) return Error{"triangle count does not match the solid rows"};
   m.indices.resize(written * 3);
+  return std::nullopt;
+}
+
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits, CodecScratch& scratch) {
+  mesh::ChunkMesh m;
+  if (auto error = decode_mesh(in, limits, scratch, m)) return *error;
   return m;
 }
 

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -31,6 +32,7 @@ struct DecodeLimits {
 // Scratch reused across calls: once warm, encode and decode allocate only the output.
 struct CodecScratch {
   mesh::MeshScratch topology;
+  std::array<uint64_t, mesh::kRows> row_diff;
   std::vector<uint32_t> triangles;
 };
 
@@ -40,7 +42,11 @@ struct CodecScratch {
 void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology, const std::array<int, 3>& cells,
                  CodecScratch& scratch, Bytes& out);
 
-// Rebuilds the mesh; never trusts the bytes: any inconsistency is an error value.
+// Rebuilds the mesh into `out` (its buffers reused); never trusts the bytes: any
+// inconsistency is an error (and `out` holds no meaningful mesh).
+std::optional<Error> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits, CodecScratch& scratch,
+                                 mesh::ChunkMesh& out);
+// The same, returning a new mesh.
 Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits,
                                     CodecScratch& scratch);
 Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits = {});

@@ -15,7 +15,7 @@ struct ZSTD_DCtx_s;
 
 namespace vox::proto {
 
-inline constexpr int kDefaultZstdLevel = 6;
+inline constexpr int kDefaultZstdLevel = 3;
 inline constexpr int kMaxWindowLog = 23;  // decompression never needs more than 8 MiB of window
 
 class ZstdCodec {

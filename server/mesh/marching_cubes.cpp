@@ -81,9 +81,9 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
           const int d0 = dens[i0], d1 = dens[i1];
           on_corner |= (d0 == 0) | (d1 == 0);
           const float t = static_cast<float>(d0) / static_cast<float>(d0 - d1);
-          Vec3f p{static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
-          (&p.x)[a] += t;
-          *pos++ = p;
+          // Selects instead of indexing a member by axis, which would force p through memory.
+          *pos++ = {static_cast<float>(x) + (a == 0 ? t : 0.0f), static_cast<float>(y) + (a == 1 ? t : 0.0f),
+                    static_cast<float>(z) + (a == 2 ? t : 0.0f)};
           const Vec3f g0 = gradient(dens, i0), g1 = gradient(dens, i1);
           Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)), -(g0.z + t * (g1.z - g0.z))};
           const float len2 = n.x * n.x + n.y * n.y + n.z * n.z;

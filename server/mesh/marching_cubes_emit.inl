@@ -43,18 +43,29 @@ size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uin
   uint32_t* idx = out;
   for (int z = 0; z < cells[2]; ++z) {
     for (int y = 0; y < cells[1]; ++y) {
+      uint64_t cells_left = detail::mixed_cells(s, cells[0], y, z);
+      if (cells_left == 0) continue;
       const uint64_t r00 = s.solid[detail::row_of(y, z)], r10 = s.solid[detail::row_of(y + 1, z)],
                      r01 = s.solid[detail::row_of(y, z + 1)], r11 = s.solid[detail::row_of(y + 1, z + 1)];
-      for (uint64_t cells_left = detail::mixed_cells(s, cells[0], y, z); cells_left != 0; cells_left &= cells_left - 1) {
+      // Per edge of this row of cells: the cut mask and first vertex of the row it lies in.
+      uint64_t edge_cut[12];
+      uint32_t edge_first[12];
+      for (int e = 0; e < 12; ++e) {
+        const detail::EdgeSlot slot = detail::kEdgeSlot[e];
+        const int r = detail::row_of(y + slot.dy, z + slot.dz);
+        edge_cut[e] = s.cut[slot.axis][r];
+        edge_first[e] = s.first_vertex[slot.axis][r];
+      }
+      for (; cells_left != 0; cells_left &= cells_left - 1) {
         const int x = std::countr_zero(cells_left);
         const unsigned cube_index = detail::cube_index(r00, r10, r01, r11, x);
+        // Cut edges before this cell's lower corner (dx = 0) or upper corner (dx = 1).
+        const uint64_t before[2] = {detail::low_bits(x), detail::low_bits(x + 1)};
         uint32_t vertex[12];
         for (unsigned edges = edgeTable[cube_index]; edges != 0; edges &= edges - 1) {
           const int e = std::countr_zero(edges);
-          const detail::EdgeSlot slot = detail::kEdgeSlot[e];
-          const int r = detail::row_of(y + slot.dy, z + slot.dz);
-          vertex[e] = s.first_vertex[slot.axis][r] +
-                      static_cast<uint32_t>(std::popcount(s.cut[slot.axis][r] & detail::low_bits(x + slot.dx)));
+          vertex[e] = edge_first[e] +
+                      static_cast<uint32_t>(std::popcount(edge_cut[e] & before[detail::kEdgeSlot[e].dx]));
         }
         for (const int8_t* tri = triTable[cube_index].data(); *tri >= 0; tri += 3) {
           const uint32_t a = vertex[tri[0]], b = vertex[tri[1]], c = vertex[tri[2]];
