@@ -193,11 +193,11 @@ BENCHMARK(BM_DecompressAndDecode)->Unit(benchmark::kMicrosecond);
 void BM_DeltaAfterBrushRadius2(benchmark::State& state) {
   const world::TerrainGenerator gen(1);
   std::mt19937 rng(5);
-  proto::ZstdCodec zstd;
+  proto::ZstdCodec zstd(proto::kDefaultZstdLevel, static_cast<int>(state.range(0)));
   std::vector<double> ratios;
   size_t delta_bytes = 0, full_bytes = 0;
   for (auto _ : state) {
-    for (int k = 0; k < 200; ++k) {
+    for (int k = 0; k < 2000; ++k) {
       const float x = static_cast<float>(-8 * 32 + static_cast<int>(rng() % (16 * 32)));
       const float z = static_cast<float>(-8 * 32 + static_cast<int>(rng() % (16 * 32)));
       const float y = gen.height_at(static_cast<int>(x), static_cast<int>(z));
@@ -228,7 +228,7 @@ void BM_DeltaAfterBrushRadius2(benchmark::State& state) {
   state.counters["mean_delta_bytes"] = static_cast<double>(delta_bytes) / static_cast<double>(ratios.size());
   state.counters["mean_full_bytes"] = static_cast<double>(full_bytes) / static_cast<double>(ratios.size());
 }
-BENCHMARK(BM_DeltaAfterBrushRadius2)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DeltaAfterBrushRadius2)->Arg(3)->Arg(5)->Arg(7)->Arg(9)->Iterations(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
@@ -238,7 +238,7 @@ namespace {
 void BM_ZstdCompressLevel(benchmark::State& state) {
   const auto& all = samples();
   proto::ZstdCodec zstd(static_cast<int>(state.range(0)));
-  std::vector<uint8_t> frame;
+  std::vector<uint8_t> frame;  // full messages at this level
   size_t i = 0, bytes = 0, tris = 0;
   for (auto _ : state) {
     zstd.compress(all[i].encoding, {}, frame);
@@ -248,11 +248,11 @@ void BM_ZstdCompressLevel(benchmark::State& state) {
   }
   state.counters["B_per_tri"] = static_cast<double>(bytes) / static_cast<double>(tris);
 }
-BENCHMARK(BM_ZstdCompressLevel)->Arg(1)->Arg(3)->Arg(6)->Arg(9)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ZstdCompressLevel)->Arg(-5)->Arg(-1)->Arg(1)->Arg(3)->Arg(6)->Arg(9)->Unit(benchmark::kMicrosecond);
 
 void BM_ZstdDecompress(benchmark::State& state) {
   const auto& all = samples();
-  proto::ZstdCodec zstd;
+  proto::ZstdCodec zstd(static_cast<int>(state.range(0)));
   std::vector<std::vector<uint8_t>> frames(all.size());
   for (size_t i = 0; i < all.size(); ++i) zstd.compress(all[i].encoding, {}, frames[i]);
   size_t i = 0;
@@ -261,7 +261,7 @@ void BM_ZstdDecompress(benchmark::State& state) {
     i = (i + 1) % all.size();
   }
 }
-BENCHMARK(BM_ZstdDecompress)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ZstdDecompress)->Arg(-5)->Arg(-1)->Arg(1)->Arg(3)->Unit(benchmark::kMicrosecond);
 
 void BM_DecodeOnly(benchmark::State& state) {
   const auto& all = samples();

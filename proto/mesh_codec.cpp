@@ -56,13 +56,11 @@ std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n) {
 }
 
 mesh::Vec3f decode_normal(uint8_t u, uint8_t v) {
-  float x = static_cast<float>(u) / 255.0f * 2.0f - 1.0f, y = static_cast<float>(v) / 255.0f * 2.0f - 1.0f;
-  const float z = 1.0f - std::fabs(x) - std::fabs(y);
-  if (z < 0.0f) {
-    const float ox = (1.0f - std::fabs(y)) * sign_not_zero(x), oy = (1.0f - std::fabs(x)) * sign_not_zero(y);
-    x = ox;
-    y = oy;
-  }
+  const float px = static_cast<float>(u) * (2.0f / 255.0f) - 1.0f, py = static_cast<float>(v) * (2.0f / 255.0f) - 1.0f;
+  const float z = 1.0f - std::fabs(px) - std::fabs(py);
+  // Lower hemisphere (z < 0): unfold. Written as selects so that it compiles branch-free.
+  const float fx = (1.0f - std::fabs(py)) * std::copysign(1.0f, px), fy = (1.0f - std::fabs(px)) * std::copysign(1.0f, py);
+  const float x = z < 0.0f ? fx : px, y = z < 0.0f ? fy : py;
   const float inv = 1.0f / std::sqrt(x * x + y * y + z * z);
   return {x * inv, y * inv, z * inv};
 }
@@ -124,13 +122,14 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
     for (size_t b = 0; b < rb; ++b) *p++ = static_cast<uint8_t>(diff[r] >> (8 * b));
   }
 
-  // Per-vertex planes: fraction low bytes, fraction high bytes, normal u, normal v, material.
+  // Per-vertex planes: fraction low bytes, fraction high bytes, normal u, normal v, and
+  // material as the difference from the previous vertex's (mod 256).
   uint8_t* frac_lo = p;
   uint8_t* frac_hi = frac_lo + vertices;
   uint8_t* nu = frac_hi + vertices;
   uint8_t* nv = nu + vertices;
   uint8_t* mat = nv + vertices;
-  uint8_t prev_u = 0, prev_v = 0, prev_m = 0;
+  uint8_t prev_m = 0;
   for_each_vertex(t, cells, [&](uint32_t v, int a, int x, int y, int z) {
     const mesh::Vec3f pos = m.positions[v];
     const int lower[3] = {x, y, z};
@@ -139,11 +138,9 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
     frac_lo[v] = static_cast<uint8_t>(q);
     frac_hi[v] = static_cast<uint8_t>(q >> 8);
     const auto n = encode_normal(m.normals[v]);
-    nu[v] = static_cast<uint8_t>(n[0] - prev_u);
-    nv[v] = static_cast<uint8_t>(n[1] - prev_v);
+    nu[v] = n[0];
+    nv[v] = n[1];
     mat[v] = static_cast<uint8_t>(m.materials[v] - prev_m);
-    prev_u = n[0];
-    prev_v = n[1];
     prev_m = m.materials[v];
   });
   p = mat + vertices;
@@ -193,7 +190,8 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
     for (int y = 0; y <= cells[1]; ++y, ++r) {
       if ((flags[r / 8] >> (r % 8)) & 1) {
         uint64_t x = 0;
-        for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(*p++) << (8 * b);
+        for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(p[b]) << (8 * b);
+        p += rb;
         if (x == 0 || (x & ~valid)) return Error{"solid row is zero or has bits beyond the chunk"};
         previous ^= x;
       }
@@ -212,20 +210,22 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   m.positions.resize(vertices);
   m.normals.resize(vertices);
   m.materials.resize(vertices);
+  // Raw pointers: byte stores may alias anything, so vector members would be reloaded.
+  mesh::Vec3f* out_pos = m.positions.data();
+  mesh::Vec3f* out_nrm = m.normals.data();
+  uint8_t* out_mat = m.materials.data();
   bool bad_fraction = false;
-  uint8_t u = 0, v = 0, material = 0;
+  uint8_t material = 0;
   for_each_vertex(t, cells, [&](uint32_t i, int a, int x, int y, int z) {
     const unsigned q = frac_lo[i] | static_cast<unsigned>(frac_hi[i]) << 8;
     bad_fraction |= q > kFractionSteps;
     const float f = static_cast<float>(q) * (1.0f / kFractionSteps);
     // Selects instead of indexing a member by axis, which would force pos through memory.
-    m.positions[i] = {static_cast<float>(x) + (a == 0 ? f : 0.0f), static_cast<float>(y) + (a == 1 ? f : 0.0f),
+    out_pos[i] = {static_cast<float>(x) + (a == 0 ? f : 0.0f), static_cast<float>(y) + (a == 1 ? f : 0.0f),
                       static_cast<float>(z) + (a == 2 ? f : 0.0f)};
-    u = static_cast<uint8_t>(u + nu[i]);
-    v = static_cast<uint8_t>(v + nv[i]);
     material = static_cast<uint8_t>(material + mat[i]);
-    m.normals[i] = decode_normal(u, v);
-    m.materials[i] = material;
+    out_nrm[i] = decode_normal(nu[i], nv[i]);
+    out_mat[i] = material;
   });
   if (bad_fraction) return Error{"edge fraction over 1024"};
 

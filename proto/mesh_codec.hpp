@@ -3,8 +3,8 @@
 // A chunk mesh from the marching-cubes mesher is fixed by the samples' solid bits (which
 // give the cut edges, the vertex order and, through the published tables, the triangles)
 // plus, per vertex, the fraction along its edge, a normal and a material. The encoding
-// sends exactly that: solid-bit rows xor-ed with the previous row, then per-vertex byte
-// planes. Indices are not sent, so inserting vertices never rewrites later indices, and
+// sends exactly that: solid-bit rows xor-ed with the previous row (only the rows where
+// that is not zero), then per-vertex byte planes. Indices are not sent, so inserting vertices never rewrites later indices, and
 // a local edit changes a local run of bytes in each section (good for zstd deltas).
 #pragma once
 

@@ -8,7 +8,8 @@
 
 namespace vox::proto {
 
-ZstdCodec::ZstdCodec(int level) : cctx_(ZSTD_createCCtx()), dctx_(ZSTD_createDCtx()), level_(level) {
+ZstdCodec::ZstdCodec(int level, int delta_level)
+    : cctx_(ZSTD_createCCtx()), dctx_(ZSTD_createDCtx()), level_(level), delta_level_(delta_level) {
   if (cctx_ == nullptr || dctx_ == nullptr) throw std::bad_alloc();
   ZSTD_DCtx_setParameter(dctx_, ZSTD_d_windowLogMax, kMaxWindowLog);
 }
@@ -20,7 +21,7 @@ ZstdCodec::~ZstdCodec() {
 
 void ZstdCodec::compress(std::span<const uint8_t> data, std::span<const uint8_t> base, std::vector<uint8_t>& out) {
   ZSTD_CCtx_reset(cctx_, ZSTD_reset_session_and_parameters);
-  ZSTD_CCtx_setParameter(cctx_, ZSTD_c_compressionLevel, level_);
+  ZSTD_CCtx_setParameter(cctx_, ZSTD_c_compressionLevel, base.empty() ? level_ : delta_level_);
   ZSTD_CCtx_setParameter(cctx_, ZSTD_c_contentSizeFlag, 1);
   if (!base.empty()) ZSTD_CCtx_refPrefix(cctx_, base.data(), base.size());
   out.resize(ZSTD_compressBound(data.size()));

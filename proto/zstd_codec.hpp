@@ -15,12 +15,15 @@ struct ZSTD_DCtx_s;
 
 namespace vox::proto {
 
-inline constexpr int kDefaultZstdLevel = 3;
+// Full messages favour fast decoding (every client decodes each one); deltas are small,
+// computed once per (chunk, base, version) and shared, so they get a stronger level.
+inline constexpr int kDefaultZstdLevel = 1;
+inline constexpr int kDefaultDeltaLevel = 7;
 inline constexpr int kMaxWindowLog = 23;  // decompression never needs more than 8 MiB of window
 
 class ZstdCodec {
  public:
-  explicit ZstdCodec(int level = kDefaultZstdLevel);
+  explicit ZstdCodec(int level = kDefaultZstdLevel, int delta_level = kDefaultDeltaLevel);
   ~ZstdCodec();
   ZstdCodec(const ZstdCodec&) = delete;
   ZstdCodec& operator=(const ZstdCodec&) = delete;
@@ -35,7 +38,7 @@ class ZstdCodec {
  private:
   ZSTD_CCtx_s* cctx_;
   ZSTD_DCtx_s* dctx_;
-  int level_;
+  int level_, delta_level_;
 };
 
 }  // namespace vox::proto
