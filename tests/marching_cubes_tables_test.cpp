@@ -1,7 +1,10 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <fstream>
 #include <random>
+#include <sstream>
+#include <string>
 
 #include "server/mesh/marching_cubes.hpp"
 #include "server/mesh/marching_cubes_tables.hpp"
@@ -132,6 +135,37 @@ TEST(MarchingCubes, EveryConfigurationWindsTrianglesTowardAir) {
     }
     EXPECT_GT(case_total, 0.0f) << "case " << cube;
   }
+}
+
+}  // namespace
+}  // namespace vox::mesh
+
+namespace vox::mesh {
+namespace {
+
+// docs/marching_cubes_tables.txt is what a client in another language decodes with; it
+// must say exactly what the code does.
+TEST(MarchingCubesTables, PublishedTableFileMatchesTheCode) {
+  std::ifstream in(std::string(VOXEL_SOURCE_DIR) + "/docs/marching_cubes_tables.txt");
+  ASSERT_TRUE(in) << "docs/marching_cubes_tables.txt is missing";
+  std::string line;
+  int expected_case = 0;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream fields(line);
+    int c = -1;
+    std::string mask;
+    fields >> c >> mask;
+    ASSERT_EQ(c, expected_case);
+    EXPECT_EQ(std::stoi(mask, nullptr, 16), edgeTable[c]) << "case " << c;
+    std::vector<int> edges;
+    for (int e; fields >> e;) edges.push_back(e);
+    std::vector<int> code;
+    for (int k = 0; k < 16 && triTable[c][k] >= 0; ++k) code.push_back(triTable[c][k]);
+    EXPECT_EQ(edges, code) << "case " << c;
+    ++expected_case;
+  }
+  EXPECT_EQ(expected_case, 256);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <random>
 
+#include "proto/crc32c.hpp"
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
 #include "server/mesh/marching_cubes.hpp"
@@ -255,5 +256,49 @@ TEST(MeshCodec, OctahedralNormalsRoundTrip) {
   }
 }
 
+}  // namespace
+}  // namespace vox::proto
+
+namespace vox::proto {
+namespace {
+
+// The worked example of docs/PROTOCOL.md: one cell, only corner (0,0,0) solid.
+TEST(MeshCodec, WorkedExampleOfTheProtocolDocument) {
+  mesh::PaddedBlock block;
+  block.cells = {1, 1, 1};
+  for (int z = -1; z <= 33; ++z)
+    for (int y = -1; y <= 33; ++y)
+      for (int x = -1; x <= 33; ++x) {
+        const int i = mesh::PaddedBlock::index(x, y, z);
+        const bool corner = x <= 0 && y <= 0 && z <= 0;
+        block.density[i] = corner ? 16384 : -16384;
+        block.material[i] = corner ? 3 : 0;
+      }
+  const Encoded e = mesh_and_encode(block);
+  const Bytes documented = {0x01, 0x01, 0x01, 0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x00,
+                            0x00, 0x00, 0x00, 0x03, 0x01, 0x01, 0x00, 0x00, 0x00, 0x02, 0x02, 0x02, 0xbf,
+                            0x9f, 0x9f, 0x9f, 0xbf, 0x9f, 0x03, 0x00, 0x00, 0xe4, 0x27, 0x39, 0xaa};
+  EXPECT_EQ(e.encoding, documented);
+  auto m = decode_mesh(documented);
+  ASSERT_TRUE(m) << m.error();
+  ASSERT_EQ(m->vertex_count(), 3u);
+  EXPECT_EQ(m->positions[0], (mesh::Vec3f{0.5f, 0, 0}));
+  EXPECT_EQ(m->positions[1], (mesh::Vec3f{0, 0.5f, 0}));
+  EXPECT_EQ(m->positions[2], (mesh::Vec3f{0, 0, 0.5f}));
+  EXPECT_EQ(m->indices, (mesh::Buffer<uint32_t>{0, 1, 2}));
+  EXPECT_NEAR(m->normals[0].x, 0.8165f, 0.01f);
+  EXPECT_EQ(m->materials[2], 3);
+}
+
+}  // namespace
+}  // namespace vox::proto
+
+namespace vox::proto {
+namespace {
+TEST(Crc32c, MatchesTheStandardCheckValue) {
+  const std::string s = "123456789";
+  EXPECT_EQ(crc32c(reinterpret_cast<const uint8_t*>(s.data()), s.size()), 0xE3069283u);
+  EXPECT_EQ(crc32c(nullptr, 0), 0u);
+}
 }  // namespace
 }  // namespace vox::proto
