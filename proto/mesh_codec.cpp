@@ -188,7 +188,7 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   size_t r = 0;
   for (int z = 0; z <= cells[2]; ++z) {
     for (int y = 0; y <= cells[1]; ++y, ++r) {
-      if ((flags[r / 8] >> (r % 8)) & 1) {
+      if (flags[r / 8] != 0 && ((flags[r / 8] >> (r % 8)) & 1)) {
         uint64_t x = 0;
         for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(p[b]) << (8 * b);
         p += rb;
@@ -223,11 +223,14 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
     // Selects instead of indexing a member by axis, which would force pos through memory.
     out_pos[i] = {static_cast<float>(x) + (a == 0 ? f : 0.0f), static_cast<float>(y) + (a == 1 ? f : 0.0f),
                       static_cast<float>(z) + (a == 2 ? f : 0.0f)};
-    material = static_cast<uint8_t>(material + mat[i]);
-    out_nrm[i] = decode_normal(nu[i], nv[i]);
-    out_mat[i] = material;
   });
   if (bad_fraction) return Error{"edge fraction over 1024"};
+  // Normals and materials do not depend on the edge: plain loops.
+  for (uint32_t i = 0; i < vertices; ++i) out_nrm[i] = decode_normal(nu[i], nv[i]);
+  for (uint32_t i = 0; i < vertices; ++i) {
+    material = static_cast<uint8_t>(material + mat[i]);
+    out_mat[i] = material;
+  }
 
   // Triangles: every table triangle of the mixed cells, minus the dropped ordinals.
   uint32_t previous_drop = 0;

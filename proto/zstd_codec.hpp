@@ -17,7 +17,7 @@ namespace vox::proto {
 
 // Full messages favour fast decoding (every client decodes each one); deltas are small,
 // computed once per (chunk, base, version) and shared, so they get a stronger level.
-inline constexpr int kDefaultZstdLevel = 1;
+inline constexpr int kDefaultZstdLevel = -1;
 inline constexpr int kDefaultDeltaLevel = 7;
 inline constexpr int kMaxWindowLog = 23;  // decompression never needs more than 8 MiB of window
 
