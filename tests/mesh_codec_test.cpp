@@ -238,6 +238,15 @@ TEST(MeshCodec, SurvivesMutatedAndRandomInput) {
       if (out) decoded_ok += decode_mesh(*out) ? 1 : 0;
     } else {
       decoded_ok += decode_mesh(buf) ? 1 : 0;
+      // With the checksum fixed up, the structural checks behind it must hold on their own.
+      if (buf.size() >= 4) {
+        const uint32_t crc = crc32c(buf.data(), buf.size() - 4);
+        for (int i = 0; i < 4; ++i) buf[buf.size() - 4 + i] = static_cast<uint8_t>(crc >> (8 * i));
+        auto m = decode_mesh(buf);
+        if (m) {
+          for (uint32_t index : m->indices) ASSERT_LT(index, m->vertex_count());
+        }
+      }
     }
   }
   EXPECT_LT(decoded_ok, 40u) << "the checksum should catch nearly every corruption";
