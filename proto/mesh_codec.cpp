@@ -7,6 +7,10 @@
 
 #include "proto/crc32c.hpp"
 
+#if defined(__SSE__)
+#include <xmmintrin.h>
+#endif
+
 namespace vox::proto {
 namespace {
 
@@ -33,10 +37,14 @@ float sign_not_zero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
 template <class Fn>
 void for_each_vertex(const mesh::MeshScratch& t, const std::array<int, 3>& cells, Fn&& fn) {
   uint32_t v = 0;
-  for (int z = 0; z <= cells[2]; ++z)
-    for (int y = 0; y <= cells[1]; ++y)
+  for (int z = 0; z <= cells[2]; ++z) {
+    for (int y = 0; y <= cells[1]; ++y) {
+      const int r = row_of(y, z);
+      if ((t.cut[0][r] | t.cut[1][r] | t.cut[2][r]) == 0) continue;  // most rows: far from the surface
       for (int a = 0; a < 3; ++a)
-        for (uint64_t bits = t.cut[a][row_of(y, z)]; bits != 0; bits &= bits - 1) fn(v++, a, std::countr_zero(bits), y, z);
+        for (uint64_t bits = t.cut[a][r]; bits != 0; bits &= bits - 1) fn(v++, a, std::countr_zero(bits), y, z);
+    }
+  }
 }
 
 }  // namespace
@@ -55,15 +63,30 @@ std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n) {
   return {q(px), q(py)};
 }
 
-mesh::Vec3f decode_normal(uint8_t u, uint8_t v) {
+// 1/sqrt(x) to about 1e-7 relative: the hardware estimate refined by one Newton step
+// (much cheaper than sqrt and divide, which dominated decoding).
+inline float inverse_sqrt(float x) {
+#if defined(__SSE__)
+  const float r = _mm_cvtss_f32(_mm_rsqrt_ss(_mm_set_ss(x)));
+  return r * (1.5f - 0.5f * x * r * r);
+#else
+  return 1.0f / std::sqrt(x);
+#endif
+}
+
+namespace {
+inline mesh::Vec3f decode_normal_inline(uint8_t u, uint8_t v) {
   const float px = static_cast<float>(u) * (2.0f / 255.0f) - 1.0f, py = static_cast<float>(v) * (2.0f / 255.0f) - 1.0f;
   const float z = 1.0f - std::fabs(px) - std::fabs(py);
   // Lower hemisphere (z < 0): unfold. Written as selects so that it compiles branch-free.
   const float fx = (1.0f - std::fabs(py)) * std::copysign(1.0f, px), fy = (1.0f - std::fabs(px)) * std::copysign(1.0f, py);
   const float x = z < 0.0f ? fx : px, y = z < 0.0f ? fy : py;
-  const float inv = 1.0f / std::sqrt(x * x + y * y + z * z);
+  const float inv = inverse_sqrt(x * x + y * y + z * z);
   return {x * inv, y * inv, z * inv};
 }
+}  // namespace
+
+mesh::Vec3f decode_normal(uint8_t u, uint8_t v) { return decode_normal_inline(u, v); }
 
 void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std::array<int, 3>& cells,
                  CodecScratch& scratch, Bytes& out) {
@@ -188,7 +211,7 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   size_t r = 0;
   for (int z = 0; z <= cells[2]; ++z) {
     for (int y = 0; y <= cells[1]; ++y, ++r) {
-      if (flags[r / 8] != 0 && ((flags[r / 8] >> (r % 8)) & 1)) {
+      if ((flags[r / 8] >> (r % 8)) & 1) {
         uint64_t x = 0;
         for (size_t b = 0; b < rb; ++b) x |= static_cast<uint64_t>(p[b]) << (8 * b);
         p += rb;
@@ -226,7 +249,7 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   });
   if (bad_fraction) return Error{"edge fraction over 1024"};
   // Normals and materials do not depend on the edge: plain loops.
-  for (uint32_t i = 0; i < vertices; ++i) out_nrm[i] = decode_normal(nu[i], nv[i]);
+  for (uint32_t i = 0; i < vertices; ++i) out_nrm[i] = decode_normal_inline(nu[i], nv[i]);
   for (uint32_t i = 0; i < vertices; ++i) {
     material = static_cast<uint8_t>(material + mat[i]);
     out_mat[i] = material;

@@ -30,19 +30,27 @@ void ZstdCodec::compress(std::span<const uint8_t> data, std::span<const uint8_t>
   out.resize(n);
 }
 
-Result<std::vector<uint8_t>> ZstdCodec::decompress(std::span<const uint8_t> frame, std::span<const uint8_t> base,
-                                                    size_t max_bytes) {
+std::optional<Error> ZstdCodec::decompress_into(std::span<const uint8_t> frame, std::span<const uint8_t> base,
+                                                size_t max_bytes, mesh::Buffer<uint8_t>& out) {
+  out.clear();
   const unsigned long long declared = ZSTD_getFrameContentSize(frame.data(), frame.size());
   if (declared == ZSTD_CONTENTSIZE_ERROR) return Error{"not a zstd frame"};
   if (declared == ZSTD_CONTENTSIZE_UNKNOWN) return Error{"zstd frame does not declare its size"};
   if (declared > max_bytes) return Error{"zstd frame declares " + std::to_string(declared) + " bytes, over the limit"};
   ZSTD_DCtx_reset(dctx_, ZSTD_reset_session_only);
   if (!base.empty()) ZSTD_DCtx_refPrefix(dctx_, base.data(), base.size());
-  std::vector<uint8_t> out(static_cast<size_t>(declared));
+  out.resize(static_cast<size_t>(declared));
   const size_t n = ZSTD_decompressDCtx(dctx_, out.data(), out.size(), frame.data(), frame.size());
   if (ZSTD_isError(n)) return Error{std::string("zstd: ") + ZSTD_getErrorName(n)};
   if (n != declared) return Error{"zstd frame decoded to a different size than declared"};
-  return out;
+  return std::nullopt;
+}
+
+Result<std::vector<uint8_t>> ZstdCodec::decompress(std::span<const uint8_t> frame, std::span<const uint8_t> base,
+                                                    size_t max_bytes) {
+  mesh::Buffer<uint8_t> out;
+  if (auto error = decompress_into(frame, base, max_bytes, out)) return *error;
+  return std::vector<uint8_t>(out.begin(), out.end());
 }
 
 }  // namespace vox::proto

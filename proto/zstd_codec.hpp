@@ -5,9 +5,11 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
+#include "mesh/chunk_mesh.hpp"
 #include "proto/result.hpp"
 
 struct ZSTD_CCtx_s;
@@ -34,6 +36,9 @@ class ZstdCodec {
   // any frame that does not decode to exactly its declared size.
   Result<std::vector<uint8_t>> decompress(std::span<const uint8_t> frame, std::span<const uint8_t> base,
                                           size_t max_bytes);
+  // The same into a caller-owned buffer (its capacity reused; nothing is zero-filled).
+  std::optional<Error> decompress_into(std::span<const uint8_t> frame, std::span<const uint8_t> base, size_t max_bytes,
+                                       mesh::Buffer<uint8_t>& out);
 
  private:
   ZSTD_CCtx_s* cctx_;
