@@ -1,10 +1,33 @@
 #include "pipeline/mesh_store.hpp"
 
+#include "proto/zstd_codec.hpp"
+
 namespace vox::pipeline {
 
 size_t MeshVersion::memory_bytes() const {
   return sizeof(MeshVersion) + mesh.positions.capacity() * sizeof(mesh::Vec3f) +
-         mesh.normals.capacity() * sizeof(mesh::Vec3f) + mesh.materials.capacity() + mesh.indices.capacity() * 4;
+         mesh.normals.capacity() * sizeof(mesh::Vec3f) + mesh.materials.capacity() + mesh.indices.capacity() * 4 +
+         encoding.capacity() + full_frame.capacity();
+}
+
+std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVersion& base) const {
+  {
+    std::lock_guard lock(deltas_mutex_);
+    for (const auto& [from, delta] : deltas_) {
+      if (from == base.version) return delta;
+    }
+  }
+  thread_local proto::ZstdCodec zstd;
+  auto delta = std::make_shared<std::vector<uint8_t>>();
+  zstd.compress(encoding, base.encoding, *delta);
+  std::lock_guard lock(deltas_mutex_);
+  for (const auto& [from, existing] : deltas_) {
+    if (from == base.version) return existing;  // another thread made it meanwhile
+  }
+  constexpr size_t kKeptDeltas = 8;  // the most recent bases; older clients get a fresh one made
+  if (deltas_.size() >= kKeptDeltas) deltas_.erase(deltas_.begin());
+  deltas_.emplace_back(base.version, delta);
+  return delta;
 }
 
 MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {

@@ -9,6 +9,7 @@
 #include <memory>
 #include <mutex>
 #include <unordered_map>
+#include <vector>
 
 #include "mesh/chunk_mesh.hpp"
 #include "world/chunk_coord.hpp"
@@ -19,7 +20,18 @@ struct MeshVersion {
   world::ChunkCoord coord;
   uint64_t version = 0;  // increases with every publication (so also per chunk)
   mesh::ChunkMesh mesh;  // chunk-local positions
+  std::vector<uint8_t> encoding;    // the wire encoding (docs/PROTOCOL.md section 2)
+  std::vector<uint8_t> full_frame;  // zstd frame of `encoding`: a full ChunkMesh payload
   size_t memory_bytes() const;
+
+  // The delta payload that turns `base` (an older version of this chunk) into this one:
+  // computed on first request, then shared by every client holding the same base.
+  // Any thread.
+  std::shared_ptr<const std::vector<uint8_t>> delta_from(const MeshVersion& base) const;
+
+ private:
+  mutable std::mutex deltas_mutex_;  // leaf lock; compression runs outside it
+  mutable std::vector<std::pair<uint64_t, std::shared_ptr<const std::vector<uint8_t>>>> deltas_;
 };
 using MeshVersionPtr = std::shared_ptr<const MeshVersion>;
 

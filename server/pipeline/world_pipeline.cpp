@@ -8,6 +8,8 @@
 #include <unordered_set>
 
 #include "mesh/marching_cubes.hpp"
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
 #include "world/edit_apply.hpp"
 #include "world/parallel.hpp"
 
@@ -22,6 +24,8 @@ namespace {
 struct MeshWorker {
   mesh::PaddedBlock block;
   mesh::MeshScratch scratch;
+  proto::CodecScratch codec;
+  proto::ZstdCodec zstd;
 };
 
 bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
@@ -288,6 +292,9 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
     mesh::gather_padded_block(st.chunks, dirty[i], w.block);
     mesh::mesh_chunk(w.block, w.scratch, version->mesh);
     if (previous[i] && same_mesh(previous[i]->mesh, version->mesh)) return;
+    // Encoded once here, while the mesher's topology is at hand; every client shares it.
+    proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
+    w.zstd.compress(version->encoding, {}, version->full_frame);
     fresh[i] = std::move(version);
   });
   std::vector<ChunkCoord> published;

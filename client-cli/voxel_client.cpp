@@ -1,0 +1,135 @@
+#include "client-cli/voxel_client.hpp"
+
+#include <stdexcept>
+
+namespace vox::client {
+
+namespace asio = boost::asio;
+
+Client::Client() : socket_(io_) {}
+Client::~Client() {
+  boost::system::error_code ignored;
+  socket_.close(ignored);
+}
+
+void Client::connect(const std::string& host, uint16_t port, std::chrono::milliseconds timeout) {
+  asio::ip::tcp::resolver resolver(io_);
+  boost::system::error_code ec;
+  const auto endpoints = resolver.resolve(host, std::to_string(port), ec);
+  if (ec) throw std::runtime_error("cannot resolve " + host + ": " + ec.message());
+  bool done = false;
+  asio::async_connect(socket_, endpoints, [&](boost::system::error_code e, const asio::ip::tcp::endpoint&) {
+    ec = e;
+    done = true;
+  });
+  io_.restart();
+  io_.run_for(timeout);
+  if (!done) {
+    socket_.close(ec);
+    throw std::runtime_error("cannot connect to " + host + ":" + std::to_string(port) + ": timed out");
+  }
+  if (ec) throw std::runtime_error("cannot connect to " + host + ":" + std::to_string(port) + ": " + ec.message());
+  socket_.set_option(asio::ip::tcp::no_delay(true), ec);
+}
+
+wire::Welcome Client::handshake(const std::string& name, std::chrono::milliseconds timeout) {
+  send(make_hello(name));
+  const auto deadline = Clock::now() + timeout;
+  while (Clock::now() < deadline) {
+    auto m = receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    if (!m) break;
+    if (m->has_welcome()) return m->welcome();
+    if (m->has_error()) throw std::runtime_error("server refused: " + m->error().message());
+  }
+  throw std::runtime_error(closed_ ? "server closed the connection during the handshake" : "no Welcome in time");
+}
+
+void Client::send(const wire::Envelope& message) {
+  std::vector<uint8_t> frame;
+  const std::string body = message.SerializeAsString();
+  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);
+  send_raw(frame);
+}
+
+void Client::send_raw(std::span<const uint8_t> bytes) {
+  boost::system::error_code ec;
+  asio::write(socket_, asio::buffer(bytes.data(), bytes.size()), ec);
+  if (ec) closed_ = true;
+}
+
+std::optional<wire::Envelope> Client::receive(std::chrono::milliseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  for (;;) {
+    if (auto frame = decoder_.next()) {
+      wire::Envelope m;
+      if (!m.ParseFromArray(frame->data(), static_cast<int>(frame->size()))) {
+        closed_ = true;
+        return std::nullopt;
+      }
+      return m;
+    }
+    if (closed_ || Clock::now() >= deadline) return std::nullopt;
+    bool done = false;
+    socket_.async_read_some(asio::buffer(buffer_), [&](boost::system::error_code ec, size_t n) {
+      done = true;
+      if (ec == asio::error::operation_aborted) return;  // our own deadline
+      if (ec) {
+        closed_ = true;
+        return;
+      }
+      decoder_.feed({buffer_.data(), n});
+    });
+    io_.restart();
+    io_.run_until(deadline);
+    if (!done) {  // deadline: cancel the read and let its handler run
+      socket_.cancel();
+      io_.restart();
+      io_.run();
+      return std::nullopt;
+    }
+  }
+}
+
+std::optional<std::string> Client::apply(const wire::ChunkMesh& m) {
+  const auto key = std::make_tuple(m.coord().x(), m.coord().y(), m.coord().z());
+  HeldChunk& held = chunks_[key];
+  const std::span<const uint8_t> payload(reinterpret_cast<const uint8_t*>(m.payload().data()), m.payload().size());
+  std::span<const uint8_t> base;
+  if (m.base_version() != 0) {
+    if (held.version != m.base_version()) {
+      return "delta against version " + std::to_string(m.base_version()) + " but the client holds " +
+             std::to_string(held.version);
+    }
+    base = held.encoding;
+  }
+  auto encoding = zstd_.decompress(payload, base, proto::DecodeLimits{}.max_encoding_bytes);
+  if (!encoding) return encoding.error();
+  mesh::ChunkMesh decoded;
+  if (auto error = proto::decode_mesh(*encoding, {}, scratch_, decoded)) return error->message;
+  held.version = m.version();
+  held.encoding = std::move(*encoding);
+  return std::nullopt;
+}
+
+void Client::forget(const wire::ChunkUnload& u) {
+  for (const auto& c : u.coords()) chunks_.erase(std::make_tuple(c.x(), c.y(), c.z()));
+}
+
+wire::Envelope make_hello(const std::string& name, uint32_t version) {
+  wire::Envelope m;
+  m.mutable_hello()->set_protocol_version(version);
+  m.mutable_hello()->set_player_name(name);
+  return m;
+}
+
+wire::Envelope make_set_view(float x, float y, float z, uint32_t radius) {
+  wire::Envelope m;
+  auto* v = m.mutable_set_view();
+  v->mutable_position()->set_x(x);
+  v->mutable_position()->set_y(y);
+  v->mutable_position()->set_z(z);
+  v->set_radius(radius);
+  return m;
+}
+
+}  // namespace vox::client

@@ -1,0 +1,63 @@
+// A small client for voxeld: connect, handshake, send, receive with deadlines, and keep
+// per-chunk state (the encoding held for each chunk, to apply deltas). Shared by
+// voxel-cli, voxel-loadtest and the integration tests. Single-threaded: one client per
+// thread.
+#pragma once
+
+#include <chrono>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "proto/framing.hpp"
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
+#include "server/net/asio.hpp"
+#include "voxel.pb.h"
+
+namespace vox::client {
+
+using Clock = std::chrono::steady_clock;
+
+struct HeldChunk {
+  uint64_t version = 0;
+  std::vector<uint8_t> encoding;  // decompressed, the base for the next delta
+};
+
+class Client {
+ public:
+  Client();
+  ~Client();
+  // Throws std::runtime_error with a one-line reason on failure.
+  void connect(const std::string& host, uint16_t port, std::chrono::milliseconds timeout);
+  // Sends Hello and waits for Welcome (throws on Error, close or timeout).
+  wire::Welcome handshake(const std::string& name, std::chrono::milliseconds timeout);
+
+  void send(const wire::Envelope& message);
+  void send_raw(std::span<const uint8_t> bytes);  // for tests of hostile input
+  // The next message, or nullopt when the deadline passes or the connection closes.
+  std::optional<wire::Envelope> receive(std::chrono::milliseconds timeout);
+  bool closed() const { return closed_; }
+
+  // Applies a ChunkMesh (full or delta) to the per-chunk state; returns an error message
+  // when the payload does not decode (wrong base, corruption).
+  std::optional<std::string> apply(const wire::ChunkMesh& m);
+  void forget(const wire::ChunkUnload& u);
+  const std::map<std::tuple<int, int, int>, HeldChunk>& chunks() const { return chunks_; }
+
+ private:
+  boost::asio::io_context io_;
+  boost::asio::ip::tcp::socket socket_;
+  proto::FrameDecoder decoder_{64 << 20};
+  std::array<uint8_t, 64 * 1024> buffer_;
+  bool closed_ = false;
+  proto::ZstdCodec zstd_;
+  proto::CodecScratch scratch_;
+  std::map<std::tuple<int, int, int>, HeldChunk> chunks_;
+};
+
+wire::Envelope make_hello(const std::string& name, uint32_t version = 1);
+wire::Envelope make_set_view(float x, float y, float z, uint32_t radius);
+
+}  // namespace vox::client

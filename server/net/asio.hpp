@@ -1,0 +1,7 @@
+// Boost.Asio, included through one place: Boost 1.74's awaitable.hpp uses std::exchange
+// without including <utility>, which GCC 12 no longer pulls in indirectly.
+#pragma once
+
+#include <utility>
+
+#include <boost/asio.hpp>

@@ -1,0 +1,94 @@
+// One connected player. Each session runs on its own strand: a read chain (length, body,
+// dispatch) and a write chain that always sends the newest version of the nearest stale
+// chunk, as a delta from what the client holds. Other threads only post to the strand.
+#pragma once
+
+#include "net/asio.hpp"
+#include <chrono>
+#include <deque>
+#include <memory>
+#include <set>
+#include <unordered_map>
+#include <vector>
+
+#include "pipeline/world_pipeline.hpp"
+#include "proto/framing.hpp"
+#include "net/server_counters.hpp"
+#include "voxel.pb.h"
+
+namespace vox::net {
+
+namespace asio = boost::asio;
+
+struct ServerConfig {
+  std::string bind = "127.0.0.1";
+  uint16_t port = 7777;
+  size_t max_clients = 256;
+  uint32_t max_view_radius = 12;            // chunks
+  size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
+  size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
+  size_t max_control_bytes = 1 << 20;       // queued results/errors before a client counts as not reading
+  std::chrono::milliseconds handshake_timeout{5000};
+  std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
+  std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect
+  std::string server_version = "voxeld 0.1.0";
+};
+
+class ClientSession : public std::enable_shared_from_this<ClientSession> {
+ public:
+  ClientSession(asio::ip::tcp::socket socket, uint64_t id, const ServerConfig& config,
+                pipeline::WorldPipeline& pipeline, ServerCounters& counters);
+  ~ClientSession();
+
+  void start();                                                             // any thread, once
+  void on_chunks_published(std::shared_ptr<const std::vector<world::ChunkCoord>> chunks);  // any thread
+  // Sends an Error and closes (SHUTTING_DOWN, SERVER_FULL); any thread.
+  void close_with_error(wire::Error::Code code, std::string message);
+  uint64_t id() const { return id_; }
+  bool is_player() const { return player_.load(std::memory_order_relaxed); }
+
+ private:
+  struct Held {
+    pipeline::MeshVersionPtr version;  // what the client holds (null: nothing yet)
+  };
+
+  // All strand only.
+  void read_more();
+  void on_frame(const std::vector<uint8_t>& body);
+  void handle_hello(const wire::Hello& hello);
+  void handle_set_view(const wire::SetView& view);
+  void handle_edit(const wire::Edit& edit);
+  void send_error(wire::Error::Code code, const std::string& message, bool close);
+  void queue_control(const wire::Envelope& message);
+  void mark_stale(world::ChunkCoord c);
+  void pump();
+  bool append_next_mesh(std::vector<uint8_t>& out);
+  void arm_idle_timer();
+  void shutdown();
+  int64_t distance2(world::ChunkCoord c) const;
+
+  asio::ip::tcp::socket socket_;
+  asio::strand<asio::any_io_executor> strand_;
+  asio::steady_timer handshake_timer_, idle_timer_, write_timer_;
+  const uint64_t id_;
+  const ServerConfig& config_;
+  pipeline::WorldPipeline& pipeline_;
+  ServerCounters& counters_;
+  std::atomic<bool> player_{false};
+
+  proto::FrameDecoder decoder_;
+  std::array<uint8_t, 16 * 1024> read_buffer_;
+  std::string name_;
+  bool closing_ = false;
+  bool writing_ = false;
+
+  world::ChunkCoord view_center_{};
+  int view_radius_ = -1;  // -1: no view yet
+  std::unordered_map<world::ChunkCoord, Held, world::ChunkCoordHash> visible_;
+  std::set<std::pair<int64_t, world::ChunkCoord>> stale_;  // nearest first
+  std::deque<std::vector<uint8_t>> control_;               // framed messages sent before meshes
+  size_t control_bytes_ = 0;
+  std::vector<uint8_t> write_buffer_;
+};
+
+}  // namespace vox::net

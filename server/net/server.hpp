@@ -1,0 +1,53 @@
+// The TCP front end: accepts connections, keeps the session registry, forwards the
+// pipeline's publications to the sessions, logs a stats line, and shuts down cleanly.
+#pragma once
+
+#include "net/asio.hpp"
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+
+#include "net/client_session.hpp"
+#include "net/server_counters.hpp"
+
+namespace vox::net {
+
+class Server {
+ public:
+  Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline);
+  ~Server();
+
+  // Binds and starts accepting; throws boost::system::system_error when it cannot bind.
+  void start();
+  uint16_t port() const { return port_; }  // the bound port (after start)
+  // Stops accepting and tells every client SHUTTING_DOWN; sessions close themselves.
+  void stop();  // any thread
+  size_t session_count() const;
+  const ServerCounters& counters() const { return counters_; }
+  void start_stats_log(std::chrono::seconds interval);
+
+ private:
+  void accept();
+  void log_stats();
+
+  asio::io_context& io_;
+  const ServerConfig config_;
+  pipeline::WorldPipeline& pipeline_;
+  asio::ip::tcp::acceptor acceptor_;
+  asio::steady_timer stats_timer_;
+  std::chrono::seconds stats_interval_{10};
+  uint16_t port_ = 0;
+  ServerCounters counters_;
+  uint64_t subscription_ = 0;
+  uint64_t next_session_ = 1;  // acceptor handler only
+
+  mutable std::mutex sessions_mutex_;  // leaf lock: guards sessions_; no call into a session while held
+  std::unordered_map<uint64_t, std::weak_ptr<ClientSession>> sessions_;
+
+  struct Snapshot {
+    uint64_t edits = 0, meshes = 0, bytes = 0;
+    std::chrono::steady_clock::time_point at;
+  } last_stats_;
+};
+
+}  // namespace vox::net

@@ -1,0 +1,108 @@
+#include "net/wire_convert.hpp"
+
+#include <google/protobuf/reflection.h>
+
+namespace vox::net {
+namespace {
+
+world::Vec3 from_wire(const wire::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+// Wire materials are uint32; the world's are 0..255.
+bool material_fits(uint32_t m) { return m <= 255; }
+
+}  // namespace
+
+wire::ChunkCoord to_wire(world::ChunkCoord c) {
+  wire::ChunkCoord w;
+  w.set_x(c.x);
+  w.set_y(c.y);
+  w.set_z(c.z);
+  return w;
+}
+
+world::ChunkCoord from_wire(const wire::ChunkCoord& c) { return {c.x(), c.y(), c.z()}; }
+
+WireEdit edit_from_wire(const wire::Edit& e) {
+  WireEdit out;
+  auto refuse = [&out](wire::EditResult::Status s, std::string why) {
+    out.status = s;
+    out.reason = std::move(why);
+    return out;
+  };
+  switch (e.kind_case()) {
+    case wire::Edit::kBrush: {
+      const auto& b = e.brush();
+      if (!material_fits(b.material())) return refuse(wire::EditResult::BAD_MATERIAL, "material must be 0..255");
+      world::Brush brush{from_wire(b.center()), b.radius(), b.strength(), b.remove(), std::nullopt};
+      if (b.material() != 0) brush.material = static_cast<world::Material>(b.material());
+      out.edit = brush;
+      break;
+    }
+    case wire::Edit::kExplosion:
+      out.edit = world::Explosion{from_wire(e.explosion().center()), e.explosion().radius(), e.explosion().power()};
+      break;
+    case wire::Edit::kSmooth:
+      out.edit = world::Smooth{from_wire(e.smooth().center()), e.smooth().radius(), e.smooth().strength()};
+      break;
+    case wire::Edit::kPaint: {
+      const auto& p = e.paint();
+      if (!material_fits(p.material())) return refuse(wire::EditResult::BAD_MATERIAL, "material must be 1..255");
+      out.edit = world::Paint{from_wire(p.center()), p.radius(), static_cast<world::Material>(p.material())};
+      break;
+    }
+    case wire::Edit::kStamp: {
+      const auto& s = e.stamp();
+      if (!wire::Stamp::Shape_IsValid(s.shape())) {
+        out.unknown_enum = true;
+        return refuse(wire::EditResult::BAD_VALUE, "unknown stamp shape " + std::to_string(s.shape()));
+      }
+      if (!material_fits(s.material())) return refuse(wire::EditResult::BAD_MATERIAL, "material must be 1..255");
+      world::Stamp stamp;
+      stamp.shape = s.shape() == wire::Stamp::SPHERE ? world::Stamp::Shape::kSphere : world::Stamp::Shape::kBox;
+      stamp.min = from_wire(s.min());
+      stamp.max = from_wire(s.max());
+      stamp.center = from_wire(s.center());
+      stamp.radius = s.radius();
+      stamp.solid = s.solid();
+      stamp.material = static_cast<world::Material>(s.material());
+      out.edit = stamp;
+      break;
+    }
+    case wire::Edit::KIND_NOT_SET:
+      return refuse(wire::EditResult::MISSING_EDIT, "the Edit carries no edit");
+  }
+  return out;
+}
+
+wire::EditResult::Status status_of(world::RefusalReason r) {
+  switch (r) {
+    case world::RefusalReason::kNone: return wire::EditResult::ACCEPTED;
+    case world::RefusalReason::kNotFinite: return wire::EditResult::NOT_FINITE;
+    case world::RefusalReason::kOutOfBounds: return wire::EditResult::OUT_OF_BOUNDS;
+    case world::RefusalReason::kBadRadius: return wire::EditResult::BAD_RADIUS;
+    case world::RefusalReason::kBadStrength: return wire::EditResult::BAD_STRENGTH;
+    case world::RefusalReason::kBadMaterial: return wire::EditResult::BAD_MATERIAL;
+    case world::RefusalReason::kShuttingDown: return wire::EditResult::SHUTTING_DOWN;
+  }
+  return wire::EditResult::ACCEPTED;
+}
+
+bool has_unknown_fields(const google::protobuf::Message& m) {
+  const google::protobuf::Reflection* r = m.GetReflection();
+  if (!r->GetUnknownFields(m).empty()) return true;
+  std::vector<const google::protobuf::FieldDescriptor*> fields;
+  r->ListFields(m, &fields);
+  for (const auto* f : fields) {
+    if (f->cpp_type() != google::protobuf::FieldDescriptor::CPPTYPE_MESSAGE) continue;
+    if (f->is_repeated()) {
+      for (int i = 0; i < r->FieldSize(m, f); ++i) {
+        if (has_unknown_fields(r->GetRepeatedMessage(m, f, i))) return true;
+      }
+    } else if (has_unknown_fields(r->GetMessage(m, f))) {
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace vox::net

@@ -1,0 +1,37 @@
+// Conversions between protobuf messages and world/pipeline types, with the checks that
+// belong to the wire (material ranges, unknown enum values, unknown fields).
+#pragma once
+
+#include <google/protobuf/message.h>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "pipeline/world_pipeline.hpp"
+#include "voxel.pb.h"
+#include "world/edit.hpp"
+
+namespace vox::net {
+
+inline constexpr uint32_t kProtocolVersion = 1;
+
+wire::ChunkCoord to_wire(world::ChunkCoord c);
+world::ChunkCoord from_wire(const wire::ChunkCoord& c);
+
+// The world edit an Edit message asks for, or the status and reason to refuse it with.
+struct WireEdit {
+  std::optional<world::Edit> edit;
+  wire::EditResult::Status status = wire::EditResult::ACCEPTED;
+  std::string reason;
+  bool unknown_enum = false;  // also worth an Error UNKNOWN_ENUM
+};
+WireEdit edit_from_wire(const wire::Edit& e);
+
+wire::EditResult::Status status_of(world::RefusalReason r);
+
+// True when the message or any message inside it carries fields this protocol version
+// does not define.
+bool has_unknown_fields(const google::protobuf::Message& m);
+
+}  // namespace vox::net

@@ -1,0 +1,313 @@
+// Integration tests: a real voxeld on 127.0.0.1 (port 0), spoken to over TCP as a game
+// client would. Every wait has a deadline.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "client-cli/voxel_client.hpp"
+#include "proto/framing.hpp"
+#include "server/world/terrain_generator.hpp"
+#include "tests/server_process.hpp"
+
+namespace vox::net {
+namespace {
+
+using namespace std::chrono_literals;
+using client::Client;
+
+constexpr uint64_t kSeed = 1;
+
+std::unique_ptr<Client> connect_to(const test::ServerProcess& server) {
+  auto c = std::make_unique<Client>();
+  c->connect("127.0.0.1", server.port(), 5s);
+  return c;
+}
+
+std::unique_ptr<Client> player(const test::ServerProcess& server, const std::string& name) {
+  auto c = connect_to(server);
+  c->handshake(name, 5s);
+  return c;
+}
+
+// Receives until `quiet` passes with nothing new (or `limit`); applies meshes. Returns the
+// ChunkMesh messages in arrival order. Any decode failure fails the test.
+std::vector<wire::Envelope> drain(Client& c, std::chrono::milliseconds quiet = 700ms,
+                                  std::chrono::milliseconds limit = 20s) {
+  std::vector<wire::Envelope> out;
+  const auto deadline = client::Clock::now() + limit;
+  while (client::Clock::now() < deadline) {
+    auto m = c.receive(quiet);
+    if (!m) break;
+    if (m->has_chunk_mesh()) {
+      const auto error = c.apply(m->chunk_mesh());
+      EXPECT_FALSE(error) << *error;
+    }
+    out.push_back(std::move(*m));
+  }
+  return out;
+}
+
+// The first message matching `pred` within the deadline (meshes on the way are applied).
+template <class Pred>
+std::optional<wire::Envelope> wait_for(Client& c, Pred pred, std::chrono::milliseconds limit = 10s) {
+  const auto deadline = client::Clock::now() + limit;
+  while (client::Clock::now() < deadline) {
+    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
+    if (!m) return std::nullopt;
+    if (m->has_chunk_mesh()) {
+      const auto error = c.apply(m->chunk_mesh());
+      EXPECT_FALSE(error) << *error;
+    }
+    if (pred(*m)) return m;
+  }
+  return std::nullopt;
+}
+
+float surface_y(float x, float z) { return world::TerrainGenerator(kSeed).height_at(static_cast<int>(x), static_cast<int>(z)); }
+
+wire::Envelope brush_at(uint64_t request, float x, float y, float z, float radius, bool remove = false) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(request);
+  auto* b = e->mutable_brush();
+  b->mutable_center()->set_x(x);
+  b->mutable_center()->set_y(y);
+  b->mutable_center()->set_z(z);
+  b->set_radius(radius);
+  b->set_strength(1.0f);
+  b->set_remove(remove);
+  return m;
+}
+
+wire::Error::Code error_code(const std::optional<wire::Envelope>& m) {
+  return m && m->has_error() ? m->error().code() : wire::Error::UNKNOWN;
+}
+
+TEST(Server, HandshakeReturnsWelcome) {
+  test::ServerProcess server;
+  Client c;
+  c.connect("127.0.0.1", server.port(), 5s);
+  const wire::Welcome w = c.handshake("alice", 5s);
+  EXPECT_EQ(w.world_seed(), kSeed);
+  EXPECT_EQ(w.chunk_size(), 32u);
+  EXPECT_EQ(w.protocol_version(), 1u);
+  EXPECT_EQ(w.mesh_format(), 1u);
+  EXPECT_GT(w.max_view_radius(), 0u);
+  EXPECT_EQ(w.players(), 1u);
+  wire::Envelope ping;
+  ping.mutable_ping()->set_nonce(77);
+  c.send(ping);
+  auto pong = wait_for(c, [](const wire::Envelope& m) { return m.has_pong(); });
+  ASSERT_TRUE(pong);
+  EXPECT_EQ(pong->pong().nonce(), 77u);
+}
+
+TEST(Server, StreamsTheViewNearestFirst) {
+  test::ServerProcess server;
+  auto c = player(server, "viewer");
+  const float y = surface_y(16, 16);
+  c->send(client::make_set_view(16, y, 16, 3));
+  const auto messages = drain(*c);
+  const world::ChunkCoord centre = world::chunk_of_voxel(16, static_cast<int>(std::floor(y)), 16);
+  int64_t last = -1;
+  size_t meshes = 0;
+  for (const auto& m : messages) {
+    if (!m.has_chunk_mesh()) continue;
+    ++meshes;
+    EXPECT_EQ(m.chunk_mesh().base_version(), 0u) << "a fresh client gets full meshes";
+    const auto& k = m.chunk_mesh().coord();
+    const int64_t d = (k.x() - centre.x) * (k.x() - centre.x) + (k.y() - centre.y) * (k.y() - centre.y) +
+                      (k.z() - centre.z) * (k.z() - centre.z);
+    EXPECT_LE(d, 9);
+    EXPECT_GE(d, last) << "meshes must arrive nearest first";
+    last = d;
+  }
+  EXPECT_GT(meshes, 5u);
+}
+
+TEST(Server, EditByOneClientReachesAnotherAsAMatchingDelta) {
+  test::ServerProcess server;
+  auto a = player(server, "a");
+  auto b = player(server, "b");
+  const float y = surface_y(16, 16);
+  a->send(client::make_set_view(16, y, 16, 2));
+  b->send(client::make_set_view(16, y, 16, 2));
+  drain(*a);
+  drain(*b);
+  a->send(brush_at(42, 16.3f, y, 16.6f, 3));
+  auto result = wait_for(*a, [](const wire::Envelope& m) { return m.has_edit_result(); });
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->edit_result().request_id(), 42u);
+  EXPECT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
+  ASSERT_GT(result->edit_result().changed_chunks_size(), 0);
+  // B receives each changed chunk as a delta against what it held.
+  const auto messages = drain(*b);
+  size_t deltas = 0;
+  for (const auto& m : messages)
+    if (m.has_chunk_mesh() && m.chunk_mesh().base_version() != 0) ++deltas;
+  EXPECT_GE(deltas, static_cast<size_t>(result->edit_result().changed_chunks_size()));
+  // A fresh client receives the server's current meshes in full: B's state must match.
+  auto c = player(server, "c");
+  c->send(client::make_set_view(16, y, 16, 2));
+  drain(*c);
+  for (const auto& k : result->edit_result().changed_chunks()) {
+    const auto key = std::make_tuple(k.x(), k.y(), k.z());
+    ASSERT_TRUE(b->chunks().count(key) && c->chunks().count(key));
+    EXPECT_EQ(b->chunks().at(key).version, c->chunks().at(key).version);
+    EXPECT_EQ(b->chunks().at(key).encoding, c->chunks().at(key).encoding);
+  }
+}
+
+TEST(Server, BurstOfEditsCoalescesToTheNewestVersion) {
+  test::ServerProcess server;
+  auto a = player(server, "burst");
+  const float y = surface_y(40, 40);
+  a->send(client::make_set_view(40, y, 40, 1));
+  drain(*a);
+  for (uint64_t i = 1; i <= 60; ++i) a->send(brush_at(i, 40.0f + static_cast<float>(i % 5), y, 40.0f, 2.5f, i % 2 == 0));
+  std::map<std::tuple<int, int, int>, uint64_t> last_version;
+  size_t results = 0;
+  const auto messages = drain(*a, 1000ms);
+  for (const auto& m : messages) {
+    if (m.has_edit_result()) ++results;
+    if (!m.has_chunk_mesh()) continue;
+    const auto& k = m.chunk_mesh().coord();
+    auto& v = last_version[std::make_tuple(k.x(), k.y(), k.z())];
+    EXPECT_GT(m.chunk_mesh().version(), v) << "an older version after a newer one";
+    v = m.chunk_mesh().version();
+  }
+  EXPECT_EQ(results, 60u);
+  auto fresh = player(server, "fresh");
+  fresh->send(client::make_set_view(40, y, 40, 1));
+  drain(*fresh);
+  for (const auto& [key, held] : fresh->chunks()) {
+    ASSERT_TRUE(a->chunks().count(key));
+    EXPECT_EQ(a->chunks().at(key).version, held.version) << "the client must end with the newest version";
+    EXPECT_EQ(a->chunks().at(key).encoding, held.encoding);
+  }
+}
+
+TEST(Server, ClientThatStopsReadingDoesNotDelayOthers) {
+  test::ServerProcess server;
+  auto slow = player(server, "slow");
+  const float y = surface_y(16, 16);
+  slow->send(client::make_set_view(16, y, 16, 6));  // and never reads again
+  auto fast = player(server, "fast");
+  fast->send(client::make_set_view(16, y, 16, 1));
+  drain(*fast);
+  for (uint64_t i = 1; i <= 5; ++i) {
+    slow->send(brush_at(100 + i, 16, y, 16, 3));  // the slow one keeps editing
+    fast->send(brush_at(i, 20, y, 20, 2));
+    auto result = wait_for(*fast, [i](const wire::Envelope& m) { return m.has_edit_result() && m.edit_result().request_id() == i; }, 5s);
+    ASSERT_TRUE(result) << "edit " << i << " of the fast client was delayed";
+  }
+}
+
+TEST(Server, BadInputGetsSpecificErrors) {
+  test::ServerProcess server({"--max-view-radius", "4"});
+  {  // frame over the limit: FRAME_TOO_LARGE, then closed
+    auto c = connect_to(server);
+    const uint8_t header[4] = {0xFF, 0xFF, 0xFF, 0x7F};
+    c->send_raw(header);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::FRAME_TOO_LARGE);
+    EXPECT_FALSE(c->receive(3s));
+    EXPECT_TRUE(c->closed());
+  }
+  {  // unparsable bytes: MALFORMED
+    auto c = connect_to(server);
+    std::vector<uint8_t> frame;
+    const uint8_t junk[] = {0xFF, 0xFF, 0xFF, 0xFF, 0x0F, 0x01};
+    proto::append_frame(junk, frame);
+    c->send_raw(frame);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::MALFORMED);
+  }
+  {  // a message before Hello: NOT_HELLO
+    auto c = connect_to(server);
+    c->send(client::make_set_view(0, 0, 0, 1));
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::NOT_HELLO);
+  }
+  {  // wrong protocol version: BAD_VERSION
+    auto c = connect_to(server);
+    c->send(client::make_hello("old", 99));
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::BAD_VERSION);
+  }
+  auto c = player(server, "probe");
+  auto expect_error = [&](const wire::Envelope& sent, wire::Error::Code code) {
+    c->send(sent);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), code);
+  };
+  expect_error(client::make_set_view(std::numeric_limits<float>::quiet_NaN(), 0, 0, 1), wire::Error::BAD_VALUE);
+  expect_error(client::make_set_view(0, std::numeric_limits<float>::infinity(), 0, 1), wire::Error::BAD_VALUE);
+  expect_error(client::make_set_view(0, 0, 0, 5), wire::Error::BAD_VALUE);  // radius over --max-view-radius
+  expect_error(client::make_hello("again"), wire::Error::DUPLICATE_HELLO);
+  {  // unknown fields: UNKNOWN_MESSAGE
+    wire::Envelope ping;
+    ping.mutable_ping()->set_nonce(1);
+    std::string body = ping.SerializeAsString();
+    body += std::string("\xF8\x07\x01", 3);  // field 127, varint 1: not in the schema
+    std::vector<uint8_t> frame;
+    proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);
+    c->send_raw(frame);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::UNKNOWN_MESSAGE);
+  }
+  {  // an empty Envelope: UNKNOWN_MESSAGE
+    wire::Envelope empty;
+    expect_error(empty, wire::Error::UNKNOWN_MESSAGE);
+  }
+  {  // an unknown enum value: UNKNOWN_ENUM, and the edit is refused
+    wire::Envelope m;
+    m.mutable_edit()->set_request_id(9);
+    m.mutable_edit()->mutable_stamp()->set_shape(static_cast<wire::Stamp::Shape>(7));
+    m.mutable_edit()->mutable_stamp()->set_radius(2);
+    m.mutable_edit()->mutable_stamp()->set_material(3);
+    c->send(m);
+    auto result = wait_for(*c, [](const wire::Envelope& e) { return e.has_edit_result(); });
+    ASSERT_TRUE(result);
+    EXPECT_EQ(result->edit_result().status(), wire::EditResult::BAD_VALUE);
+  }
+  {  // NaN in an edit: refused with NOT_FINITE
+    c->send(brush_at(10, std::numeric_limits<float>::quiet_NaN(), 0, 0, 2));
+    auto result = wait_for(*c, [](const wire::Envelope& e) { return e.has_edit_result(); });
+    ASSERT_TRUE(result);
+    EXPECT_EQ(result->edit_result().status(), wire::EditResult::NOT_FINITE);
+  }
+  // After all that, the connection and the server still work.
+  wire::Envelope ping;
+  ping.mutable_ping()->set_nonce(5);
+  c->send(ping);
+  EXPECT_TRUE(wait_for(*c, [](const wire::Envelope& m) { return m.has_pong(); }));
+  EXPECT_TRUE(server.running());
+}
+
+TEST(Server, RefusesClientsOverTheLimitAndSilentHandshakes) {
+  test::ServerProcess server({"--max-clients", "2", "--handshake-timeout-ms", "300"});
+  auto a = player(server, "a");
+  auto b = player(server, "b");
+  auto c = connect_to(server);
+  EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::SERVER_FULL);
+  b.reset();  // a slot frees up
+  auto silent = std::make_unique<Client>();
+  const auto deadline = client::Clock::now() + 5s;
+  std::optional<wire::Envelope> error;
+  while (client::Clock::now() < deadline && !error) {  // the freed slot may take a moment
+    silent = connect_to(server);
+    error = wait_for(*silent, [](const wire::Envelope& m) { return m.has_error(); }, 3s);
+    if (error_code(error) == wire::Error::SERVER_FULL) error.reset();
+  }
+  EXPECT_EQ(error_code(error), wire::Error::HANDSHAKE_TIMEOUT);
+  EXPECT_TRUE(server.running());
+}
+
+TEST(Server, ShutsDownGracefullyOnSigterm) {
+  test::ServerProcess server;
+  auto c = player(server, "stayer");
+  c->send(client::make_set_view(0, surface_y(0, 0), 0, 1));
+  drain(*c, 300ms);
+  const int code = server.terminate();
+  EXPECT_EQ(code, 0);
+  EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); }, 5s)), wire::Error::SHUTTING_DOWN);
+}
+
+}  // namespace
+}  // namespace vox::net

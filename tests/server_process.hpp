@@ -1,0 +1,81 @@
+// Starts a real voxeld on 127.0.0.1 with --port 0 and reads the bound port from its
+// --port-file; stops it with SIGTERM (or kills it when the test is done).
+#pragma once
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace vox::test {
+
+class ServerProcess {
+ public:
+  explicit ServerProcess(std::vector<std::string> extra_args = {}) {
+    static int counter = 0;
+    dir_ = std::filesystem::temp_directory_path() / ("voxeld_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    std::filesystem::create_directories(dir_);
+    const std::string port_file = (dir_ / "port").string();
+    std::vector<std::string> args = {VOXELD_PATH, "--port", "0", "--bind", "127.0.0.1", "--port-file", port_file,
+                                     "--threads", "2", "--stats-interval", "0", "--log-level", "warn"};
+    args.insert(args.end(), extra_args.begin(), extra_args.end());
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    if (posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), environ) != 0) throw std::runtime_error("spawn failed");
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (std::chrono::steady_clock::now() < deadline) {
+      std::ifstream in(port_file);
+      if (in >> port_ && port_ != 0) return;
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) throw std::runtime_error("voxeld exited at start");
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // polling a file the child writes
+    }
+    throw std::runtime_error("voxeld did not report its port in time");
+  }
+  ~ServerProcess() {
+    if (pid_ > 0) {
+      ::kill(pid_, SIGKILL);
+      int status = 0;
+      waitpid(pid_, &status, 0);
+    }
+    std::error_code ec;
+    std::filesystem::remove_all(dir_, ec);
+  }
+  uint16_t port() const { return port_; }
+  // SIGTERM, then the exit code (-1 when it did not exit within the timeout).
+  int terminate(std::chrono::seconds timeout = std::chrono::seconds(10)) {
+    ::kill(pid_, SIGTERM);
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        pid_ = -1;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return -1;
+  }
+  bool running() {
+    int status = 0;
+    return pid_ > 0 && waitpid(pid_, &status, WNOHANG) == 0;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  uint16_t port_ = 0;
+  std::filesystem::path dir_;
+};
+
+}  // namespace vox::test
