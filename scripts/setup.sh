@@ -41,7 +41,8 @@ case "$mode" in
   build) ;;
   run)
     shift || true
-    exec "$build/bin/voxel-cli" demo --out "$build/demo.obj" "$@"
+    echo "setup: starting voxeld on 127.0.0.1:7777 with the default world (seed 1); Ctrl-C stops it"
+    exec "$build/bin/voxeld" --port 7777 --seed 1 "$@"
     ;;
   test)
     (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900)
