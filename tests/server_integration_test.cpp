@@ -17,6 +17,12 @@ using namespace std::chrono_literals;
 using client::Client;
 
 constexpr uint64_t kSeed = 1;
+// Sanitizer builds run the server several times slower: deadlines stretch, never shrink.
+#ifdef VOXEL_SANITIZED
+constexpr int kSlow = 6;
+#else
+constexpr int kSlow = 1;
+#endif
 
 std::unique_ptr<Client> connect_to(const test::ServerProcess& server) {
   auto c = std::make_unique<Client>();
@@ -33,11 +39,14 @@ std::unique_ptr<Client> player(const test::ServerProcess& server, const std::str
 // Receives until `quiet` passes with nothing new (or `limit`); applies meshes. Returns the
 // ChunkMesh messages in arrival order. Any decode failure fails the test.
 std::vector<wire::Envelope> drain(Client& c, std::chrono::milliseconds quiet = 700ms,
-                                  std::chrono::milliseconds limit = 20s) {
+                                  std::chrono::milliseconds limit = 30s) {
   std::vector<wire::Envelope> out;
+  quiet *= kSlow;
+  limit *= kSlow;
   const auto deadline = client::Clock::now() + limit;
   while (client::Clock::now() < deadline) {
-    auto m = c.receive(quiet);
+    // The first message may take a while (terrain is generated on demand).
+    auto m = c.receive(out.empty() ? std::min<std::chrono::milliseconds>(limit, 15s * kSlow) : quiet);
     if (!m) break;
     if (m->has_chunk_mesh()) {
       const auto error = c.apply(m->chunk_mesh());
@@ -51,6 +60,7 @@ std::vector<wire::Envelope> drain(Client& c, std::chrono::milliseconds quiet = 7
 // The first message matching `pred` within the deadline (meshes on the way are applied).
 template <class Pred>
 std::optional<wire::Envelope> wait_for(Client& c, Pred pred, std::chrono::milliseconds limit = 10s) {
+  limit *= kSlow;
   const auto deadline = client::Clock::now() + limit;
   while (client::Clock::now() < deadline) {
     auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));

@@ -173,31 +173,17 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
     return;
   }
   const int r = static_cast<int>(view.radius());
-  view_center_ = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])), static_cast<int32_t>(std::floor(p[1])),
-                                       static_cast<int32_t>(std::floor(p[2])));
-  view_radius_ = r;
-  // Chunks that left the view: forget what the client holds.
-  wire::Envelope unload;
-  for (auto it = visible_.begin(); it != visible_.end();) {
-    if (distance2(it->first) > static_cast<int64_t>(r) * r) {
-      if (it->second.version) *unload.mutable_chunk_unload()->add_coords() = to_wire(it->first);
-      it = visible_.erase(it);
-    } else {
-      ++it;
-    }
+  const ChunkCoord center = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])),
+                                                  static_cast<int32_t>(std::floor(p[1])),
+                                                  static_cast<int32_t>(std::floor(p[2])));
+  const std::vector<ChunkCoord> left = scheduler_.set_view(center, r);
+  if (!left.empty()) {
+    wire::Envelope unload;
+    for (const ChunkCoord& c : left) *unload.mutable_chunk_unload()->add_coords() = to_wire(c);
+    queue_control(unload);
   }
-  if (unload.chunk_unload().coords_size() > 0) queue_control(unload);
-  // The view: chunks within the radius (a ball of chunks); new ones become stale.
-  for (int dz = -r; dz <= r; ++dz)
-    for (int dy = -r; dy <= r; ++dy)
-      for (int dx = -r; dx <= r; ++dx) {
-        if (dx * dx + dy * dy + dz * dz > r * r) continue;
-        visible_.try_emplace(view_center_.offset(dx, dy, dz));
-      }
-  stale_.clear();  // re-ordered around the new centre
-  for (const auto& [c, held] : visible_) mark_stale(c);
   // Load what is missing; newly published meshes arrive through on_chunks_published.
-  pipeline_.load({view_center_.offset(-r, -r, -r), view_center_.offset(r, r, r)},
+  pipeline_.load({center.offset(-r, -r, -r), center.offset(r, r, r)},
                  [self = shared_from_this()] { asio::post(self->strand_, [self] { self->pump(); }); });
   pump();
 }
@@ -229,19 +215,10 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
 
 void ClientSession::on_chunks_published(std::shared_ptr<const std::vector<ChunkCoord>> chunks) {
   asio::post(strand_, [self = shared_from_this(), chunks = std::move(chunks)] {
-    if (self->closing_ || self->view_radius_ < 0) return;
-    for (const ChunkCoord& c : *chunks) {
-      if (self->visible_.count(c)) self->mark_stale(c);
-    }
+    if (self->closing_ || !self->scheduler_.has_view()) return;
+    for (const ChunkCoord& c : *chunks) self->scheduler_.mark_stale(c);
     self->pump();
   });
-}
-
-void ClientSession::mark_stale(ChunkCoord c) { stale_.insert({distance2(c), c}); }
-
-int64_t ClientSession::distance2(ChunkCoord c) const {
-  const int64_t dx = c.x - view_center_.x, dy = c.y - view_center_.y, dz = c.z - view_center_.z;
-  return dx * dx + dy * dy + dz * dz;
 }
 
 void ClientSession::queue_control(const wire::Envelope& message) {
@@ -282,41 +259,27 @@ void ClientSession::close_with_error(wire::Error::Code code, std::string message
   });
 }
 
-// Appends the newest version of the nearest stale chunk the client does not hold yet;
-// false when nothing is left to send.
+// Appends the newest version of the nearest stale chunk the client does not hold yet
+// (a delta when it holds an older one); false when nothing is left to send.
 bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
-  while (!stale_.empty()) {
-    const ChunkCoord c = stale_.begin()->second;
-    stale_.erase(stale_.begin());
-    auto it = visible_.find(c);
-    if (it == visible_.end()) continue;
-    pipeline::MeshVersionPtr current = pipeline_.meshes().get(c);
-    if (!current) continue;  // not meshed yet: it is marked again when published
-    Held& held = it->second;
-    if (held.version && held.version->version >= current->version) continue;
-    if (!held.version && current->mesh.empty()) {
-      held.version = current;  // nothing to draw: the client learns of it only if it changes
-      continue;
-    }
-    wire::Envelope message;
-    auto* m = message.mutable_chunk_mesh();
-    *m->mutable_coord() = to_wire(c);
-    m->set_version(current->version);
-    if (held.version) {
-      const auto delta = current->delta_from(*held.version);
-      m->set_base_version(held.version->version);
-      m->set_payload(delta->data(), delta->size());
-      counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
-    } else {
-      m->set_payload(current->full_frame.data(), current->full_frame.size());
-    }
-    const std::vector<uint8_t> frame = frame_of(message);
-    out.insert(out.end(), frame.begin(), frame.end());
-    held.version = std::move(current);
-    counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
-    return true;
+  const auto send = scheduler_.next([this](ChunkCoord c) { return pipeline_.meshes().get(c); });
+  if (!send) return false;
+  wire::Envelope message;
+  auto* m = message.mutable_chunk_mesh();
+  *m->mutable_coord() = to_wire(send->coord);
+  m->set_version(send->version->version);
+  if (send->base) {
+    const auto delta = send->version->delta_from(*send->base);
+    m->set_base_version(send->base->version);
+    m->set_payload(delta->data(), delta->size());
+    counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
+  } else {
+    m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
   }
-  return false;
+  const std::vector<uint8_t> frame = frame_of(message);
+  out.insert(out.end(), frame.begin(), frame.end());
+  counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
+  return true;
 }
 
 void ClientSession::pump() {
@@ -371,8 +334,7 @@ void ClientSession::shutdown() {
     socket_.close(ignored);
     if (player_) spdlog::info("session {}: player '{}' left", id_, name_);
   }
-  visible_.clear();
-  stale_.clear();
+  scheduler_.clear();
   control_.clear();
 }
 

@@ -7,12 +7,11 @@
 #include <chrono>
 #include <deque>
 #include <memory>
-#include <set>
-#include <unordered_map>
 #include <vector>
 
 #include "pipeline/world_pipeline.hpp"
 #include "proto/framing.hpp"
+#include "net/send_scheduler.hpp"
 #include "net/server_counters.hpp"
 #include "voxel.pb.h"
 
@@ -48,10 +47,6 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   bool is_player() const { return player_.load(std::memory_order_relaxed); }
 
  private:
-  struct Held {
-    pipeline::MeshVersionPtr version;  // what the client holds (null: nothing yet)
-  };
-
   // All strand only.
   void read_more();
   void on_frame(const std::vector<uint8_t>& body);
@@ -60,12 +55,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void handle_edit(const wire::Edit& edit);
   void send_error(wire::Error::Code code, const std::string& message, bool close);
   void queue_control(const wire::Envelope& message);
-  void mark_stale(world::ChunkCoord c);
   void pump();
   bool append_next_mesh(std::vector<uint8_t>& out);
   void arm_idle_timer();
   void shutdown();
-  int64_t distance2(world::ChunkCoord c) const;
 
   asio::ip::tcp::socket socket_;
   asio::strand<asio::any_io_executor> strand_;
@@ -82,10 +75,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   bool closing_ = false;
   bool writing_ = false;
 
-  world::ChunkCoord view_center_{};
-  int view_radius_ = -1;  // -1: no view yet
-  std::unordered_map<world::ChunkCoord, Held, world::ChunkCoordHash> visible_;
-  std::set<std::pair<int64_t, world::ChunkCoord>> stale_;  // nearest first
+  SendScheduler scheduler_;
   std::deque<std::vector<uint8_t>> control_;               // framed messages sent before meshes
   size_t control_bytes_ = 0;
   std::vector<uint8_t> write_buffer_;

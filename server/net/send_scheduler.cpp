@@ -1,0 +1,67 @@
+#include "net/send_scheduler.hpp"
+
+namespace vox::net {
+
+using world::ChunkCoord;
+
+int64_t SendScheduler::distance2(ChunkCoord c) const {
+  const int64_t dx = c.x - center_.x, dy = c.y - center_.y, dz = c.z - center_.z;
+  return dx * dx + dy * dy + dz * dz;
+}
+
+std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
+  center_ = center;
+  radius_ = radius;
+  const int64_t r2 = static_cast<int64_t>(radius) * radius;
+  std::vector<ChunkCoord> unloaded;
+  for (auto it = visible_.begin(); it != visible_.end();) {
+    if (distance2(it->first) > r2) {
+      if (it->second.sent) unloaded.push_back(it->first);
+      it = visible_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  for (int dz = -radius; dz <= radius; ++dz)
+    for (int dy = -radius; dy <= radius; ++dy)
+      for (int dx = -radius; dx <= radius; ++dx) {
+        if (dx * dx + dy * dy + dz * dz <= r2) visible_.try_emplace(center.offset(dx, dy, dz));
+      }
+  stale_.clear();  // re-ordered around the new centre
+  for (const auto& [c, held] : visible_) stale_.insert({distance2(c), c});
+  return unloaded;
+}
+
+void SendScheduler::mark_stale(ChunkCoord c) {
+  if (visible_.count(c)) stale_.insert({distance2(c), c});
+}
+
+std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup) {
+  while (!stale_.empty()) {
+    const ChunkCoord c = stale_.begin()->second;
+    stale_.erase(stale_.begin());
+    auto it = visible_.find(c);
+    if (it == visible_.end()) continue;
+    pipeline::MeshVersionPtr current = lookup(c);
+    if (!current) continue;
+    Held& held = it->second;
+    if (held.version && held.version->version >= current->version) continue;
+    if (!held.version && current->mesh.empty()) {
+      held.version = std::move(current);  // nothing to draw; sent only once it changes
+      continue;
+    }
+    // A client that never received the empty first version gets the new one in full.
+    Send send{c, current, held.sent ? held.version : nullptr};
+    held = {std::move(current), true};
+    return send;
+  }
+  return std::nullopt;
+}
+
+void SendScheduler::clear() {
+  visible_.clear();
+  stale_.clear();
+  radius_ = -1;
+}
+
+}  // namespace vox::net

@@ -1,0 +1,133 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+
+#include "server/net/send_scheduler.hpp"
+
+namespace vox::net {
+namespace {
+
+using pipeline::MeshVersion;
+using pipeline::MeshVersionPtr;
+using world::ChunkCoord;
+
+// A published store in miniature: coord -> newest version.
+struct FakeStore {
+  std::map<ChunkCoord, MeshVersionPtr> meshes;
+  uint64_t next_version = 1;
+  void publish(ChunkCoord c, bool empty = false) {
+    auto v = std::make_shared<MeshVersion>();
+    v->coord = c;
+    v->version = next_version++;
+    if (!empty) {
+      v->mesh.positions.resize(3);
+      v->mesh.normals.resize(3);
+      v->mesh.materials.resize(3);
+      v->mesh.indices.resize(3);
+      for (uint32_t i = 0; i < 3; ++i) v->mesh.indices[i] = i;
+    }
+    meshes[c] = v;
+  }
+  SendScheduler::Lookup lookup() {
+    return [this](ChunkCoord c) {
+      auto it = meshes.find(c);
+      return it == meshes.end() ? nullptr : it->second;
+    };
+  }
+};
+
+int64_t d2(ChunkCoord a, ChunkCoord b) {
+  const int64_t x = a.x - b.x, y = a.y - b.y, z = a.z - b.z;
+  return x * x + y * y + z * z;
+}
+
+TEST(SendScheduler, SendsTheViewNearestFirst) {
+  FakeStore store;
+  for (int z = -3; z <= 3; ++z)
+    for (int y = -3; y <= 3; ++y)
+      for (int x = -3; x <= 3; ++x) store.publish({x, y, z});
+  SendScheduler s;
+  EXPECT_TRUE(s.set_view({0, 0, 0}, 2).empty());
+  int64_t last = -1;
+  size_t sent = 0;
+  while (auto send = s.next(store.lookup())) {
+    EXPECT_GE(d2(send->coord, {0, 0, 0}), last);
+    EXPECT_LE(d2(send->coord, {0, 0, 0}), 4);
+    EXPECT_FALSE(send->base) << "first copies are full";
+    last = d2(send->coord, {0, 0, 0});
+    ++sent;
+  }
+  EXPECT_EQ(sent, s.visible_count());
+  EXPECT_EQ(sent, 33u);  // chunks within radius 2
+}
+
+TEST(SendScheduler, CoalescesToTheNewestVersionAndDeltasFromTheHeldOne) {
+  FakeStore store;
+  store.publish({0, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 0);
+  auto first = s.next(store.lookup());
+  ASSERT_TRUE(first);
+  const uint64_t held = first->version->version;
+  for (int i = 0; i < 5; ++i) {  // five changes before the client reads again
+    store.publish({0, 0, 0});
+    s.mark_stale({0, 0, 0});
+  }
+  auto second = s.next(store.lookup());
+  ASSERT_TRUE(second);
+  const ChunkCoord origin{0, 0, 0};
+  EXPECT_EQ(second->version->version, store.meshes[origin]->version) << "only the newest is sent";
+  ASSERT_TRUE(second->base);
+  EXPECT_EQ(second->base->version, held);
+  EXPECT_FALSE(s.next(store.lookup())) << "nothing older or duplicate follows";
+  s.mark_stale({0, 0, 0});  // a stale mark without a newer version sends nothing
+  EXPECT_FALSE(s.next(store.lookup()));
+}
+
+TEST(SendScheduler, EmptyFirstVersionIsNotSentButItsSuccessorIsSentInFull) {
+  FakeStore store;
+  store.publish({1, 0, 0}, true);
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  EXPECT_FALSE(s.next(store.lookup()));
+  store.publish({1, 0, 0});
+  s.mark_stale({1, 0, 0});
+  auto send = s.next(store.lookup());
+  ASSERT_TRUE(send);
+  EXPECT_FALSE(send->base) << "the client never received the empty version";
+}
+
+TEST(SendScheduler, UnpublishedChunksWaitAndInvisibleOnesAreIgnored) {
+  FakeStore store;
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  EXPECT_FALSE(s.next(store.lookup()));  // nothing published yet
+  store.publish({0, 1, 0});
+  store.publish({9, 9, 9});
+  s.mark_stale({0, 1, 0});
+  s.mark_stale({9, 9, 9});
+  auto send = s.next(store.lookup());
+  ASSERT_TRUE(send);
+  EXPECT_EQ(send->coord, (ChunkCoord{0, 1, 0}));
+  EXPECT_FALSE(s.next(store.lookup()));
+}
+
+TEST(SendScheduler, MovingTheViewUnloadsHeldChunksThatLeftIt) {
+  FakeStore store;
+  for (int x = -2; x <= 6; ++x) store.publish({x, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  while (s.next(store.lookup())) {
+  }
+  const auto left = s.set_view({4, 0, 0}, 1);
+  std::vector<ChunkCoord> sorted = left;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(sorted, (std::vector<ChunkCoord>{{-1, 0, 0}, {0, 0, 0}, {1, 0, 0}}));
+  auto send = s.next(store.lookup());
+  ASSERT_TRUE(send);
+  EXPECT_EQ(send->coord, (ChunkCoord{4, 0, 0})) << "the new centre comes first";
+}
+
+}  // namespace
+}  // namespace vox::net
