@@ -321,3 +321,20 @@ TEST(Server, ShutsDownGracefullyOnSigterm) {
 
 }  // namespace
 }  // namespace vox::net
+
+namespace vox::net {
+namespace {
+
+TEST(Server, DisconnectsIdleClientsAndKeepsServingOthers) {
+  test::ServerProcess server({"--idle-timeout-ms", "400"});
+  auto quiet = player(server, "quiet");
+  auto error = wait_for(*quiet, [](const wire::Envelope& m) { return m.has_error(); }, 5s);
+  EXPECT_EQ(error_code(error), wire::Error::IDLE_TIMEOUT);
+  EXPECT_FALSE(quiet->receive(2s));
+  EXPECT_TRUE(quiet->closed());
+  auto next = player(server, "next");  // the server is still there
+  EXPECT_FALSE(next->closed());
+}
+
+}  // namespace
+}  // namespace vox::net
