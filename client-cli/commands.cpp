@@ -5,6 +5,7 @@
 #include <cmath>
 #include <ostream>
 
+#include "client-cli/cli_options.hpp"
 #include "client-cli/mesh_file.hpp"
 #include "client-cli/volume_file.hpp"
 #include "server/mesh/region_mesher.hpp"
@@ -13,39 +14,23 @@
 #include "server/world/terrain_generator.hpp"
 
 namespace vox::cli {
-namespace po = boost::program_options;
 namespace {
 
 constexpr const char* kUsage =
     "usage: voxel-cli COMMAND [options]\n"
     "commands:\n"
+    "  info                    the server's version, seed, limits and player count\n"
+    "  brush | explode | smooth | paint | stamp   one edit; prints the result\n"
+    "  script FILE             run a file of edits (one per line, same options)\n"
+    "  watch --at X,Y,Z        print every chunk update around a point\n"
+    "  export --at X,Y,Z --out FILE   fetch meshes around a point: .obj, .ply or .glb\n"
     "  mesh INPUT --out FILE   mesh a volume file offline (text or raw float32)\n"
-    "  demo --out FILE         generate terrain around the origin and mesh it\n"
+    "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
+    "Network commands take --server HOST:PORT (default 127.0.0.1:7777).\n"
     "Run 'voxel-cli COMMAND --help' for a command's options.\n";
 
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
-
-// Parses args into vm; returns -1 to continue, else an exit code (help printed, bad usage).
-int parse(const std::vector<std::string>& args, const po::options_description& opts,
-          const po::positional_options_description* positional, const char* synopsis, po::variables_map& vm,
-          std::ostream& out, std::ostream& err) {
-  try {
-    po::command_line_parser parser(args);
-    parser.options(opts);
-    if (positional != nullptr) parser.positional(*positional);
-    po::store(parser.run(), vm);
-    if (vm.count("help")) {
-      out << synopsis << "\n" << opts;
-      return 0;
-    }
-    po::notify(vm);
-  } catch (const po::error& e) {
-    err << "voxel-cli: " << e.what() << " (see --help)\n";
-    return 2;
-  }
-  return -1;
-}
 
 }  // namespace
 
@@ -60,7 +45,7 @@ int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::o
   po::positional_options_description positional;
   positional.add("input", 1);
   po::variables_map vm;
-  const int rc = parse(args, opts, &positional,
+  const int rc = parse_options(args, opts, &positional,
                        "usage: voxel-cli mesh INPUT --out OUTPUT [--dims X,Y,Z] [--iso V] [--invert] [--threads N]", vm,
                        out, err);
   if (rc >= 0) return rc;
@@ -105,7 +90,7 @@ int demo_command(const std::vector<std::string>& args, std::ostream& out, std::o
       "seed", po::value<uint64_t>()->default_value(1), "world seed")(
       "radius", po::value<int>()->default_value(4), "half-width of the area in chunks (1..16)");
   po::variables_map vm;
-  const int rc = parse(args, opts, nullptr, "usage: voxel-cli demo [--out FILE] [--seed N] [--radius R]", vm, out, err);
+  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli demo [--out FILE] [--seed N] [--radius R]", vm, out, err);
   if (rc >= 0) return rc;
   const int radius = vm["radius"].as<int>();
   if (radius < 1 || radius > 16) {
@@ -146,6 +131,13 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   const std::vector<std::string> rest(args.begin() + 1, args.end());
   if (args[0] == "mesh") return mesh_command(rest, out, err);
   if (args[0] == "demo") return demo_command(rest, out, err);
+  if (args[0] == "info") return info_command(rest, out, err);
+  if (args[0] == "script") return script_command(rest, out, err);
+  if (args[0] == "watch") return watch_command(rest, out, err);
+  if (args[0] == "export") return export_command(rest, out, err);
+  for (const char* kind : {"brush", "explode", "smooth", "paint", "stamp"}) {
+    if (args[0] == kind) return edit_command(kind, rest, out, err);
+  }
   err << "voxel-cli: unknown command '" << args[0] << "'\n" << kUsage;
   return 2;
 }

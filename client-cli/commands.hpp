@@ -12,5 +12,11 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
 
 int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int info_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// kind: brush, explode, smooth, paint or stamp.
+int edit_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace vox::cli

@@ -1,9 +1,12 @@
 // Starts a real voxeld on 127.0.0.1 with --port 0 and reads the bound port from its
-// --port-file; stops it with SIGTERM (or kills it when the test is done).
+// --port-file; stops it with SIGTERM (or kills it when the test is done). The child dies
+// with the test process (PR_SET_PDEATHSIG) and logs to a file, so a crashed test never
+// leaves a server running or holding the test runner's output pipe.
 #pragma once
 
+#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -32,7 +35,22 @@ class ServerProcess {
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
-    if (posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), environ) != 0) throw std::runtime_error("spawn failed");
+    const std::string log = (dir_ / "voxeld.log").string();
+    const pid_t parent = ::getpid();
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("fork failed");
+    if (pid_ == 0) {  // child: only async-signal-safe calls until exec
+      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (::getppid() != parent) ::_exit(127);
+      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd >= 0) {
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+        ::close(fd);
+      }
+      ::execve(argv[0], argv.data(), environ);
+      ::_exit(127);
+    }
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     while (std::chrono::steady_clock::now() < deadline) {
       std::ifstream in(port_file);

@@ -1,0 +1,29 @@
+// Option parsing shared by voxel-cli's commands.
+#pragma once
+
+#include <array>
+#include <boost/program_options.hpp>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+namespace vox::cli {
+
+namespace po = boost::program_options;
+
+// Parses args into vm. Returns -1 to go on, else the exit code to return (0 after
+// --help, 2 for bad usage with a one-line message on err).
+int parse_options(const std::vector<std::string>& args, const po::options_description& opts,
+                  const po::positional_options_description* positional, const char* synopsis, po::variables_map& vm,
+                  std::ostream& out, std::ostream& err);
+
+// "X,Y,Z" of finite numbers; throws std::invalid_argument naming `what` otherwise.
+std::array<float, 3> parse_vec3(const std::string& text, const char* what);
+// "X,Z" of finite numbers.
+std::array<float, 2> parse_vec2(const std::string& text, const char* what);
+// "HOST:PORT"; throws std::invalid_argument.
+std::pair<std::string, uint16_t> parse_server(const std::string& text);
+
+inline constexpr const char* kDefaultServer = "127.0.0.1:7777";
+
+}  // namespace vox::cli

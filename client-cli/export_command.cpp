@@ -1,0 +1,86 @@
+// voxel-cli export: fetch the meshes around a point, decode them and write one welded
+// mesh (.obj, .ply or .glb).
+#include <algorithm>
+#include <chrono>
+#include <iomanip>
+#include <ostream>
+
+#include "client-cli/cli_options.hpp"
+#include "client-cli/commands.hpp"
+#include "client-cli/mesh_file.hpp"
+#include "client-cli/voxel_client.hpp"
+#include "server/mesh/mesh_welder.hpp"
+
+namespace vox::cli {
+
+using namespace std::chrono_literals;
+
+int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  po::options_description opts("voxel-cli export options");
+  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(), "X,Y,Z: centre")(
+      "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
+      "out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb")(
+      "quiet-ms", po::value<int>()->default_value(1500), "done when nothing arrives for this long")(
+      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+  po::variables_map vm;
+  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE", vm, out,
+                               err);
+  if (rc >= 0) return rc;
+  try {
+    const std::string output = vm["out"].as<std::string>();
+    mesh_format_for(output);
+    const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
+    const auto [host, port] = parse_server(vm["server"].as<std::string>());
+    client::Client c;
+    c.connect(host, port, 3s);
+    c.handshake("voxel-cli-export", 10s);
+    c.send(client::make_set_view(at[0], at[1], at[2], vm["radius"].as<uint32_t>()));
+    const auto quiet = std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>()));
+    const auto deadline = client::Clock::now() + 120s;
+    bool first = true;
+    while (client::Clock::now() < deadline) {
+      auto m = c.receive(first ? 30000ms : quiet);
+      if (!m) break;
+      first = false;
+      if (m->has_error()) throw std::runtime_error("server error: " + m->error().message());
+      if (m->has_chunk_mesh()) {
+        if (auto error = c.apply(m->chunk_mesh())) throw std::runtime_error("bad mesh from the server: " + *error);
+      }
+    }
+    if (c.chunks().empty()) throw std::runtime_error("no surface around that point (or no reply from the server)");
+    // Decode every chunk into a dense grid over their bounding box, then weld.
+    std::array<int, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};
+    for (const auto& [key, held] : c.chunks()) {
+      const int k[3] = {std::get<0>(key), std::get<1>(key), std::get<2>(key)};
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], k[a]);
+        hi[a] = std::max(hi[a], k[a]);
+      }
+    }
+    const std::array<int, 3> grid{hi[0] - lo[0] + 1, hi[1] - lo[1] + 1, hi[2] - lo[2] + 1};
+    std::vector<mesh::ChunkMesh> parts(static_cast<size_t>(grid[0]) * grid[1] * grid[2]);
+    for (const auto& [key, held] : c.chunks()) {
+      const size_t i = static_cast<size_t>(std::get<0>(key) - lo[0]) +
+                       static_cast<size_t>(grid[0]) * (static_cast<size_t>(std::get<1>(key) - lo[1]) +
+                                                       static_cast<size_t>(grid[1]) * (std::get<2>(key) - lo[2]));
+      auto decoded = proto::decode_mesh(held.encoding);
+      if (!decoded) throw std::runtime_error("bad mesh from the server: " + decoded.error());
+      parts[i] = std::move(*decoded);
+    }
+    const float k = 32.0f;
+    const mesh::ChunkMesh welded = mesh::weld_chunk_grid(
+        parts, grid, mesh::Vec3f{k * static_cast<float>(lo[0]), k * static_cast<float>(lo[1]), k * static_cast<float>(lo[2])});
+    write_mesh(output, welded);
+    out << "exported " << c.chunks().size() << " chunks: " << welded.vertex_count() << " vertices, "
+        << welded.triangle_count() << " triangles -> " << output << "\n";
+    return 0;
+  } catch (const std::invalid_argument& e) {
+    err << "voxel-cli: " << e.what() << " (see --help)\n";
+    return 2;
+  } catch (const std::exception& e) {
+    err << "voxel-cli: error: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace vox::cli

@@ -1,0 +1,197 @@
+// voxel-cli's network commands against a real voxeld on loopback.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "client-cli/commands.hpp"
+#include "client-cli/voxel_client.hpp"
+#include "server/world/terrain_generator.hpp"
+#include "tests/server_process.hpp"
+
+namespace vox::cli {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+class CliNetwork : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { server_ = new test::ServerProcess(); }
+  static void TearDownTestSuite() {
+    delete server_;
+    server_ = nullptr;
+  }
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() / ("voxel_cli_net_" + std::to_string(::getpid()) + "_" +
+                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string server() const { return "127.0.0.1:" + std::to_string(server_->port()); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  int run(std::vector<std::string> args, bool with_server = true) {
+    if (with_server) {
+      args.push_back("--server");
+      args.push_back(server());
+    }
+    out_.str("");
+    err_.str("");
+    return run_cli(args, out_, err_);
+  }
+  std::string surface_at(int x, int z) const {
+    const float y = world::TerrainGenerator(1).height_at(x, z);
+    return std::to_string(x) + "," + std::to_string(y) + "," + std::to_string(z);
+  }
+
+  static test::ServerProcess* server_;
+  fs::path dir_;
+  std::ostringstream out_, err_;
+};
+test::ServerProcess* CliNetwork::server_ = nullptr;
+
+TEST_F(CliNetwork, InfoPrintsTheServersWelcome) {
+  ASSERT_EQ(run({"info"}), 0) << err_.str();
+  EXPECT_NE(out_.str().find("world seed:      1"), std::string::npos) << out_.str();
+  EXPECT_NE(out_.str().find("players:"), std::string::npos);
+}
+
+TEST_F(CliNetwork, UnreachableServerIsAOneLineErrorAndExitOne) {
+  EXPECT_EQ(run({"info", "--server", "127.0.0.1:1"}, false), 1);
+  const std::string err = err_.str();
+  EXPECT_NE(err.find("cannot connect"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1);
+  EXPECT_EQ(run({"brush", "--at", "0,0,0", "--radius", "2", "--server", "nonsense"}, false), 2);
+}
+
+TEST_F(CliNetwork, EveryEditCommandIsAcceptedOrRefusedWithItsReason) {
+  const std::string at = surface_at(40, 40);
+  ASSERT_EQ(run({"brush", "--at", at, "--radius", "3", "--strength", "1", "--material", "4"}), 0) << err_.str();
+  EXPECT_NE(out_.str().find("accepted"), std::string::npos);
+  EXPECT_NE(out_.str().find(" ms"), std::string::npos);
+  EXPECT_EQ(run({"explode", "--at", at, "--radius", "5", "--power", "2"}), 0) << err_.str();
+  EXPECT_EQ(run({"smooth", "--at", at, "--radius", "4", "--strength", "0.5"}), 0) << err_.str();
+  EXPECT_EQ(run({"paint", "--at", at, "--radius", "4", "--material", "7"}), 0) << err_.str();
+  EXPECT_EQ(run({"stamp", "--shape", "sphere", "--at", at, "--radius", "3", "--material", "5"}), 0) << err_.str();
+  EXPECT_EQ(run({"stamp", "--min", "30,0,30", "--max", "34,4,34", "--air"}), 0) << err_.str();
+  EXPECT_EQ(run({"explode", "--at", at, "--radius", "99"}), 1);
+  EXPECT_NE(err_.str().find("refused: BAD_RADIUS"), std::string::npos) << err_.str();
+  EXPECT_EQ(run({"paint", "--at", at, "--radius", "2", "--material", "0"}), 1);
+  EXPECT_NE(err_.str().find("BAD_MATERIAL"), std::string::npos) << err_.str();
+  EXPECT_EQ(run({"brush", "--at", "nan,0,0", "--radius", "2"}), 2) << "NaN is caught before sending";
+  EXPECT_EQ(run({"brush", "--radius", "2"}), 2) << "--at is required";
+  EXPECT_EQ(run({"brush", "--help"}, false), 0);
+}
+
+TEST_F(CliNetwork, ScriptRunsEditsAndRefusesBadLinesBeforeSending) {
+  std::ofstream(path("ok.txt")) << "# a scene\nbrush --at 1,0,1 --radius 3\n\nexplode --at 20,0,20 --radius 4 --power 2\n"
+                                   "stamp --shape sphere --at 10,5,10 --radius 3 --material 5\n";
+  ASSERT_EQ(run({"script", path("ok.txt")}), 0) << err_.str();
+  EXPECT_NE(out_.str().find("3 edits (0 refused)"), std::string::npos) << out_.str();
+  EXPECT_NE(out_.str().find("edits/s"), std::string::npos);
+  std::ofstream(path("bad.txt")) << "brush --at 1,0,1 --radius 3\nteleport --at 1,2,3\n";
+  EXPECT_EQ(run({"script", path("bad.txt")}), 2);
+  EXPECT_NE(err_.str().find("line 2"), std::string::npos) << err_.str();
+  std::ofstream(path("refused.txt")) << "explode --at 1,0,1 --radius 500\n";
+  EXPECT_EQ(run({"script", path("refused.txt")}), 1);
+  EXPECT_EQ(run({"script", path("missing.txt")}), 1);
+}
+
+TEST_F(CliNetwork, WatchPrintsUpdatesAndASummary) {
+  ASSERT_EQ(run({"watch", "--at", surface_at(0, 0), "--radius", "1", "--for", "1.5"}), 0) << err_.str();
+  EXPECT_NE(out_.str().find("full"), std::string::npos) << out_.str();
+  EXPECT_NE(out_.str().find("watched"), std::string::npos);
+}
+
+uint32_t u32(const std::vector<uint8_t>& b, size_t at) {
+  return b[at] | b[at + 1] << 8 | b[at + 2] << 16 | static_cast<uint32_t>(b[at + 3]) << 24;
+}
+
+TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
+  const std::string at = surface_at(16, 16);
+  ASSERT_EQ(run({"export", "--at", at, "--radius", "1", "--out", path("region.glb"), "--quiet-ms", "800"}), 0)
+      << err_.str();
+  // What a plain client receives for the same view.
+  client::Client c;
+  c.connect("127.0.0.1", server_->port(), 5s);
+  c.handshake("checker", 5s);
+  const auto p = world::TerrainGenerator(1).height_at(16, 16);
+  c.send(client::make_set_view(16, p, 16, 1));
+  while (auto m = c.receive(800ms)) {
+    if (m->has_chunk_mesh()) {
+      ASSERT_FALSE(c.apply(m->chunk_mesh()));
+    }
+  }
+  size_t triangles = 0;
+  for (const auto& [key, held] : c.chunks()) triangles += proto::decode_mesh(held.encoding)->triangle_count();
+  std::smatch match;
+  const std::string text = out_.str();
+  ASSERT_TRUE(std::regex_search(text, match, std::regex("(\\d+) chunks: (\\d+) vertices, (\\d+) triangles")));
+  EXPECT_EQ(std::stoul(match[1]), c.chunks().size());
+  EXPECT_EQ(std::stoul(match[3]), triangles);
+  const size_t vertices = std::stoul(match[2]);
+
+  // GLB structure: header, JSON and BIN chunks, accessors inside the buffer.
+  std::ifstream in(path("region.glb"), std::ios::binary);
+  const std::vector<uint8_t> b((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_GE(b.size(), 28u);
+  EXPECT_EQ(u32(b, 0), 0x46546C67u);  // "glTF"
+  EXPECT_EQ(u32(b, 4), 2u);
+  EXPECT_EQ(u32(b, 8), b.size());
+  const uint32_t json_len = u32(b, 12);
+  EXPECT_EQ(u32(b, 16), 0x4E4F534Au);  // "JSON"
+  EXPECT_EQ(json_len % 4, 0u);
+  const std::string json(b.begin() + 20, b.begin() + 20 + json_len);
+  const size_t bin_at = 20 + json_len;
+  const uint32_t bin_len = u32(b, bin_at);
+  EXPECT_EQ(u32(b, bin_at + 4), 0x004E4942u);  // "BIN\0"
+  EXPECT_EQ(bin_at + 8 + bin_len, b.size());
+  ASSERT_TRUE(std::regex_search(json, match, std::regex("\"buffers\":\\[\\{\"byteLength\":(\\d+)")));
+  const size_t buffer_len = std::stoul(match[1]);
+  EXPECT_LE(buffer_len, bin_len);
+  const std::regex view("\\{\"buffer\":0,\"byteOffset\":(\\d+),\"byteLength\":(\\d+)");
+  size_t views = 0;
+  for (auto it = std::sregex_iterator(json.begin(), json.end(), view); it != std::sregex_iterator(); ++it, ++views) {
+    EXPECT_LE(std::stoul((*it)[1]) + std::stoul((*it)[2]), buffer_len) << "buffer view outside the buffer";
+  }
+  EXPECT_EQ(views, 4u);
+  ASSERT_TRUE(std::regex_search(json, match, std::regex("\"count\":(\\d+),\"type\":\"VEC3\",\"min\":\\[([^\\]]+)\\],\"max\":\\[([^\\]]+)\\]")));
+  EXPECT_EQ(std::stoul(match[1]), vertices);
+  // Accessor bounds: the region's chunks, and the positions inside them.
+  std::vector<float> lo, hi;
+  for (auto s : {match[2].str(), match[3].str()}) {
+    std::replace(s.begin(), s.end(), ',', ' ');
+    std::istringstream v(s);
+    auto& dst = lo.empty() ? lo : hi;
+    for (float f; v >> f;) dst.push_back(f);
+  }
+  ASSERT_EQ(lo.size(), 3u);
+  ASSERT_EQ(hi.size(), 3u);
+  const float bin_floats = static_cast<float>(vertices);
+  (void)bin_floats;
+  const float* pos = reinterpret_cast<const float*>(b.data() + bin_at + 8);
+  for (size_t v = 0; v < vertices; ++v) {
+    for (int a = 0; a < 3; ++a) {
+      ASSERT_GE(pos[3 * v + a], lo[a]);
+      ASSERT_LE(pos[3 * v + a], hi[a]);
+    }
+  }
+  EXPECT_LT(lo[0], 16.0f + 64);
+  EXPECT_GT(hi[0], 16.0f - 64);
+  // Indices in range.
+  const uint32_t* idx = reinterpret_cast<const uint32_t*>(b.data() + bin_at + 8 + vertices * 36);
+  for (size_t i = 0; i < triangles * 3; ++i) ASSERT_LT(idx[i], vertices);
+
+  for (const char* ext : {".obj", ".ply"}) {
+    EXPECT_EQ(run({"export", "--at", at, "--radius", "1", "--out", path(std::string("region") + ext), "--quiet-ms", "500"}), 0)
+        << err_.str();
+  }
+  EXPECT_EQ(run({"export", "--at", at, "--out", path("region.stl")}), 1) << "unknown extension";
+}
+
+}  // namespace
+}  // namespace vox::cli
