@@ -24,6 +24,7 @@ constexpr const char* kUsage =
     "  script FILE             run a file of edits (one per line, same options)\n"
     "  watch --at X,Y,Z        print every chunk update around a point\n"
     "  export --at X,Y,Z --out FILE   fetch meshes around a point: .obj, .ply or .glb\n"
+    "  slice --y H --at X,Z --out map.svg   a top-down contour map of the terrain\n"
     "  mesh INPUT --out FILE   mesh a volume file offline (text or raw float32)\n"
     "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
     "Network commands take --server HOST:PORT (default 127.0.0.1:7777).\n"
@@ -135,6 +136,7 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (args[0] == "script") return script_command(rest, out, err);
   if (args[0] == "watch") return watch_command(rest, out, err);
   if (args[0] == "export") return export_command(rest, out, err);
+  if (args[0] == "slice") return slice_command(rest, out, err);
   for (const char* kind : {"brush", "explode", "smooth", "paint", "stamp"}) {
     if (args[0] == kind) return edit_command(kind, rest, out, err);
   }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <sstream>
 
@@ -191,6 +192,47 @@ TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
         << err_.str();
   }
   EXPECT_EQ(run({"export", "--at", at, "--out", path("region.stl")}), 1) << "unknown extension";
+}
+
+}  // namespace
+}  // namespace vox::cli
+
+namespace vox::cli {
+namespace {
+
+TEST_F(CliNetwork, SliceWritesSvgWhoseContoursCloseOrEndAtTheBorder) {
+  const float y = world::TerrainGenerator(1).height_at(300, 300);
+  ASSERT_EQ(run({"slice", "--y", std::to_string(y), "--at", "300,300", "--radius", "1", "--levels", "6", "--out",
+                 path("map.svg"), "--quiet-ms", "800"}),
+            0)
+      << err_.str();
+  std::ifstream in(path("map.svg"));
+  const std::string svg((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_EQ(svg.rfind("<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"0 0 ", 0), 0u);
+  EXPECT_NE(svg.find("</svg>"), std::string::npos);
+  std::smatch match;
+  ASSERT_TRUE(std::regex_search(svg, match, std::regex("viewBox=\"0 0 (\\d+) (\\d+)\"")));
+  const float size = std::stof(match[1]);
+  const std::regex path_re("<path data-height=\"[^\"]+\" stroke=\"#[0-9a-f]{6}\"[^>]* d=\"([^\"]*)\"/>");
+  const std::regex segment_re("M([0-9.]+) ([0-9.]+) L([0-9.]+) ([0-9.]+)");
+  size_t paths = 0, segments = 0;
+  for (auto p = std::sregex_iterator(svg.begin(), svg.end(), path_re); p != std::sregex_iterator(); ++p, ++paths) {
+    const std::string d = (*p)[1];
+    std::map<std::string, int> degree;
+    for (auto s = std::sregex_iterator(d.begin(), d.end(), segment_re); s != std::sregex_iterator(); ++s, ++segments) {
+      ++degree[(*s)[1].str() + " " + (*s)[2].str()];
+      ++degree[(*s)[3].str() + " " + (*s)[4].str()];
+    }
+    for (const auto& [point, n] : degree) {
+      if (n % 2 == 0) continue;  // inside a contour: joined on both sides
+      std::istringstream xy(point);
+      float x = 0, z = 0;
+      xy >> x >> z;
+      EXPECT_TRUE(x == 0 || z == 0 || x == size || z == size) << "contour ends inside the map at " << point;
+    }
+  }
+  EXPECT_EQ(paths, 6u);
+  EXPECT_GT(segments, 10u);
 }
 
 }  // namespace
