@@ -3,7 +3,8 @@
 
 #include <array>
 #include <boost/program_options.hpp>
-#include <iosfwd>
+#include <ostream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -25,5 +26,20 @@ std::array<float, 2> parse_vec2(const std::string& text, const char* what);
 std::pair<std::string, uint16_t> parse_server(const std::string& text);
 
 inline constexpr const char* kDefaultServer = "127.0.0.1:7777";
+
+// Runs a command's body and maps what it throws to the exit codes every command shares:
+// std::invalid_argument (a bad option value) is 2, anything else 1, each as one line.
+template <class Body>
+int guarded(std::ostream& err, Body&& body) {
+  try {
+    return body();
+  } catch (const std::invalid_argument& e) {
+    err << "voxel-cli: " << e.what() << " (see --help)\n";
+    return 2;
+  } catch (const std::exception& e) {
+    err << "voxel-cli: error: " << e.what() << "\n";
+    return 1;
+  }
+}
 
 }  // namespace vox::cli

@@ -64,7 +64,7 @@ int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::o
     err << "voxel-cli: error: --threads must be between 0 and 1024\n";
     return 2;
   }
-  try {
+  return guarded(err, [&] {
     mesh_format_for(output);  // refuse a bad extension before doing any work
     std::optional<std::array<int, 3>> dims;
     if (vm.count("dims")) dims = parse_dims(vm["dims"].as<std::string>());
@@ -78,10 +78,7 @@ int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::o
         << result.vertex_count() << " vertices, " << result.triangle_count() << " triangles in " << ms << " ms -> "
         << output << "\n";
     return 0;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -99,7 +96,7 @@ int demo_command(const std::vector<std::string>& args, std::ostream& out, std::o
     return 2;
   }
   const std::string output = vm["out"].as<std::string>();
-  try {
+  return guarded(err, [&] {
     mesh_format_for(output);
     const world::TerrainGenerator generator(vm["seed"].as<uint64_t>());
     const mesh::ChunkBox box{{-radius, -3, -radius}, {radius - 1, 2, radius - 1}};
@@ -118,10 +115,7 @@ int demo_command(const std::vector<std::string>& args, std::ostream& out, std::o
         << " ms, meshed in " << mesh_ms << " ms: " << result.vertex_count() << " vertices, "
         << result.triangle_count() << " triangles -> " << output << "\n";
     return 0;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {

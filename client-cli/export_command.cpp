@@ -8,6 +8,7 @@
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
 #include "client-cli/mesh_file.hpp"
+#include "client-cli/region_fetch.hpp"
 #include "client-cli/voxel_client.hpp"
 #include "server/mesh/mesh_welder.hpp"
 
@@ -26,28 +27,14 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE", vm, out,
                                err);
   if (rc >= 0) return rc;
-  try {
+  return guarded(err, [&] {
     const std::string output = vm["out"].as<std::string>();
     mesh_format_for(output);
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
-    const auto [host, port] = parse_server(vm["server"].as<std::string>());
-    client::Client c;
-    c.connect(host, port, 3s);
-    c.handshake("voxel-cli-export", 10s);
-    c.send(client::make_set_view(at[0], at[1], at[2], vm["radius"].as<uint32_t>()));
-    const auto quiet = std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>()));
-    const auto deadline = client::Clock::now() + 120s;
-    bool first = true;
-    while (client::Clock::now() < deadline) {
-      auto m = c.receive(first ? 30000ms : quiet);
-      if (!m) break;
-      first = false;
-      if (m->has_error()) throw std::runtime_error("server error: " + m->error().message());
-      if (m->has_chunk_mesh()) {
-        if (auto error = c.apply(m->chunk_mesh())) throw std::runtime_error("bad mesh from the server: " + *error);
-      }
-    }
-    if (c.chunks().empty()) throw std::runtime_error("no surface around that point (or no reply from the server)");
+    const auto region = fetch_region(vm["server"].as<std::string>(), "voxel-cli-export", at,
+                                     vm["radius"].as<uint32_t>(),
+                                     std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>())));
+    const client::Client& c = *region;
     // Decode every chunk into a dense grid over their bounding box, then weld.
     std::array<int, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};
     for (const auto& [key, held] : c.chunks()) {
@@ -74,13 +61,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
     out << "exported " << c.chunks().size() << " chunks: " << welded.vertex_count() << " vertices, "
         << welded.triangle_count() << " triangles -> " << output << "\n";
     return 0;
-  } catch (const std::invalid_argument& e) {
-    err << "voxel-cli: " << e.what() << " (see --help)\n";
-    return 2;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 }  // namespace vox::cli

@@ -147,7 +147,7 @@ int info_command(const std::vector<std::string>& args, std::ostream& out, std::o
   po::variables_map vm;
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli info [--server HOST:PORT]", vm, out, err);
   if (rc >= 0) return rc;
-  try {
+  return guarded(err, [&] {
     const auto [host, port] = parse_server(vm["server"].as<std::string>());
     client::Client c;
     c.connect(host, port, kConnectTimeout);
@@ -162,10 +162,7 @@ int info_command(const std::vector<std::string>& args, std::ostream& out, std::o
         << "max strength:    " << w.max_edit_strength() << "\n"
         << "max frame:       " << w.max_frame_bytes() << " bytes\n";
     return 0;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 int edit_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -174,7 +171,7 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
   const std::string synopsis = "usage: voxel-cli " + kind + " [options]";
   const int rc = parse_options(args, opts, nullptr, synopsis.c_str(), vm, out, err);
   if (rc >= 0) return rc;
-  try {
+  return guarded(err, [&] {
     const wire::Envelope edit = edit_from_options(kind, vm, 1);
     auto c = open_session(vm["server"].as<std::string>(), "voxel-cli");
     const auto t0 = Clock::now();
@@ -188,13 +185,7 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
     }
     out << describe(*result) << " in " << std::fixed << std::setprecision(2) << ms << " ms\n";
     return 0;
-  } catch (const std::invalid_argument& e) {
-    err << "voxel-cli: " << e.what() << " (see --help)\n";
-    return 2;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -243,7 +234,7 @@ int script_command(const std::vector<std::string>& args, std::ostream& out, std:
       return 2;
     }
   }
-  try {
+  return guarded(err, [&] {
     auto c = open_session(vm["server"].as<std::string>(), "voxel-cli-script");
     const auto t0 = Clock::now();
     size_t sent = 0, done = 0, refused = 0;
@@ -263,10 +254,7 @@ int script_command(const std::vector<std::string>& args, std::ostream& out, std:
     out << edits.size() << " edits (" << refused << " refused) in " << std::fixed << std::setprecision(3) << s << " s: "
         << std::setprecision(0) << static_cast<double>(edits.size()) / std::max(s, 1e-9) << " edits/s\n";
     return refused == 0 ? 0 : 1;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -279,7 +267,7 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli watch --at X,Y,Z --radius N [--for SECONDS]", vm,
                                out, err);
   if (rc >= 0) return rc;
-  try {
+  return guarded(err, [&] {
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
     const double seconds = vm.count("for") ? vm["for"].as<double>() : 1e12;
     if (!(seconds > 0)) throw std::invalid_argument("--for must be > 0");
@@ -324,13 +312,7 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
         << " s: " << updates << " updates (" << fulls << " full, " << deltas << " delta), " << bytes << " bytes, "
         << c->chunks().size() << " chunks held\n";
     return failures == 0 ? 0 : 1;
-  } catch (const std::invalid_argument& e) {
-    err << "voxel-cli: " << e.what() << " (see --help)\n";
-    return 2;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 }  // namespace vox::cli

@@ -10,6 +10,7 @@
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
+#include "client-cli/region_fetch.hpp"
 #include "client-cli/voxel_client.hpp"
 
 namespace vox::cli {
@@ -115,7 +116,7 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli slice --y H --at X,Z --radius N --out map.svg", vm,
                                out, err);
   if (rc >= 0) return rc;
-  try {
+  return guarded(err, [&] {
     const auto xz = parse_vec2(vm["at"].as<std::string>(), "--at");
     const float y = vm["y"].as<float>();
     const int levels = vm["levels"].as<int>();
@@ -123,21 +124,9 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     if (levels < 1 || levels > 64) throw std::invalid_argument("--levels must be 1..64");
     const std::string output = vm["out"].as<std::string>();
     const auto radius = vm["radius"].as<uint32_t>();
-    const auto [host, port] = parse_server(vm["server"].as<std::string>());
-    client::Client c;
-    c.connect(host, port, 3s);
-    c.handshake("voxel-cli-slice", 10s);
-    c.send(client::make_set_view(xz[0], y, xz[1], radius));
-    const auto quiet = std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>()));
-    for (bool first = true;; first = false) {
-      auto m = c.receive(first ? 30000ms : quiet);
-      if (!m) break;
-      if (m->has_error()) throw std::runtime_error("server error: " + m->error().message());
-      if (m->has_chunk_mesh()) {
-        if (auto error = c.apply(m->chunk_mesh())) throw std::runtime_error("bad mesh from the server: " + *error);
-      }
-    }
-    if (c.chunks().empty()) throw std::runtime_error("no surface around that point (or no reply from the server)");
+    const auto region = fetch_region(vm["server"].as<std::string>(), "voxel-cli-slice", {xz[0], y, xz[1]}, radius,
+                                     std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>())));
+    const client::Client& c = *region;
     HeightMap map;
     map.size = static_cast<int>(2 * radius + 1) * 32 + 1;
     map.x0 = static_cast<int>(std::floor(xz[0])) - map.size / 2;
@@ -179,13 +168,7 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     out << "sliced " << c.chunks().size() << " chunks at " << levels << " heights from " << lo << " to " << hi << " -> "
         << output << "\n";
     return 0;
-  } catch (const std::invalid_argument& e) {
-    err << "voxel-cli: " << e.what() << " (see --help)\n";
-    return 2;
-  } catch (const std::exception& e) {
-    err << "voxel-cli: error: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }
 
 }  // namespace vox::cli
