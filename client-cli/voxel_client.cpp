@@ -90,30 +90,9 @@ std::optional<wire::Envelope> Client::receive(std::chrono::milliseconds timeout)
   }
 }
 
-std::optional<std::string> Client::apply(const wire::ChunkMesh& m) {
-  const auto key = std::make_tuple(m.coord().x(), m.coord().y(), m.coord().z());
-  HeldChunk& held = chunks_[key];
-  const std::span<const uint8_t> payload(reinterpret_cast<const uint8_t*>(m.payload().data()), m.payload().size());
-  std::span<const uint8_t> base;
-  if (m.base_version() != 0) {
-    if (held.version != m.base_version()) {
-      return "delta against version " + std::to_string(m.base_version()) + " but the client holds " +
-             std::to_string(held.version);
-    }
-    base = held.encoding;
-  }
-  auto encoding = zstd_.decompress(payload, base, proto::DecodeLimits{}.max_encoding_bytes);
-  if (!encoding) return encoding.error();
-  mesh::ChunkMesh decoded;
-  if (auto error = proto::decode_mesh(*encoding, {}, scratch_, decoded)) return error->message;
-  held.version = m.version();
-  held.encoding = std::move(*encoding);
-  return std::nullopt;
-}
+std::optional<std::string> Client::apply(const wire::ChunkMesh& m) { return cache_.apply(m, zstd_, scratch_, decoded_); }
 
-void Client::forget(const wire::ChunkUnload& u) {
-  for (const auto& c : u.coords()) chunks_.erase(std::make_tuple(c.x(), c.y(), c.z()));
-}
+void Client::forget(const wire::ChunkUnload& u) { cache_.forget(u); }
 
 wire::Envelope make_hello(const std::string& name, uint32_t version) {
   wire::Envelope m;

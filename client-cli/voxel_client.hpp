@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 
+#include "client-cli/chunk_cache.hpp"
 #include "proto/framing.hpp"
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
@@ -19,11 +20,6 @@
 namespace vox::client {
 
 using Clock = std::chrono::steady_clock;
-
-struct HeldChunk {
-  uint64_t version = 0;
-  std::vector<uint8_t> encoding;  // decompressed, the base for the next delta
-};
 
 class Client {
  public:
@@ -44,7 +40,7 @@ class Client {
   // when the payload does not decode (wrong base, corruption).
   std::optional<std::string> apply(const wire::ChunkMesh& m);
   void forget(const wire::ChunkUnload& u);
-  const std::map<std::tuple<int, int, int>, HeldChunk>& chunks() const { return chunks_; }
+  const std::map<ChunkKey, HeldChunk>& chunks() const { return cache_.chunks(); }
 
  private:
   boost::asio::io_context io_;
@@ -54,7 +50,8 @@ class Client {
   bool closed_ = false;
   proto::ZstdCodec zstd_;
   proto::CodecScratch scratch_;
-  std::map<std::tuple<int, int, int>, HeldChunk> chunks_;
+  mesh::ChunkMesh decoded_;
+  ChunkCache cache_;
 };
 
 wire::Envelope make_hello(const std::string& name, uint32_t version = 1);

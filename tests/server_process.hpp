@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <stdexcept>
@@ -68,7 +69,7 @@ class ServerProcess {
       waitpid(pid_, &status, 0);
     }
     std::error_code ec;
-    std::filesystem::remove_all(dir_, ec);
+    if (std::getenv("VOXEL_KEEP_SERVER_LOGS") == nullptr) std::filesystem::remove_all(dir_, ec);
   }
   uint16_t port() const { return port_; }
   // SIGTERM, then the exit code (-1 when it did not exit within the timeout).

@@ -1,0 +1,155 @@
+#include "loadtest/load_stats.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <ostream>
+
+namespace vox::loadtest {
+
+Percentiles percentiles(std::vector<double> v) {
+  Percentiles p;
+  p.count = v.size();
+  if (v.empty()) return p;
+  std::sort(v.begin(), v.end());
+  auto at = [&v](double q) { return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))]; };
+  p.p50 = at(0.50);
+  p.p95 = at(0.95);
+  p.p99 = at(0.99);
+  p.max = v.back();
+  return p;
+}
+
+namespace {
+
+std::vector<double> values(const std::vector<LatencySample>& samples) {
+  std::vector<double> v;
+  v.reserve(samples.size());
+  for (const auto& s : samples) v.push_back(s.ms);
+  return v;
+}
+
+uint64_t total(const std::map<std::string, uint64_t>& m) {
+  uint64_t n = 0;
+  for (const auto& [k, v] : m) n += v;
+  return n;
+}
+
+void json_percentiles(std::ostream& out, const char* name, const Percentiles& p) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "\"%s\":{\"p50\":%.3f,\"p95\":%.3f,\"p99\":%.3f,\"max\":%.3f,\"count\":%zu}", name,
+                p.p50, p.p95, p.p99, p.max, p.count);
+  out << buf;
+}
+
+void json_map(std::ostream& out, const char* name, const std::map<std::string, uint64_t>& m) {
+  out << "\"" << name << "_by_cause\":{";
+  bool first = true;
+  for (const auto& [k, v] : m) {
+    out << (first ? "" : ",") << "\"" << k << "\":" << v;
+    first = false;
+  }
+  out << "}";
+}
+
+}  // namespace
+
+uint64_t LoadStats::error_count() const { return total(errors); }
+uint64_t LoadStats::disconnect_count() const { return total(disconnects); }
+
+void write_table(const LoadStats& s, std::ostream& out) {
+  const auto result = percentiles(values(s.edit_to_result)), delta = percentiles(values(s.edit_to_delta));
+  const auto view = percentiles(s.first_view_ms);
+  const double per_player_s = std::max(1e-9, s.duration_s * std::max(1, s.players));
+  char buf[512];
+  out << "voxel-loadtest results\n";
+  std::snprintf(buf, sizeof buf, "  players %d (%d connected), %.1f s, %llu edits sent (%llu refused)\n", s.players,
+                s.players_connected, s.duration_s, static_cast<unsigned long long>(s.edits_sent),
+                static_cast<unsigned long long>(s.refused));
+  out << buf;
+  out << "  latency (ms)               p50      p95      p99      max    count\n";
+  for (const auto& [name, p] : {std::pair{"edit -> EditResult   ", result}, {"edit -> deltas decoded", delta},
+                                {"first full view      ", view}}) {
+    std::snprintf(buf, sizeof buf, "  %s %8.2f %8.2f %8.2f %8.2f %8zu\n", name, p.p50, p.p95, p.p99, p.max, p.count);
+    out << buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "  received per player: %.0f bytes/s, %.1f messages/s; %llu chunk meshes streamed\n",
+                static_cast<double>(s.bytes_received) / per_player_s, static_cast<double>(s.messages_received) / per_player_s,
+                static_cast<unsigned long long>(s.chunks_streamed));
+  out << buf;
+  out << "  errors: " << s.error_count() << ", disconnects: " << s.disconnect_count()
+      << ", decode failures: " << s.decode_failures;
+  if (s.verified) out << ", verify mismatches: " << s.verify_mismatches;
+  out << "\n";
+  for (const auto& [k, v] : s.errors) out << "    error " << k << ": " << v << "\n";
+  for (const auto& [k, v] : s.disconnects) out << "    disconnect " << k << ": " << v << "\n";
+}
+
+void write_json(const LoadStats& s, std::ostream& out) {
+  const double per_player_s = std::max(1e-9, s.duration_s * std::max(1, s.players));
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "{\"players\":%d,\"players_connected\":%d,\"duration_s\":%.3f,\"edits_sent\":%llu,\"refused\":%llu,",
+                s.players, s.players_connected, s.duration_s, static_cast<unsigned long long>(s.edits_sent),
+                static_cast<unsigned long long>(s.refused));
+  out << buf;
+  json_percentiles(out, "edit_to_result_ms", percentiles(values(s.edit_to_result)));
+  out << ",";
+  json_percentiles(out, "edit_to_delta_ms", percentiles(values(s.edit_to_delta)));
+  out << ",";
+  json_percentiles(out, "first_view_ms", percentiles(s.first_view_ms));
+  std::snprintf(buf, sizeof buf,
+                ",\"bytes_per_player_per_s\":%.1f,\"messages_per_player_per_s\":%.2f,\"chunks_streamed\":%llu,"
+                "\"decode_failures\":%llu,\"errors\":%llu,\"disconnects\":%llu,",
+                static_cast<double>(s.bytes_received) / per_player_s, static_cast<double>(s.messages_received) / per_player_s,
+                static_cast<unsigned long long>(s.chunks_streamed), static_cast<unsigned long long>(s.decode_failures),
+                static_cast<unsigned long long>(s.error_count()), static_cast<unsigned long long>(s.disconnect_count()));
+  out << buf;
+  json_map(out, "errors", s.errors);
+  out << ",";
+  json_map(out, "disconnects", s.disconnects);
+  out << ",\"verified\":" << (s.verified ? "true" : "false") << ",\"verify_mismatches\":" << s.verify_mismatches << "}\n";
+}
+
+// Two panels over time: edit -> delta latency (p50, p99 per second) and bytes received per second.
+void write_svg(const LoadStats& s, std::ostream& out) {
+  const int seconds = std::max<int>(1, static_cast<int>(std::ceil(s.bytes_per_second.size())));
+  std::vector<std::vector<double>> per_second(static_cast<size_t>(seconds));
+  for (const auto& x : s.edit_to_delta) {
+    const auto i = static_cast<size_t>(std::clamp(static_cast<int>(x.at_s), 0, seconds - 1));
+    per_second[i].push_back(x.ms);
+  }
+  std::vector<double> p50(seconds, 0), p99(seconds, 0);
+  double max_ms = 1, max_bytes = 1;
+  for (int i = 0; i < seconds; ++i) {
+    const auto p = percentiles(per_second[static_cast<size_t>(i)]);
+    p50[static_cast<size_t>(i)] = p.p50;
+    p99[static_cast<size_t>(i)] = p.p99;
+    max_ms = std::max(max_ms, p.p99);
+  }
+  for (double b : s.bytes_per_second) max_bytes = std::max(max_bytes, b);
+  const double w = 800, h = 220, left = 60, gap = 60;
+  auto x_of = [&](int i) { return left + (w - left - 20) * (seconds > 1 ? i / static_cast<double>(seconds - 1) : 0.0); };
+  auto polyline = [&](const std::vector<double>& v, double top, double scale, const char* colour) {
+    out << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"1.5\" points=\"";
+    for (int i = 0; i < static_cast<int>(v.size()); ++i) out << x_of(i) << "," << top + h - v[static_cast<size_t>(i)] / scale * h << " ";
+    out << "\"/>\n";
+  };
+  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << 2 * h + 3 * gap << "\">\n"
+      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      << "<text x=\"" << left << "\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest: " << s.players
+      << " players, edit to decoded delta (ms): p50 blue, p99 red; max " << max_ms << " ms</text>\n"
+      << "<text x=\"" << left << "\" y=\"" << h + gap + 40 << "\" font-family=\"sans-serif\" font-size=\"14\">bytes received per second, all players; max "
+      << max_bytes << "</text>\n";
+  for (double top : {gap, h + 2 * gap}) {
+    out << "<line x1=\"" << left << "\" y1=\"" << top + h << "\" x2=\"" << w - 20 << "\" y2=\"" << top + h
+        << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\"" << left << "\" y2=\"" << top + h
+        << "\" stroke=\"black\"/>\n";
+  }
+  polyline(p50, gap, max_ms, "#2060c0");
+  polyline(p99, gap, max_ms, "#c02020");
+  polyline(s.bytes_per_second, h + 2 * gap, max_bytes, "#208040");
+  out << "</svg>\n";
+}
+
+}  // namespace vox::loadtest

@@ -1,0 +1,47 @@
+// What the load test measures, and its reports: a human-readable table, JSON, and an SVG
+// of latency percentiles and throughput over time.
+#pragma once
+
+#include <cstdint>
+#include <iosfwd>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace vox::loadtest {
+
+struct Percentiles {
+  double p50 = 0, p95 = 0, p99 = 0, max = 0;
+  size_t count = 0;
+};
+Percentiles percentiles(std::vector<double> values);
+
+struct LatencySample {
+  double at_s;  // since the test started
+  double ms;
+};
+
+struct LoadStats {
+  int players = 0;
+  double duration_s = 0;  // the measured (editing) part
+  uint64_t edits_sent = 0, results = 0, refused = 0;
+  uint64_t messages_received = 0, bytes_received = 0, chunks_streamed = 0;
+  uint64_t decode_failures = 0;
+  int players_connected = 0;
+  std::vector<LatencySample> edit_to_result, edit_to_delta;
+  std::vector<double> first_view_ms;
+  std::map<std::string, uint64_t> errors;       // by cause (Error code name, decode failure, ...)
+  std::map<std::string, uint64_t> disconnects;  // by cause
+  std::vector<double> bytes_per_second;         // received by all players, per second of the test
+  uint64_t verify_mismatches = 0;
+  bool verified = false;
+
+  uint64_t error_count() const;
+  uint64_t disconnect_count() const;
+};
+
+void write_table(const LoadStats& s, std::ostream& out);
+void write_json(const LoadStats& s, std::ostream& out);
+void write_svg(const LoadStats& s, std::ostream& out);
+
+}  // namespace vox::loadtest

@@ -1,0 +1,62 @@
+// voxel-loadtest: thin entry point; the simulation lives in the voxel_loadtest library.
+#include <unistd.h>
+
+#include <boost/program_options.hpp>
+#include <fstream>
+#include <iostream>
+
+#include "client-cli/cli_options.hpp"
+#include "loadtest/load_test.hpp"
+
+int main(int argc, char** argv) {
+  namespace po = boost::program_options;
+  vox::loadtest::LoadConfig config;
+  std::string server, json, svg;
+  po::options_description opts("voxel-loadtest options");
+  opts.add_options()("help,h", "show this help")(
+      "server", po::value<std::string>(&server)->default_value("127.0.0.1:7777"), "HOST:PORT of voxeld")(
+      "players", po::value<int>(&config.players)->default_value(20), "simulated players (1..10000)")(
+      "duration", po::value<double>(&config.duration_s)->default_value(10), "seconds of play after the ramp")(
+      "edit-rate", po::value<double>(&config.edit_rate)->default_value(0.5), "edits per second per player")(
+      "view-radius", po::value<uint32_t>(&config.view_radius)->default_value(4), "view radius in chunks")(
+      "ramp", po::value<double>(&config.ramp_s)->default_value(2), "seconds over which players join")(
+      "seed", po::value<uint64_t>(&config.seed)->default_value(1), "seed of the players' paths and edits")(
+      "verify", po::bool_switch(&config.verify), "at the end, check every player's meshes against a fresh client")(
+      "json", po::value<std::string>(&json), "write the results as JSON to this file")(
+      "svg", po::value<std::string>(&svg), "write latency and throughput over time as SVG to this file");
+  po::variables_map vm;
+  try {
+    po::store(po::parse_command_line(argc, argv, opts), vm);
+    if (vm.count("help")) {
+      std::cout << "usage: voxel-loadtest [options]\n" << opts;
+      return 0;
+    }
+    po::notify(vm);
+    const auto [host, port] = vox::cli::parse_server(server);
+    config.host = host;
+    config.port = port;
+  } catch (const std::exception& e) {
+    std::cerr << "voxel-loadtest: " << e.what() << " (see --help)\n";
+    return 2;
+  }
+  if (config.players < 1 || config.players > 10000 || !(config.duration_s > 0) || !(config.edit_rate > 0) ||
+      !(config.ramp_s >= 0) || config.view_radius > 64) {
+    std::cerr << "voxel-loadtest: --players 1..10000, --duration > 0, --edit-rate > 0, --ramp >= 0, --view-radius <= 64\n";
+    return 2;
+  }
+  config.progress_tty = ::isatty(STDERR_FILENO) != 0;
+  vox::loadtest::LoadTest test(config);
+  const vox::loadtest::LoadStats stats = test.run(std::cerr);
+  vox::loadtest::write_table(stats, std::cout);
+  if (!json.empty()) {
+    std::ofstream out(json);
+    vox::loadtest::write_json(stats, out);
+  }
+  if (!svg.empty()) {
+    std::ofstream out(svg);
+    vox::loadtest::write_svg(stats, out);
+  }
+  const bool ok = stats.error_count() == 0 && stats.disconnect_count() == 0 && stats.decode_failures == 0 &&
+                  stats.verify_mismatches == 0 && stats.players_connected == config.players;
+  return ok ? 0 : 1;
+}

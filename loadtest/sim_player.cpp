@@ -1,0 +1,283 @@
+#include "loadtest/sim_player.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace vox::loadtest {
+
+namespace asio = boost::asio;
+using client::ChunkKey;
+
+namespace {
+constexpr double kTickS = 0.05;
+constexpr double kPingEveryS = 10;
+constexpr double kFirstViewQuietS = 1.0;  // the first view is complete after this long without a full mesh
+constexpr double kDeltaGiveUpS = 10;      // a changed chunk whose mesh never came (e.g. it stayed empty)
+
+std::vector<uint8_t> frame_of(const wire::Envelope& m) {
+  std::vector<uint8_t> out;
+  const std::string body = m.SerializeAsString();
+  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, out);
+  return out;
+}
+}  // namespace
+
+SimPlayer::SimPlayer(LoadTest& test, int id, uint32_t seed)
+    : test_(test), id_(id), rng_(seed), socket_(test.io()), timer_(test.io()) {
+  std::uniform_real_distribution<float> spawn(-static_cast<float>(test.config().spawn_area),
+                                              static_cast<float>(test.config().spawn_area));
+  x_ = spawn(rng_);
+  z_ = spawn(rng_);
+  heading_ = std::uniform_real_distribution<float>(0, 2 * std::numbers::pi_v<float>)(rng_);
+  radius_ = test.config().view_radius;
+}
+
+void SimPlayer::start() {
+  asio::ip::tcp::endpoint endpoint(asio::ip::make_address(test_.config().host), test_.config().port);
+  socket_.async_connect(endpoint, [self = shared_from_this()](boost::system::error_code ec) {
+    if (ec) {
+      self->fail("connect failed: " + ec.message(), true);
+      return;
+    }
+    boost::system::error_code ignored;
+    self->socket_.set_option(asio::ip::tcp::no_delay(true), ignored);
+    wire::Envelope hello;
+    hello.mutable_hello()->set_protocol_version(1);
+    hello.mutable_hello()->set_player_name("sim" + std::to_string(self->id_));
+    self->send(hello);
+    self->read_more();
+  });
+}
+
+void SimPlayer::close() {
+  closed_ = true;
+  timer_.cancel();
+  boost::system::error_code ignored;
+  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
+  socket_.close(ignored);
+}
+
+void SimPlayer::fail(const std::string& cause, bool disconnect) {
+  if (closed_) return;
+  auto& stats = test_.stats();
+  if (disconnect) {
+    ++stats.disconnects[cause];
+    close();
+  } else {
+    ++stats.errors[cause];
+  }
+}
+
+void SimPlayer::send(const wire::Envelope& m) {
+  if (closed_) return;
+  outbox_.push_back(frame_of(m));
+  write_more();
+}
+
+void SimPlayer::write_more() {
+  if (writing_ || outbox_.empty() || closed_) return;
+  writing_ = true;
+  asio::async_write(socket_, asio::buffer(outbox_.front()), [self = shared_from_this()](boost::system::error_code ec, size_t) {
+    self->writing_ = false;
+    if (ec) {
+      if (!self->test_.stopping()) self->fail("write failed: " + ec.message(), true);
+      return;
+    }
+    self->outbox_.pop_front();
+    self->write_more();
+  });
+}
+
+void SimPlayer::read_more() {
+  socket_.async_read_some(asio::buffer(buffer_), [self = shared_from_this()](boost::system::error_code ec, size_t n) {
+    if (ec) {
+      if (!self->closed_ && !self->test_.stopping()) self->fail("closed by the server", true);
+      return;
+    }
+    self->test_.count_bytes(n);
+    self->decoder_.feed({self->buffer_.data(), n});
+    while (auto frame = self->decoder_.next()) {
+      wire::Envelope m;
+      if (!m.ParseFromArray(frame->data(), static_cast<int>(frame->size()))) {
+        self->fail("unparsable message from the server", true);
+        return;
+      }
+      ++self->test_.stats().messages_received;
+      self->on_message(m);
+      if (self->closed_) return;
+    }
+    if (!self->decoder_.error().empty()) {
+      self->fail("frame over the limit from the server", true);
+      return;
+    }
+    self->read_more();
+  });
+}
+
+bool SimPlayer::in_view(const ChunkKey& k) const {
+  const int64_t dx = std::get<0>(k) - view_chunk_.x, dy = std::get<1>(k) - view_chunk_.y, dz = std::get<2>(k) - view_chunk_.z;
+  return dx * dx + dy * dy + dz * dz <= static_cast<int64_t>(radius_) * radius_;
+}
+
+void SimPlayer::on_message(const wire::Envelope& m) {
+  auto& stats = test_.stats();
+  switch (m.body_case()) {
+    case wire::Envelope::kWelcome:
+      welcomed_ = true;
+      ++stats.players_connected;
+      test_.set_world_seed(m.welcome().world_seed());
+      y_ = test_.terrain_height(x_, z_);
+      send_view();
+      next_edit_s_ = test_.now_s() + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);
+      last_tick_s_ = test_.now_s();
+      tick();
+      break;
+    case wire::Envelope::kChunkMesh: on_chunk_mesh(m.chunk_mesh()); break;
+    case wire::Envelope::kChunkUnload:
+      cache_.forget(m.chunk_unload());
+      for (auto& [id, p] : pending_) {
+        for (const auto& c : m.chunk_unload().coords()) p.waiting.erase({c.x(), c.y(), c.z()});
+      }
+      break;
+    case wire::Envelope::kEditResult: {
+      const auto& r = m.edit_result();
+      auto it = pending_.find(r.request_id());
+      if (it == pending_.end()) {
+        fail("EditResult for an unknown request", false);
+        break;
+      }
+      ++stats.results;
+      const double now = test_.now_s();
+      stats.edit_to_result.push_back({now, (now - it->second.sent_s) * 1000});
+      if (r.status() != wire::EditResult::ACCEPTED) ++stats.refused;
+      it->second.have_result = true;
+      for (const auto& c : r.changed_chunks()) {
+        const ChunkKey k{c.x(), c.y(), c.z()};
+        if (in_view(k)) it->second.waiting.insert(k);
+      }
+      if (it->second.waiting.empty()) pending_.erase(it);  // nothing visible changed
+      break;
+    }
+    case wire::Envelope::kError:
+      if (m.error().code() == wire::Error::SHUTTING_DOWN && test_.stopping()) break;
+      fail("Error " + wire::Error::Code_Name(m.error().code()), false);
+      break;
+    default: break;  // Pong
+  }
+}
+
+void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
+  auto& stats = test_.stats();
+  ++stats.chunks_streamed;
+  if (auto error = cache_.apply(m, test_.zstd(), test_.scratch(), test_.decoded())) {
+    ++stats.decode_failures;
+    fail("decode failure: " + *error, false);
+    return;
+  }
+  const double now = test_.now_s();
+  if (m.base_version() == 0) last_mesh_s_ = now;  // full meshes: the view being streamed
+  const ChunkKey k{m.coord().x(), m.coord().y(), m.coord().z()};
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    PendingEdit& p = it->second;
+    if (p.have_result && p.waiting.erase(k) && p.waiting.empty()) {
+      stats.edit_to_delta.push_back({now, (now - p.sent_s) * 1000});
+      it = pending_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+void SimPlayer::send_view() {
+  view_chunk_ = world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
+                                      static_cast<int>(std::floor(z_)));
+  wire::Envelope v;
+  v.mutable_set_view()->mutable_position()->set_x(x_);
+  v.mutable_set_view()->mutable_position()->set_y(y_);
+  v.mutable_set_view()->mutable_position()->set_z(z_);
+  v.mutable_set_view()->set_radius(radius_);
+  view_position_ = {x_, y_, z_};
+  send(v);
+  if (view_sent_s_ < 0) view_sent_s_ = test_.now_s();
+}
+
+void SimPlayer::send_edit() {
+  std::uniform_real_distribution<float> unit(0, 1);
+  std::array<float, 3> target{x_, y_, z_};
+  if (unit(rng_) < 0.3f) target = test_.someone_elses_position(id_, rng_);
+  target[0] += (unit(rng_) - 0.5f) * 16;
+  target[2] += (unit(rng_) - 0.5f) * 16;
+  target[1] = test_.terrain_height(target[0], target[2]);
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  const uint64_t request = next_request_++;
+  e->set_request_id(request);
+  wire::Vec3* centre;
+  if (unit(rng_) < 0.8f) {
+    auto* b = e->mutable_brush();
+    b->set_radius(3);
+    b->set_strength(0.6f);
+    b->set_remove(unit(rng_) < 0.5f);
+    centre = b->mutable_center();
+  } else {
+    auto* x = e->mutable_explosion();
+    x->set_radius(5);
+    x->set_power(1.5f);
+    centre = x->mutable_center();
+  }
+  centre->set_x(target[0]);
+  centre->set_y(target[1]);
+  centre->set_z(target[2]);
+  pending_[request] = {test_.now_s(), false, {}};
+  ++test_.stats().edits_sent;
+  send(m);
+}
+
+void SimPlayer::tick() {
+  if (closed_) return;
+  const double now = test_.now_s();
+  const double dt = now - last_tick_s_;
+  last_tick_s_ = now;
+  // Walk: keep a heading, turn now and then, stay near the spawn area.
+  std::uniform_real_distribution<float> unit(0, 1);
+  if (unit(rng_) < 0.02f) heading_ += (unit(rng_) - 0.5f) * 2.0f;
+  const float limit = static_cast<float>(test_.config().spawn_area) * 1.5f;
+  if (std::fabs(x_) > limit || std::fabs(z_) > limit) heading_ = std::atan2(-z_, -x_);
+  const auto step = static_cast<float>(test_.config().walk_speed * dt);
+  x_ += std::cos(heading_) * step;
+  z_ += std::sin(heading_) * step;
+  y_ = test_.terrain_height(x_, z_);
+  const world::ChunkCoord chunk = world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
+                                                        static_cast<int>(std::floor(z_)));
+  if (chunk != view_chunk_) send_view();
+  if (!first_view_done_ && last_mesh_s_ > 0 && now - last_mesh_s_ > kFirstViewQuietS) {
+    first_view_done_ = true;
+    test_.stats().first_view_ms.push_back((last_mesh_s_ - view_sent_s_) * 1000);
+  }
+  if (test_.editing() && now >= next_edit_s_) {
+    send_edit();
+    next_edit_s_ = now + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);
+  }
+  if (now - last_ping_s_ > kPingEveryS) {
+    wire::Envelope ping;
+    ping.mutable_ping()->set_nonce(static_cast<uint64_t>(now * 1000));
+    send(ping);
+    last_ping_s_ = now;
+  }
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    if (now - it->second.sent_s <= kDeltaGiveUpS) {
+      ++it;
+      continue;
+    }
+    // No result in time is an error; a changed chunk whose mesh never came (it stayed
+    // without triangles, so nothing was sent) is not.
+    if (!it->second.have_result) fail("no EditResult within 10 s", false);
+    it = pending_.erase(it);
+  }
+  timer_.expires_after(std::chrono::milliseconds(static_cast<int>(kTickS * 1000)));
+  timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    if (!ec) self->tick();
+  });
+}
+
+}  // namespace vox::loadtest

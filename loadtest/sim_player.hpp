@@ -1,0 +1,68 @@
+// One simulated player: an asynchronous client on the load test's event loop.
+#pragma once
+
+#include <deque>
+#include <map>
+#include <memory>
+#include <random>
+#include <set>
+
+#include "client-cli/chunk_cache.hpp"
+#include "loadtest/load_test.hpp"
+#include "proto/framing.hpp"
+
+namespace vox::loadtest {
+
+class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
+ public:
+  SimPlayer(LoadTest& test, int id, uint32_t seed);
+  void start();  // connect, then play
+  void close();
+  int id() const { return id_; }
+  bool connected() const { return welcomed_; }
+  std::array<float, 3> position() const { return {x_, y_, z_}; }
+  std::array<float, 3> view_position() const { return view_position_; }
+  const client::ChunkCache& cache() const { return cache_; }
+  uint32_t radius() const { return radius_; }
+
+ private:
+  struct PendingEdit {
+    double sent_s;
+    bool have_result = false;
+    std::set<client::ChunkKey> waiting;  // changed chunks in view whose new mesh has not arrived
+  };
+
+  void read_more();
+  void on_message(const wire::Envelope& m);
+  void on_chunk_mesh(const wire::ChunkMesh& m);
+  void send(const wire::Envelope& m);
+  void write_more();
+  void tick();
+  void send_view();
+  void send_edit();
+  void fail(const std::string& cause, bool disconnect);
+  bool in_view(const client::ChunkKey& k) const;
+
+  LoadTest& test_;
+  const int id_;
+  std::mt19937 rng_;
+  boost::asio::ip::tcp::socket socket_;
+  boost::asio::steady_timer timer_;
+  proto::FrameDecoder decoder_{64 << 20};
+  std::array<uint8_t, 64 * 1024> buffer_;
+  std::deque<std::vector<uint8_t>> outbox_;
+  bool writing_ = false, welcomed_ = false, closed_ = false;
+
+  float x_ = 0, y_ = 0, z_ = 0, heading_ = 0;
+  world::ChunkCoord view_chunk_{};
+  std::array<float, 3> view_position_{};
+  uint32_t radius_ = 0;
+  double next_edit_s_ = 0, last_ping_s_ = 0, last_tick_s_ = 0;
+  double view_sent_s_ = -1, last_mesh_s_ = -1;
+  bool first_view_done_ = false;
+  uint64_t next_request_ = 1;
+  std::map<uint64_t, PendingEdit> pending_;
+  client::ChunkCache cache_;
+};
+
+}  // namespace vox::loadtest
