@@ -30,7 +30,7 @@ TEST(LoadTest, TwentyPlayersFiveSecondsWithoutErrorsAndVerified) {
   std::ifstream in(json);
   const std::string text((std::istreambuf_iterator<char>(in)), {});
   std::filesystem::remove(json);
-  for (const std::string key : {"\"players\":" + std::to_string(kPlayers), std::string("\"errors\":0"),
+  for (const std::string& key : {"\"players\":" + std::to_string(kPlayers), std::string("\"errors\":0"),
                                  std::string("\"disconnects\":0"), std::string("\"decode_failures\":0"),
                                  std::string("\"verified\":true"), std::string("\"verify_mismatches\":0"),
                                  "\"players_connected\":" + std::to_string(kPlayers)}) {
