@@ -152,4 +152,34 @@ void write_svg(const LoadStats& s, std::ostream& out) {
   out << "</svg>\n";
 }
 
+void write_sweep_svg(const std::vector<SweepPoint>& points, double limit_ms, std::ostream& out) {
+  const double w = 800, h = 400, left = 70, bottom = 50, top = 40;
+  double max_players = 1, max_ms = limit_ms * 1.2;
+  for (const auto& p : points) {
+    max_players = std::max(max_players, static_cast<double>(p.players));
+    max_ms = std::max(max_ms, p.p99_ms * 1.1);
+  }
+  auto x_of = [&](double players) { return left + (w - left - 30) * players / max_players; };
+  auto y_of = [&](double ms) { return h - bottom - (h - bottom - top) * ms / max_ms; };
+  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n"
+      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      << "<text x=\"" << left << "\" y=\"24\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest sweep: "
+      << "edit to decoded delta p99 (ms) against players; dashed: " << limit_ms << " ms</text>\n"
+      << "<line x1=\"" << left << "\" y1=\"" << h - bottom << "\" x2=\"" << w - 30 << "\" y2=\"" << h - bottom
+      << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\"" << left << "\" y2=\""
+      << h - bottom << "\" stroke=\"black\"/>\n"
+      << "<line x1=\"" << left << "\" y1=\"" << y_of(limit_ms) << "\" x2=\"" << w - 30 << "\" y2=\"" << y_of(limit_ms)
+      << "\" stroke=\"#c02020\" stroke-dasharray=\"6 4\"/>\n<polyline fill=\"none\" stroke=\"#2060c0\" stroke-width=\"2\" points=\"";
+  for (const auto& p : points) out << x_of(p.players) << "," << y_of(p.p99_ms) << " ";
+  out << "\"/>\n";
+  for (const auto& p : points) {
+    out << "<circle cx=\"" << x_of(p.players) << "\" cy=\"" << y_of(p.p99_ms) << "\" r=\"4\" fill=\""
+        << (p.errors == 0 ? "#2060c0" : "#c02020") << "\"/><text x=\"" << x_of(p.players) - 10 << "\" y=\""
+        << h - bottom + 18 << "\" font-family=\"sans-serif\" font-size=\"11\">" << p.players << "</text><text x=\""
+        << x_of(p.players) + 6 << "\" y=\"" << y_of(p.p99_ms) - 6 << "\" font-family=\"sans-serif\" font-size=\"11\">"
+        << static_cast<int>(p.p99_ms) << "</text>\n";
+  }
+  out << "</svg>\n";
+}
+
 }  // namespace vox::loadtest

@@ -44,4 +44,13 @@ void write_table(const LoadStats& s, std::ostream& out);
 void write_json(const LoadStats& s, std::ostream& out);
 void write_svg(const LoadStats& s, std::ostream& out);
 
+// A sweep over player counts: edit -> delta p99 for each, drawn against the count with
+// the limit line.
+struct SweepPoint {
+  int players;
+  double p99_ms;
+  uint64_t errors;
+};
+void write_sweep_svg(const std::vector<SweepPoint>& points, double limit_ms, std::ostream& out);
+
 }  // namespace vox::loadtest

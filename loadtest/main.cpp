@@ -4,6 +4,7 @@
 #include <boost/program_options.hpp>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
@@ -11,7 +12,8 @@
 int main(int argc, char** argv) {
   namespace po = boost::program_options;
   vox::loadtest::LoadConfig config;
-  std::string server, json, svg;
+  std::string server, json, svg, sweep;
+  double sweep_limit_ms = 100;
   po::options_description opts("voxel-loadtest options");
   opts.add_options()("help,h", "show this help")(
       "server", po::value<std::string>(&server)->default_value("127.0.0.1:7777"), "HOST:PORT of voxeld")(
@@ -23,7 +25,10 @@ int main(int argc, char** argv) {
       "seed", po::value<uint64_t>(&config.seed)->default_value(1), "seed of the players' paths and edits")(
       "verify", po::bool_switch(&config.verify), "at the end, check every player's meshes against a fresh client")(
       "json", po::value<std::string>(&json), "write the results as JSON to this file")(
-      "svg", po::value<std::string>(&svg), "write latency and throughput over time as SVG to this file");
+      "svg", po::value<std::string>(&svg), "write latency and throughput over time as SVG to this file")(
+      "sweep", po::value<std::string>(&sweep),
+      "N1,N2,...: run once per player count; --svg then draws p99 against players")(
+      "sweep-limit-ms", po::value<double>(&sweep_limit_ms)->default_value(100), "the p99 limit the sweep reports against");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, opts), vm);
@@ -45,6 +50,29 @@ int main(int argc, char** argv) {
     return 2;
   }
   config.progress_tty = ::isatty(STDERR_FILENO) != 0;
+  if (!sweep.empty()) {
+    std::vector<vox::loadtest::SweepPoint> points;
+    std::istringstream counts(sweep);
+    int best = 0;
+    for (std::string n; std::getline(counts, n, ',');) {
+      config.players = std::stoi(n);
+      vox::loadtest::LoadTest run(config);
+      const auto stats = run.run(std::cerr);
+      std::vector<double> ms;
+      for (const auto& s : stats.edit_to_delta) ms.push_back(s.ms);
+      const double p99 = vox::loadtest::percentiles(ms).p99;
+      const uint64_t errors = stats.error_count() + stats.disconnect_count() + stats.decode_failures;
+      points.push_back({config.players, p99, errors});
+      std::cout << "players " << config.players << ": edit->delta p99 " << p99 << " ms, errors " << errors << "\n";
+      if (p99 <= sweep_limit_ms && errors == 0) best = std::max(best, config.players);
+    }
+    std::cout << "largest player count with p99 <= " << sweep_limit_ms << " ms and no errors: " << best << "\n";
+    if (!svg.empty()) {
+      std::ofstream out(svg);
+      vox::loadtest::write_sweep_svg(points, sweep_limit_ms, out);
+    }
+    return 0;
+  }
   vox::loadtest::LoadTest test(config);
   const vox::loadtest::LoadStats stats = test.run(std::cerr);
   vox::loadtest::write_table(stats, std::cout);
