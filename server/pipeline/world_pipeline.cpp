@@ -207,6 +207,75 @@ void WorldPipeline::drain_after_stop(std::vector<Task>& tasks) {
   }
 }
 
+// Applies one valid edit: loads what it and the meshes it dirties need, changes the
+// touched chunks (in parallel), and appends the chunks whose meshes must be rebuilt.
+// Returns the number of chunks generated.
+size_t WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now, std::vector<ChunkCoord>& dirtied) {
+  State& st = *state_;
+  const world::VoxelBox box = world::touched_box(edit);
+  const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
+  // Touched chunks, the neighbours they may dirty, and those neighbours' neighbours.
+  const ChunkCoord lo = touched.front().offset(-2, -2, -2), hi = touched.back().offset(2, 2, 2);
+  std::vector<ChunkCoord> wanted;
+  for (int32_t z = lo.z; z <= hi.z; ++z)
+    for (int32_t y = lo.y; y <= hi.y; ++y)
+      for (int32_t x = lo.x; x <= hi.x; ++x) wanted.push_back({x, y, z});
+  const size_t generated = st.ensure_loaded(wanted, generator_, now);
+
+  std::optional<world::SampleSnapshot> snapshot;
+  if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
+    snapshot = world::take_snapshot(st.chunks, world::smooth_read_box(*smooth));
+  }
+  std::vector<world::ChangedBox> changed(touched.size());
+  std::vector<world::Chunk*> targets(touched.size());
+  for (size_t i = 0; i < touched.size(); ++i) targets[i] = st.chunks.find(touched[i]);
+  const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
+  if (touched.size() == 1) {
+    changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap);
+  } else {
+    parallel_for_index(st.arena, touched.size(), [&](size_t i) {
+      changed[i] = world::apply_edit(edit, touched[i], *targets[i], snap);
+    });
+  }
+  for (size_t i = 0; i < touched.size(); ++i) {
+    if (!changed[i].changed) continue;
+    st.info[touched[i]].modified = true;
+    world::append_dirty_chunks(touched[i], changed[i], dirtied);
+  }
+  return generated;
+}
+
+// Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
+// publishes them as new versions. Returns the chunks given a new version.
+std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty) {
+  State& st = *state_;
+  std::sort(dirty.begin(), dirty.end());
+  dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
+  std::vector<std::shared_ptr<MeshVersion>> fresh(dirty.size());
+  std::vector<MeshVersionPtr> previous(dirty.size());
+  for (size_t i = 0; i < dirty.size(); ++i) previous[i] = meshes_.get(dirty[i]);
+  parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
+    MeshWorker& w = *st.workers.local();
+    auto version = std::make_shared<MeshVersion>();
+    version->coord = dirty[i];
+    mesh::gather_padded_block(st.chunks, dirty[i], w.block);
+    mesh::mesh_chunk(w.block, w.scratch, version->mesh);
+    if (previous[i] && same_mesh(previous[i]->mesh, version->mesh)) return;
+    // Encoded once here, while the mesher's topology is at hand; every client shares it.
+    proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
+    w.zstd.compress(version->encoding, {}, version->full_frame);
+    fresh[i] = std::move(version);
+  });
+  std::vector<ChunkCoord> published;
+  for (size_t i = 0; i < dirty.size(); ++i) {
+    if (!fresh[i]) continue;
+    fresh[i]->version = st.next_version++;
+    meshes_.publish(std::move(fresh[i]));
+    published.push_back(dirty[i]);
+  }
+  return published;
+}
+
 void WorldPipeline::process(std::vector<Task>& tasks) {
   State& st = *state_;
   const Clock::time_point now = Clock::now();
@@ -246,66 +315,12 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
     }
     results[t].accepted = true;
     ++delta.edits_applied;
-    const world::VoxelBox box = world::touched_box(task.edit);
-    const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
-    // Touched chunks, the neighbours they may dirty, and those neighbours' neighbours.
-    const ChunkCoord lo = touched.front().offset(-2, -2, -2), hi = touched.back().offset(2, 2, 2);
-    wanted.clear();
-    for (int32_t z = lo.z; z <= hi.z; ++z)
-      for (int32_t y = lo.y; y <= hi.y; ++y)
-        for (int32_t x = lo.x; x <= hi.x; ++x) wanted.push_back({x, y, z});
-    delta.chunks_generated += st.ensure_loaded(wanted, generator_, now);
-
-    std::optional<world::SampleSnapshot> snapshot;
-    if (const auto* smooth = std::get_if<world::Smooth>(&task.edit)) {
-      snapshot = world::take_snapshot(st.chunks, world::smooth_read_box(*smooth));
-    }
-    std::vector<world::ChangedBox> changed(touched.size());
-    std::vector<world::Chunk*> targets(touched.size());
-    for (size_t i = 0; i < touched.size(); ++i) targets[i] = st.chunks.find(touched[i]);
-    const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
-    if (touched.size() == 1) {
-      changed[0] = world::apply_edit(task.edit, touched[0], *targets[0], snap);
-    } else {
-      parallel_for_index(st.arena, touched.size(), [&](size_t i) {
-        changed[i] = world::apply_edit(task.edit, touched[i], *targets[i], snap);
-      });
-    }
-    for (size_t i = 0; i < touched.size(); ++i) {
-      if (!changed[i].changed) continue;
-      st.info[touched[i]].modified = true;
-      world::append_dirty_chunks(touched[i], changed[i], edit_dirty[t]);
-    }
+    delta.chunks_generated += apply_edit_task(task.edit, now, edit_dirty[t]);
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
   }
 
-  // Re-mesh every dirty chunk once, in parallel; publish the ones whose mesh changed.
-  std::sort(dirty.begin(), dirty.end());
-  dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
-  std::vector<std::shared_ptr<MeshVersion>> fresh(dirty.size());
-  std::vector<MeshVersionPtr> previous(dirty.size());
-  for (size_t i = 0; i < dirty.size(); ++i) previous[i] = meshes_.get(dirty[i]);
-  parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
-    MeshWorker& w = *st.workers.local();
-    auto version = std::make_shared<MeshVersion>();
-    version->coord = dirty[i];
-    mesh::gather_padded_block(st.chunks, dirty[i], w.block);
-    mesh::mesh_chunk(w.block, w.scratch, version->mesh);
-    if (previous[i] && same_mesh(previous[i]->mesh, version->mesh)) return;
-    // Encoded once here, while the mesher's topology is at hand; every client shares it.
-    proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
-    w.zstd.compress(version->encoding, {}, version->full_frame);
-    fresh[i] = std::move(version);
-  });
-  std::vector<ChunkCoord> published;
-  CoordSet published_set;
-  for (size_t i = 0; i < dirty.size(); ++i) {
-    if (!fresh[i]) continue;
-    fresh[i]->version = st.next_version++;
-    meshes_.publish(std::move(fresh[i]));
-    published.push_back(dirty[i]);
-    published_set.insert(dirty[i]);
-  }
+  const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
+  const CoordSet published_set(published.begin(), published.end());
   delta.meshes_published = published.size();
 
   {

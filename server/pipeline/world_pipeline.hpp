@@ -99,6 +99,9 @@ class WorldPipeline {
   void enqueue(Task task);
   void run();
   void process(std::vector<Task>& tasks);
+  size_t apply_edit_task(const world::Edit& edit, std::chrono::steady_clock::time_point now,
+                         std::vector<world::ChunkCoord>& dirtied);
+  std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty);
   void drain_after_stop(std::vector<Task>& tasks);
   void evict_idle(std::chrono::steady_clock::time_point now);
 
