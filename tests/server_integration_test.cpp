@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <set>
 
 #include "client-cli/voxel_client.hpp"
 #include "proto/framing.hpp"
@@ -336,6 +337,46 @@ TEST(Server, DisconnectsIdleClientsAndKeepsServingOthers) {
   EXPECT_TRUE(quiet->closed());
   auto next = player(server, "next");  // the server is still there
   EXPECT_FALSE(next->closed());
+}
+
+}  // namespace
+}  // namespace vox::net
+
+namespace vox::net {
+namespace {
+
+// A client flooding edits cannot queue unbounded work: past the in-flight limit its edits
+// are refused with TOO_MANY_EDITS, every edit still gets exactly one result, and the
+// server goes on serving.
+TEST(Server, EditFloodIsBoundedPerClient) {
+  test::ServerProcess server;
+  auto c = player(server, "flood");
+  const float y = surface_y(16, 16);
+  constexpr uint64_t kEdits = 2000;
+  for (uint64_t i = 1; i <= kEdits; ++i) {
+    wire::Envelope m;
+    m.mutable_edit()->set_request_id(i);
+    auto* x = m.mutable_edit()->mutable_explosion();
+    x->mutable_center()->set_x(16.0f + static_cast<float>(i % 64));
+    x->mutable_center()->set_y(y);
+    x->mutable_center()->set_z(16.0f);
+    x->set_radius(16);
+    x->set_power(0.5f);
+    c->send(m);
+  }
+  std::set<uint64_t> answered;
+  size_t limited = 0;
+  while (answered.size() < kEdits) {
+    auto r = wait_for(*c, [](const wire::Envelope& m) { return m.has_edit_result(); }, 60s);
+    ASSERT_TRUE(r) << answered.size() << " results";
+    EXPECT_TRUE(answered.insert(r->edit_result().request_id()).second) << "one result per edit";
+    limited += r->edit_result().status() == wire::EditResult::TOO_MANY_EDITS ? 1 : 0;
+  }
+  EXPECT_GT(limited, 0u) << "2,000 radius-16 explosions at once must hit the in-flight limit";
+  wire::Envelope ping;
+  ping.mutable_ping()->set_nonce(3);
+  c->send(ping);
+  EXPECT_TRUE(wait_for(*c, [](const wire::Envelope& m) { return m.has_pong(); }));
 }
 
 }  // namespace

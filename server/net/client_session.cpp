@@ -146,6 +146,7 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   w->set_max_edit_strength(pipeline_.config().limits.max_strength);
   w->set_mesh_format(proto::kMeshFormat);
   w->set_players(static_cast<uint32_t>(players));
+  w->set_max_edits_in_flight(static_cast<uint32_t>(config_.max_edits_in_flight));
   queue_control(welcome);
   boost::system::error_code ec;
   const auto peer = socket_.remote_endpoint(ec);
@@ -191,6 +192,12 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
 void ClientSession::handle_edit(const wire::Edit& edit) {
   WireEdit converted = edit_from_wire(edit);
   const uint64_t request = edit.request_id();
+  if (converted.edit && edits_in_flight_ >= config_.max_edits_in_flight) {
+    // A client cannot queue unbounded work in the shared pipeline.
+    converted.edit.reset();
+    converted.status = wire::EditResult::TOO_MANY_EDITS;
+    converted.reason = "over " + std::to_string(config_.max_edits_in_flight) + " edits still being applied";
+  }
   if (!converted.edit) {
     if (converted.unknown_enum) send_error(wire::Error::UNKNOWN_ENUM, converted.reason, false);
     wire::Envelope result;
@@ -202,6 +209,7 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
     return;
   }
   counters_.edits.fetch_add(1, std::memory_order_relaxed);
+  ++edits_in_flight_;
   pipeline_.submit(std::move(*converted.edit), [self = shared_from_this(), request](const pipeline::EditResult& r) {
     wire::Envelope result;  // built on the pipeline thread, queued on the strand
     auto* w = result.mutable_edit_result();
@@ -209,7 +217,10 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
     w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
     w->set_reason(r.message);
     for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
-    asio::post(self->strand_, [self, result = std::move(result)] { self->queue_control(result); });
+    asio::post(self->strand_, [self, result = std::move(result)] {
+      --self->edits_in_flight_;
+      self->queue_control(result);
+    });
   });
 }
 

@@ -27,6 +27,7 @@ struct ServerConfig {
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
   size_t max_control_bytes = 1 << 20;       // queued results/errors before a client counts as not reading
+  size_t max_edits_in_flight = 256;         // a client's edits queued in the pipeline at once
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect
@@ -74,6 +75,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::string name_;
   bool closing_ = false;
   bool writing_ = false;
+  size_t edits_in_flight_ = 0;  // submitted, result not yet queued
 
   SendScheduler scheduler_;
   std::deque<std::vector<uint8_t>> control_;               // framed messages sent before meshes
