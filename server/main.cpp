@@ -46,8 +46,11 @@ int main(int argc, char** argv) {
     std::cerr << "voxeld: " << e.what() << " (see --help)\n";
     return 2;
   }
-  if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 || write_ms <= 0) {
-    std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, timeouts > 0\n";
+  // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
+  if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 || write_ms <= 0 ||
+      net.max_view_radius > 32 || net.max_clients < 1) {
+    std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, --max-clients >= 1, "
+                 "timeouts > 0\n";
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
