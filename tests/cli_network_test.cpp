@@ -172,8 +172,6 @@ TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
   }
   ASSERT_EQ(lo.size(), 3u);
   ASSERT_EQ(hi.size(), 3u);
-  const float bin_floats = static_cast<float>(vertices);
-  (void)bin_floats;
   const float* pos = reinterpret_cast<const float*>(b.data() + bin_at + 8);
   for (size_t v = 0; v < vertices; ++v) {
     for (int a = 0; a < 3; ++a) {
