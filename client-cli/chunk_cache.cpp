@@ -2,32 +2,43 @@
 
 namespace vox::client {
 
-std::optional<std::string> ChunkCache::apply(const wire::ChunkMesh& m, proto::ZstdCodec& zstd,
-                                             proto::CodecScratch& scratch, mesh::ChunkMesh& decoded) {
-  const ChunkKey key{m.coord().x(), m.coord().y(), m.coord().z()};
-  HeldChunk& held = chunks_[key];
-  const std::span<const uint8_t> payload(reinterpret_cast<const uint8_t*>(m.payload().data()), m.payload().size());
+proto::Result<std::vector<uint8_t>> ChunkCache::expand(const wire::ChunkMesh& m,
+                                                       proto::ZstdCodec& zstd) {
+  const ChunkKey key = key_of(m.coord());
+  const std::span<const uint8_t> payload(reinterpret_cast<const uint8_t*>(m.payload().data()),
+                                         m.payload().size());
   std::span<const uint8_t> base;
   if (m.base_version() != 0) {
-    if (held.version != m.base_version()) {
-      const std::string error = "delta against version " + std::to_string(m.base_version()) + " but the client holds " +
-                                std::to_string(held.version);
+    auto it = chunks_.find(key);
+    const uint64_t held = it == chunks_.end() ? 0 : it->second.version;
+    if (held != m.base_version()) {
       chunks_.erase(key);
-      return error;
+      return proto::Error{"delta against version " + std::to_string(m.base_version()) +
+                          " but the client holds " + std::to_string(held)};
     }
-    base = held.encoding;
+    base = it->second.encoding;
   }
   auto encoding = zstd.decompress(payload, base, proto::DecodeLimits{}.max_encoding_bytes);
-  if (!encoding) {
-    chunks_.erase(key);
-    return encoding.error();
-  }
+  if (!encoding) chunks_.erase(key);
+  return encoding;
+}
+
+void ChunkCache::hold(const ChunkKey& key, uint64_t version, std::vector<uint8_t> encoding) {
+  HeldChunk& held = chunks_[key];
+  held.version = version;
+  held.encoding = std::move(encoding);
+}
+
+std::optional<std::string> ChunkCache::apply(const wire::ChunkMesh& m, proto::ZstdCodec& zstd,
+                                             proto::CodecScratch& scratch,
+                                             mesh::ChunkMesh& decoded) {
+  auto encoding = expand(m, zstd);
+  if (!encoding) return encoding.error();
   if (auto error = proto::decode_mesh(*encoding, {}, scratch, decoded)) {
-    chunks_.erase(key);
+    drop(key_of(m.coord()));
     return error->message;
   }
-  held.version = m.version();
-  held.encoding = std::move(*encoding);
+  hold(key_of(m.coord()), m.version(), std::move(*encoding));
   return std::nullopt;
 }
 

@@ -12,7 +12,9 @@ Percentiles percentiles(std::vector<double> v) {
   p.count = v.size();
   if (v.empty()) return p;
   std::sort(v.begin(), v.end());
-  auto at = [&v](double q) { return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))]; };
+  auto at = [&v](double q) {
+    return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
+  };
   p.p50 = at(0.50);
   p.p95 = at(0.95);
   p.p99 = at(0.99);
@@ -37,7 +39,8 @@ uint64_t total(const std::map<std::string, uint64_t>& m) {
 
 void json_percentiles(std::ostream& out, const char* name, const Percentiles& p) {
   char buf[256];
-  std::snprintf(buf, sizeof buf, "\"%s\":{\"p50\":%.3f,\"p95\":%.3f,\"p99\":%.3f,\"max\":%.3f,\"count\":%zu}", name,
+  std::snprintf(buf, sizeof buf,
+                "\"%s\":{\"p50\":%.3f,\"p95\":%.3f,\"p99\":%.3f,\"max\":%.3f,\"count\":%zu}", name,
                 p.p50, p.p95, p.p99, p.max, p.count);
   out << buf;
 }
@@ -52,31 +55,50 @@ void json_map(std::ostream& out, const char* name, const std::map<std::string, u
   out << "}";
 }
 
+// Percentiles of the samples that fall in each second of the test.
+std::vector<Percentiles> per_second(const std::vector<LatencySample>& samples, size_t seconds) {
+  std::vector<std::vector<double>> buckets(std::max<size_t>(1, seconds));
+  for (const auto& x : samples) {
+    buckets[std::min(buckets.size() - 1, static_cast<size_t>(std::max(0.0, x.at_s)))].push_back(
+        x.ms);
+  }
+  std::vector<Percentiles> out;
+  out.reserve(buckets.size());
+  for (auto& b : buckets) out.push_back(percentiles(std::move(b)));
+  return out;
+}
+
 }  // namespace
 
 uint64_t LoadStats::error_count() const { return total(errors); }
 uint64_t LoadStats::disconnect_count() const { return total(disconnects); }
 
 void write_table(const LoadStats& s, std::ostream& out) {
-  const auto result = percentiles(values(s.edit_to_result)), delta = percentiles(values(s.edit_to_delta));
+  const auto result = percentiles(values(s.edit_to_result)),
+             delta = percentiles(values(s.edit_to_delta));
   const auto view = percentiles(s.first_view_ms);
   const double per_player_s = std::max(1e-9, s.duration_s * std::max(1, s.players));
   char buf[512];
   out << "voxel-loadtest results\n";
-  std::snprintf(buf, sizeof buf, "  players %d (%d connected), %.1f s, %llu edits sent (%llu refused)\n", s.players,
+  std::snprintf(buf, sizeof buf,
+                "  players %d (%d connected), %.1f s, %llu edits sent (%llu refused)\n", s.players,
                 s.players_connected, s.duration_s, static_cast<unsigned long long>(s.edits_sent),
                 static_cast<unsigned long long>(s.refused));
   out << buf;
   out << "  latency (ms)               p50      p95      p99      max    count\n";
-  for (const auto& [name, p] : {std::pair{"edit -> EditResult   ", result}, {"edit -> deltas decoded", delta},
+  for (const auto& [name, p] : {std::pair{"edit -> EditResult   ", result},
+                                {"edit -> deltas decoded", delta},
                                 {"first full view      ", view}}) {
-    std::snprintf(buf, sizeof buf, "  %s %8.2f %8.2f %8.2f %8.2f %8zu\n", name, p.p50, p.p95, p.p99, p.max, p.count);
+    std::snprintf(buf, sizeof buf, "  %s %8.2f %8.2f %8.2f %8.2f %8zu\n", name, p.p50, p.p95, p.p99,
+                  p.max, p.count);
     out << buf;
   }
-  std::snprintf(buf, sizeof buf,
-                "  received per player: %.0f bytes/s, %.1f messages/s; %llu chunk meshes streamed\n",
-                static_cast<double>(s.bytes_received) / per_player_s, static_cast<double>(s.messages_received) / per_player_s,
-                static_cast<unsigned long long>(s.chunks_streamed));
+  std::snprintf(
+      buf, sizeof buf,
+      "  received per player: %.0f bytes/s, %.1f messages/s; %llu chunk meshes streamed\n",
+      static_cast<double>(s.bytes_received) / per_player_s,
+      static_cast<double>(s.messages_received) / per_player_s,
+      static_cast<unsigned long long>(s.chunks_streamed));
   out << buf;
   out << "  errors: " << s.error_count() << ", disconnects: " << s.disconnect_count()
       << ", decode failures: " << s.decode_failures;
@@ -89,8 +111,11 @@ void write_table(const LoadStats& s, std::ostream& out) {
 void write_json(const LoadStats& s, std::ostream& out) {
   const double per_player_s = std::max(1e-9, s.duration_s * std::max(1, s.players));
   char buf[256];
-  std::snprintf(buf, sizeof buf, "{\"players\":%d,\"players_connected\":%d,\"duration_s\":%.3f,\"edits_sent\":%llu,\"refused\":%llu,",
-                s.players, s.players_connected, s.duration_s, static_cast<unsigned long long>(s.edits_sent),
+  std::snprintf(buf, sizeof buf,
+                "{\"players\":%d,\"players_connected\":%d,\"duration_s\":%.3f,\"edits_sent\":%llu,"
+                "\"refused\":%llu,",
+                s.players, s.players_connected, s.duration_s,
+                static_cast<unsigned long long>(s.edits_sent),
                 static_cast<unsigned long long>(s.refused));
   out << buf;
   json_percentiles(out, "edit_to_result_ms", percentiles(values(s.edit_to_result)));
@@ -99,52 +124,70 @@ void write_json(const LoadStats& s, std::ostream& out) {
   out << ",";
   json_percentiles(out, "first_view_ms", percentiles(s.first_view_ms));
   std::snprintf(buf, sizeof buf,
-                ",\"bytes_per_player_per_s\":%.1f,\"messages_per_player_per_s\":%.2f,\"chunks_streamed\":%llu,"
+                ",\"bytes_per_player_per_s\":%.1f,\"messages_per_player_per_s\":%.2f,\"chunks_"
+                "streamed\":%llu,"
                 "\"decode_failures\":%llu,\"errors\":%llu,\"disconnects\":%llu,",
-                static_cast<double>(s.bytes_received) / per_player_s, static_cast<double>(s.messages_received) / per_player_s,
-                static_cast<unsigned long long>(s.chunks_streamed), static_cast<unsigned long long>(s.decode_failures),
-                static_cast<unsigned long long>(s.error_count()), static_cast<unsigned long long>(s.disconnect_count()));
+                static_cast<double>(s.bytes_received) / per_player_s,
+                static_cast<double>(s.messages_received) / per_player_s,
+                static_cast<unsigned long long>(s.chunks_streamed),
+                static_cast<unsigned long long>(s.decode_failures),
+                static_cast<unsigned long long>(s.error_count()),
+                static_cast<unsigned long long>(s.disconnect_count()));
   out << buf;
   json_map(out, "errors", s.errors);
   out << ",";
   json_map(out, "disconnects", s.disconnects);
-  out << ",\"verified\":" << (s.verified ? "true" : "false") << ",\"verify_mismatches\":" << s.verify_mismatches << "}\n";
+  out << ",\"verified\":" << (s.verified ? "true" : "false")
+      << ",\"verify_mismatches\":" << s.verify_mismatches;
+  // Over time: per second of the test, edit -> delta percentiles and bytes received.
+  const auto seconds = per_second(s.edit_to_delta, s.bytes_per_second.size());
+  out << ",\"per_second\":[";
+  for (size_t i = 0; i < seconds.size(); ++i) {
+    std::snprintf(buf, sizeof buf,
+                  "%s{\"t\":%zu,\"deltas\":%zu,\"p50_ms\":%.3f,\"p99_ms\":%.3f,\"bytes\":%.0f}",
+                  i ? "," : "", i, seconds[i].count, seconds[i].p50, seconds[i].p99,
+                  i < s.bytes_per_second.size() ? s.bytes_per_second[i] : 0.0);
+    out << buf;
+  }
+  out << "]}\n";
 }
 
 // Two panels over time: edit -> delta latency (p50, p99 per second) and bytes received per second.
 void write_svg(const LoadStats& s, std::ostream& out) {
-  const int seconds = std::max<int>(1, static_cast<int>(std::ceil(s.bytes_per_second.size())));
-  std::vector<std::vector<double>> per_second(static_cast<size_t>(seconds));
-  for (const auto& x : s.edit_to_delta) {
-    const auto i = static_cast<size_t>(std::clamp(static_cast<int>(x.at_s), 0, seconds - 1));
-    per_second[i].push_back(x.ms);
-  }
-  std::vector<double> p50(seconds, 0), p99(seconds, 0);
+  const auto buckets = per_second(s.edit_to_delta, s.bytes_per_second.size());
+  const int seconds = static_cast<int>(buckets.size());
+  std::vector<double> p50, p99;
   double max_ms = 1, max_bytes = 1;
-  for (int i = 0; i < seconds; ++i) {
-    const auto p = percentiles(per_second[static_cast<size_t>(i)]);
-    p50[static_cast<size_t>(i)] = p.p50;
-    p99[static_cast<size_t>(i)] = p.p99;
+  for (const auto& p : buckets) {
+    p50.push_back(p.p50);
+    p99.push_back(p.p99);
     max_ms = std::max(max_ms, p.p99);
   }
   for (double b : s.bytes_per_second) max_bytes = std::max(max_bytes, b);
   const double w = 800, h = 220, left = 60, gap = 60;
-  auto x_of = [&](int i) { return left + (w - left - 20) * (seconds > 1 ? i / static_cast<double>(seconds - 1) : 0.0); };
+  auto x_of = [&](int i) {
+    return left + (w - left - 20) * (seconds > 1 ? i / static_cast<double>(seconds - 1) : 0.0);
+  };
   auto polyline = [&](const std::vector<double>& v, double top, double scale, const char* colour) {
     out << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"1.5\" points=\"";
-    for (int i = 0; i < static_cast<int>(v.size()); ++i) out << x_of(i) << "," << top + h - v[static_cast<size_t>(i)] / scale * h << " ";
+    for (int i = 0; i < static_cast<int>(v.size()); ++i)
+      out << x_of(i) << "," << top + h - v[static_cast<size_t>(i)] / scale * h << " ";
     out << "\"/>\n";
   };
-  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << 2 * h + 3 * gap << "\">\n"
+  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\""
+      << 2 * h + 3 * gap << "\">\n"
       << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      << "<text x=\"" << left << "\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest: " << s.players
+      << "<text x=\"" << left
+      << "\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest: " << s.players
       << " players, edit to decoded delta (ms): p50 blue, p99 red; max " << max_ms << " ms</text>\n"
-      << "<text x=\"" << left << "\" y=\"" << h + gap + 40 << "\" font-family=\"sans-serif\" font-size=\"14\">bytes received per second, all players; max "
+      << "<text x=\"" << left << "\" y=\"" << h + gap + 40
+      << "\" font-family=\"sans-serif\" font-size=\"14\">bytes received per second, all players; "
+         "max "
       << max_bytes << "</text>\n";
   for (double top : {gap, h + 2 * gap}) {
-    out << "<line x1=\"" << left << "\" y1=\"" << top + h << "\" x2=\"" << w - 20 << "\" y2=\"" << top + h
-        << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\"" << left << "\" y2=\"" << top + h
-        << "\" stroke=\"black\"/>\n";
+    out << "<line x1=\"" << left << "\" y1=\"" << top + h << "\" x2=\"" << w - 20 << "\" y2=\""
+        << top + h << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\""
+        << left << "\" y2=\"" << top + h << "\" stroke=\"black\"/>\n";
   }
   polyline(p50, gap, max_ms, "#2060c0");
   polyline(p99, gap, max_ms, "#c02020");
@@ -163,21 +206,26 @@ void write_sweep_svg(const std::vector<SweepPoint>& points, double limit_ms, std
   auto y_of = [&](double ms) { return h - bottom - (h - bottom - top) * ms / max_ms; };
   out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n"
       << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      << "<text x=\"" << left << "\" y=\"24\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest sweep: "
+      << "<text x=\"" << left
+      << "\" y=\"24\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest sweep: "
       << "edit to decoded delta p99 (ms) against players; dashed: " << limit_ms << " ms</text>\n"
-      << "<line x1=\"" << left << "\" y1=\"" << h - bottom << "\" x2=\"" << w - 30 << "\" y2=\"" << h - bottom
-      << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\"" << left << "\" y2=\""
-      << h - bottom << "\" stroke=\"black\"/>\n"
-      << "<line x1=\"" << left << "\" y1=\"" << y_of(limit_ms) << "\" x2=\"" << w - 30 << "\" y2=\"" << y_of(limit_ms)
-      << "\" stroke=\"#c02020\" stroke-dasharray=\"6 4\"/>\n<polyline fill=\"none\" stroke=\"#2060c0\" stroke-width=\"2\" points=\"";
+      << "<line x1=\"" << left << "\" y1=\"" << h - bottom << "\" x2=\"" << w - 30 << "\" y2=\""
+      << h - bottom << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\""
+      << left << "\" y2=\"" << h - bottom << "\" stroke=\"black\"/>\n"
+      << "<line x1=\"" << left << "\" y1=\"" << y_of(limit_ms) << "\" x2=\"" << w - 30 << "\" y2=\""
+      << y_of(limit_ms)
+      << "\" stroke=\"#c02020\" stroke-dasharray=\"6 4\"/>\n<polyline fill=\"none\" "
+         "stroke=\"#2060c0\" stroke-width=\"2\" points=\"";
   for (const auto& p : points) out << x_of(p.players) << "," << y_of(p.p99_ms) << " ";
   out << "\"/>\n";
   for (const auto& p : points) {
-    out << "<circle cx=\"" << x_of(p.players) << "\" cy=\"" << y_of(p.p99_ms) << "\" r=\"4\" fill=\""
-        << (p.errors == 0 ? "#2060c0" : "#c02020") << "\"/><text x=\"" << x_of(p.players) - 10 << "\" y=\""
-        << h - bottom + 18 << "\" font-family=\"sans-serif\" font-size=\"11\">" << p.players << "</text><text x=\""
-        << x_of(p.players) + 6 << "\" y=\"" << y_of(p.p99_ms) - 6 << "\" font-family=\"sans-serif\" font-size=\"11\">"
-        << static_cast<int>(p.p99_ms) << "</text>\n";
+    out << "<circle cx=\"" << x_of(p.players) << "\" cy=\"" << y_of(p.p99_ms)
+        << "\" r=\"4\" fill=\"" << (p.errors == 0 ? "#2060c0" : "#c02020") << "\"/><text x=\""
+        << x_of(p.players) - 10 << "\" y=\"" << h - bottom + 18
+        << "\" font-family=\"sans-serif\" font-size=\"11\">" << p.players << "</text><text x=\""
+        << x_of(p.players) + 6 << "\" y=\"" << y_of(p.p99_ms) - 6
+        << "\" font-family=\"sans-serif\" font-size=\"11\">" << static_cast<int>(p.p99_ms)
+        << "</text>\n";
   }
   out << "</svg>\n";
 }

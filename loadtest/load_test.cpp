@@ -1,7 +1,9 @@
 #include "loadtest/load_test.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <ostream>
+#include <thread>
 
 #include "client-cli/voxel_client.hpp"
 #include "loadtest/sim_player.hpp"
@@ -11,76 +13,178 @@ namespace vox::loadtest {
 namespace asio = boost::asio;
 using namespace std::chrono_literals;
 
-LoadTest::LoadTest(LoadConfig config) : config_(std::move(config)) { stats_.players = config_.players; }
+namespace {
+constexpr double kDrainS = 3.0;  // after the editing stops: results and meshes of the last edits
+}
+
+double spawn_half_width(const LoadConfig& config) {
+  if (config.spawn_area > 0) return config.spawn_area;
+  return 96.0 * std::sqrt(std::max(1.0, config.players / 50.0));
+}
+
+LoadTest::LoadTest(LoadConfig config)
+    : config_(std::move(config)),
+      half_width_(spawn_half_width(config_)),
+      bytes_per_second_(static_cast<size_t>(config_.ramp_s + config_.duration_s + kDrainS) + 16) {
+  stats_.players = config_.players;
+}
 LoadTest::~LoadTest() = default;
 
-double LoadTest::now_s() const { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count(); }
+double LoadTest::now_s() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
 
 std::array<float, 3> LoadTest::someone_elses_position(int self, std::mt19937& rng) const {
   if (players_.size() < 2) return players_[static_cast<size_t>(self)]->position();
   const auto other = std::uniform_int_distribution<size_t>(0, players_.size() - 1)(rng);
-  return players_[other == static_cast<size_t>(self) ? (other + 1) % players_.size() : other]->position();
+  return players_[other == static_cast<size_t>(self) ? (other + 1) % players_.size() : other]
+      ->position();
 }
 
-void LoadTest::set_world_seed(uint64_t seed) {
-  if (!terrain_ || terrain_->seed() != seed) terrain_ = std::make_unique<world::TerrainGenerator>(seed);
+bool LoadTest::set_world_seed(uint64_t seed) {
+  if (const auto* t = terrain_.load(std::memory_order_acquire)) return t->seed() == seed;
+  std::lock_guard lock(mutex_);
+  if (!terrain_owner_) {
+    terrain_owner_ = std::make_unique<world::TerrainGenerator>(seed);
+    terrain_.store(terrain_owner_.get(), std::memory_order_release);
+  }
+  return terrain_owner_->seed() == seed;
 }
 
-float LoadTest::terrain_height(float x, float z) {
-  if (!terrain_) return 0;
-  return terrain_->height_at(static_cast<int>(std::floor(x)), static_cast<int>(std::floor(z))) + 0.5f;
+float LoadTest::terrain_height(float x, float z) const {
+  const auto* t = terrain_.load(std::memory_order_acquire);
+  if (!t) return 0;
+  return t->height_at(static_cast<int>(std::floor(x)), static_cast<int>(std::floor(z))) + 0.5f;
+}
+
+void LoadTest::record_connected() {
+  std::lock_guard lock(mutex_);
+  ++stats_.players_connected;
+}
+
+void LoadTest::record_edit_sent() {
+  std::lock_guard lock(mutex_);
+  ++stats_.edits_sent;
+}
+
+void LoadTest::record_result(double sent_s, double now_s, bool refused) {
+  std::lock_guard lock(mutex_);
+  ++stats_.results;
+  if (refused) ++stats_.refused;
+  stats_.edit_to_result.push_back({now_s, (now_s - sent_s) * 1000});
+}
+
+void LoadTest::record_delta(double sent_s, double now_s) {
+  std::lock_guard lock(mutex_);
+  stats_.edit_to_delta.push_back({now_s, (now_s - sent_s) * 1000});
+}
+
+void LoadTest::record_first_view(double ms) {
+  std::lock_guard lock(mutex_);
+  stats_.first_view_ms.push_back(ms);
+}
+
+void LoadTest::record_error(const std::string& cause) {
+  std::lock_guard lock(mutex_);
+  ++stats_.errors[cause];
+}
+
+void LoadTest::record_disconnect(const std::string& cause) {
+  std::lock_guard lock(mutex_);
+  ++stats_.disconnects[cause];
 }
 
 void LoadTest::count_bytes(size_t n) {
-  stats_.bytes_received += n;
-  const auto second = static_cast<size_t>(std::max(0.0, now_s()));
-  if (stats_.bytes_per_second.size() <= second) stats_.bytes_per_second.resize(second + 1, 0);
-  stats_.bytes_per_second[second] += static_cast<double>(n);
+  bytes_.fetch_add(n, std::memory_order_relaxed);
+  const auto second =
+      std::min(bytes_per_second_.size() - 1, static_cast<size_t>(std::max(0.0, now_s())));
+  bytes_per_second_[second].fetch_add(n, std::memory_order_relaxed);
+}
+
+void LoadTest::collect_counters() {
+  std::lock_guard lock(mutex_);
+  stats_.messages_received = messages_.load();
+  stats_.bytes_received = bytes_.load();
+  stats_.chunks_streamed = chunks_.load();
+  stats_.decode_failures = decode_failures_.load();
+  const auto seconds = static_cast<size_t>(std::ceil(now_s()));
+  stats_.bytes_per_second.assign(std::min(seconds, bytes_per_second_.size()), 0);
+  for (size_t i = 0; i < stats_.bytes_per_second.size(); ++i) {
+    stats_.bytes_per_second[i] = static_cast<double>(bytes_per_second_[i].load());
+  }
 }
 
 void LoadTest::tick_progress(std::ostream& progress) {
-  const auto p99 = percentiles([this] {
-    std::vector<double> v;
-    for (const auto& s : stats_.edit_to_delta) v.push_back(s.ms);
-    return v;
-  }());
+  std::vector<double> delta_ms;
+  uint64_t edits = 0, errors = 0;
+  int connected = 0;
+  {
+    std::lock_guard lock(mutex_);
+    delta_ms.reserve(stats_.edit_to_delta.size());
+    for (const auto& s : stats_.edit_to_delta) delta_ms.push_back(s.ms);
+    edits = stats_.edits_sent;
+    errors = stats_.error_count() + stats_.disconnect_count();
+    connected = stats_.players_connected;
+  }
   char line[256];
-  std::snprintf(line, sizeof line, "[%5.1f s] players %d/%d connected, %llu edits/s, edit->delta p99 %.1f ms, errors %llu",
-                now_s(), stats_.players_connected, config_.players,
-                static_cast<unsigned long long>(stats_.edits_sent - last_progress_edits_), p99.p99,
-                static_cast<unsigned long long>(stats_.error_count() + stats_.disconnect_count()));
-  last_progress_edits_ = stats_.edits_sent;
-  progress << (config_.progress_tty ? "\r" : "") << line << (config_.progress_tty ? "" : "\n") << std::flush;
+  std::snprintf(
+      line, sizeof line,
+      "[%5.1f s] players %d/%d connected, %llu edits/s, edit->delta p99 %.1f ms, errors %llu",
+      now_s(), connected, config_.players,
+      static_cast<unsigned long long>(edits - last_progress_edits_),
+      percentiles(std::move(delta_ms)).p99, static_cast<unsigned long long>(errors));
+  last_progress_edits_ = edits;
+  progress << (config_.progress_tty ? "\r" : "") << line << (config_.progress_tty ? "" : "\n")
+           << std::flush;
+}
+
+// Ramp: players join evenly over --ramp seconds, each on its own strand.
+void LoadTest::start_players() {
+  std::mt19937 seeds(static_cast<uint32_t>(config_.seed));
+  for (int i = 0; i < config_.players; ++i)
+    players_.push_back(std::make_shared<SimPlayer>(*this, i, seeds()));
+  for (int i = 0; i < config_.players; ++i) {
+    const double at = config_.players > 1 ? config_.ramp_s * i / (config_.players - 1) : 0;
+    auto t = std::make_shared<asio::steady_timer>(
+        io_, std::chrono::microseconds(static_cast<int64_t>(at * 1e6)));
+    t->async_wait([t, p = players_[static_cast<size_t>(i)]](boost::system::error_code ec) {
+      if (!ec) p->start();
+    });
+  }
 }
 
 LoadStats LoadTest::run(std::ostream& progress) {
   start_ = std::chrono::steady_clock::now();
-  std::mt19937 seeds(static_cast<uint32_t>(config_.seed));
-  for (int i = 0; i < config_.players; ++i) players_.push_back(std::make_shared<SimPlayer>(*this, i, seeds()));
-  // Ramp: players join evenly over --ramp seconds.
-  std::vector<std::unique_ptr<asio::steady_timer>> joins;
-  for (int i = 0; i < config_.players; ++i) {
-    const double at = config_.players > 1 ? config_.ramp_s * i / (config_.players - 1) : 0;
-    auto t = std::make_unique<asio::steady_timer>(io_, std::chrono::microseconds(static_cast<int64_t>(at * 1e6)));
-    t->async_wait([p = players_[static_cast<size_t>(i)]](boost::system::error_code ec) {
-      if (!ec) p->start();
-    });
-    joins.push_back(std::move(t));
-  }
   editing_ = true;
+  start_players();
+  auto work = asio::make_work_guard(io_);
+  const int thread_count = config_.threads > 0
+                               ? config_.threads
+                               : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  std::vector<std::thread> threads;
+  for (int i = 0; i < thread_count; ++i) threads.emplace_back([this] { io_.run(); });
   const double end = config_.ramp_s + config_.duration_s;
-  while (now_s() < end) {
-    io_.run_for(std::chrono::milliseconds(1000));
+  for (double next = 1; now_s() < end; next += 1) {
+    std::this_thread::sleep_for(
+        std::chrono::duration<double>(std::max(0.0, std::min(next, end) - now_s())));
     tick_progress(progress);
   }
   editing_ = false;
-  stats_.duration_s = now_s();
-  const double drain_until = now_s() + 3.0;  // results and meshes of the last edits
-  while (now_s() < drain_until) io_.run_for(std::chrono::milliseconds(250));
+  {
+    std::lock_guard lock(mutex_);
+    stats_.duration_s = now_s();
+  }
+  std::this_thread::sleep_for(std::chrono::duration<double>(kDrainS));
+  // Freeze the players (no handler runs once the threads are joined) for the verification.
+  io_.stop();
+  for (auto& t : threads) t.join();
   if (config_.progress_tty) progress << "\n";
+  collect_counters();
   if (config_.verify) verify_all();
   stopping_ = true;
   for (auto& p : players_) p->close();
+  work.reset();
+  io_.restart();
   io_.run_for(std::chrono::milliseconds(500));
   return stats_;
 }
@@ -103,7 +207,8 @@ void LoadTest::verify_all() {
     const auto& mine = p->cache().chunks();
     for (const auto& [key, held] : fresh.chunks()) {
       auto it = mine.find(key);
-      if (it == mine.end() || it->second.version != held.version || it->second.encoding != held.encoding) {
+      if (it == mine.end() || it->second.version != held.version ||
+          it->second.encoding != held.encoding) {
         ++stats_.verify_mismatches;
       }
     }

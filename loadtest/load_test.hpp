@@ -1,15 +1,21 @@
 // The load test: N simulated players on one Asio event loop (no thread per player), each
 // walking over the terrain, updating its view and editing near itself and near others.
+// The loop is run by a few threads (one per core by default); each player's handlers run
+// on its own strand, so a player is never entered twice at once, and the shared tallies
+// below are thread-safe.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <iosfwd>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "client-cli/chunk_cache.hpp"
+#include "loadtest/decode_memo.hpp"
 #include "loadtest/load_stats.hpp"
 #include "server/net/asio.hpp"
 #include "server/world/terrain_generator.hpp"
@@ -25,11 +31,19 @@ struct LoadConfig {
   uint32_t view_radius = 4;
   double ramp_s = 2;
   uint64_t seed = 1;
-  double walk_speed = 1.4;   // voxels per second
-  double spawn_area = 96;    // players start within +-this many voxels of the origin
+  double walk_speed = 1.4;  // voxels per second
+  // Players start and walk within +-this many voxels of the origin; 0 = scale with the
+  // player count so the density stays that of 50 players in +-96 (see spawn_half_width).
+  double spawn_area = 0;
+  int threads = 0;          // event-loop threads; 0 = one per core
+  bool decode_all = false;  // every player decodes every mesh (no DecodeMemo)
   bool verify = false;
   bool progress_tty = false;  // rewrite one progress line instead of printing lines
 };
+
+// The half-width of the square players live in: --spawn-area, or for 0 one that keeps the
+// density of 50 players in +-96 voxels (about 70 players within a radius-4 view).
+double spawn_half_width(const LoadConfig& config);
 
 class SimPlayer;
 
@@ -40,36 +54,54 @@ class LoadTest {
   // Runs the whole test; progress lines go to `progress`. Returns the stats.
   LoadStats run(std::ostream& progress);
 
-  // For players (event-loop thread only).
+  // For players; all of these may be called from any event-loop thread.
   boost::asio::io_context& io() { return io_; }
   const LoadConfig& config() const { return config_; }
-  LoadStats& stats() { return stats_; }
+  double half_width() const { return half_width_; }
   double now_s() const;  // since the start of the test
-  bool editing() const { return editing_; }
-  bool stopping() const { return stopping_; }
+  bool editing() const { return editing_.load(std::memory_order_relaxed); }
+  bool stopping() const { return stopping_.load(std::memory_order_relaxed); }
   // A random player's position, for edits near others.
   std::array<float, 3> someone_elses_position(int self, std::mt19937& rng) const;
-  float terrain_height(float x, float z);
-  void set_world_seed(uint64_t seed);
-  proto::ZstdCodec& zstd() { return zstd_; }
-  proto::CodecScratch& scratch() { return scratch_; }
-  mesh::ChunkMesh& decoded() { return decoded_; }
+  float terrain_height(float x, float z) const;
+  // The world seed from a Welcome: the first builds the terrain the players walk on; a
+  // different one later is an error (returns false).
+  bool set_world_seed(uint64_t seed);
+  DecodeMemo* decode_memo() { return config_.decode_all ? nullptr : &memo_; }
+
+  // Tallies (thread-safe).
+  void record_connected();
+  void record_edit_sent();
+  void record_result(double sent_s, double now_s, bool refused);
+  void record_delta(double sent_s, double now_s);
+  void record_first_view(double ms);
+  void record_error(const std::string& cause);
+  void record_disconnect(const std::string& cause);
+  void count_message() { messages_.fetch_add(1, std::memory_order_relaxed); }
+  void count_chunk() { chunks_.fetch_add(1, std::memory_order_relaxed); }
+  void count_decode_failure() { decode_failures_.fetch_add(1, std::memory_order_relaxed); }
   void count_bytes(size_t n);
 
  private:
+  void start_players();
   void tick_progress(std::ostream& progress);
   void verify_all();
+  void collect_counters();
 
   LoadConfig config_;
+  double half_width_;
   boost::asio::io_context io_;
   std::vector<std::shared_ptr<SimPlayer>> players_;
-  LoadStats stats_;
   std::chrono::steady_clock::time_point start_;
-  bool editing_ = false, stopping_ = false;
-  std::unique_ptr<world::TerrainGenerator> terrain_;
-  proto::ZstdCodec zstd_;
-  proto::CodecScratch scratch_;
-  mesh::ChunkMesh decoded_;
+  std::atomic<bool> editing_{false}, stopping_{false};
+  DecodeMemo memo_;
+
+  mutable std::mutex mutex_;  // guards stats_ (but the counters below) and terrain_ creation
+  LoadStats stats_;
+  std::unique_ptr<world::TerrainGenerator> terrain_owner_;
+  std::atomic<const world::TerrainGenerator*> terrain_{nullptr};
+  std::atomic<uint64_t> messages_{0}, bytes_{0}, chunks_{0}, decode_failures_{0};
+  std::vector<std::atomic<uint64_t>> bytes_per_second_;  // sized for the whole run up front
   uint64_t last_progress_edits_ = 0;
 };
 

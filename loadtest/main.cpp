@@ -16,19 +16,34 @@ int main(int argc, char** argv) {
   double sweep_limit_ms = 100;
   po::options_description opts("voxel-loadtest options");
   opts.add_options()("help,h", "show this help")(
-      "server", po::value<std::string>(&server)->default_value("127.0.0.1:7777"), "HOST:PORT of voxeld")(
-      "players", po::value<int>(&config.players)->default_value(20), "simulated players (1..10000)")(
-      "duration", po::value<double>(&config.duration_s)->default_value(10), "seconds of play after the ramp")(
-      "edit-rate", po::value<double>(&config.edit_rate)->default_value(0.5), "edits per second per player")(
-      "view-radius", po::value<uint32_t>(&config.view_radius)->default_value(4), "view radius in chunks")(
-      "ramp", po::value<double>(&config.ramp_s)->default_value(2), "seconds over which players join")(
-      "seed", po::value<uint64_t>(&config.seed)->default_value(1), "seed of the players' paths and edits")(
-      "verify", po::bool_switch(&config.verify), "at the end, check every player's meshes against a fresh client")(
+      "server", po::value<std::string>(&server)->default_value("127.0.0.1:7777"),
+      "HOST:PORT of voxeld")("players", po::value<int>(&config.players)->default_value(20),
+                             "simulated players (1..10000)")(
+      "duration", po::value<double>(&config.duration_s)->default_value(10),
+      "seconds of play after the ramp")("edit-rate",
+                                        po::value<double>(&config.edit_rate)->default_value(0.5),
+                                        "edits per second per player")(
+      "view-radius", po::value<uint32_t>(&config.view_radius)->default_value(4),
+      "view radius in chunks")("ramp", po::value<double>(&config.ramp_s)->default_value(2),
+                               "seconds over which players join")(
+      "seed", po::value<uint64_t>(&config.seed)->default_value(1),
+      "seed of the players' paths and edits")(
+      "spawn-area", po::value<double>(&config.spawn_area)->default_value(0),
+      "players live within +-this many voxels of the origin; 0 = grow with --players at the "
+      "density of 50 in +-96")("threads", po::value<int>(&config.threads)->default_value(0),
+                               "event-loop threads (0 = one per core)")(
+      "decode-all", po::bool_switch(&config.decode_all),
+      "every player decodes every mesh itself (by default a version already decoded "
+      "byte-identically is not decoded again)")(
+      "verify", po::bool_switch(&config.verify),
+      "at the end, check every player's meshes against a fresh client")(
       "json", po::value<std::string>(&json), "write the results as JSON to this file")(
-      "svg", po::value<std::string>(&svg), "write latency and throughput over time as SVG to this file")(
+      "svg", po::value<std::string>(&svg),
+      "write latency and throughput over time as SVG to this file")(
       "sweep", po::value<std::string>(&sweep),
       "N1,N2,...: run once per player count; --svg then draws p99 against players")(
-      "sweep-limit-ms", po::value<double>(&sweep_limit_ms)->default_value(100), "the p99 limit the sweep reports against");
+      "sweep-limit-ms", po::value<double>(&sweep_limit_ms)->default_value(100),
+      "the p99 limit the sweep reports against");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, opts), vm);
@@ -44,9 +59,13 @@ int main(int argc, char** argv) {
     std::cerr << "voxel-loadtest: " << e.what() << " (see --help)\n";
     return 2;
   }
-  if (config.players < 1 || config.players > 10000 || !(config.duration_s > 0) || !(config.edit_rate > 0) ||
-      !(config.ramp_s >= 0) || config.view_radius > 64) {
-    std::cerr << "voxel-loadtest: --players 1..10000, --duration > 0, --edit-rate > 0, --ramp >= 0, --view-radius <= 64\n";
+  if (config.players < 1 || config.players > 10000 || !(config.duration_s > 0) ||
+      !(config.edit_rate > 0) || !(config.ramp_s >= 0) || config.view_radius > 64 ||
+      !(config.spawn_area >= 0) || config.spawn_area > 1e6 || config.threads < 0 ||
+      config.threads > 64) {
+    std::cerr << "voxel-loadtest: --players 1..10000, --duration > 0, --edit-rate > 0, --ramp >= "
+                 "0, --view-radius <= 64, "
+                 "--spawn-area 0..1e6, --threads 0..64\n";
     return 2;
   }
   config.progress_tty = ::isatty(STDERR_FILENO) != 0;
@@ -61,12 +80,15 @@ int main(int argc, char** argv) {
       std::vector<double> ms;
       for (const auto& s : stats.edit_to_delta) ms.push_back(s.ms);
       const double p99 = vox::loadtest::percentiles(ms).p99;
-      const uint64_t errors = stats.error_count() + stats.disconnect_count() + stats.decode_failures;
+      const uint64_t errors =
+          stats.error_count() + stats.disconnect_count() + stats.decode_failures;
       points.push_back({config.players, p99, errors});
-      std::cout << "players " << config.players << ": edit->delta p99 " << p99 << " ms, errors " << errors << "\n";
+      std::cout << "players " << config.players << ": edit->delta p99 " << p99 << " ms, errors "
+                << errors << "\n";
       if (p99 <= sweep_limit_ms && errors == 0) best = std::max(best, config.players);
     }
-    std::cout << "largest player count with p99 <= " << sweep_limit_ms << " ms and no errors: " << best << "\n";
+    std::cout << "largest player count with p99 <= " << sweep_limit_ms
+              << " ms and no errors: " << best << "\n";
     if (!svg.empty()) {
       std::ofstream out(svg);
       vox::loadtest::write_sweep_svg(points, sweep_limit_ms, out);
@@ -84,7 +106,8 @@ int main(int argc, char** argv) {
     std::ofstream out(svg);
     vox::loadtest::write_svg(stats, out);
   }
-  const bool ok = stats.error_count() == 0 && stats.disconnect_count() == 0 && stats.decode_failures == 0 &&
-                  stats.verify_mismatches == 0 && stats.players_connected == config.players;
+  const bool ok = stats.error_count() == 0 && stats.disconnect_count() == 0 &&
+                  stats.decode_failures == 0 && stats.verify_mismatches == 0 &&
+                  stats.players_connected == config.players;
   return ok ? 0 : 1;
 }

@@ -11,8 +11,21 @@ using client::ChunkKey;
 namespace {
 constexpr double kTickS = 0.05;
 constexpr double kPingEveryS = 10;
-constexpr double kFirstViewQuietS = 1.0;  // the first view is complete after this long without a full mesh
-constexpr double kDeltaGiveUpS = 10;      // a changed chunk whose mesh never came (e.g. it stayed empty)
+constexpr double kFirstViewQuietS =
+    1.0;  // the first view is complete after this long without a full mesh
+constexpr double kDeltaGiveUpS =
+    10;  // a changed chunk whose mesh never came (e.g. it stayed empty)
+
+// Decoding scratch per event-loop thread (players on one thread never decode at once).
+struct DecodeScratch {
+  proto::ZstdCodec zstd;
+  proto::CodecScratch scratch;
+  mesh::ChunkMesh decoded;
+};
+DecodeScratch& decode_scratch() {
+  thread_local DecodeScratch scratch;
+  return scratch;
+}
 
 std::vector<uint8_t> frame_of(const wire::Envelope& m) {
   std::vector<uint8_t> out;
@@ -23,17 +36,40 @@ std::vector<uint8_t> frame_of(const wire::Envelope& m) {
 }  // namespace
 
 SimPlayer::SimPlayer(LoadTest& test, int id, uint32_t seed)
-    : test_(test), id_(id), rng_(seed), socket_(test.io()), timer_(test.io()) {
-  std::uniform_real_distribution<float> spawn(-static_cast<float>(test.config().spawn_area),
-                                              static_cast<float>(test.config().spawn_area));
+    : test_(test),
+      id_(id),
+      rng_(seed),
+      strand_(asio::make_strand(test.io())),
+      socket_(strand_),
+      timer_(strand_) {
+  const auto half_width = static_cast<float>(test.half_width());
+  std::uniform_real_distribution<float> spawn(-half_width, half_width);
   x_ = spawn(rng_);
   z_ = spawn(rng_);
   heading_ = std::uniform_real_distribution<float>(0, 2 * std::numbers::pi_v<float>)(rng_);
   radius_ = test.config().view_radius;
+  publish_position();
+}
+
+void SimPlayer::publish_position() {
+  published_[0].store(x_, std::memory_order_relaxed);
+  published_[1].store(y_, std::memory_order_relaxed);
+  published_[2].store(z_, std::memory_order_relaxed);
+}
+
+std::array<float, 3> SimPlayer::position() const {
+  return {published_[0].load(std::memory_order_relaxed),
+          published_[1].load(std::memory_order_relaxed),
+          published_[2].load(std::memory_order_relaxed)};
 }
 
 void SimPlayer::start() {
-  asio::ip::tcp::endpoint endpoint(asio::ip::make_address(test_.config().host), test_.config().port);
+  asio::dispatch(strand_, [self = shared_from_this()] { self->connect(); });
+}
+
+void SimPlayer::connect() {
+  asio::ip::tcp::endpoint endpoint(asio::ip::make_address(test_.config().host),
+                                   test_.config().port);
   socket_.async_connect(endpoint, [self = shared_from_this()](boost::system::error_code ec) {
     if (ec) {
       self->fail("connect failed: " + ec.message(), true);
@@ -59,12 +95,11 @@ void SimPlayer::close() {
 
 void SimPlayer::fail(const std::string& cause, bool disconnect) {
   if (closed_) return;
-  auto& stats = test_.stats();
   if (disconnect) {
-    ++stats.disconnects[cause];
+    test_.record_disconnect(cause);
     close();
   } else {
-    ++stats.errors[cause];
+    test_.record_error(cause);
   }
 }
 
@@ -77,62 +112,70 @@ void SimPlayer::send(const wire::Envelope& m) {
 void SimPlayer::write_more() {
   if (writing_ || outbox_.empty() || closed_) return;
   writing_ = true;
-  asio::async_write(socket_, asio::buffer(outbox_.front()), [self = shared_from_this()](boost::system::error_code ec, size_t) {
-    self->writing_ = false;
-    if (ec) {
-      if (!self->test_.stopping()) self->fail("write failed: " + ec.message(), true);
-      return;
-    }
-    self->outbox_.pop_front();
-    self->write_more();
-  });
+  asio::async_write(socket_, asio::buffer(outbox_.front()),
+                    [self = shared_from_this()](boost::system::error_code ec, size_t) {
+                      self->writing_ = false;
+                      if (ec) {
+                        if (!self->test_.stopping())
+                          self->fail("write failed: " + ec.message(), true);
+                        return;
+                      }
+                      self->outbox_.pop_front();
+                      self->write_more();
+                    });
 }
 
 void SimPlayer::read_more() {
-  socket_.async_read_some(asio::buffer(buffer_), [self = shared_from_this()](boost::system::error_code ec, size_t n) {
-    if (ec) {
-      if (!self->closed_ && !self->test_.stopping()) self->fail("closed by the server", true);
-      return;
-    }
-    self->test_.count_bytes(n);
-    self->decoder_.feed({self->buffer_.data(), n});
-    while (auto frame = self->decoder_.next()) {
-      wire::Envelope m;
-      if (!m.ParseFromArray(frame->data(), static_cast<int>(frame->size()))) {
-        self->fail("unparsable message from the server", true);
-        return;
-      }
-      ++self->test_.stats().messages_received;
-      self->on_message(m);
-      if (self->closed_) return;
-    }
-    if (!self->decoder_.error().empty()) {
-      self->fail("frame over the limit from the server", true);
-      return;
-    }
-    self->read_more();
-  });
+  socket_.async_read_some(
+      asio::buffer(buffer_), [self = shared_from_this()](boost::system::error_code ec, size_t n) {
+        if (ec) {
+          if (!self->closed_ && !self->test_.stopping()) self->fail("closed by the server", true);
+          return;
+        }
+        self->test_.count_bytes(n);
+        self->decoder_.feed({self->buffer_.data(), n});
+        while (auto frame = self->decoder_.next()) {
+          wire::Envelope m;
+          if (!m.ParseFromArray(frame->data(), static_cast<int>(frame->size()))) {
+            self->fail("unparsable message from the server", true);
+            return;
+          }
+          self->test_.count_message();
+          self->on_message(m);
+          if (self->closed_) return;
+        }
+        if (!self->decoder_.error().empty()) {
+          self->fail("frame over the limit from the server", true);
+          return;
+        }
+        self->read_more();
+      });
 }
 
 bool SimPlayer::in_view(const ChunkKey& k) const {
-  const int64_t dx = std::get<0>(k) - view_chunk_.x, dy = std::get<1>(k) - view_chunk_.y, dz = std::get<2>(k) - view_chunk_.z;
+  const int64_t dx = std::get<0>(k) - view_chunk_.x, dy = std::get<1>(k) - view_chunk_.y,
+                dz = std::get<2>(k) - view_chunk_.z;
   return dx * dx + dy * dy + dz * dz <= static_cast<int64_t>(radius_) * radius_;
 }
 
 void SimPlayer::on_message(const wire::Envelope& m) {
-  auto& stats = test_.stats();
   switch (m.body_case()) {
     case wire::Envelope::kWelcome:
       welcomed_ = true;
-      ++stats.players_connected;
-      test_.set_world_seed(m.welcome().world_seed());
+      test_.record_connected();
+      if (!test_.set_world_seed(m.welcome().world_seed()))
+        fail("Welcome with a different world seed", false);
       y_ = test_.terrain_height(x_, z_);
+      publish_position();
       send_view();
-      next_edit_s_ = test_.now_s() + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);
+      next_edit_s_ =
+          test_.now_s() + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);
       last_tick_s_ = test_.now_s();
       tick();
       break;
-    case wire::Envelope::kChunkMesh: on_chunk_mesh(m.chunk_mesh()); break;
+    case wire::Envelope::kChunkMesh:
+      on_chunk_mesh(m.chunk_mesh());
+      break;
     case wire::Envelope::kChunkUnload:
       cache_.forget(m.chunk_unload());
       for (auto& [id, p] : pending_) {
@@ -146,13 +189,11 @@ void SimPlayer::on_message(const wire::Envelope& m) {
         fail("EditResult for an unknown request", false);
         break;
       }
-      ++stats.results;
-      const double now = test_.now_s();
-      stats.edit_to_result.push_back({now, (now - it->second.sent_s) * 1000});
-      if (r.status() != wire::EditResult::ACCEPTED) ++stats.refused;
+      test_.record_result(it->second.sent_s, test_.now_s(),
+                          r.status() != wire::EditResult::ACCEPTED);
       it->second.have_result = true;
       for (const auto& c : r.changed_chunks()) {
-        const ChunkKey k{c.x(), c.y(), c.z()};
+        const ChunkKey k = client::key_of(c);
         if (in_view(k)) it->second.waiting.insert(k);
       }
       if (it->second.waiting.empty()) pending_.erase(it);  // nothing visible changed
@@ -162,25 +203,25 @@ void SimPlayer::on_message(const wire::Envelope& m) {
       if (m.error().code() == wire::Error::SHUTTING_DOWN && test_.stopping()) break;
       fail("Error " + wire::Error::Code_Name(m.error().code()), false);
       break;
-    default: break;  // Pong
+    default:
+      break;  // Pong
   }
 }
 
 void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
-  auto& stats = test_.stats();
-  ++stats.chunks_streamed;
-  if (auto error = cache_.apply(m, test_.zstd(), test_.scratch(), test_.decoded())) {
-    ++stats.decode_failures;
+  test_.count_chunk();
+  if (auto error = apply_mesh(m)) {
+    test_.count_decode_failure();
     fail("decode failure: " + *error, false);
     return;
   }
   const double now = test_.now_s();
   if (m.base_version() == 0) last_mesh_s_ = now;  // full meshes: the view being streamed
-  const ChunkKey k{m.coord().x(), m.coord().y(), m.coord().z()};
+  const ChunkKey k = client::key_of(m.coord());
   for (auto it = pending_.begin(); it != pending_.end();) {
     PendingEdit& p = it->second;
     if (p.have_result && p.waiting.erase(k) && p.waiting.empty()) {
-      stats.edit_to_delta.push_back({now, (now - p.sent_s) * 1000});
+      test_.record_delta(p.sent_s, now);
       it = pending_.erase(it);
     } else {
       ++it;
@@ -188,9 +229,29 @@ void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
   }
 }
 
+// Expands the payload against the held base and decodes it, unless the expanded bytes
+// are a version another player already decoded (DecodeMemo).
+std::optional<std::string> SimPlayer::apply_mesh(const wire::ChunkMesh& m) {
+  DecodeScratch& d = decode_scratch();
+  auto encoding = cache_.expand(m, d.zstd);
+  if (!encoding) return encoding.error();
+  const ChunkKey key = client::key_of(m.coord());
+  DecodeMemo* memo = test_.decode_memo();
+  if (!memo || !memo->known_good(key, m.version(), *encoding)) {
+    if (auto error = proto::decode_mesh(*encoding, {}, d.scratch, d.decoded)) {
+      cache_.drop(key);
+      return error->message;
+    }
+    if (memo) memo->remember(key, m.version(), *encoding);
+  }
+  cache_.hold(key, m.version(), std::move(*encoding));
+  return std::nullopt;
+}
+
 void SimPlayer::send_view() {
-  view_chunk_ = world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
-                                      static_cast<int>(std::floor(z_)));
+  view_chunk_ =
+      world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
+                            static_cast<int>(std::floor(z_)));
   wire::Envelope v;
   v.mutable_set_view()->mutable_position()->set_x(x_);
   v.mutable_set_view()->mutable_position()->set_y(y_);
@@ -229,7 +290,7 @@ void SimPlayer::send_edit() {
   centre->set_y(target[1]);
   centre->set_z(target[2]);
   pending_[request] = {test_.now_s(), false, {}};
-  ++test_.stats().edits_sent;
+  test_.record_edit_sent();
   send(m);
 }
 
@@ -241,18 +302,20 @@ void SimPlayer::tick() {
   // Walk: keep a heading, turn now and then, stay near the spawn area.
   std::uniform_real_distribution<float> unit(0, 1);
   if (unit(rng_) < 0.02f) heading_ += (unit(rng_) - 0.5f) * 2.0f;
-  const float limit = static_cast<float>(test_.config().spawn_area) * 1.5f;
+  const float limit = static_cast<float>(test_.half_width()) * 1.5f;
   if (std::fabs(x_) > limit || std::fabs(z_) > limit) heading_ = std::atan2(-z_, -x_);
   const auto step = static_cast<float>(test_.config().walk_speed * dt);
   x_ += std::cos(heading_) * step;
   z_ += std::sin(heading_) * step;
   y_ = test_.terrain_height(x_, z_);
-  const world::ChunkCoord chunk = world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
-                                                        static_cast<int>(std::floor(z_)));
+  publish_position();
+  const world::ChunkCoord chunk =
+      world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
+                            static_cast<int>(std::floor(z_)));
   if (chunk != view_chunk_) send_view();
   if (!first_view_done_ && last_mesh_s_ > 0 && now - last_mesh_s_ > kFirstViewQuietS) {
     first_view_done_ = true;
-    test_.stats().first_view_ms.push_back((last_mesh_s_ - view_sent_s_) * 1000);
+    test_.record_first_view((last_mesh_s_ - view_sent_s_) * 1000);
   }
   if (test_.editing() && now >= next_edit_s_) {
     send_edit();

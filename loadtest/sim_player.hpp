@@ -1,6 +1,9 @@
-// One simulated player: an asynchronous client on the load test's event loop.
+// One simulated player: an asynchronous client on the load test's event loop. Its socket
+// and timer live on its own strand, so its handlers never run at once on two threads;
+// only its published position is read by other players.
 #pragma once
 
+#include <atomic>
 #include <deque>
 #include <map>
 #include <memory>
@@ -16,11 +19,11 @@ namespace vox::loadtest {
 class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
  public:
   SimPlayer(LoadTest& test, int id, uint32_t seed);
-  void start();  // connect, then play
-  void close();
+  void start();  // connect, then play (from any thread)
+  void close();  // only while the event loop is not running
   int id() const { return id_; }
   bool connected() const { return welcomed_; }
-  std::array<float, 3> position() const { return {x_, y_, z_}; }
+  std::array<float, 3> position() const;  // from any thread
   std::array<float, 3> view_position() const { return view_position_; }
   const client::ChunkCache& cache() const { return cache_; }
   uint32_t radius() const { return radius_; }
@@ -32,9 +35,11 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
     std::set<client::ChunkKey> waiting;  // changed chunks in view whose new mesh has not arrived
   };
 
+  void connect();
   void read_more();
   void on_message(const wire::Envelope& m);
   void on_chunk_mesh(const wire::ChunkMesh& m);
+  std::optional<std::string> apply_mesh(const wire::ChunkMesh& m);
   void send(const wire::Envelope& m);
   void write_more();
   void tick();
@@ -42,10 +47,12 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   void send_edit();
   void fail(const std::string& cause, bool disconnect);
   bool in_view(const client::ChunkKey& k) const;
+  void publish_position();
 
   LoadTest& test_;
   const int id_;
   std::mt19937 rng_;
+  boost::asio::strand<boost::asio::io_context::executor_type> strand_;
   boost::asio::ip::tcp::socket socket_;
   boost::asio::steady_timer timer_;
   proto::FrameDecoder decoder_{64 << 20};
@@ -54,6 +61,7 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   bool writing_ = false, welcomed_ = false, closed_ = false;
 
   float x_ = 0, y_ = 0, z_ = 0, heading_ = 0;
+  std::array<std::atomic<float>, 3> published_{};  // x_, y_, z_ for other players
   world::ChunkCoord view_chunk_{};
   std::array<float, 3> view_position_{};
   uint32_t radius_ = 0;

@@ -22,7 +22,9 @@ std::vector<uint8_t> frame_of(const wire::Envelope& message) {
   return out;
 }
 
-bool finite(const wire::Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+bool finite(const wire::Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
 
 }  // namespace
 
@@ -48,7 +50,8 @@ void ClientSession::start() {
     self->handshake_timer_.expires_after(self->config_.handshake_timeout);
     self->handshake_timer_.async_wait([self](boost::system::error_code ec) {
       if (!ec && !self->player_ && !self->closing_) {
-        self->send_error(wire::Error::HANDSHAKE_TIMEOUT, "no Hello within the handshake timeout", true);
+        self->send_error(wire::Error::HANDSHAKE_TIMEOUT, "no Hello within the handshake timeout",
+                         true);
       }
     });
     self->arm_idle_timer();
@@ -59,16 +62,19 @@ void ClientSession::start() {
 void ClientSession::arm_idle_timer() {
   idle_timer_.expires_after(config_.idle_timeout);
   idle_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
-    if (!ec && !self->closing_) self->send_error(wire::Error::IDLE_TIMEOUT, "nothing received for too long", true);
+    if (!ec && !self->closing_)
+      self->send_error(wire::Error::IDLE_TIMEOUT, "nothing received for too long", true);
   });
 }
 
 void ClientSession::read_more() {
   socket_.async_read_some(
       asio::buffer(read_buffer_),
-      asio::bind_executor(strand_, [self = shared_from_this()](boost::system::error_code ec, size_t n) {
+      asio::bind_executor(strand_, [self = shared_from_this()](boost::system::error_code ec,
+                                                               size_t n) {
         if (ec) {
-          if (!self->closing_) spdlog::debug("session {}: connection closed by peer ({})", self->id_, ec.message());
+          if (!self->closing_)
+            spdlog::debug("session {}: connection closed by peer ({})", self->id_, ec.message());
           self->shutdown();
           return;
         }
@@ -93,7 +99,8 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
     return;
   }
   if (has_unknown_fields(message)) {
-    send_error(wire::Error::UNKNOWN_MESSAGE, "the message has fields this protocol version does not define", false);
+    send_error(wire::Error::UNKNOWN_MESSAGE,
+               "the message has fields this protocol version does not define", false);
     return;
   }
   if (!player_ && message.body_case() != wire::Envelope::kHello) {
@@ -101,16 +108,23 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
     return;
   }
   switch (message.body_case()) {
-    case wire::Envelope::kHello: handle_hello(message.hello()); break;
-    case wire::Envelope::kSetView: handle_set_view(message.set_view()); break;
-    case wire::Envelope::kEdit: handle_edit(message.edit()); break;
+    case wire::Envelope::kHello:
+      handle_hello(message.hello());
+      break;
+    case wire::Envelope::kSetView:
+      handle_set_view(message.set_view());
+      break;
+    case wire::Envelope::kEdit:
+      handle_edit(message.edit());
+      break;
     case wire::Envelope::kPing: {
       wire::Envelope pong;
       pong.mutable_pong()->set_nonce(message.ping().nonce());
       queue_control(pong);
       break;
     }
-    default: send_error(wire::Error::UNKNOWN_MESSAGE, "not a client message", false);
+    default:
+      send_error(wire::Error::UNKNOWN_MESSAGE, "not a client message", false);
   }
 }
 
@@ -121,8 +135,8 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   }
   if (hello.protocol_version() != kProtocolVersion) {
     send_error(wire::Error::BAD_VERSION,
-               "protocol version " + std::to_string(hello.protocol_version()) + " is not supported (server speaks " +
-                   std::to_string(kProtocolVersion) + ")",
+               "protocol version " + std::to_string(hello.protocol_version()) +
+                   " is not supported (server speaks " + std::to_string(kProtocolVersion) + ")",
                true);
     return;
   }
@@ -150,7 +164,8 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   queue_control(welcome);
   boost::system::error_code ec;
   const auto peer = socket_.remote_endpoint(ec);
-  spdlog::info("session {}: player '{}' joined from {}", id_, name_, ec ? std::string("?") : peer.address().to_string());
+  spdlog::info("session {}: player '{}' joined from {}", id_, name_,
+               ec ? std::string("?") : peer.address().to_string());
 }
 
 void ClientSession::handle_set_view(const wire::SetView& view) {
@@ -161,7 +176,8 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
   }
   const float p[3] = {view.position().x(), view.position().y(), view.position().z()};
   for (int a = 0; a < 3; ++a) {
-    if (p[a] < static_cast<float>(limits.world_min[a]) || p[a] > static_cast<float>(limits.world_max[a])) {
+    if (p[a] < static_cast<float>(limits.world_min[a]) ||
+        p[a] > static_cast<float>(limits.world_max[a])) {
       send_error(wire::Error::BAD_VALUE, "SetView position is outside the world", false);
       return;
     }
@@ -177,6 +193,11 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
   const ChunkCoord center = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])),
                                                   static_cast<int32_t>(std::floor(p[1])),
                                                   static_cast<int32_t>(std::floor(p[2])));
+  {
+    std::lock_guard lock(view_mutex_);
+    view_center_ = center;
+    view_radius_ = r;
+  }
   const std::vector<ChunkCoord> left = scheduler_.set_view(center, r);
   if (!left.empty()) {
     wire::Envelope unload;
@@ -184,8 +205,9 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
     queue_control(unload);
   }
   // Load what is missing; newly published meshes arrive through on_chunks_published.
-  pipeline_.load({center.offset(-r, -r, -r), center.offset(r, r, r)},
-                 [self = shared_from_this()] { asio::post(self->strand_, [self] { self->pump(); }); });
+  pipeline_.load({center.offset(-r, -r, -r), center.offset(r, r, r)}, [self = shared_from_this()] {
+    asio::post(self->strand_, [self] { self->pump(); });
+  });
   pump();
 }
 
@@ -196,7 +218,8 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
     // A client cannot queue unbounded work in the shared pipeline.
     converted.edit.reset();
     converted.status = wire::EditResult::TOO_MANY_EDITS;
-    converted.reason = "over " + std::to_string(config_.max_edits_in_flight) + " edits still being applied";
+    converted.reason =
+        "over " + std::to_string(config_.max_edits_in_flight) + " edits still being applied";
   }
   if (!converted.edit) {
     if (converted.unknown_enum) send_error(wire::Error::UNKNOWN_ENUM, converted.reason, false);
@@ -210,18 +233,36 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
   }
   counters_.edits.fetch_add(1, std::memory_order_relaxed);
   ++edits_in_flight_;
-  pipeline_.submit(std::move(*converted.edit), [self = shared_from_this(), request](const pipeline::EditResult& r) {
-    wire::Envelope result;  // built on the pipeline thread, queued on the strand
-    auto* w = result.mutable_edit_result();
-    w->set_request_id(request);
-    w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
-    w->set_reason(r.message);
-    for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
-    asio::post(self->strand_, [self, result = std::move(result)] {
-      --self->edits_in_flight_;
-      self->queue_control(result);
-    });
-  });
+  pipeline_.submit(std::move(*converted.edit),
+                   [self = shared_from_this(), request](const pipeline::EditResult& r) {
+                     wire::Envelope result;  // built on the pipeline thread, queued on the strand
+                     auto* w = result.mutable_edit_result();
+                     w->set_request_id(request);
+                     w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
+                     w->set_reason(r.message);
+                     for (const ChunkCoord& c : r.changed_chunks)
+                       *w->add_changed_chunks() = to_wire(c);
+                     asio::post(self->strand_, [self, result = std::move(result)] {
+                       --self->edits_in_flight_;
+                       self->queue_control(result);
+                     });
+                   });
+}
+
+bool ClientSession::may_see(const std::vector<ChunkCoord>& chunks) const {
+  ChunkCoord center;
+  int64_t r;
+  {
+    std::lock_guard lock(view_mutex_);
+    center = view_center_;
+    r = view_radius_;
+  }
+  if (r < 0) return false;
+  for (const ChunkCoord& c : chunks) {
+    const int64_t dx = c.x - center.x, dy = c.y - center.y, dz = c.z - center.z;
+    if (dx * dx + dy * dy + dz * dz <= r * r) return true;
+  }
+  return false;
 }
 
 void ClientSession::on_chunks_published(std::shared_ptr<const std::vector<ChunkCoord>> chunks) {
@@ -250,7 +291,8 @@ void ClientSession::send_error(wire::Error::Code code, const std::string& messag
   wire::Envelope error;
   error.mutable_error()->set_code(code);
   error.mutable_error()->set_message(message);
-  spdlog::info("session {}: {} ({}){}", id_, wire::Error::Code_Name(code), message, close ? ", closing" : "");
+  spdlog::info("session {}: {} ({}){}", id_, wire::Error::Code_Name(code), message,
+               close ? ", closing" : "");
   queue_control(error);
   if (close) {
     closing_ = true;
@@ -311,14 +353,15 @@ void ClientSession::pump() {
     write_timer_.expires_after(config_.write_timeout);
     write_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
       if (ec || !self->writing_) return;
-      spdlog::warn("session {}: '{}' stopped reading (a write took over {} ms); disconnecting", self->id_, self->name_,
-                   self->config_.write_timeout.count());
+      spdlog::warn("session {}: '{}' stopped reading (a write took over {} ms); disconnecting",
+                   self->id_, self->name_, self->config_.write_timeout.count());
       self->counters_.disconnects.fetch_add(1);
       self->shutdown();
     });
   }
   asio::async_write(socket_, asio::buffer(write_buffer_),
-                    asio::bind_executor(strand_, [self = shared_from_this()](boost::system::error_code ec, size_t n) {
+                    asio::bind_executor(strand_, [self = shared_from_this()](
+                                                     boost::system::error_code ec, size_t n) {
                       self->writing_ = false;
                       self->counters_.bytes_sent.fetch_add(n, std::memory_order_relaxed);
                       if (ec) {

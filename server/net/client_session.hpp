@@ -3,16 +3,17 @@
 // chunk, as a delta from what the client holds. Other threads only post to the strand.
 #pragma once
 
-#include "net/asio.hpp"
 #include <chrono>
 #include <deque>
 #include <memory>
+#include <mutex>
 #include <vector>
 
-#include "pipeline/world_pipeline.hpp"
-#include "proto/framing.hpp"
+#include "net/asio.hpp"
 #include "net/send_scheduler.hpp"
 #include "net/server_counters.hpp"
+#include "pipeline/world_pipeline.hpp"
+#include "proto/framing.hpp"
 #include "voxel.pb.h"
 
 namespace vox::net {
@@ -26,8 +27,9 @@ struct ServerConfig {
   uint32_t max_view_radius = 12;            // chunks
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
-  size_t max_control_bytes = 1 << 20;       // queued results/errors before a client counts as not reading
-  size_t max_edits_in_flight = 256;         // a client's edits queued in the pipeline at once
+  size_t max_control_bytes =
+      1 << 20;                       // queued results/errors before a client counts as not reading
+  size_t max_edits_in_flight = 256;  // a client's edits queued in the pipeline at once
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect
@@ -40,8 +42,14 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
                 pipeline::WorldPipeline& pipeline, ServerCounters& counters);
   ~ClientSession();
 
-  void start();                                                             // any thread, once
-  void on_chunks_published(std::shared_ptr<const std::vector<world::ChunkCoord>> chunks);  // any thread
+  void start();  // any thread, once
+  void on_chunks_published(
+      std::shared_ptr<const std::vector<world::ChunkCoord>> chunks);  // any thread
+  // Any thread: false when none of `chunks` can be in this session's view, so the publish
+  // fan-out skips it (the scheduler still decides what is really sent). The view is
+  // updated before the session first looks its chunks up in the store, so a mesh
+  // published meanwhile is either seen by that lookup or passes this filter.
+  bool may_see(const std::vector<world::ChunkCoord>& chunks) const;
   // Sends an Error and closes (SHUTTING_DOWN, SERVER_FULL); any thread.
   void close_with_error(wire::Error::Code code, std::string message);
   uint64_t id() const { return id_; }
@@ -78,7 +86,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued
 
   SendScheduler scheduler_;
-  std::deque<std::vector<uint8_t>> control_;               // framed messages sent before meshes
+  mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)
+  world::ChunkCoord view_center_{};
+  int view_radius_ = -1;
+  std::deque<std::vector<uint8_t>> control_;  // framed messages sent before meshes
   size_t control_bytes_ = 0;
   std::vector<uint8_t> write_buffer_;
 };
