@@ -1,5 +1,6 @@
 #include "pipeline/world_pipeline.hpp"
 
+#include <spdlog/spdlog.h>
 #include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
@@ -37,6 +38,12 @@ using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
 // Summing every loaded chunk's memory after each batch cost ~10 % of the server's CPU
 // with 500 players (12,000 chunks): it is refreshed this often instead.
 constexpr auto kMemoryScanEvery = std::chrono::milliseconds(500);
+constexpr auto kSlowBatch =
+    std::chrono::milliseconds(100);  // logged: every edit queued behind it waited
+// A batch stops taking loads after this long (see process_loads), and a load is split
+// into groups of this many chunks (with their margins, tens of ms of generation at most).
+constexpr auto kLoadBudget = std::chrono::milliseconds(15);
+constexpr size_t kLoadGroup = 64;
 
 }  // namespace
 
@@ -45,6 +52,7 @@ struct WorldPipeline::State {
 
   struct ChunkInfo {
     bool modified = false;
+    bool meshed = false;  // its mesh is in the store (so its neighbours were loaded)
     Clock::time_point last_used;
   };
   world::ChunkMap chunks;
@@ -85,7 +93,7 @@ struct WorldPipeline::State {
         const ChunkCoord c{work[i].first.first, work[i].second[k], work[i].first.second};
         if (info.count(c)) continue;  // listed twice
         chunks.insert(c, std::move(made[i][k]));
-        info[c] = {false, now};
+        info[c] = {.last_used = now};
         ++generated;
       }
     }
@@ -128,7 +136,33 @@ std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
 }
 
 void WorldPipeline::load(mesh::ChunkBox box, std::function<void()> done) {
-  enqueue(LoadTask{box, std::move(done)});
+  // Split into groups of chunks, nearest the box's centre first, so that edits can be
+  // applied between them and the meshes are published (and streamed) from the centre out;
+  // `done` runs once, after the last group.
+  std::vector<ChunkCoord> chunks(box.count());
+  for (size_t i = 0; i < chunks.size(); ++i) chunks[i] = box.at(i);
+  const int64_t cx = (int64_t{box.lo.x} + box.hi.x), cy = (int64_t{box.lo.y} + box.hi.y),
+                cz = (int64_t{box.lo.z} + box.hi.z);  // twice the centre
+  auto distance2 = [&](const ChunkCoord& c) {
+    const int64_t dx = 2 * int64_t{c.x} - cx, dy = 2 * int64_t{c.y} - cy,
+                  dz = 2 * int64_t{c.z} - cz;
+    return dx * dx + dy * dy + dz * dz;
+  };
+  std::stable_sort(chunks.begin(), chunks.end(), [&](const ChunkCoord& a, const ChunkCoord& b) {
+    return distance2(a) < distance2(b);
+  });
+  const size_t groups = std::max<size_t>(1, (chunks.size() + kLoadGroup - 1) / kLoadGroup);
+  auto remaining = std::make_shared<std::atomic<size_t>>(groups);
+  auto shared_done = std::make_shared<std::function<void()>>(std::move(done));
+  for (size_t g = 0; g < groups; ++g) {
+    const auto from =
+        chunks.begin() + static_cast<std::ptrdiff_t>(std::min(chunks.size(), g * kLoadGroup));
+    const auto to =
+        chunks.begin() + static_cast<std::ptrdiff_t>(std::min(chunks.size(), (g + 1) * kLoadGroup));
+    enqueue(LoadTask{std::vector<ChunkCoord>(from, to), [remaining, shared_done] {
+                       if (remaining->fetch_sub(1) == 1 && *shared_done) (*shared_done)();
+                     }});
+  }
 }
 
 std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
@@ -284,6 +318,9 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
     w.zstd.compress(version->encoding, {}, version->full_frame);
     fresh[i] = std::move(version);
   });
+  for (const ChunkCoord& c : dirty) {
+    if (auto it = st.info.find(c); it != st.info.end()) it->second.meshed = true;
+  }
   std::vector<ChunkCoord> published;
   for (size_t i = 0; i < dirty.size(); ++i) {
     if (!fresh[i]) continue;
@@ -297,35 +334,44 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
 void WorldPipeline::process(std::vector<Task>& tasks) {
   State& st = *state_;
   const Clock::time_point now = Clock::now();
-  PipelineStats delta;
+  PipelineStats delta, batch;  // counts not yet in stats_; the whole batch's
+  process_edits(tasks, now, delta, batch);
+  process_loads(tasks, now, delta, batch);
+  commit_stats(delta, batch, now);
+  {
+    std::lock_guard lock(stats_mutex_);
+    stats_.batches += 1;
+  }
+  if (now - st.last_eviction > config_.evict_after / 4) evict_idle(now);
+  const auto took = Clock::now() - now;
+  if (took > kSlowBatch) {
+    spdlog::warn(
+        "pipeline: a batch took {} ms ({} edits, {} tasks, {} chunks generated, {} meshes "
+        "published)",
+        std::chrono::duration_cast<std::chrono::milliseconds>(took).count(), batch.edits_applied,
+        tasks.size(), batch.chunks_generated, batch.meshes_published);
+  }
+}
+
+// Edits and inspections, in arrival order; loads are left for process_loads.
+void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point now,
+                                  PipelineStats& delta, PipelineStats& batch) {
   std::vector<ChunkCoord> dirty;  // may repeat; deduplicated below
   std::vector<std::vector<ChunkCoord>> edit_dirty(tasks.size());
   std::vector<EditResult> results(tasks.size());
-  std::vector<ChunkCoord> wanted;
-
+  bool any_edit = false;
   for (size_t t = 0; t < tasks.size(); ++t) {
-    if (auto* load = std::get_if<LoadTask>(&tasks[t])) {
-      // The box and a one-chunk margin (the mesher reads the neighbours).
-      const mesh::ChunkBox& b = load->box;
-      const mesh::ChunkBox outer{b.lo.offset(-1, -1, -1), b.hi.offset(1, 1, 1)};
-      wanted.clear();
-      for (size_t i = 0; i < outer.count(); ++i) wanted.push_back(outer.at(i));
-      delta.chunks_generated += st.ensure_loaded(wanted, generator_, now);
-      for (size_t i = 0; i < b.count(); ++i) {
-        const ChunkCoord c = b.at(i);
-        if (!meshes_.get(c)) dirty.push_back(c);
-      }
-      continue;
-    }
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
       // Sees every edit queued before it applied; the meshes of this batch are not
       // published yet, but densities are final.
-      insp->fn(st.chunks);
+      insp->fn(state_->chunks);
       insp->finished->set_value();
       continue;
     }
-    auto& task = std::get<EditTask>(tasks[t]);
-    if (auto refusal = world::validate(task.edit, config_.limits)) {
+    auto* task = std::get_if<EditTask>(&tasks[t]);
+    if (!task) continue;
+    any_edit = true;
+    if (auto refusal = world::validate(task->edit, config_.limits)) {
       results[t].reason = refusal->reason;
       results[t].message = refusal->message;
       ++delta.edits_refused;
@@ -333,53 +379,111 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
     }
     results[t].accepted = true;
     ++delta.edits_applied;
-    delta.chunks_generated += apply_edit_task(task.edit, now, edit_dirty[t]);
+    delta.chunks_generated += apply_edit_task(task->edit, now, edit_dirty[t]);
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
   }
-
+  if (!any_edit) return;
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
   const CoordSet published_set(published.begin(), published.end());
-  delta.meshes_published = published.size();
-
-  {
-    std::lock_guard lock(stats_mutex_);
-    stats_.batches += 1;
-    stats_.edits_applied += delta.edits_applied;
-    stats_.edits_refused += delta.edits_refused;
-    stats_.meshes_published += delta.meshes_published;
-    stats_.chunks_generated += delta.chunks_generated;
-    stats_.loaded_chunks = st.chunks.size();
-    stats_.modified_chunks = st.modified_count;
-    if (now - st.last_memory_scan >= kMemoryScanEvery) {
-      st.last_memory_scan = now;
-      stats_.chunk_bytes = st.chunks.memory_bytes();
-    }
-  }
-
+  delta.meshes_published += published.size();
+  commit_stats(delta, batch, now);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
   for (size_t t = 0; t < tasks.size(); ++t) {
-    if (auto* task = std::get_if<EditTask>(&tasks[t])) {
-      auto& r = results[t];
-      for (const ChunkCoord& c : edit_dirty[t]) {
-        if (published_set.count(c)) r.changed_chunks.push_back(c);
+    auto* task = std::get_if<EditTask>(&tasks[t]);
+    if (!task) continue;
+    auto& r = results[t];
+    for (const ChunkCoord& c : edit_dirty[t]) {
+      if (published_set.count(c)) r.changed_chunks.push_back(c);
+    }
+    std::sort(r.changed_chunks.begin(), r.changed_chunks.end());
+    r.changed_chunks.erase(std::unique(r.changed_chunks.begin(), r.changed_chunks.end()),
+                           r.changed_chunks.end());
+    if (task->done) task->done(r);
+  }
+  notify_subscribers(published);
+}
+
+// Loads (each a small box, see load()), in order, until the batch has spent its time
+// budget; the rest go back to the front of the queue, so edits that arrived meanwhile
+// are applied before them and never wait behind a whole world of terrain generation.
+void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point started,
+                                  PipelineStats& delta, PipelineStats& batch) {
+  State& st = *state_;
+  std::vector<ChunkCoord> dirty, wanted;
+  std::vector<LoadTask*> finished;
+  std::vector<Task> later;
+  for (Task& task : tasks) {
+    auto* load = std::get_if<LoadTask>(&task);
+    if (!load) continue;
+    if (!finished.empty() && Clock::now() - started > kLoadBudget) {
+      later.push_back(std::move(task));
+      continue;
+    }
+    // The chunks and a one-chunk margin (the mesher reads the neighbours); a chunk meshed
+    // already (most of a view that moved by one chunk) is only marked as used.
+    wanted.clear();
+    for (const ChunkCoord& c : load->chunks) {
+      if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
+        it->second.last_used = started;
+        continue;
       }
-      std::sort(r.changed_chunks.begin(), r.changed_chunks.end());
-      r.changed_chunks.erase(std::unique(r.changed_chunks.begin(), r.changed_chunks.end()),
-                             r.changed_chunks.end());
-      if (task->done) task->done(r);
-    } else if (auto* load = std::get_if<LoadTask>(&tasks[t])) {
-      if (load->done) load->done();
+      for (int dz = -1; dz <= 1; ++dz)
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) wanted.push_back(c.offset(dx, dy, dz));
     }
-  }
-  if (!published.empty()) {
-    std::vector<Subscriber> subscribers;
-    {
-      std::lock_guard lock(subscribers_mutex_);
-      for (const auto& [id, s] : subscribers_) subscribers.push_back(s);
+    std::sort(wanted.begin(), wanted.end());
+    wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    delta.chunks_generated += st.ensure_loaded(wanted, generator_, started);
+    for (const ChunkCoord& c : load->chunks) {
+      if (auto it = st.info.find(c); it == st.info.end() || !it->second.meshed) dirty.push_back(c);
     }
-    for (const auto& s : subscribers) s(published);
+    finished.push_back(load);
   }
-  if (now - st.last_eviction > config_.evict_after / 4) evict_idle(now);
+  if (!later.empty()) {
+    std::lock_guard lock(queue_mutex_);
+    queue_.insert(queue_.begin(), std::make_move_iterator(later.begin()),
+                  std::make_move_iterator(later.end()));
+  }
+  if (finished.empty()) return;
+  const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
+  delta.meshes_published += published.size();
+  commit_stats(delta, batch, started);
+  for (LoadTask* load : finished) {
+    if (load->done) load->done();
+  }
+  notify_subscribers(published);
+}
+
+// Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the
+// slow-batch log), and clears them; refreshes the memory figures.
+void WorldPipeline::commit_stats(PipelineStats& delta, PipelineStats& batch,
+                                 Clock::time_point now) {
+  State& st = *state_;
+  batch.edits_applied += delta.edits_applied;
+  batch.edits_refused += delta.edits_refused;
+  batch.meshes_published += delta.meshes_published;
+  batch.chunks_generated += delta.chunks_generated;
+  std::lock_guard lock(stats_mutex_);
+  stats_.edits_applied += std::exchange(delta.edits_applied, 0);
+  stats_.edits_refused += std::exchange(delta.edits_refused, 0);
+  stats_.meshes_published += std::exchange(delta.meshes_published, 0);
+  stats_.chunks_generated += std::exchange(delta.chunks_generated, 0);
+  stats_.loaded_chunks = st.chunks.size();
+  stats_.modified_chunks = st.modified_count;
+  if (now - st.last_memory_scan >= kMemoryScanEvery) {
+    st.last_memory_scan = now;
+    stats_.chunk_bytes = st.chunks.memory_bytes();
+  }
+}
+
+void WorldPipeline::notify_subscribers(const std::vector<ChunkCoord>& published) {
+  if (published.empty()) return;
+  std::vector<Subscriber> subscribers;
+  {
+    std::lock_guard lock(subscribers_mutex_);
+    for (const auto& [id, s] : subscribers_) subscribers.push_back(s);
+  }
+  for (const auto& s : subscribers) s(published);
 }
 
 void WorldPipeline::evict_idle(Clock::time_point now) {

@@ -38,13 +38,13 @@ struct PipelineConfig {
 struct EditResult {
   bool accepted = false;
   world::RefusalReason reason = world::RefusalReason::kNone;
-  std::string message;                          // why it was refused
+  std::string message;                            // why it was refused
   std::vector<world::ChunkCoord> changed_chunks;  // chunks given a new mesh version
 };
 
 struct PipelineStats {
-  uint64_t batches = 0, edits_applied = 0, edits_refused = 0, meshes_published = 0, chunks_generated = 0,
-           chunks_evicted = 0;
+  uint64_t batches = 0, edits_applied = 0, edits_refused = 0, meshes_published = 0,
+           chunks_generated = 0, chunks_evicted = 0;
   size_t loaded_chunks = 0, modified_chunks = 0, chunk_bytes = 0, mesh_count = 0, mesh_bytes = 0;
   size_t queue_depth = 0;
 };
@@ -87,7 +87,7 @@ class WorldPipeline {
     EditCallback done;
   };
   struct LoadTask {
-    mesh::ChunkBox box;
+    std::vector<world::ChunkCoord> chunks;  // a part of a loaded box
     std::function<void()> done;
   };
   struct InspectTask {
@@ -99,6 +99,13 @@ class WorldPipeline {
   void enqueue(Task task);
   void run();
   void process(std::vector<Task>& tasks);
+  void process_edits(std::vector<Task>& tasks, std::chrono::steady_clock::time_point now,
+                     PipelineStats& delta, PipelineStats& batch);
+  void process_loads(std::vector<Task>& tasks, std::chrono::steady_clock::time_point started,
+                     PipelineStats& delta, PipelineStats& batch);
+  void commit_stats(PipelineStats& delta, PipelineStats& batch,
+                    std::chrono::steady_clock::time_point now);
+  void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   size_t apply_edit_task(const world::Edit& edit, std::chrono::steady_clock::time_point now,
                          std::vector<world::ChunkCoord>& dirtied);
   std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty);
@@ -121,7 +128,7 @@ class WorldPipeline {
   mutable std::mutex stats_mutex_;  // leaf lock
   PipelineStats stats_;
 
-  struct State;                  // pipeline-thread-only state (chunk map, workers, ...)
+  struct State;  // pipeline-thread-only state (chunk map, workers, ...)
   std::unique_ptr<State> state_;
   std::thread thread_;
 };
