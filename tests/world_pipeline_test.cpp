@@ -1,3 +1,5 @@
+#include "server/pipeline/world_pipeline.hpp"
+
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -6,7 +8,6 @@
 #include <random>
 #include <thread>
 
-#include "server/pipeline/world_pipeline.hpp"
 #include "tests/mesh_test_util.hpp"
 
 namespace vox::pipeline {
@@ -20,7 +21,8 @@ constexpr uint64_t kSeed = 17;
 // A 3x3x3-chunk box around the surface of seed kSeed near the origin.
 mesh::ChunkBox surface_box() {
   const world::TerrainGenerator gen(kSeed);
-  const int cy = world::floor_div(static_cast<int>(std::floor(gen.height_at(48, 48))), kChunkSize) - 1;
+  const int cy =
+      world::floor_div(static_cast<int>(std::floor(gen.height_at(48, 48))), kChunkSize) - 1;
   return {{0, cy, 0}, {2, cy + 2, 2}};
 }
 
@@ -35,16 +37,29 @@ std::vector<world::Edit> random_edits(const mesh::ChunkBox& box, size_t n, uint3
     float c[3];
     for (int a = 0; a < 3; ++a) {
       c[a] = static_cast<float>(lo[a] * kChunkSize) + unit(rng) * 3 * kChunkSize;
-      if (k % 3 == 0) c[a] = static_cast<float>((lo[a] + 1 + static_cast<int>(rng() % 2)) * kChunkSize) - 0.5f + unit(rng);
+      if (k % 3 == 0)
+        c[a] = static_cast<float>((lo[a] + 1 + static_cast<int>(rng() % 2)) * kChunkSize) - 0.5f +
+               unit(rng);
     }
     const world::Vec3 at{c[0], c[1], c[2]};
     const float r = 1.5f + unit(rng) * 6;
     switch (k % 6) {
-      case 0: edits.push_back(world::Brush{at, r, 0.2f + unit(rng), false, world::Material(1 + rng() % 4)}); break;
-      case 1: edits.push_back(world::Brush{at, r, 0.2f + unit(rng), true, std::nullopt}); break;
-      case 2: edits.push_back(world::Explosion{at, r + 2, 0.5f + unit(rng)}); break;
-      case 3: edits.push_back(world::Smooth{at, r, 0.3f + 0.7f * unit(rng)}); break;
-      case 4: edits.push_back(world::Paint{at, r, world::Material(1 + rng() % 4)}); break;
+      case 0:
+        edits.push_back(
+            world::Brush{at, r, 0.2f + unit(rng), false, world::Material(1 + rng() % 4)});
+        break;
+      case 1:
+        edits.push_back(world::Brush{at, r, 0.2f + unit(rng), true, std::nullopt});
+        break;
+      case 2:
+        edits.push_back(world::Explosion{at, r + 2, 0.5f + unit(rng)});
+        break;
+      case 3:
+        edits.push_back(world::Smooth{at, r, 0.3f + 0.7f * unit(rng)});
+        break;
+      case 4:
+        edits.push_back(world::Paint{at, r, world::Material(1 + rng() % 4)});
+        break;
       default: {
         world::Stamp s;
         s.shape = (k / 6) % 2 ? world::Stamp::Shape::kSphere : world::Stamp::Shape::kBox;
@@ -88,9 +103,10 @@ TEST(WorldPipeline, PublishedMeshesEqualReferenceAfterRandomEdits) {
   const auto chunked = test::world_triangles(published_meshes(p, box), box);
   std::vector<test::Triangle> reference;
   p.inspect([&](const world::ChunkMap& map) {
-    reference = test::reference_marching_cubes([&](int x, int y, int z) { return map.sample_at(x, y, z).density; },
-                                               {box.lo.x * 32, box.lo.y * 32, box.lo.z * 32},
-                                               {(box.hi.x + 1) * 32, (box.hi.y + 1) * 32, (box.hi.z + 1) * 32});
+    reference = test::reference_marching_cubes(
+        [&](int x, int y, int z) { return map.sample_at(x, y, z).density; },
+        {box.lo.x * 32, box.lo.y * 32, box.lo.z * 32},
+        {(box.hi.x + 1) * 32, (box.hi.y + 1) * 32, (box.hi.z + 1) * 32});
   });
   ASSERT_GT(reference.size(), 100u);
   EXPECT_EQ(chunked.size(), reference.size());
@@ -103,7 +119,8 @@ struct WorldImage {
   std::vector<world::Sample> samples;
   std::vector<mesh::ChunkMesh> meshes;
 };
-WorldImage run_with_threads(int threads, const std::vector<world::Edit>& edits, const mesh::ChunkBox& box) {
+WorldImage run_with_threads(int threads, const std::vector<world::Edit>& edits,
+                            const mesh::ChunkBox& box) {
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = threads});
   p.load(box).get();
   apply_all(p, edits);
@@ -112,7 +129,8 @@ WorldImage run_with_threads(int threads, const std::vector<world::Edit>& edits, 
   p.inspect([&](const world::ChunkMap& map) {
     for (int z = box.lo.z * 32 - 32; z < (box.hi.z + 2) * 32; ++z)
       for (int y = box.lo.y * 32 - 32; y < (box.hi.y + 2) * 32; ++y)
-        for (int x = box.lo.x * 32 - 32; x < (box.hi.x + 2) * 32; ++x) image.samples.push_back(map.sample_at(x, y, z));
+        for (int x = box.lo.x * 32 - 32; x < (box.hi.x + 2) * 32; ++x)
+          image.samples.push_back(map.sample_at(x, y, z));
   });
   return image;
 }
@@ -126,8 +144,10 @@ TEST(WorldPipeline, SameEditsGiveIdenticalWorldWhateverTheThreadCount) {
     EXPECT_TRUE(one.samples == other.samples) << threads << " threads";
     ASSERT_EQ(one.meshes.size(), other.meshes.size());
     for (size_t i = 0; i < one.meshes.size(); ++i) {
-      EXPECT_TRUE(one.meshes[i].positions == other.meshes[i].positions && one.meshes[i].indices == other.meshes[i].indices &&
-                  one.meshes[i].normals == other.meshes[i].normals && one.meshes[i].materials == other.meshes[i].materials)
+      EXPECT_TRUE(one.meshes[i].positions == other.meshes[i].positions &&
+                  one.meshes[i].indices == other.meshes[i].indices &&
+                  one.meshes[i].normals == other.meshes[i].normals &&
+                  one.meshes[i].materials == other.meshes[i].materials)
           << "chunk " << i << " with " << threads << " threads";
     }
   }
@@ -174,7 +194,8 @@ TEST(WorldPipeline, EditReportsOnlyTheChunksWhoseMeshChanged) {
   const ChunkCoord c = world::chunk_of_voxel(x, static_cast<int>(std::floor(h)), z);
   p.load({c, c}).get();
   const uint64_t before = p.meshes().get(c)->version;
-  const EditResult r = p.submit(world::Brush{{static_cast<float>(x), h, static_cast<float>(z)}, 2, 1.0f}).get();
+  const EditResult r =
+      p.submit(world::Brush{{static_cast<float>(x), h, static_cast<float>(z)}, 2, 1.0f}).get();
   ASSERT_TRUE(r.accepted);
   ASSERT_EQ(r.changed_chunks.size(), 1u);
   EXPECT_EQ(r.changed_chunks[0], c);
@@ -209,7 +230,8 @@ TEST(WorldPipeline, LoadsOnDemandAndReportsMemory) {
 }
 
 TEST(WorldPipeline, EvictsUnusedUnmodifiedChunksButKeepsModifiedOnes) {
-  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .evict_after = std::chrono::milliseconds(0)});
+  WorldPipeline p(
+      PipelineConfig{.seed = kSeed, .threads = 2, .evict_after = std::chrono::milliseconds(0)});
   const mesh::ChunkBox box = surface_box();
   p.load(box).get();
   const world::TerrainGenerator gen(kSeed);
@@ -263,6 +285,30 @@ TEST(WorldPipeline, ConcurrentWritersAndReadersSeeConsistentVersions) {
   EXPECT_EQ(accepted.load(), 200u);
   EXPECT_GT(reads.load(), 0u);
   EXPECT_EQ(p.stats().edits_applied, 200u);
+}
+
+// A big cold load is split into groups and edits go first in every batch: an edit queued
+// right behind the load gets its result while most of the load is still to come, and the
+// load's completion still runs exactly once, with every chunk of the box meshed.
+TEST(WorldPipeline, EditsDoNotWaitBehindABigLoad) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const mesh::ChunkBox small = surface_box();
+  const mesh::ChunkBox big{small.lo.offset(-4, -4, -4), small.hi.offset(4, 4, 4)};  // 11^3 chunks
+  std::atomic<int> completions{0};
+  std::promise<void> loaded;
+  p.load(big, [&] {
+    if (completions.fetch_add(1) == 0) loaded.set_value();
+  });
+  auto load_done = loaded.get_future();
+  const world::TerrainGenerator gen(kSeed);
+  const EditResult r = p.submit(world::Brush{{48, gen.height_at(48, 48), 48}, 3, 1}).get();
+  EXPECT_TRUE(r.accepted);
+  EXPECT_EQ(load_done.wait_for(std::chrono::seconds(0)), std::future_status::timeout)
+      << "the edit waited for the whole load";
+  load_done.wait();
+  p.load(small).get();  // one more round trip: nothing runs the completion twice
+  EXPECT_EQ(completions.load(), 1);
+  for (size_t i = 0; i < big.count(); ++i) EXPECT_TRUE(p.meshes().get(big.at(i))) << i;
 }
 
 TEST(WorldPipeline, StopRefusesWhatIsStillQueued) {

@@ -13,12 +13,19 @@ using world::ChunkCoord;
 
 namespace {
 
+// Appends the framed message to `out` (serialized in place, no temporary).
+void append_framed(const wire::Envelope& message, std::vector<uint8_t>& out) {
+  const size_t n = message.ByteSizeLong();
+  const size_t at = out.size();
+  out.resize(at + proto::kFrameHeaderBytes + n);
+  for (size_t i = 0; i < proto::kFrameHeaderBytes; ++i)
+    out[at + i] = static_cast<uint8_t>(n >> (8 * i));
+  message.SerializeWithCachedSizesToArray(out.data() + at + proto::kFrameHeaderBytes);
+}
+
 std::vector<uint8_t> frame_of(const wire::Envelope& message) {
   std::vector<uint8_t> out;
-  const size_t n = message.ByteSizeLong();
-  out.resize(proto::kFrameHeaderBytes + n);
-  for (size_t i = 0; i < proto::kFrameHeaderBytes; ++i) out[i] = static_cast<uint8_t>(n >> (8 * i));
-  message.SerializeWithCachedSizesToArray(out.data() + proto::kFrameHeaderBytes);
+  append_framed(message, out);
   return out;
 }
 
@@ -317,8 +324,8 @@ void ClientSession::close_with_error(wire::Error::Code code, std::string message
 bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
   const auto send = scheduler_.next([this](ChunkCoord c) { return pipeline_.meshes().get(c); });
   if (!send) return false;
-  wire::Envelope message;
-  auto* m = message.mutable_chunk_mesh();
+  // One message object reused for every mesh: its payload string keeps its capacity.
+  auto* m = mesh_message_.mutable_chunk_mesh();
   *m->mutable_coord() = to_wire(send->coord);
   m->set_version(send->version->version);
   if (send->base) {
@@ -327,10 +334,10 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
     m->set_payload(delta->data(), delta->size());
     counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
   } else {
+    m->set_base_version(0);
     m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
   }
-  const std::vector<uint8_t> frame = frame_of(message);
-  out.insert(out.end(), frame.begin(), frame.end());
+  append_framed(mesh_message_, out);
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
 }

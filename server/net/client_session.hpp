@@ -92,6 +92,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::deque<std::vector<uint8_t>> control_;  // framed messages sent before meshes
   size_t control_bytes_ = 0;
   std::vector<uint8_t> write_buffer_;
+  wire::Envelope mesh_message_;  // reused by append_next_mesh
 };
 
 }  // namespace vox::net

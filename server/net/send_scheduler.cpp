@@ -1,5 +1,8 @@
 #include "net/send_scheduler.hpp"
 
+#include <algorithm>
+#include <functional>
+
 namespace vox::net {
 
 using world::ChunkCoord;
@@ -28,23 +31,33 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
         if (dx * dx + dy * dy + dz * dz <= r2) visible_.try_emplace(center.offset(dx, dy, dz));
       }
   stale_.clear();  // re-ordered around the new centre
-  for (const auto& [c, held] : visible_) stale_.insert({distance2(c), c});
+  for (auto& [c, held] : visible_) {
+    held.queued = true;
+    stale_.push_back({distance2(c), c});
+  }
+  std::make_heap(stale_.begin(), stale_.end(), std::greater<>());
   return unloaded;
 }
 
 void SendScheduler::mark_stale(ChunkCoord c) {
-  if (visible_.count(c)) stale_.insert({distance2(c), c});
+  auto it = visible_.find(c);
+  if (it == visible_.end() || it->second.queued) return;
+  it->second.queued = true;
+  stale_.push_back({distance2(c), c});
+  std::push_heap(stale_.begin(), stale_.end(), std::greater<>());
 }
 
 std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup) {
   while (!stale_.empty()) {
-    const ChunkCoord c = stale_.begin()->second;
-    stale_.erase(stale_.begin());
+    std::pop_heap(stale_.begin(), stale_.end(), std::greater<>());
+    const ChunkCoord c = stale_.back().second;
+    stale_.pop_back();
     auto it = visible_.find(c);
     if (it == visible_.end()) continue;
+    Held& held = it->second;
+    held.queued = false;
     pipeline::MeshVersionPtr current = lookup(c);
     if (!current) continue;
-    Held& held = it->second;
     if (held.version && held.version->version >= current->version) continue;
     if (!held.version && current->mesh.empty()) {
       held.version = std::move(current);  // nothing to draw; sent only once it changes

@@ -5,7 +5,6 @@
 
 #include <functional>
 #include <optional>
-#include <set>
 #include <unordered_map>
 #include <vector>
 
@@ -24,7 +23,7 @@ class SendScheduler {
   bool has_view() const { return radius_ >= 0; }
   bool visible(world::ChunkCoord c) const { return visible_.count(c) > 0; }
   size_t visible_count() const { return visible_.size(); }
-  size_t stale_count() const { return stale_.size(); }
+  size_t stale_count() const { return stale_.size(); }  // each visible chunk at most once
 
   // A newer version of c may exist; ignored unless c is visible.
   void mark_stale(world::ChunkCoord c);
@@ -50,9 +49,14 @@ class SendScheduler {
   struct Held {
     pipeline::MeshVersionPtr version;  // what the client holds (null: nothing yet)
     bool sent = false;                 // false: an empty first version, never sent
+    bool queued = false;               // in stale_
   };
+  using Entry = std::pair<int64_t, world::ChunkCoord>;  // distance², chunk
+  void push_stale(world::ChunkCoord c);
   std::unordered_map<world::ChunkCoord, Held, world::ChunkCoordHash> visible_;
-  std::set<std::pair<int64_t, world::ChunkCoord>> stale_;  // nearest first
+  // Min-heap, nearest first (ties by coordinate); a vector, so marking a chunk stale
+  // allocates nothing once warm (a std::set allocated a node per mark).
+  std::vector<Entry> stale_;
 };
 
 }  // namespace vox::net

@@ -42,8 +42,8 @@ constexpr auto kSlowBatch =
     std::chrono::milliseconds(100);  // logged: every edit queued behind it waited
 // A batch stops taking loads after this long (see process_loads), and a load is split
 // into groups of this many chunks (with their margins, tens of ms of generation at most).
-constexpr auto kLoadBudget = std::chrono::milliseconds(15);
-constexpr size_t kLoadGroup = 64;
+constexpr auto kLoadBudget = std::chrono::milliseconds(5);
+constexpr size_t kLoadGroup = 32;
 
 }  // namespace
 
