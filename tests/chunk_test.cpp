@@ -1,7 +1,9 @@
+#include "server/world/chunk.hpp"
+
 #include <gtest/gtest.h>
+
 #include <cmath>
 
-#include "server/world/chunk.hpp"
 #include "server/world/chunk_map.hpp"
 
 namespace vox::world {
@@ -22,6 +24,36 @@ TEST(Sample, QuantisationKeepsSignAndClamps) {
   EXPECT_EQ(quantize_density(-7.0f), kDensityMin);
   EXPECT_EQ(quantize_density(std::nanf("")), kDensityMin);
   EXPECT_NEAR(dequantize_density(quantize_density(0.123f)), 0.123f, 1.0f / 32767);
+}
+
+// ChunkMap::memory_bytes() is kept without a scan: it must equal the sum over the chunks.
+TEST(ChunkMap, MemoryBytesFollowsInsertsErasesAndNotedChanges) {
+  ChunkMap map;
+  auto scanned = [&map] {  // what a scan of every chunk gives
+    size_t bytes = map.bucket_bytes();
+    for (const auto& [c, chunk] : map)
+      bytes += sizeof(c) + 2 * sizeof(void*) + chunk.memory_bytes();
+    return bytes;
+  };
+  Chunk full;
+  full.set(1, 2, 3, Sample{100, 2});
+  map.insert({0, 0, 0}, Chunk{});
+  map.insert({1, 0, 0}, Chunk(full));
+  map.insert({2, 0, 0}, Chunk(full));
+  EXPECT_EQ(map.memory_bytes(), scanned());
+  map.insert({2, 0, 0}, Chunk{});  // a full chunk replaced by a uniform one
+  map.erase({1, 0, 0});
+  map.erase({9, 9, 9});  // not there
+  EXPECT_EQ(map.memory_bytes(), scanned());
+  Chunk* c = map.find({0, 0, 0});
+  const bool was = c->is_uniform();
+  c->set(0, 0, 0, Sample{-5, 1});
+  map.note_changed(was, *c);
+  EXPECT_EQ(map.memory_bytes(), scanned());
+  c->set(0, 0, 0, c->at(1, 1, 1));
+  ASSERT_TRUE(c->compact());
+  map.note_changed(false, *c);
+  EXPECT_EQ(map.memory_bytes(), scanned());
 }
 
 TEST(Chunk, UniformChunkIsStoredAsOneValue) {

@@ -35,15 +35,12 @@ bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
 }
 
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
-// Summing every loaded chunk's memory after each batch cost ~10 % of the server's CPU
-// with 500 players (12,000 chunks): it is refreshed this often instead.
-constexpr auto kMemoryScanEvery = std::chrono::milliseconds(500);
 constexpr auto kSlowBatch =
     std::chrono::milliseconds(100);  // logged: every edit queued behind it waited
-// A batch stops taking loads after this long (see process_loads), and a load is split
-// into groups of this many chunks (with their margins, tens of ms of generation at most).
-constexpr auto kLoadBudget = std::chrono::milliseconds(5);
+// A load is split into groups of this many chunks; while edits wait, a batch takes groups
+// up to this much work (chunks to generate + chunks to mesh / 4: about 10 ms on 2 cores).
 constexpr size_t kLoadGroup = 32;
+constexpr size_t kLoadWorkBudget = 64;
 
 }  // namespace
 
@@ -63,7 +60,6 @@ struct WorldPipeline::State {
   uint64_t next_version = 1;
   size_t modified_count = 0;  // chunks with info.modified
   Clock::time_point last_eviction = Clock::now();
-  Clock::time_point last_memory_scan{};  // chunk_bytes is a scan of every chunk: throttled
 
   // Loads (generates) every chunk of `coords` that is missing; parallel over columns so
   // each column's surface heights are computed once.
@@ -114,6 +110,8 @@ void WorldPipeline::enqueue(Task task) {
   {
     std::lock_guard lock(queue_mutex_);
     if (!stopping_) {
+      if (std::holds_alternative<EditTask>(task))
+        queued_edits_.fetch_add(1, std::memory_order_relaxed);
       queue_.push_back(std::move(task));
       queue_cv_.notify_one();
       return;
@@ -225,6 +223,11 @@ void WorldPipeline::run() {
         tasks.assign(std::make_move_iterator(queue_.begin()),
                      std::make_move_iterator(queue_.begin() + static_cast<long>(n)));
         queue_.erase(queue_.begin(), queue_.begin() + static_cast<long>(n));
+        queued_edits_.fetch_sub(
+            static_cast<size_t>(
+                std::count_if(tasks.begin(), tasks.end(),
+                              [](const Task& t) { return std::holds_alternative<EditTask>(t); })),
+            std::memory_order_relaxed);
       } else {
         tasks.assign(std::make_move_iterator(queue_.begin()),
                      std::make_move_iterator(queue_.end()));
@@ -278,7 +281,11 @@ size_t WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point
   }
   std::vector<world::ChangedBox> changed(touched.size());
   std::vector<world::Chunk*> targets(touched.size());
-  for (size_t i = 0; i < touched.size(); ++i) targets[i] = st.chunks.find(touched[i]);
+  std::vector<char> was_uniform(touched.size());
+  for (size_t i = 0; i < touched.size(); ++i) {
+    targets[i] = st.chunks.find(touched[i]);
+    was_uniform[i] = targets[i]->is_uniform();
+  }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
   if (touched.size() == 1) {
     changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap);
@@ -288,6 +295,7 @@ size_t WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point
     });
   }
   for (size_t i = 0; i < touched.size(); ++i) {
+    st.chunks.note_changed(was_uniform[i] != 0, *targets[i]);
     if (!changed[i].changed) continue;
     bool& modified = st.info[touched[i]].modified;
     st.modified_count += modified ? 0 : 1;
@@ -337,7 +345,7 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
   PipelineStats delta, batch;  // counts not yet in stats_; the whole batch's
   process_edits(tasks, now, delta, batch);
   process_loads(tasks, now, delta, batch);
-  commit_stats(delta, batch, now);
+  commit_stats(delta, batch);
   {
     std::lock_guard lock(stats_mutex_);
     stats_.batches += 1;
@@ -386,7 +394,7 @@ void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point no
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
   const CoordSet published_set(published.begin(), published.end());
   delta.meshes_published += published.size();
-  commit_stats(delta, batch, now);  // before the results: whoever waits on one sees its counts
+  commit_stats(delta, batch);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
   for (size_t t = 0; t < tasks.size(); ++t) {
     auto* task = std::get_if<EditTask>(&tasks[t]);
@@ -403,40 +411,47 @@ void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point no
   notify_subscribers(published);
 }
 
-// Loads (each a small box, see load()), in order, until the batch has spent its time
-// budget; the rest go back to the front of the queue, so edits that arrived meanwhile
-// are applied before them and never wait behind a whole world of terrain generation.
-void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point started,
+// Loads (each a group of chunks, see load()), in order. While edits are waiting, a batch
+// takes groups only up to a work budget and puts the rest back at the front of the
+// queue, so those edits are applied before them and never wait behind a whole world of
+// terrain generation; otherwise it takes them all and generates their chunks in one
+// parallel pass (each column's heights once).
+void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point now,
                                   PipelineStats& delta, PipelineStats& batch) {
   State& st = *state_;
-  std::vector<ChunkCoord> dirty, wanted;
+  std::vector<ChunkCoord> dirty;
+  CoordSet wanted;  // chunks to generate
   std::vector<LoadTask*> finished;
   std::vector<Task> later;
+  size_t work = 0;  // chunks to generate, plus a quarter of the chunks to mesh
   for (Task& task : tasks) {
     auto* load = std::get_if<LoadTask>(&task);
     if (!load) continue;
-    if (!finished.empty() && Clock::now() - started > kLoadBudget) {
+    if (!finished.empty() && work >= kLoadWorkBudget &&
+        queued_edits_.load(std::memory_order_relaxed) > 0) {
       later.push_back(std::move(task));
       continue;
     }
     // The chunks and a one-chunk margin (the mesher reads the neighbours); a chunk meshed
     // already (most of a view that moved by one chunk) is only marked as used.
-    wanted.clear();
     for (const ChunkCoord& c : load->chunks) {
       if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
-        it->second.last_used = started;
+        it->second.last_used = now;
         continue;
       }
+      dirty.push_back(c);
       for (int dz = -1; dz <= 1; ++dz)
         for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) wanted.push_back(c.offset(dx, dy, dz));
+          for (int dx = -1; dx <= 1; ++dx) {
+            const ChunkCoord n = c.offset(dx, dy, dz);
+            if (auto it = st.info.find(n); it != st.info.end()) {
+              it->second.last_used = now;
+            } else {
+              wanted.insert(n);
+            }
+          }
     }
-    std::sort(wanted.begin(), wanted.end());
-    wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
-    delta.chunks_generated += st.ensure_loaded(wanted, generator_, started);
-    for (const ChunkCoord& c : load->chunks) {
-      if (auto it = st.info.find(c); it == st.info.end() || !it->second.meshed) dirty.push_back(c);
-    }
+    work = wanted.size() + dirty.size() / 4;
     finished.push_back(load);
   }
   if (!later.empty()) {
@@ -445,9 +460,11 @@ void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point st
                   std::make_move_iterator(later.end()));
   }
   if (finished.empty()) return;
+  delta.chunks_generated +=
+      st.ensure_loaded(std::vector<ChunkCoord>(wanted.begin(), wanted.end()), generator_, now);
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
   delta.meshes_published += published.size();
-  commit_stats(delta, batch, started);
+  commit_stats(delta, batch);
   for (LoadTask* load : finished) {
     if (load->done) load->done();
   }
@@ -456,8 +473,7 @@ void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point st
 
 // Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the
 // slow-batch log), and clears them; refreshes the memory figures.
-void WorldPipeline::commit_stats(PipelineStats& delta, PipelineStats& batch,
-                                 Clock::time_point now) {
+void WorldPipeline::commit_stats(PipelineStats& delta, PipelineStats& batch) {
   State& st = *state_;
   batch.edits_applied += delta.edits_applied;
   batch.edits_refused += delta.edits_refused;
@@ -470,10 +486,7 @@ void WorldPipeline::commit_stats(PipelineStats& delta, PipelineStats& batch,
   stats_.chunks_generated += std::exchange(delta.chunks_generated, 0);
   stats_.loaded_chunks = st.chunks.size();
   stats_.modified_chunks = st.modified_count;
-  if (now - st.last_memory_scan >= kMemoryScanEvery) {
-    st.last_memory_scan = now;
-    stats_.chunk_bytes = st.chunks.memory_bytes();
-  }
+  stats_.chunk_bytes = st.chunks.memory_bytes();
 }
 
 void WorldPipeline::notify_subscribers(const std::vector<ChunkCoord>& published) {

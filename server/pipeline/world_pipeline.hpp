@@ -5,6 +5,7 @@
 // then reports results and notifies subscribers. Readers use meshes() and never block it.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -103,8 +104,7 @@ class WorldPipeline {
                      PipelineStats& delta, PipelineStats& batch);
   void process_loads(std::vector<Task>& tasks, std::chrono::steady_clock::time_point started,
                      PipelineStats& delta, PipelineStats& batch);
-  void commit_stats(PipelineStats& delta, PipelineStats& batch,
-                    std::chrono::steady_clock::time_point now);
+  void commit_stats(PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   size_t apply_edit_task(const world::Edit& edit, std::chrono::steady_clock::time_point now,
                          std::vector<world::ChunkCoord>& dirtied);
@@ -120,6 +120,7 @@ class WorldPipeline {
   std::condition_variable queue_cv_;
   std::deque<Task> queue_;
   bool stopping_ = false;
+  std::atomic<size_t> queued_edits_{0};  // EditTasks in queue_ (read without the lock)
 
   mutable std::mutex subscribers_mutex_;  // leaf lock; callbacks run on a copy, outside it
   std::vector<std::pair<uint64_t, Subscriber>> subscribers_;

@@ -16,7 +16,11 @@ class ChunkMap {
   Chunk& insert(ChunkCoord c, Chunk chunk);  // replaces any chunk already there
   bool erase(ChunkCoord c);
   size_t size() const { return chunks_.size(); }
-  size_t memory_bytes() const;  // chunk storage, map nodes included approximately
+  size_t memory_bytes() const;  // chunk storage, map nodes included approximately; O(1)
+  size_t bucket_bytes() const { return chunks_.bucket_count() * sizeof(void*); }
+  // A caller that changed a chunk found through find() says whether it was uniform
+  // before, so that memory_bytes() stays exact without a scan.
+  void note_changed(bool was_uniform, const Chunk& chunk);
 
   auto begin() const { return chunks_.begin(); }
   auto end() const { return chunks_.end(); }
@@ -26,6 +30,7 @@ class ChunkMap {
 
  private:
   std::unordered_map<ChunkCoord, Chunk, ChunkCoordHash> chunks_;
+  size_t full_chunks_ = 0;  // chunks that are not uniform (they own sample arrays)
 };
 
 }  // namespace vox::world
