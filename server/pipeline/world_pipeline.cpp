@@ -41,6 +41,7 @@ constexpr auto kSlowBatch =
 // up to this much work (chunks to generate + chunks to mesh / 4: about 10 ms on 2 cores).
 constexpr size_t kLoadGroup = 32;
 constexpr size_t kLoadWorkBudget = 64;
+constexpr size_t kLoadPassWork = 2048;  // a pass while no edit waits (~0.2 s cold)
 
 }  // namespace
 
@@ -59,6 +60,9 @@ struct WorldPipeline::State {
       [] { return std::make_unique<MeshWorker>(); }};
   uint64_t next_version = 1;
   size_t modified_count = 0;  // chunks with info.modified
+  // Surface heights of the columns generated during one process_loads call (its passes
+  // share them; cleared after it).
+  std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
   Clock::time_point last_eviction = Clock::now();
 
   // Loads (generates) every chunk of `coords` that is missing; parallel over columns so
@@ -78,11 +82,18 @@ struct WorldPipeline::State {
     std::vector<std::pair<std::pair<int32_t, int32_t>, std::vector<int32_t>>> work(columns.begin(),
                                                                                    columns.end());
     std::vector<std::vector<world::Chunk>> made(work.size());
+    std::vector<std::shared_ptr<const world::ColumnHeights>> heights(work.size());
+    for (size_t i = 0; i < work.size(); ++i) {
+      if (auto it = column_heights.find(work[i].first); it != column_heights.end())
+        heights[i] = it->second;
+    }
     parallel_for_index(arena, work.size(), [&](size_t i) {
       const auto& [xz, ys] = work[i];
-      const world::ColumnHeights heights = gen.column(xz.first, xz.second);
-      for (int32_t y : ys) made[i].push_back(gen.generate({xz.first, y, xz.second}, heights));
+      if (!heights[i])
+        heights[i] = std::make_shared<const world::ColumnHeights>(gen.column(xz.first, xz.second));
+      for (int32_t y : ys) made[i].push_back(gen.generate({xz.first, y, xz.second}, *heights[i]));
     });
+    for (size_t i = 0; i < work.size(); ++i) column_heights.emplace(work[i].first, heights[i]);
     size_t generated = 0;
     for (size_t i = 0; i < work.size(); ++i) {
       for (size_t k = 0; k < work[i].second.size(); ++k) {
@@ -411,30 +422,48 @@ void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point no
   notify_subscribers(published);
 }
 
-// Loads (each a group of chunks, see load()), in order. While edits are waiting, a batch
-// takes groups only up to a work budget and puts the rest back at the front of the
-// queue, so those edits are applied before them and never wait behind a whole world of
-// terrain generation; otherwise it takes them all and generates their chunks in one
-// parallel pass (each column's heights once).
+// Loads (each a group of chunks, see load()), in order, in passes: a pass takes groups
+// up to a work budget, generates their missing chunks in one parallel pass (each column's
+// heights once), meshes and publishes them. The budget is small while edits are queued,
+// and once a pass ends with edits queued the rest goes back to the front of the queue:
+// edits are applied before it and never wait behind a whole world of terrain generation.
 void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point now,
                                   PipelineStats& delta, PipelineStats& batch) {
+  std::vector<LoadTask*> loads;
+  for (Task& task : tasks) {
+    if (auto* load = std::get_if<LoadTask>(&task)) loads.push_back(load);
+  }
+  size_t next = 0;
+  struct ClearColumns {
+    State& st;
+    ~ClearColumns() { st.column_heights.clear(); }
+  } clear_columns{*state_};
+  while (next < loads.size()) {
+    const size_t budget =
+        queued_edits_.load(std::memory_order_relaxed) > 0 ? kLoadWorkBudget : kLoadPassWork;
+    next = load_pass(loads, next, budget, now, delta, batch);
+    if (next < loads.size() && queued_edits_.load(std::memory_order_relaxed) > 0) break;
+  }
+  if (next == loads.size()) return;
+  std::vector<Task> later;
+  for (size_t i = next; i < loads.size(); ++i) later.emplace_back(std::move(*loads[i]));
+  std::lock_guard lock(queue_mutex_);
+  queue_.insert(queue_.begin(), std::make_move_iterator(later.begin()),
+                std::make_move_iterator(later.end()));
+}
+
+// One pass of process_loads over loads[from..]: returns where the next pass starts.
+size_t WorldPipeline::load_pass(const std::vector<LoadTask*>& loads, size_t from, size_t budget,
+                                Clock::time_point now, PipelineStats& delta, PipelineStats& batch) {
   State& st = *state_;
   std::vector<ChunkCoord> dirty;
   CoordSet wanted;  // chunks to generate
-  std::vector<LoadTask*> finished;
-  std::vector<Task> later;
-  size_t work = 0;  // chunks to generate, plus a quarter of the chunks to mesh
-  for (Task& task : tasks) {
-    auto* load = std::get_if<LoadTask>(&task);
-    if (!load) continue;
-    if (!finished.empty() && work >= kLoadWorkBudget &&
-        queued_edits_.load(std::memory_order_relaxed) > 0) {
-      later.push_back(std::move(task));
-      continue;
-    }
+  size_t end = from;
+  // Work: chunks to generate, plus a quarter of the chunks to mesh.
+  for (; end < loads.size() && (end == from || wanted.size() + dirty.size() / 4 < budget); ++end) {
     // The chunks and a one-chunk margin (the mesher reads the neighbours); a chunk meshed
     // already (most of a view that moved by one chunk) is only marked as used.
-    for (const ChunkCoord& c : load->chunks) {
+    for (const ChunkCoord& c : loads[end]->chunks) {
       if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
         it->second.last_used = now;
         continue;
@@ -451,24 +480,17 @@ void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point no
             }
           }
     }
-    work = wanted.size() + dirty.size() / 4;
-    finished.push_back(load);
   }
-  if (!later.empty()) {
-    std::lock_guard lock(queue_mutex_);
-    queue_.insert(queue_.begin(), std::make_move_iterator(later.begin()),
-                  std::make_move_iterator(later.end()));
-  }
-  if (finished.empty()) return;
   delta.chunks_generated +=
       st.ensure_loaded(std::vector<ChunkCoord>(wanted.begin(), wanted.end()), generator_, now);
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
   delta.meshes_published += published.size();
   commit_stats(delta, batch);
-  for (LoadTask* load : finished) {
-    if (load->done) load->done();
+  for (size_t i = from; i < end; ++i) {
+    if (loads[i]->done) loads[i]->done();
   }
   notify_subscribers(published);
+  return end;
 }
 
 // Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the

@@ -104,6 +104,9 @@ class WorldPipeline {
                      PipelineStats& delta, PipelineStats& batch);
   void process_loads(std::vector<Task>& tasks, std::chrono::steady_clock::time_point started,
                      PipelineStats& delta, PipelineStats& batch);
+  size_t load_pass(const std::vector<LoadTask*>& loads, size_t from, size_t budget,
+                   std::chrono::steady_clock::time_point now, PipelineStats& delta,
+                   PipelineStats& batch);
   void commit_stats(PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   size_t apply_edit_task(const world::Edit& edit, std::chrono::steady_clock::time_point now,
