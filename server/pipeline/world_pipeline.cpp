@@ -41,7 +41,7 @@ constexpr auto kSlowBatch =
 // up to this much work (chunks to generate + chunks to mesh / 4: about 10 ms on 2 cores).
 constexpr size_t kLoadGroup = 32;
 constexpr size_t kLoadWorkBudget = 64;
-constexpr size_t kLoadPassWork = 2048;  // a pass while no edit waits (~0.2 s cold)
+constexpr size_t kLoadPassWork = 512;  // a pass while no edit waits (~80 ms cold)
 
 }  // namespace
 
