@@ -157,8 +157,11 @@ void WorldPipeline::load(mesh::ChunkBox box, std::function<void()> done) {
                   dz = 2 * int64_t{c.z} - cz;
     return dx * dx + dy * dy + dz * dz;
   };
-  std::stable_sort(chunks.begin(), chunks.end(), [&](const ChunkCoord& a, const ChunkCoord& b) {
-    return distance2(a) < distance2(b);
+  // Ties by coordinate: a total order, so std::sort is deterministic (std::stable_sort's
+  // temporary buffer trips ASan's new/free check with GCC 12's libstdc++).
+  std::sort(chunks.begin(), chunks.end(), [&](const ChunkCoord& a, const ChunkCoord& b) {
+    const int64_t da = distance2(a), db = distance2(b);
+    return da != db ? da < db : a < b;
   });
   const size_t groups = std::max<size_t>(1, (chunks.size() + kLoadGroup - 1) / kLoadGroup);
   auto remaining = std::make_shared<std::atomic<size_t>>(groups);
