@@ -67,7 +67,18 @@ void Server::accept() {
         }
         session->start();
         if (count >= config_.max_clients) {
-          spdlog::warn("refusing a connection: {} clients already (--max-clients)", count);
+          // One line per second at most: a crowd at the door must not flood the log.
+          const auto now = std::chrono::steady_clock::now();
+          if (now - last_full_warning_ >= std::chrono::seconds(1)) {
+            spdlog::warn(
+                "refusing a connection: {} clients already (--max-clients); {} more refused since "
+                "the last such line",
+                count, refused_quietly_);
+            last_full_warning_ = now;
+            refused_quietly_ = 0;
+          } else {
+            ++refused_quietly_;
+          }
           session->close_with_error(wire::Error::SERVER_FULL, "the server is full");
         }
         accept();

@@ -2,11 +2,12 @@
 // pipeline's publications to the sessions, logs a stats line, and shuts down cleanly.
 #pragma once
 
-#include "net/asio.hpp"
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <unordered_map>
 
+#include "net/asio.hpp"
 #include "net/client_session.hpp"
 #include "net/server_counters.hpp"
 
@@ -41,8 +42,12 @@ class Server {
   uint64_t subscription_ = 0;
   uint64_t next_session_ = 1;  // acceptor handler only
 
-  mutable std::mutex sessions_mutex_;  // leaf lock: guards sessions_; no call into a session while held
+  mutable std::mutex
+      sessions_mutex_;  // leaf lock: guards sessions_; no call into a session while held
   std::unordered_map<uint64_t, std::weak_ptr<ClientSession>> sessions_;
+  // SERVER_FULL log rate limit (touched only by the accept chain, one handler at a time).
+  std::chrono::steady_clock::time_point last_full_warning_{};
+  size_t refused_quietly_ = 0;
 
   struct Snapshot {
     uint64_t edits = 0, meshes = 0, bytes = 0;
