@@ -11,10 +11,10 @@ using client::ChunkKey;
 namespace {
 constexpr double kTickS = 0.05;
 constexpr double kPingEveryS = 10;
-constexpr double kFirstViewQuietS =
-    1.0;  // the first view is complete after this long without a full mesh
-constexpr double kDeltaGiveUpS =
-    10;  // a changed chunk whose mesh never came (e.g. it stayed empty)
+// The first view is complete after this long without a full mesh.
+constexpr double kFirstViewQuietS = 1.0;
+// Waiting for a changed chunk whose mesh never came (e.g. it stayed empty) ends after this.
+constexpr double kDeltaGiveUpS = 10;
 
 // Decoding scratch per event-loop thread (players on one thread never decode at once).
 struct DecodeScratch {

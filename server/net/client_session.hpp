@@ -27,8 +27,8 @@ struct ServerConfig {
   uint32_t max_view_radius = 12;            // chunks
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
-  size_t max_control_bytes =
-      1 << 20;                       // queued results/errors before a client counts as not reading
+  // Queued results/errors before a client counts as not reading.
+  size_t max_control_bytes = 1 << 20;
   size_t max_edits_in_flight = 256;  // a client's edits queued in the pipeline at once
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect

@@ -52,7 +52,6 @@ class SendScheduler {
     bool queued = false;               // in stale_
   };
   using Entry = std::pair<int64_t, world::ChunkCoord>;  // distance², chunk
-  void push_stale(world::ChunkCoord c);
   std::unordered_map<world::ChunkCoord, Held, world::ChunkCoordHash> visible_;
   // Min-heap, nearest first (ties by coordinate); a vector, so marking a chunk stale
   // allocates nothing once warm (a std::set allocated a node per mark).

@@ -42,8 +42,8 @@ class Server {
   uint64_t subscription_ = 0;
   uint64_t next_session_ = 1;  // acceptor handler only
 
-  mutable std::mutex
-      sessions_mutex_;  // leaf lock: guards sessions_; no call into a session while held
+  // Leaf lock: guards sessions_; no call into a session while it is held.
+  mutable std::mutex sessions_mutex_;
   std::unordered_map<uint64_t, std::weak_ptr<ClientSession>> sessions_;
   // SERVER_FULL log rate limit (touched only by the accept chain, one handler at a time).
   std::chrono::steady_clock::time_point last_full_warning_{};

@@ -35,8 +35,8 @@ bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
 }
 
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
-constexpr auto kSlowBatch =
-    std::chrono::milliseconds(100);  // logged: every edit queued behind it waited
+// A batch slower than this is logged: every edit queued behind it waited.
+constexpr auto kSlowBatch = std::chrono::milliseconds(100);
 // A load is split into groups of this many chunks; while edits wait, a batch takes groups
 // up to this much work (chunks to generate + chunks to mesh / 4: about 10 ms on 2 cores).
 constexpr size_t kLoadGroup = 32;
@@ -356,10 +356,9 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
 void WorldPipeline::process(std::vector<Task>& tasks) {
   State& st = *state_;
   const Clock::time_point now = Clock::now();
-  PipelineStats delta, batch;  // counts not yet in stats_; the whole batch's
-  process_edits(tasks, now, delta, batch);
-  process_loads(tasks, now, delta, batch);
-  commit_stats(delta, batch);
+  PipelineStats batch;  // the whole batch's counts, for the slow-batch log
+  process_edits(tasks, now, batch);
+  process_loads(tasks, now, batch);
   {
     std::lock_guard lock(stats_mutex_);
     stats_.batches += 1;
@@ -377,7 +376,8 @@ void WorldPipeline::process(std::vector<Task>& tasks) {
 
 // Edits and inspections, in arrival order; loads are left for process_loads.
 void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point now,
-                                  PipelineStats& delta, PipelineStats& batch) {
+                                  PipelineStats& batch) {
+  PipelineStats delta;
   std::vector<ChunkCoord> dirty;  // may repeat; deduplicated below
   std::vector<std::vector<ChunkCoord>> edit_dirty(tasks.size());
   std::vector<EditResult> results(tasks.size());
@@ -431,7 +431,7 @@ void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point no
 // and once a pass ends with edits queued the rest goes back to the front of the queue:
 // edits are applied before it and never wait behind a whole world of terrain generation.
 void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point now,
-                                  PipelineStats& delta, PipelineStats& batch) {
+                                  PipelineStats& batch) {
   std::vector<LoadTask*> loads;
   for (Task& task : tasks) {
     if (auto* load = std::get_if<LoadTask>(&task)) loads.push_back(load);
@@ -444,7 +444,7 @@ void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point no
   while (next < loads.size()) {
     const size_t budget =
         queued_edits_.load(std::memory_order_relaxed) > 0 ? kLoadWorkBudget : kLoadPassWork;
-    next = load_pass(loads, next, budget, now, delta, batch);
+    next = load_pass(loads, next, budget, now, batch);
     if (next < loads.size() && queued_edits_.load(std::memory_order_relaxed) > 0) break;
   }
   if (next == loads.size()) return;
@@ -457,7 +457,8 @@ void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point no
 
 // One pass of process_loads over loads[from..]: returns where the next pass starts.
 size_t WorldPipeline::load_pass(const std::vector<LoadTask*>& loads, size_t from, size_t budget,
-                                Clock::time_point now, PipelineStats& delta, PipelineStats& batch) {
+                                Clock::time_point now, PipelineStats& batch) {
+  PipelineStats delta;
   State& st = *state_;
   std::vector<ChunkCoord> dirty;
   CoordSet wanted;  // chunks to generate
@@ -497,18 +498,18 @@ size_t WorldPipeline::load_pass(const std::vector<LoadTask*>& loads, size_t from
 }
 
 // Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the
-// slow-batch log), and clears them; refreshes the memory figures.
-void WorldPipeline::commit_stats(PipelineStats& delta, PipelineStats& batch) {
+// slow-batch log); refreshes the loaded-chunk figures.
+void WorldPipeline::commit_stats(const PipelineStats& delta, PipelineStats& batch) {
   State& st = *state_;
   batch.edits_applied += delta.edits_applied;
   batch.edits_refused += delta.edits_refused;
   batch.meshes_published += delta.meshes_published;
   batch.chunks_generated += delta.chunks_generated;
   std::lock_guard lock(stats_mutex_);
-  stats_.edits_applied += std::exchange(delta.edits_applied, 0);
-  stats_.edits_refused += std::exchange(delta.edits_refused, 0);
-  stats_.meshes_published += std::exchange(delta.meshes_published, 0);
-  stats_.chunks_generated += std::exchange(delta.chunks_generated, 0);
+  stats_.edits_applied += delta.edits_applied;
+  stats_.edits_refused += delta.edits_refused;
+  stats_.meshes_published += delta.meshes_published;
+  stats_.chunks_generated += delta.chunks_generated;
   stats_.loaded_chunks = st.chunks.size();
   stats_.modified_chunks = st.modified_count;
   stats_.chunk_bytes = st.chunks.memory_bytes();

@@ -101,13 +101,12 @@ class WorldPipeline {
   void run();
   void process(std::vector<Task>& tasks);
   void process_edits(std::vector<Task>& tasks, std::chrono::steady_clock::time_point now,
-                     PipelineStats& delta, PipelineStats& batch);
-  void process_loads(std::vector<Task>& tasks, std::chrono::steady_clock::time_point started,
-                     PipelineStats& delta, PipelineStats& batch);
+                     PipelineStats& batch);
+  void process_loads(std::vector<Task>& tasks, std::chrono::steady_clock::time_point now,
+                     PipelineStats& batch);
   size_t load_pass(const std::vector<LoadTask*>& loads, size_t from, size_t budget,
-                   std::chrono::steady_clock::time_point now, PipelineStats& delta,
-                   PipelineStats& batch);
-  void commit_stats(PipelineStats& delta, PipelineStats& batch);
+                   std::chrono::steady_clock::time_point now, PipelineStats& batch);
+  void commit_stats(const PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   size_t apply_edit_task(const world::Edit& edit, std::chrono::steady_clock::time_point now,
                          std::vector<world::ChunkCoord>& dirtied);
