@@ -82,7 +82,7 @@ void BM_SustainedBrushes(benchmark::State& state) {
                  [&done](const pipeline::EditResult&) { done.fetch_add(1, std::memory_order_relaxed); });
         ++sent;
       }
-      max_queue = std::max(max_queue, p.stats().queue_depth);
+      max_queue = std::max(max_queue, p.stats().queued_edits);
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
     const size_t done_in_time = done.load();

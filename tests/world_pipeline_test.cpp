@@ -17,6 +17,11 @@ using world::ChunkCoord;
 using world::kChunkSize;
 
 constexpr uint64_t kSeed = 17;
+#ifdef VOXEL_SANITIZED
+constexpr int kSlow = 6;  // sanitizer builds run several times slower
+#else
+constexpr int kSlow = 1;
+#endif
 
 // A 3x3x3-chunk box around the surface of seed kSeed near the origin.
 mesh::ChunkBox surface_box() {
@@ -328,6 +333,112 @@ TEST(WorldPipeline, StopRefusesWhatIsStillQueued) {
   const EditResult late = p->submit(world::Brush{{0, 0, 0}, 2, 1}).get();
   EXPECT_EQ(late.reason, world::RefusalReason::kShuttingDown);
   (void)refused;  // how many made it before the stop depends on timing
+}
+
+// Regression: an edit queued behind more than 4,096 load tasks (20 radius-12 views, about
+// 143,000 chunks) once waited over 30 s. Every queued edit is in the next batch, so it
+// waits at most for the load pass in flight.
+TEST(WorldPipeline, EditBehindTwentyHugeViewsCompletesInBoundedTime) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  for (LoadOwner o = 1; o <= 20; ++o)
+    p.set_view(o, {static_cast<int32_t>(o) * 1000, 0, 0}, 12);  // far apart, cold
+  EXPECT_GT(p.stats().queued_load_chunks, 4096u);
+  const world::TerrainGenerator gen(kSeed);
+  const auto start = std::chrono::steady_clock::now();
+  const EditResult r = p.submit(world::Brush{{48, gen.height_at(48, 48), 48}, 3, 1}).get();
+  const auto took = std::chrono::steady_clock::now() - start;
+  EXPECT_TRUE(r.accepted);
+  EXPECT_LT(took, std::chrono::seconds(2 * kSlow)) << "the edit waited behind the loads";
+  EXPECT_GT(p.stats().queued_load_chunks, 4096u) << "most of the views were still queued";
+  for (LoadOwner o = 1; o <= 20; ++o) p.drop_view(o);
+}
+
+// Regression: a burst of far-apart views from a client that then disconnects queued
+// chunk loads that were never cancelled (5 GB). A newer view replaces the owner's queued
+// one, and dropping the owner leaves nothing queued.
+TEST(WorldPipeline, ViewFloodThenDropLeavesNoQueuedWork) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  for (int i = 0; i < 200; ++i) p.set_view(1, {i * 1000, 0, -i * 1000}, 12);
+  EXPECT_LE(p.stats().queued_load_chunks, 7153u) << "one pending view per owner";
+  EXPECT_EQ(p.stats().load_owners, 1u);
+  p.drop_view(1);
+  EXPECT_EQ(p.stats().queued_load_chunks, 0u);
+  p.inspect([](const world::ChunkMap&) {});  // a batch boundary: nothing more is loaded
+  const size_t loaded = p.stats().loaded_chunks;
+  p.inspect([](const world::ChunkMap&) {});
+  EXPECT_EQ(p.stats().loaded_chunks, loaded);
+}
+
+// The accounted memory never passes the budget by more than 10 %: unused chunks are
+// evicted, and loads wait while nothing can be evicted.
+TEST(WorldPipeline, StaysWithinItsMemoryBudgetWhileLoadingFarViews) {
+  const size_t budget = 24u << 20;
+  WorldPipeline p(PipelineConfig{.seed = kSeed,
+                                 .threads = 2,
+                                 .evict_min_age = std::chrono::milliseconds(0),
+                                 .max_memory = budget});
+  const world::TerrainGenerator gen(kSeed);
+  size_t peak = 0;
+  for (int i = 0; i < 4; ++i) {
+    const int32_t x = i * 40;  // surface views (non-uniform chunks), 40 chunks apart
+    const int32_t y = world::floor_div(static_cast<int>(gen.height_at(x * 32, 0)), kChunkSize);
+    p.set_view(static_cast<LoadOwner>(i + 1), {x, y, 0}, 4);
+  }
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60 * kSlow);
+  while (std::chrono::steady_clock::now() < deadline) {
+    const PipelineStats s = p.stats();
+    peak = std::max(peak, s.accounted_bytes);
+    if (s.queued_load_chunks == 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // sampling the figure
+  }
+  EXPECT_EQ(p.stats().queued_load_chunks, 0u) << "evictable chunks make room for every view";
+  EXPECT_LE(peak, budget + budget / 10);
+  EXPECT_GT(p.stats().chunks_evicted, 0u);
+}
+
+// Memory held elsewhere (sessions) fills the budget: loads wait, edits that need new
+// chunks are refused SERVER_BUSY, and both resume once the memory is released.
+TEST(WorldPipeline, LoadsWaitAndEditsInNewAreasAreRefusedWhileTheBudgetIsFull) {
+  const size_t budget = 64u << 20;
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .max_memory = budget});
+  p.set_other_bytes(budget);
+  auto loaded = p.load({{5000, 0, 5000}, {5001, 1, 5001}});
+  EXPECT_EQ(loaded.wait_for(std::chrono::milliseconds(600)), std::future_status::timeout)
+      << "a load waits while memory is full";
+  EXPECT_TRUE(p.stats().loads_blocked);
+  const EditResult r = p.submit(world::Brush{{-90000, 10, 90000}, 3, 1}).get();
+  EXPECT_EQ(r.reason, world::RefusalReason::kServerBusy);
+  p.set_other_bytes(0);
+  EXPECT_EQ(loaded.wait_for(std::chrono::seconds(10 * kSlow)), std::future_status::ready);
+  EXPECT_FALSE(p.stats().loads_blocked);
+  EXPECT_TRUE(p.submit(world::Brush{{-90000, 10, 90000}, 3, 1}).get().accepted);
+}
+
+// Heavy edits at far places modify chunks that cannot be evicted: once they fill the
+// budget, edits needing new chunks are refused, and the total stays under 110 %.
+TEST(WorldPipeline, HeavyEditsAtFarPlacesStayWithinTheMemoryBudget) {
+  const size_t budget = 96u << 20;
+  WorldPipeline p(PipelineConfig{.seed = kSeed,
+                                 .threads = 2,
+                                 .evict_min_age = std::chrono::milliseconds(0),
+                                 .max_memory = budget});
+  const world::TerrainGenerator gen(kSeed);
+  size_t busy = 0, peak = 0;
+  for (int i = 0; i < 300 && busy < 3; ++i) {
+    const float x = static_cast<float>(i * 300);
+    const float y = gen.height_at(static_cast<int>(x), 0);
+    const EditResult r = p.submit(world::Stamp{world::Stamp::Shape::kBox, {x, y - 30, 0},
+                                               {x + 63, y + 30, 63}, {}, 1, true, 3})
+                             .get();
+    if (!r.accepted) {
+      EXPECT_EQ(r.reason, world::RefusalReason::kServerBusy);
+      ++busy;
+    }
+    peak = std::max(peak, p.stats().accounted_bytes);
+  }
+  EXPECT_EQ(busy, 3u) << "edits needing new chunks are refused once memory is full";
+  EXPECT_GT(p.stats().modified_chunks * 96 * 1024, budget / 3) << "room was made for edits";
+  EXPECT_LE(peak, budget + budget / 10);
 }
 
 }  // namespace

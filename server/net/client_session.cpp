@@ -50,6 +50,7 @@ ClientSession::ClientSession(asio::ip::tcp::socket socket, uint64_t id, const Se
 
 ClientSession::~ClientSession() {
   if (player_) counters_.players.fetch_sub(1);
+  pipeline_.drop_view(id_);
 }
 
 void ClientSession::start() {
@@ -211,10 +212,9 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
     for (const ChunkCoord& c : left) *unload.mutable_chunk_unload()->add_coords() = to_wire(c);
     queue_control(unload);
   }
-  // Load what is missing; newly published meshes arrive through on_chunks_published.
-  pipeline_.load({center.offset(-r, -r, -r), center.offset(r, r, r)}, [self = shared_from_this()] {
-    asio::post(self->strand_, [self] { self->pump(); });
-  });
+  // The pipeline loads what is missing (this view replaces the session's previous one);
+  // newly published meshes arrive through on_chunks_published.
+  pipeline_.set_view(id_, center, r);
   pump();
 }
 
@@ -397,6 +397,7 @@ void ClientSession::shutdown() {
   }
   scheduler_.clear();
   control_.clear();
+  pipeline_.drop_view(id_);  // its queued loads go with it
 }
 
 }  // namespace vox::net

@@ -83,6 +83,7 @@ wire::EditResult::Status status_of(world::RefusalReason r) {
     case world::RefusalReason::kBadStrength: return wire::EditResult::BAD_STRENGTH;
     case world::RefusalReason::kBadMaterial: return wire::EditResult::BAD_MATERIAL;
     case world::RefusalReason::kShuttingDown: return wire::EditResult::SHUTTING_DOWN;
+    case world::RefusalReason::kServerBusy: return wire::EditResult::SERVER_BUSY;
   }
   return wire::EditResult::ACCEPTED;
 }

@@ -1,16 +1,12 @@
 #include "pipeline/world_pipeline.hpp"
 
+#include <malloc.h>
 #include <spdlog/spdlog.h>
-#include <tbb/enumerable_thread_specific.h>
 
 #include <algorithm>
-#include <map>
-#include <unordered_map>
 #include <unordered_set>
 
-#include "mesh/marching_cubes.hpp"
-#include "proto/mesh_codec.hpp"
-#include "proto/zstd_codec.hpp"
+#include "pipeline/world_state.hpp"
 #include "world/edit_apply.hpp"
 #include "world/parallel.hpp"
 
@@ -18,119 +14,70 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 using world::ChunkCoordHash;
-using Clock = std::chrono::steady_clock;
 
 namespace {
-
-struct MeshWorker {
-  mesh::PaddedBlock block;
-  mesh::MeshScratch scratch;
-  proto::CodecScratch codec;
-  proto::ZstdCodec zstd;
-};
 
 bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
   return a.indices == b.indices && a.positions == b.positions && a.normals == b.normals &&
          a.materials == b.materials;
 }
 
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
 // A batch slower than this is logged: every edit queued behind it waited.
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
-// A load is split into groups of this many chunks; while edits wait, a batch takes groups
-// up to this much work (chunks to generate + chunks to mesh / 4: about 10 ms on 2 cores).
+// Chunks an owner gets per round-robin turn.
 constexpr size_t kLoadGroup = 32;
-constexpr size_t kLoadWorkBudget = 64;
-constexpr size_t kLoadPassWork = 512;  // a pass while no edit waits (~80 ms cold)
+// Load work units: a chunk to generate, a chunk to mesh.
+constexpr size_t kGenerateWork = 4;
+constexpr size_t kMeshWork = 1;
+// One-off loads (load(box)) get owners from the top half, sessions use their ids.
+constexpr LoadOwner kAnonymousOwner = LoadOwner{1} << 63;
+// While over the memory budget, eviction is retried at most this often.
+constexpr auto kPressureRetry = std::chrono::milliseconds(250);
 
 }  // namespace
 
-struct WorldPipeline::State {
-  explicit State(int threads) : arena(arena_concurrency(threads)) {}
-
-  struct ChunkInfo {
-    bool modified = false;
-    bool meshed = false;  // its mesh is in the store (so its neighbours were loaded)
-    Clock::time_point last_used;
-  };
-  world::ChunkMap chunks;
-  std::unordered_map<ChunkCoord, ChunkInfo, ChunkCoordHash> info;
-  tbb::task_arena arena;
-  tbb::enumerable_thread_specific<std::unique_ptr<MeshWorker>> workers{
-      [] { return std::make_unique<MeshWorker>(); }};
-  uint64_t next_version = 1;
-  size_t modified_count = 0;  // chunks with info.modified
-  // Surface heights of the columns generated during one process_loads call (its passes
-  // share them; cleared after it).
-  std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
-  Clock::time_point last_eviction = Clock::now();
-
-  // Loads (generates) every chunk of `coords` that is missing; parallel over columns so
-  // each column's surface heights are computed once.
-  size_t ensure_loaded(const std::vector<ChunkCoord>& coords, const world::TerrainGenerator& gen,
-                       Clock::time_point now) {
-    std::map<std::pair<int32_t, int32_t>, std::vector<int32_t>> columns;
-    for (const ChunkCoord& c : coords) {
-      auto it = info.find(c);
-      if (it != info.end()) {
-        it->second.last_used = now;
-        continue;
-      }
-      columns[{c.x, c.z}].push_back(c.y);
-    }
-    if (columns.empty()) return 0;
-    std::vector<std::pair<std::pair<int32_t, int32_t>, std::vector<int32_t>>> work(columns.begin(),
-                                                                                   columns.end());
-    std::vector<std::vector<world::Chunk>> made(work.size());
-    std::vector<std::shared_ptr<const world::ColumnHeights>> heights(work.size());
-    for (size_t i = 0; i < work.size(); ++i) {
-      if (auto it = column_heights.find(work[i].first); it != column_heights.end())
-        heights[i] = it->second;
-    }
-    parallel_for_index(arena, work.size(), [&](size_t i) {
-      const auto& [xz, ys] = work[i];
-      if (!heights[i])
-        heights[i] = std::make_shared<const world::ColumnHeights>(gen.column(xz.first, xz.second));
-      for (int32_t y : ys) made[i].push_back(gen.generate({xz.first, y, xz.second}, *heights[i]));
-    });
-    for (size_t i = 0; i < work.size(); ++i) column_heights.emplace(work[i].first, heights[i]);
-    size_t generated = 0;
-    for (size_t i = 0; i < work.size(); ++i) {
-      for (size_t k = 0; k < work[i].second.size(); ++k) {
-        const ChunkCoord c{work[i].first.first, work[i].second[k], work[i].first.second};
-        if (info.count(c)) continue;  // listed twice
-        chunks.insert(c, std::move(made[i][k]));
-        info[c] = {.last_used = now};
-        ++generated;
-      }
-    }
-    return generated;
-  }
+// What a batch's loads generate and mesh, built while the scheduler takes them (so a
+// chunk two owners want is counted once).
+struct WorldPipeline::LoadPlan {
+  CoordSet to_mesh;
+  CoordSet to_generate;
 };
 
-WorldPipeline::WorldPipeline(PipelineConfig config)
+WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     : config_(std::move(config)),
+      observer_(std::move(observer)),
       generator_(config_.seed, config_.terrain),
-      state_(std::make_unique<State>(config_.threads)) {
+      budget_(config_.max_memory),
+      scheduler_(kLoadGroup),
+      state_(std::make_unique<WorldState>(config_.threads)) {
   thread_ = std::thread([this] { run(); });
 }
 
 WorldPipeline::~WorldPipeline() { stop(); }
 
-void WorldPipeline::enqueue(Task task) {
+void WorldPipeline::enqueue(OrderedTask task) {
   {
     std::lock_guard lock(queue_mutex_);
     if (!stopping_) {
-      if (std::holds_alternative<EditTask>(task))
-        queued_edits_.fetch_add(1, std::memory_order_relaxed);
-      queue_.push_back(std::move(task));
+      scheduler_.add(std::move(task));
       queue_cv_.notify_one();
       return;
     }
   }
-  std::vector<Task> late;
-  late.push_back(std::move(task));
-  drain_after_stop(late);  // runs the callback on the caller's thread
+  // Stopped: answer on the caller's thread.
+  if (auto* e = std::get_if<EditTask>(&task)) {
+    EditResult r;
+    r.reason = world::RefusalReason::kShuttingDown;
+    r.message = "shutting down: the world pipeline has stopped";
+    if (e->done) e->done(r);
+  } else {
+    std::get<InspectTask>(task).run(true);
+  }
 }
 
 void WorldPipeline::submit(world::Edit edit, EditCallback done) {
@@ -145,36 +92,17 @@ std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
 }
 
 void WorldPipeline::load(mesh::ChunkBox box, std::function<void()> done) {
-  // Split into groups of chunks, nearest the box's centre first, so that edits can be
-  // applied between them and the meshes are published (and streamed) from the centre out;
-  // `done` runs once, after the last group.
-  std::vector<ChunkCoord> chunks(box.count());
-  for (size_t i = 0; i < chunks.size(); ++i) chunks[i] = box.at(i);
-  const int64_t cx = (int64_t{box.lo.x} + box.hi.x), cy = (int64_t{box.lo.y} + box.hi.y),
-                cz = (int64_t{box.lo.z} + box.hi.z);  // twice the centre
-  auto distance2 = [&](const ChunkCoord& c) {
-    const int64_t dx = 2 * int64_t{c.x} - cx, dy = 2 * int64_t{c.y} - cy,
-                  dz = 2 * int64_t{c.z} - cz;
-    return dx * dx + dy * dy + dz * dz;
-  };
-  // Ties by coordinate: a total order, so std::sort is deterministic (std::stable_sort's
-  // temporary buffer trips ASan's new/free check with GCC 12's libstdc++).
-  std::sort(chunks.begin(), chunks.end(), [&](const ChunkCoord& a, const ChunkCoord& b) {
-    const int64_t da = distance2(a), db = distance2(b);
-    return da != db ? da < db : a < b;
-  });
-  const size_t groups = std::max<size_t>(1, (chunks.size() + kLoadGroup - 1) / kLoadGroup);
-  auto remaining = std::make_shared<std::atomic<size_t>>(groups);
-  auto shared_done = std::make_shared<std::function<void()>>(std::move(done));
-  for (size_t g = 0; g < groups; ++g) {
-    const auto from =
-        chunks.begin() + static_cast<std::ptrdiff_t>(std::min(chunks.size(), g * kLoadGroup));
-    const auto to =
-        chunks.begin() + static_cast<std::ptrdiff_t>(std::min(chunks.size(), (g + 1) * kLoadGroup));
-    enqueue(LoadTask{std::vector<ChunkCoord>(from, to), [remaining, shared_done] {
-                       if (remaining->fetch_sub(1) == 1 && *shared_done) (*shared_done)();
-                     }});
+  std::vector<ChunkCoord> chunks = box_nearest_first(box.lo, box.hi);
+  {
+    std::lock_guard lock(queue_mutex_);
+    if (!stopping_) {
+      scheduler_.request(kAnonymousOwner | next_anonymous_owner_++, std::move(chunks),
+                         std::move(done));
+      queue_cv_.notify_one();
+      return;
+    }
   }
+  if (done) done();
 }
 
 std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
@@ -184,10 +112,34 @@ std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
   return future;
 }
 
+void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius) {
+  std::vector<ChunkCoord> chunks = ball_nearest_first(center, radius);  // outside the lock
+  std::function<void()> replaced;
+  {
+    std::lock_guard lock(queue_mutex_);
+    if (stopping_) return;
+    replaced = scheduler_.request(owner, std::move(chunks));
+    queue_cv_.notify_one();
+  }
+  if (replaced) replaced();
+}
+
+void WorldPipeline::drop_view(LoadOwner owner) {
+  std::function<void()> dropped;
+  {
+    std::lock_guard lock(queue_mutex_);
+    dropped = scheduler_.drop(owner);
+  }
+  if (dropped) dropped();
+}
+
 void WorldPipeline::inspect(std::function<void(const world::ChunkMap&)> fn) {
   auto finished = std::make_shared<std::promise<void>>();
   auto future = finished->get_future();
-  enqueue(InspectTask{std::move(fn), finished});
+  enqueue(InspectTask{[this, fn = std::move(fn), finished](bool cancelled) {
+    if (!cancelled) fn(state_->chunks);
+    finished->set_value();
+  }});
   future.wait();
 }
 
@@ -210,8 +162,13 @@ PipelineStats WorldPipeline::stats() const {
   }
   s.mesh_count = meshes_.size();
   s.mesh_bytes = meshes_.memory_bytes();
+  s.other_bytes = other_bytes_.load(std::memory_order_relaxed);
+  s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.other_bytes;
+  s.loads_blocked = loads_blocked_.load(std::memory_order_relaxed);
   std::lock_guard lock(queue_mutex_);
-  s.queue_depth = queue_.size();
+  s.queued_edits = scheduler_.ordered_count();
+  s.queued_load_chunks = scheduler_.queued_load_chunks();
+  s.load_owners = scheduler_.load_owners();
   return s;
 }
 
@@ -224,70 +181,132 @@ void WorldPipeline::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
-void WorldPipeline::run() {
-  std::vector<Task> tasks;
-  for (;;) {
-    bool stopping = false;
-    {
-      std::unique_lock lock(queue_mutex_);
-      queue_cv_.wait(lock, [this] { return stopping_ || !queue_.empty(); });
-      stopping = stopping_;
-      if (!stopping) {
-        const size_t n = std::min(queue_.size(), config_.max_batch);
-        tasks.assign(std::make_move_iterator(queue_.begin()),
-                     std::make_move_iterator(queue_.begin() + static_cast<long>(n)));
-        queue_.erase(queue_.begin(), queue_.begin() + static_cast<long>(n));
-        queued_edits_.fetch_sub(
-            static_cast<size_t>(
-                std::count_if(tasks.begin(), tasks.end(),
-                              [](const Task& t) { return std::holds_alternative<EditTask>(t); })),
-            std::memory_order_relaxed);
-      } else {
-        tasks.assign(std::make_move_iterator(queue_.begin()),
-                     std::make_move_iterator(queue_.end()));
-        queue_.clear();
-      }
-    }
-    if (stopping) {
-      drain_after_stop(tasks);
-      return;
-    }
-    process(tasks);
-    tasks.clear();
-  }
+bool WorldPipeline::batch_ready() const {
+  return scheduler_.has_ordered() ||
+         (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed));
 }
 
-void WorldPipeline::drain_after_stop(std::vector<Task>& tasks) {
-  for (Task& t : tasks) {
+size_t WorldPipeline::accounted_bytes() const {
+  return state_->chunks.memory_bytes() + meshes_.memory_bytes() +
+         other_bytes_.load(std::memory_order_relaxed);
+}
+
+size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
+  const size_t full =
+      edits_waiting ? config_.load_pass_work_while_edits_wait : config_.load_pass_work;
+  return budget_.load_work(accounted_bytes(), full);
+}
+
+void WorldPipeline::run() {
+  for (;;) {
+    Batch batch;
+    LoadPlan plan;
+    Clock::time_point now;
+    {
+      std::unique_lock lock(queue_mutex_);
+      while (!stopping_ && !batch_ready()) {
+        if (!scheduler_.has_loads()) {
+          queue_cv_.wait(lock);
+          continue;
+        }
+        // Loads wait for memory: retry eviction now and then (sessions release meshes).
+        queue_cv_.wait_for(lock, kPressureRetry);
+        lock.unlock();
+        manage_memory(Clock::now());
+        lock.lock();
+      }
+      if (stopping_) break;
+      now = Clock::now();
+      WorldState& st = *state_;
+      // Pipeline thread, under the queue lock: only pipeline-thread state is touched.
+      batch = scheduler_.next(load_work_allowed(scheduler_.has_ordered()), [&](ChunkCoord c) {
+        if (plan.to_mesh.count(c)) return size_t{0};
+        if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
+          it->second.last_used = now;  // meshed already: only marked as viewed
+          return size_t{0};
+        }
+        size_t work = kMeshWork;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const ChunkCoord n = c.offset(dx, dy, dz);
+              if (!st.info.count(n) && plan.to_generate.insert(n).second) work += kGenerateWork;
+            }
+        plan.to_mesh.insert(c);
+        return work;
+      });
+    }
+    PipelineStats counts;  // the whole batch's, for the slow-batch log
+    process_ordered(batch.ordered, now, counts);
+    process_loads(batch.loads, plan, now, counts);
+    {
+      std::lock_guard lock(stats_mutex_);
+      stats_.batches += 1;
+    }
+    manage_memory(Clock::now());
+    const double took = seconds_since(now);
+    if (observer_.batch) observer_.batch(took, batch.ordered.size(), plan.to_mesh.size());
+    if (took > std::chrono::duration<double>(kSlowBatch).count()) {
+      spdlog::warn(
+          "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
+          "published)",
+          took * 1000, counts.edits_applied + counts.edits_refused, plan.to_mesh.size(),
+          counts.chunks_generated, counts.meshes_published);
+    }
+  }
+  drain_after_stop();
+}
+
+void WorldPipeline::drain_after_stop() {
+  std::vector<OrderedTask> ordered;
+  std::vector<std::function<void()>> loads;
+  {
+    std::lock_guard lock(queue_mutex_);
+    ordered = scheduler_.take_all_ordered();
+    loads = scheduler_.take_all_load_callbacks();
+  }
+  for (OrderedTask& t : ordered) {
     if (auto* e = std::get_if<EditTask>(&t)) {
       EditResult r;
       r.reason = world::RefusalReason::kShuttingDown;
       r.message = "shutting down: the world pipeline has stopped";
       if (e->done) e->done(r);
-    } else if (auto* l = std::get_if<LoadTask>(&t)) {
-      if (l->done) l->done();
-    } else if (auto* i = std::get_if<InspectTask>(&t)) {
-      if (state_ && thread_.get_id() == std::this_thread::get_id()) i->fn(state_->chunks);
-      i->finished->set_value();
+    } else {
+      std::get<InspectTask>(t).run(false);  // on the pipeline thread: state is still ours
     }
   }
+  for (auto& done : loads) done();
 }
 
 // Applies one valid edit: loads what it and the meshes it dirties need, changes the
 // touched chunks (in parallel), and appends the chunks whose meshes must be rebuilt.
-// Returns the number of chunks generated.
-size_t WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
-                                      std::vector<ChunkCoord>& dirtied) {
-  State& st = *state_;
+// False (and nothing changed) when it needs chunks generated while memory is full.
+bool WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
+                                    std::vector<ChunkCoord>& dirtied, size_t& generated) {
+  WorldState& st = *state_;
   const world::VoxelBox box = world::touched_box(edit);
   const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
   // Touched chunks, the neighbours they may dirty, and those neighbours' neighbours.
   const ChunkCoord lo = touched.front().offset(-2, -2, -2), hi = touched.back().offset(2, 2, 2);
   std::vector<ChunkCoord> wanted;
+  size_t missing = 0;
   for (int32_t z = lo.z; z <= hi.z; ++z)
     for (int32_t y = lo.y; y <= hi.y; ++y)
-      for (int32_t x = lo.x; x <= hi.x; ++x) wanted.push_back({x, y, z});
-  const size_t generated = st.ensure_loaded(wanted, generator_, now);
+      for (int32_t x = lo.x; x <= hi.x; ++x) {
+        wanted.push_back({x, y, z});
+        missing += st.info.count(wanted.back()) ? 0 : 1;
+      }
+  if (missing > 0 && !budget_.may_generate(accounted_bytes(), missing)) {
+    // Make room from unused chunks first (once per batch: the scan is not free).
+    if (evicted_for_edits_) return false;
+    evicted_for_edits_ = true;
+    const size_t need = missing * MemoryBudget::kBytesPerChunk;
+    const size_t target = budget_.evict_target(other_bytes_.load(std::memory_order_relaxed));
+    st.evict(meshes_, now, config_.evict_after,
+             std::min(config_.evict_min_age, config_.evict_after), target > need ? target - need : 0);
+    if (!budget_.may_generate(accounted_bytes(), missing)) return false;
+  }
+  generated += st.ensure_loaded(wanted, generator_, now);
 
   std::optional<world::SampleSnapshot> snapshot;
   if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
@@ -316,13 +335,14 @@ size_t WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point
     modified = true;
     world::append_dirty_chunks(touched[i], changed[i], dirtied);
   }
-  return generated;
+  return true;
 }
 
 // Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
 // publishes them as new versions. Returns the chunks given a new version.
 std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty) {
-  State& st = *state_;
+  WorldState& st = *state_;
+  const Clock::time_point start = Clock::now();
   std::sort(dirty.begin(), dirty.end());
   dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
   std::vector<std::shared_ptr<MeshVersion>> fresh(dirty.size());
@@ -350,34 +370,15 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
     meshes_.publish(std::move(fresh[i]));
     published.push_back(dirty[i]);
   }
+  if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
   return published;
 }
 
-void WorldPipeline::process(std::vector<Task>& tasks) {
-  State& st = *state_;
-  const Clock::time_point now = Clock::now();
-  PipelineStats batch;  // the whole batch's counts, for the slow-batch log
-  process_edits(tasks, now, batch);
-  process_loads(tasks, now, batch);
-  {
-    std::lock_guard lock(stats_mutex_);
-    stats_.batches += 1;
-  }
-  if (now - st.last_eviction > config_.evict_after / 4) evict_idle(now);
-  const auto took = Clock::now() - now;
-  if (took > kSlowBatch) {
-    spdlog::warn(
-        "pipeline: a batch took {} ms ({} edits, {} tasks, {} chunks generated, {} meshes "
-        "published)",
-        std::chrono::duration_cast<std::chrono::milliseconds>(took).count(), batch.edits_applied,
-        tasks.size(), batch.chunks_generated, batch.meshes_published);
-  }
-}
-
-// Edits and inspections, in arrival order; loads are left for process_loads.
-void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point now,
-                                  PipelineStats& batch) {
+// Edits and inspections, in arrival order.
+void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
+                                    PipelineStats& batch) {
   PipelineStats delta;
+  evicted_for_edits_ = false;
   std::vector<ChunkCoord> dirty;  // may repeat; deduplicated below
   std::vector<std::vector<ChunkCoord>> edit_dirty(tasks.size());
   std::vector<EditResult> results(tasks.size());
@@ -386,22 +387,26 @@ void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point no
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
       // Sees every edit queued before it applied; the meshes of this batch are not
       // published yet, but densities are final.
-      insp->fn(state_->chunks);
-      insp->finished->set_value();
+      insp->run(false);
       continue;
     }
-    auto* task = std::get_if<EditTask>(&tasks[t]);
-    if (!task) continue;
+    const world::Edit& edit = std::get<EditTask>(tasks[t]).edit;
     any_edit = true;
-    if (auto refusal = world::validate(task->edit, config_.limits)) {
+    if (auto refusal = world::validate(edit, config_.limits)) {
       results[t].reason = refusal->reason;
       results[t].message = refusal->message;
       ++delta.edits_refused;
       continue;
     }
+    if (!apply_edit_task(edit, now, edit_dirty[t], delta.chunks_generated)) {
+      results[t].reason = world::RefusalReason::kServerBusy;
+      results[t].message = "the server's memory budget is full; edits in unloaded areas wait";
+      ++delta.edits_refused;
+      ++delta.edits_refused_busy;
+      continue;
+    }
     results[t].accepted = true;
     ++delta.edits_applied;
-    delta.chunks_generated += apply_edit_task(task->edit, now, edit_dirty[t]);
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
   }
   if (!any_edit) return;
@@ -425,82 +430,31 @@ void WorldPipeline::process_edits(std::vector<Task>& tasks, Clock::time_point no
   notify_subscribers(published);
 }
 
-// Loads (each a group of chunks, see load()), in order, in passes: a pass takes groups
-// up to a work budget, generates their missing chunks in one parallel pass (each column's
-// heights once), meshes and publishes them. The budget is small while edits are queued,
-// and once a pass ends with edits queued the rest goes back to the front of the queue:
-// edits are applied before it and never wait behind a whole world of terrain generation.
-void WorldPipeline::process_loads(std::vector<Task>& tasks, Clock::time_point now,
-                                  PipelineStats& batch) {
-  std::vector<LoadTask*> loads;
-  for (Task& task : tasks) {
-    if (auto* load = std::get_if<LoadTask>(&task)) loads.push_back(load);
-  }
-  size_t next = 0;
-  struct ClearColumns {
-    State& st;
-    ~ClearColumns() { st.column_heights.clear(); }
-  } clear_columns{*state_};
-  while (next < loads.size()) {
-    const size_t budget =
-        queued_edits_.load(std::memory_order_relaxed) > 0 ? kLoadWorkBudget : kLoadPassWork;
-    next = load_pass(loads, next, budget, now, batch);
-    if (next < loads.size() && queued_edits_.load(std::memory_order_relaxed) > 0) break;
-  }
-  if (next == loads.size()) return;
-  std::vector<Task> later;
-  for (size_t i = next; i < loads.size(); ++i) later.emplace_back(std::move(*loads[i]));
-  std::lock_guard lock(queue_mutex_);
-  queue_.insert(queue_.begin(), std::make_move_iterator(later.begin()),
-                std::make_move_iterator(later.end()));
-}
-
-// One pass of process_loads over loads[from..]: returns where the next pass starts.
-size_t WorldPipeline::load_pass(const std::vector<LoadTask*>& loads, size_t from, size_t budget,
-                                Clock::time_point now, PipelineStats& batch) {
+// One load pass: generates the missing chunks the plan needs (parallel over columns),
+// meshes and publishes the planned chunks, then runs the finished requests' callbacks.
+void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
+                                  Clock::time_point now, PipelineStats& batch) {
+  if (loads.empty()) return;
+  WorldState& st = *state_;
   PipelineStats delta;
-  State& st = *state_;
-  std::vector<ChunkCoord> dirty;
-  CoordSet wanted;  // chunks to generate
-  size_t end = from;
-  // Work: chunks to generate, plus a quarter of the chunks to mesh.
-  for (; end < loads.size() && (end == from || wanted.size() + dirty.size() / 4 < budget); ++end) {
-    // The chunks and a one-chunk margin (the mesher reads the neighbours); a chunk meshed
-    // already (most of a view that moved by one chunk) is only marked as used.
-    for (const ChunkCoord& c : loads[end]->chunks) {
-      if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
-        it->second.last_used = now;
-        continue;
-      }
-      dirty.push_back(c);
-      for (int dz = -1; dz <= 1; ++dz)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const ChunkCoord n = c.offset(dx, dy, dz);
-            if (auto it = st.info.find(n); it != st.info.end()) {
-              it->second.last_used = now;
-            } else {
-              wanted.insert(n);
-            }
-          }
-    }
-  }
-  delta.chunks_generated +=
-      st.ensure_loaded(std::vector<ChunkCoord>(wanted.begin(), wanted.end()), generator_, now);
+  delta.chunks_generated += st.ensure_loaded(
+      std::vector<ChunkCoord>(plan.to_generate.begin(), plan.to_generate.end()), generator_, now);
+  st.column_heights.clear();
+  std::vector<ChunkCoord> dirty(plan.to_mesh.begin(), plan.to_mesh.end());
+  for (const ChunkCoord& c : dirty) st.info[c].last_used = now;
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
   delta.meshes_published += published.size();
   commit_stats(delta, batch);
-  for (size_t i = from; i < end; ++i) {
-    if (loads[i]->done) loads[i]->done();
+  for (LoadSlice& slice : loads) {
+    if (slice.done) slice.done();
   }
   notify_subscribers(published);
-  return end;
 }
 
 // Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the
 // slow-batch log); refreshes the loaded-chunk figures.
 void WorldPipeline::commit_stats(const PipelineStats& delta, PipelineStats& batch) {
-  State& st = *state_;
+  const WorldState& st = *state_;
   batch.edits_applied += delta.edits_applied;
   batch.edits_refused += delta.edits_refused;
   batch.meshes_published += delta.meshes_published;
@@ -508,6 +462,7 @@ void WorldPipeline::commit_stats(const PipelineStats& delta, PipelineStats& batc
   std::lock_guard lock(stats_mutex_);
   stats_.edits_applied += delta.edits_applied;
   stats_.edits_refused += delta.edits_refused;
+  stats_.edits_refused_busy += delta.edits_refused_busy;
   stats_.meshes_published += delta.meshes_published;
   stats_.chunks_generated += delta.chunks_generated;
   stats_.loaded_chunks = st.chunks.size();
@@ -525,25 +480,46 @@ void WorldPipeline::notify_subscribers(const std::vector<ChunkCoord>& published)
   for (const auto& s : subscribers) s(published);
 }
 
-void WorldPipeline::evict_idle(Clock::time_point now) {
-  State& st = *state_;
-  st.last_eviction = now;
-  std::vector<ChunkCoord> victims;
-  for (const auto& [c, info] : st.info) {
-    if (info.modified || now - info.last_used < config_.evict_after) continue;
-    const MeshVersionPtr mesh = meshes_.get(c);
-    if (mesh && mesh.use_count() > 2) continue;  // someone besides the store (and us) holds it
-    victims.push_back(c);
+// Evicts idle chunks now and then, and under memory pressure down to the budget's target;
+// decides whether loads must wait. Pipeline thread.
+void WorldPipeline::manage_memory(Clock::time_point now) {
+  WorldState& st = *state_;
+  const bool periodic = now - st.last_eviction > config_.evict_after / 4;
+  // Under pressure, evict after every batch while eviction frees something; when it freed
+  // nothing (everything is in use), retry only now and then: the scan is not free.
+  const bool pressure = budget_.should_evict(accounted_bytes()) &&
+                        (last_eviction_freed_ || now - st.last_eviction > kPressureRetry);
+  if (periodic || pressure) {
+    st.last_eviction = now;
+    const size_t target = budget_.limited()
+                              ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed))
+                              : SIZE_MAX;
+    const size_t dropped = st.evict(meshes_, now, config_.evict_after,
+                                    std::min(config_.evict_min_age, config_.evict_after), target);
+    last_eviction_freed_ = dropped > 0;
+    // Freed chunk arrays go back to the operating system, not only to malloc's free lists.
+    if (dropped > 0) ::malloc_trim(0);
+    std::lock_guard lock(stats_mutex_);
+    stats_.chunks_evicted += dropped;
+    stats_.loaded_chunks = st.chunks.size();
+    stats_.chunk_bytes = st.chunks.memory_bytes();
   }
-  for (const ChunkCoord& c : victims) {
-    st.chunks.erase(c);
-    st.info.erase(c);
-    meshes_.erase(c);
+  const size_t total = accounted_bytes();
+  const bool blocked = budget_.load_work(total, 1) == 0;
+  if (blocked != loads_blocked_.load(std::memory_order_relaxed)) {
+    if (blocked) {
+      spdlog::warn(
+          "memory budget: {} MiB accounted of {} MiB (--max-memory) and nothing left to evict; "
+          "new chunk loads wait",
+          total >> 20, budget_.max_bytes() >> 20);
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.memory_blocked;
+    } else {
+      spdlog::info("memory budget: {} MiB accounted of {} MiB; loads resume", total >> 20,
+                   budget_.max_bytes() >> 20);
+    }
+    loads_blocked_.store(blocked, std::memory_order_relaxed);
   }
-  std::lock_guard lock(stats_mutex_);
-  stats_.chunks_evicted += victims.size();
-  stats_.loaded_chunks = st.chunks.size();
-  stats_.chunk_bytes = st.chunks.memory_bytes();
 }
 
 }  // namespace vox::pipeline

@@ -1,39 +1,50 @@
-// The single logical writer of chunk densities. Edits and region loads arrive on a
-// thread-safe queue from any thread; one pipeline thread takes everything queued as a
-// batch and, in arrival order, applies it (fanning out over chunks with TBB), re-meshes
-// the dirty chunks in parallel, publishes each changed mesh as a new immutable version,
-// then reports results and notifies subscribers. Readers use meshes() and never block it.
+// The single logical writer of chunk densities. Edits, view loads and inspections arrive
+// from any thread; a BatchScheduler decides what each batch holds (every queued edit, then
+// loads round robin over their owners within a work budget). One pipeline thread applies a
+// batch (fanning out over chunks with TBB), re-meshes the dirty chunks in parallel,
+// publishes each changed mesh as a new immutable version, then reports results and
+// notifies subscribers. Readers use meshes() and never block it. A MemoryBudget decides
+// when unused chunks are evicted and when loads must wait.
 #pragma once
 
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <functional>
 #include <future>
 #include <memory>
 #include <mutex>
 #include <thread>
-#include <variant>
 #include <vector>
 
 #include "mesh/region_mesher.hpp"
+#include "pipeline/batch_scheduler.hpp"
+#include "pipeline/memory_budget.hpp"
 #include "pipeline/mesh_store.hpp"
 #include "world/edit.hpp"
 #include "world/terrain_generator.hpp"
 
 namespace vox::pipeline {
 
+struct WorldState;
+using Clock = std::chrono::steady_clock;
+
 struct PipelineConfig {
   uint64_t seed = 1;
   world::TerrainParams terrain;
   int threads = 0;  // worker threads for apply/generate/mesh, 0 = all cores
   world::EditLimits limits;
-  size_t max_batch = 4096;  // queued items taken per batch
+  // Load work per pass (a chunk to generate is 4 units, one to mesh 1): about 80 ms cold
+  // on 2 cores; while edits wait, a pass takes only the smaller budget (about 10 ms).
+  size_t load_pass_work = 2048;
+  size_t load_pass_work_while_edits_wait = 256;
   // Unmodified chunks unused this long (and whose mesh no one else holds) are dropped;
   // they regenerate from the seed. Modified chunks stay.
   std::chrono::milliseconds evict_after{std::chrono::minutes(2)};
+  // Chunks used more recently than this are never evicted, even over the memory budget.
+  std::chrono::milliseconds evict_min_age{std::chrono::seconds(5)};
+  size_t max_memory = 0;  // bytes; 0: no budget (see MemoryBudget)
 };
 
 struct EditResult {
@@ -44,10 +55,20 @@ struct EditResult {
 };
 
 struct PipelineStats {
-  uint64_t batches = 0, edits_applied = 0, edits_refused = 0, meshes_published = 0,
-           chunks_generated = 0, chunks_evicted = 0;
+  uint64_t batches = 0, edits_applied = 0, edits_refused = 0, edits_refused_busy = 0,
+           meshes_published = 0, chunks_generated = 0, chunks_evicted = 0, memory_blocked = 0;
   size_t loaded_chunks = 0, modified_chunks = 0, chunk_bytes = 0, mesh_count = 0, mesh_bytes = 0;
-  size_t queue_depth = 0;
+  size_t queued_edits = 0, queued_load_chunks = 0, load_owners = 0;
+  size_t other_bytes = 0;      // reported by set_other_bytes (sessions)
+  size_t accounted_bytes = 0;  // chunks + meshes + other
+  bool loads_blocked = false;  // over the memory budget with nothing left to evict
+};
+
+// Durations the pipeline measures, for metrics. Called on the pipeline thread; must not
+// block.
+struct PipelineObserver {
+  std::function<void(double seconds, size_t edits, size_t load_chunks)> batch;
+  std::function<void(double seconds, size_t chunks)> remesh;
 };
 
 class WorldPipeline {
@@ -55,19 +76,25 @@ class WorldPipeline {
   using EditCallback = std::function<void(const EditResult&)>;
   using Subscriber = std::function<void(const std::vector<world::ChunkCoord>&)>;
 
-  explicit WorldPipeline(PipelineConfig config);
+  explicit WorldPipeline(PipelineConfig config, PipelineObserver observer = {});
   ~WorldPipeline();  // stop()
   WorldPipeline(const WorldPipeline&) = delete;
   WorldPipeline& operator=(const WorldPipeline&) = delete;
 
   // Any thread. `done` runs on the pipeline thread once the edit's meshes are published
-  // (or it was refused); it must not block.
+  // (or it was refused); it must not block. Every queued edit is in the next batch.
   void submit(world::Edit edit, EditCallback done);
   std::future<EditResult> submit(world::Edit edit);
   // Any thread. Generates and meshes whatever of the box is missing; `done` runs on the
   // pipeline thread once every chunk of the box has a published mesh.
   void load(mesh::ChunkBox box, std::function<void()> done);
   std::future<void> load(mesh::ChunkBox box);
+  // Any thread. The view of `owner` (a session id, below 2^63) becomes the ball of
+  // `radius` chunks around `center`: its queued loads are replaced by the new view's
+  // missing chunks, nearest first. Newly published meshes reach subscribers.
+  void set_view(LoadOwner owner, world::ChunkCoord center, int radius);
+  // Any thread: drops the owner's queued loads (its session closed).
+  void drop_view(LoadOwner owner);
   // Runs fn on the pipeline thread between batches, and waits for it (tests, persistence).
   void inspect(std::function<void(const world::ChunkMap&)> fn);
 
@@ -77,52 +104,46 @@ class WorldPipeline {
   uint64_t subscribe(Subscriber s);  // any thread
   void unsubscribe(uint64_t id);     // any thread
   PipelineStats stats() const;       // any thread
+  // Any thread: bytes held outside the pipeline (sessions' state), counted in the memory
+  // budget.
+  void set_other_bytes(size_t bytes) { other_bytes_.store(bytes, std::memory_order_relaxed); }
   const PipelineConfig& config() const { return config_; }
   // Finishes the batch in flight, refuses queued edits (kShuttingDown), runs queued load
   // callbacks, joins the thread. Idempotent.
   void stop();
 
  private:
-  struct EditTask {
-    world::Edit edit;
-    EditCallback done;
-  };
-  struct LoadTask {
-    std::vector<world::ChunkCoord> chunks;  // a part of a loaded box
-    std::function<void()> done;
-  };
-  struct InspectTask {
-    std::function<void(const world::ChunkMap&)> fn;
-    std::shared_ptr<std::promise<void>> finished;
-  };
-  using Task = std::variant<EditTask, LoadTask, InspectTask>;
+  struct LoadPlan;  // the chunks a batch's loads generate and mesh
 
-  void enqueue(Task task);
+  void enqueue(OrderedTask task);
   void run();
-  void process(std::vector<Task>& tasks);
-  void process_edits(std::vector<Task>& tasks, std::chrono::steady_clock::time_point now,
+  bool batch_ready() const;  // under queue_mutex_
+  size_t load_work_allowed(bool edits_waiting);
+  void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now, PipelineStats& batch);
+  void process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan, Clock::time_point now,
                      PipelineStats& batch);
-  void process_loads(std::vector<Task>& tasks, std::chrono::steady_clock::time_point now,
-                     PipelineStats& batch);
-  size_t load_pass(const std::vector<LoadTask*>& loads, size_t from, size_t budget,
-                   std::chrono::steady_clock::time_point now, PipelineStats& batch);
   void commit_stats(const PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
-  size_t apply_edit_task(const world::Edit& edit, std::chrono::steady_clock::time_point now,
-                         std::vector<world::ChunkCoord>& dirtied);
+  bool apply_edit_task(const world::Edit& edit, Clock::time_point now,
+                       std::vector<world::ChunkCoord>& dirtied, size_t& generated);
   std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty);
-  void drain_after_stop(std::vector<Task>& tasks);
-  void evict_idle(std::chrono::steady_clock::time_point now);
+  void drain_after_stop();
+  void manage_memory(Clock::time_point now);
+  size_t accounted_bytes() const;  // pipeline thread
 
   const PipelineConfig config_;
+  const PipelineObserver observer_;
   const world::TerrainGenerator generator_;
+  const MemoryBudget budget_;
   MeshStore meshes_;
 
-  mutable std::mutex queue_mutex_;  // leaf lock, guards queue_ and stopping_
+  mutable std::mutex queue_mutex_;  // leaf lock, guards scheduler_ and stopping_
   std::condition_variable queue_cv_;
-  std::deque<Task> queue_;
+  BatchScheduler scheduler_;
   bool stopping_ = false;
-  std::atomic<size_t> queued_edits_{0};  // EditTasks in queue_ (read without the lock)
+  uint64_t next_anonymous_owner_ = 1;  // under queue_mutex_
+  std::atomic<bool> loads_blocked_{false};  // over budget with nothing evictable
+  std::atomic<size_t> other_bytes_{0};
 
   mutable std::mutex subscribers_mutex_;  // leaf lock; callbacks run on a copy, outside it
   std::vector<std::pair<uint64_t, Subscriber>> subscribers_;
@@ -131,8 +152,9 @@ class WorldPipeline {
   mutable std::mutex stats_mutex_;  // leaf lock
   PipelineStats stats_;
 
-  struct State;  // pipeline-thread-only state (chunk map, workers, ...)
-  std::unique_ptr<State> state_;
+  std::unique_ptr<WorldState> state_;  // pipeline thread only
+  bool last_eviction_freed_ = false;    // pipeline thread only
+  bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
   std::thread thread_;
 };
 

@@ -69,6 +69,7 @@ const char* to_string(RefusalReason r) {
     case RefusalReason::kBadStrength: return "bad strength";
     case RefusalReason::kBadMaterial: return "bad material";
     case RefusalReason::kShuttingDown: return "shutting down";
+    case RefusalReason::kServerBusy: return "server busy";
   }
   return "unknown";
 }

@@ -66,6 +66,7 @@ enum class RefusalReason : uint8_t {
   kBadStrength,       // strength / power <= 0 or over the limit
   kBadMaterial,       // material 0 (air) where a solid material is needed
   kShuttingDown,      // the pipeline stopped before applying it
+  kServerBusy,        // it needs chunks loaded while the memory budget is full
 };
 const char* to_string(RefusalReason r);
 

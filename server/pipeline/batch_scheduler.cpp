@@ -1,0 +1,122 @@
+#include "pipeline/batch_scheduler.hpp"
+
+#include <algorithm>
+
+namespace vox::pipeline {
+
+using world::ChunkCoord;
+
+void BatchScheduler::add(OrderedTask task) { ordered_.push_back(std::move(task)); }
+
+std::function<void()> BatchScheduler::request(LoadOwner owner, std::vector<ChunkCoord> chunks,
+                                              std::function<void()> done) {
+  auto [it, inserted] = requests_.try_emplace(owner);
+  Request& r = it->second;
+  std::function<void()> replaced = std::move(r.done);
+  queued_chunks_ -= r.chunks.size() - r.next;
+  r = Request{std::move(chunks), 0, std::move(done)};
+  queued_chunks_ += r.chunks.size();
+  // A replaced request keeps its owner's place in the rotation.
+  if (inserted) rotation_.push_back(owner);
+  return replaced;
+}
+
+std::function<void()> BatchScheduler::drop(LoadOwner owner) {
+  auto it = requests_.find(owner);
+  if (it == requests_.end()) return {};
+  std::function<void()> done = std::move(it->second.done);
+  queued_chunks_ -= it->second.chunks.size() - it->second.next;
+  requests_.erase(it);
+  rotation_.erase(std::find(rotation_.begin(), rotation_.end(), owner));
+  return done;
+}
+
+Batch BatchScheduler::next(size_t load_budget, const Cost& cost) {
+  Batch batch;
+  batch.ordered.assign(std::make_move_iterator(ordered_.begin()),
+                       std::make_move_iterator(ordered_.end()));
+  ordered_.clear();
+  size_t spent = 0;
+  while (spent < load_budget && !rotation_.empty()) {
+    const LoadOwner owner = rotation_.front();
+    rotation_.pop_front();
+    Request& r = requests_.at(owner);
+    LoadSlice slice{owner, {}, {}};
+    while (r.next < r.chunks.size() && slice.chunks.size() < group_ && spent < load_budget) {
+      const ChunkCoord c = r.chunks[r.next++];
+      --queued_chunks_;
+      const size_t work = cost(c);
+      if (work == 0) continue;  // nothing to do: costs no turn
+      slice.chunks.push_back(c);
+      spent += work;
+    }
+    if (r.next == r.chunks.size()) {
+      slice.done = std::move(r.done);
+      requests_.erase(owner);
+    } else {
+      rotation_.push_back(owner);
+    }
+    if (!slice.chunks.empty() || slice.done) batch.loads.push_back(std::move(slice));
+  }
+  return batch;
+}
+
+std::vector<OrderedTask> BatchScheduler::take_all_ordered() {
+  std::vector<OrderedTask> all(std::make_move_iterator(ordered_.begin()),
+                               std::make_move_iterator(ordered_.end()));
+  ordered_.clear();
+  return all;
+}
+
+std::vector<std::function<void()>> BatchScheduler::take_all_load_callbacks() {
+  std::vector<std::function<void()>> all;
+  for (auto& [owner, r] : requests_) {
+    if (r.done) all.push_back(std::move(r.done));
+  }
+  requests_.clear();
+  rotation_.clear();
+  queued_chunks_ = 0;
+  return all;
+}
+
+namespace {
+
+// Sorts nearest `twice_center / 2` first; ties by coordinate (a total order, so std::sort
+// is deterministic).
+void sort_nearest_first(std::vector<ChunkCoord>& chunks, int64_t cx2, int64_t cy2, int64_t cz2) {
+  auto distance2 = [&](const ChunkCoord& c) {
+    const int64_t dx = 2 * int64_t{c.x} - cx2, dy = 2 * int64_t{c.y} - cy2,
+                  dz = 2 * int64_t{c.z} - cz2;
+    return dx * dx + dy * dy + dz * dz;
+  };
+  std::sort(chunks.begin(), chunks.end(), [&](const ChunkCoord& a, const ChunkCoord& b) {
+    const int64_t da = distance2(a), db = distance2(b);
+    return da != db ? da < db : a < b;
+  });
+}
+
+}  // namespace
+
+std::vector<ChunkCoord> ball_nearest_first(ChunkCoord center, int radius) {
+  std::vector<ChunkCoord> chunks;
+  const int64_t r2 = int64_t{radius} * radius;
+  for (int dz = -radius; dz <= radius; ++dz)
+    for (int dy = -radius; dy <= radius; ++dy)
+      for (int dx = -radius; dx <= radius; ++dx) {
+        if (int64_t{dx} * dx + int64_t{dy} * dy + int64_t{dz} * dz <= r2)
+          chunks.push_back(center.offset(dx, dy, dz));
+      }
+  sort_nearest_first(chunks, 2 * int64_t{center.x}, 2 * int64_t{center.y}, 2 * int64_t{center.z});
+  return chunks;
+}
+
+std::vector<ChunkCoord> box_nearest_first(ChunkCoord lo, ChunkCoord hi) {
+  std::vector<ChunkCoord> chunks;
+  for (int32_t z = lo.z; z <= hi.z; ++z)
+    for (int32_t y = lo.y; y <= hi.y; ++y)
+      for (int32_t x = lo.x; x <= hi.x; ++x) chunks.push_back({x, y, z});
+  sort_nearest_first(chunks, int64_t{lo.x} + hi.x, int64_t{lo.y} + hi.y, int64_t{lo.z} + hi.z);
+  return chunks;
+}
+
+}  // namespace vox::pipeline

@@ -1,0 +1,107 @@
+// Which work the world pipeline runs in its next batch, in what order and within which
+// budget. Pure bookkeeping (no I/O, no threads, no clock): the pipeline calls it under its
+// queue lock, tests call it directly.
+//
+// Rules (each has a unit test in tests/batch_scheduler_test.cpp):
+// - Every queued edit and inspection is in the next batch, in arrival order, whatever the
+//   load backlog; loads only fill what is left.
+// - Loads belong to an owner (a session's view, or a one-off load). An owner has at most
+//   one pending request: a new one replaces the old (the newest view wins), and dropping
+//   an owner drops its queued loads.
+// - Owners are served round robin, a group of chunks per turn, each request nearest
+//   first, so one big view does not delay another owner's first chunks.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <unordered_map>
+#include <variant>
+#include <vector>
+
+#include "world/chunk_coord.hpp"
+#include "world/edit.hpp"
+
+namespace vox::pipeline {
+
+struct EditResult;
+
+struct EditTask {
+  world::Edit edit;
+  std::function<void(const EditResult&)> done;
+};
+struct InspectTask {
+  // Runs on the pipeline thread between edits; with `cancelled` when the pipeline stopped
+  // before it could run (then on whichever thread found it).
+  std::function<void(bool cancelled)> run;
+};
+// Edits and inspections share one queue: an inspection sees every edit queued before it.
+using OrderedTask = std::variant<EditTask, InspectTask>;
+
+using LoadOwner = uint64_t;
+
+// Part of an owner's request taken into a batch. `done` is set on the request's last
+// slice: run it once the slice's chunks are published.
+struct LoadSlice {
+  LoadOwner owner = 0;
+  std::vector<world::ChunkCoord> chunks;
+  std::function<void()> done;
+};
+
+struct Batch {
+  std::vector<OrderedTask> ordered;  // every queued edit and inspection, in arrival order
+  std::vector<LoadSlice> loads;      // round robin over owners, nearest first per owner
+};
+
+class BatchScheduler {
+ public:
+  // The work a chunk still needs (0: nothing, e.g. it is meshed already). Called once per
+  // chunk considered, in the order the chunks are taken, so it may count shared work once.
+  using Cost = std::function<size_t(world::ChunkCoord)>;
+
+  explicit BatchScheduler(size_t group = 32) : group_(group) {}
+
+  void add(OrderedTask task);
+  // Replaces `owner`'s pending request with `chunks` (nearest first). Returns the replaced
+  // request's `done` (empty when none): the caller runs it, outside its locks.
+  std::function<void()> request(LoadOwner owner, std::vector<world::ChunkCoord> chunks,
+                                std::function<void()> done = {});
+  // Drops the owner's queued loads; returns their `done` like request().
+  std::function<void()> drop(LoadOwner owner);
+
+  // The next batch: all ordered tasks, then loads round robin, `group` chunks per turn,
+  // until `load_budget` is spent (chunks of zero cost are skipped and cost no turn).
+  // A budget of 0 takes no loads (e.g. while memory is full).
+  Batch next(size_t load_budget, const Cost& cost);
+
+  bool has_ordered() const { return !ordered_.empty(); }
+  size_t ordered_count() const { return ordered_.size(); }
+  bool has_loads() const { return !rotation_.empty(); }
+  size_t queued_load_chunks() const { return queued_chunks_; }
+  size_t load_owners() const { return rotation_.size(); }
+  // Everything queued, for shutdown: ordered tasks first, then every request's `done`.
+  std::vector<OrderedTask> take_all_ordered();
+  std::vector<std::function<void()>> take_all_load_callbacks();
+
+ private:
+  struct Request {
+    std::vector<world::ChunkCoord> chunks;
+    size_t next = 0;  // chunks before it were taken
+    std::function<void()> done;
+  };
+
+  const size_t group_;
+  std::deque<OrderedTask> ordered_;
+  std::unordered_map<LoadOwner, Request> requests_;
+  std::deque<LoadOwner> rotation_;  // owners with a request, next to serve at the front
+  size_t queued_chunks_ = 0;
+};
+
+// The chunks within `radius` (Euclidean, chunk units) of `center`, nearest first (ties by
+// coordinate, so the order is deterministic).
+std::vector<world::ChunkCoord> ball_nearest_first(world::ChunkCoord center, int radius);
+// Every chunk of the inclusive box [lo, hi], nearest its centre first.
+std::vector<world::ChunkCoord> box_nearest_first(world::ChunkCoord lo, world::ChunkCoord hi);
+
+}  // namespace vox::pipeline

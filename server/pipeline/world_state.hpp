@@ -1,0 +1,67 @@
+// The pipeline thread's world: the chunk map, per-chunk residency (modified, meshed, last
+// used), the mesh workers, generation of missing chunks and eviction. Pipeline thread only;
+// nothing here is synchronised.
+#pragma once
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/task_arena.h>
+
+#include <chrono>
+#include <map>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "mesh/marching_cubes.hpp"
+#include "mesh/padded_block.hpp"
+#include "pipeline/mesh_store.hpp"
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
+#include "world/chunk_map.hpp"
+#include "world/terrain_generator.hpp"
+
+namespace vox::pipeline {
+
+using Clock = std::chrono::steady_clock;
+
+struct MeshWorker {
+  mesh::PaddedBlock block;
+  mesh::MeshScratch scratch;
+  proto::CodecScratch codec;
+  proto::ZstdCodec zstd;
+};
+
+struct WorldState {
+  explicit WorldState(int threads);
+
+  struct ChunkInfo {
+    bool modified = false;
+    bool meshed = false;  // its mesh is in the store (so its neighbours were loaded)
+    Clock::time_point last_used;
+  };
+  world::ChunkMap chunks;
+  std::unordered_map<world::ChunkCoord, ChunkInfo, world::ChunkCoordHash> info;
+  tbb::task_arena arena;
+  tbb::enumerable_thread_specific<std::unique_ptr<MeshWorker>> workers{
+      [] { return std::make_unique<MeshWorker>(); }};
+  uint64_t next_version = 1;
+  size_t modified_count = 0;  // chunks with info.modified
+  // Surface heights of the columns generated during one load pass.
+  std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
+  Clock::time_point last_eviction = Clock::now();
+
+  // Generates every chunk of `coords` that is missing, in parallel over columns so each
+  // column's surface heights are computed once; marks present ones used. Returns the number
+  // generated.
+  size_t ensure_loaded(const std::vector<world::ChunkCoord>& coords,
+                       const world::TerrainGenerator& gen, Clock::time_point now);
+
+  // Drops unmodified chunks (and their meshes) that no one but the store holds, least
+  // recently used first: every one unused for `idle`, then more until the chunks and
+  // meshes take at most `target_bytes`. A chunk used within `min_age` always stays (a view
+  // may be about to send it). Returns the number dropped.
+  size_t evict(MeshStore& meshes, Clock::time_point now, std::chrono::milliseconds idle,
+               std::chrono::milliseconds min_age, size_t target_bytes);
+};
+
+}  // namespace vox::pipeline

@@ -1,0 +1,199 @@
+// The pipeline's batching policy, rule by rule, including the adversarial cases that once
+// made an edit wait a minute behind loads.
+#include "server/pipeline/batch_scheduler.hpp"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "server/pipeline/memory_budget.hpp"
+#include "server/pipeline/world_pipeline.hpp"
+
+namespace vox::pipeline {
+namespace {
+
+using world::ChunkCoord;
+
+EditTask edit_tagged(int tag, std::vector<int>& log) {
+  return EditTask{world::Brush{{0, 0, 0}, 1, 1, false, std::nullopt},
+                  [tag, &log](const EditResult&) { log.push_back(tag); }};
+}
+
+size_t unit_cost(ChunkCoord) { return 1; }
+
+std::vector<ChunkCoord> row(int owner_tag, int n) {
+  std::vector<ChunkCoord> out;
+  for (int i = 0; i < n; ++i) out.push_back({owner_tag, 0, i});
+  return out;
+}
+
+TEST(BatchScheduler, EveryQueuedEditIsInTheNextBatchWhateverTheLoadBacklog) {
+  BatchScheduler s(32);
+  for (LoadOwner o = 1; o <= 20; ++o) s.request(o, row(static_cast<int>(o), 7153));  // 20 radius-12 views
+  std::vector<int> log;
+  for (int i = 0; i < 5000; ++i) s.add(edit_tagged(i, log));
+  const Batch b = s.next(64, unit_cost);
+  ASSERT_EQ(b.ordered.size(), 5000u);
+  for (size_t i = 0; i < b.ordered.size(); ++i) std::get<EditTask>(b.ordered[i]).done({});
+  for (int i = 0; i < 5000; ++i) ASSERT_EQ(log[i], i) << "arrival order";
+  size_t load_chunks = 0;
+  for (const auto& slice : b.loads) load_chunks += slice.chunks.size();
+  EXPECT_EQ(load_chunks, 64u) << "loads only fill the budget";
+  EXPECT_FALSE(s.has_ordered());
+}
+
+TEST(BatchScheduler, EditsAndInspectionsKeepTheirArrivalOrder) {
+  BatchScheduler s;
+  std::vector<int> log;
+  s.add(edit_tagged(1, log));
+  s.add(InspectTask{[&log](bool) { log.push_back(2); }});
+  s.add(edit_tagged(3, log));
+  Batch b = s.next(0, unit_cost);
+  ASSERT_EQ(b.ordered.size(), 3u);
+  std::get<EditTask>(b.ordered[0]).done({});
+  std::get<InspectTask>(b.ordered[1]).run(false);
+  std::get<EditTask>(b.ordered[2]).done({});
+  EXPECT_EQ(log, (std::vector<int>{1, 2, 3}));
+}
+
+TEST(BatchScheduler, ABudgetOfZeroTakesNoLoads) {
+  BatchScheduler s;
+  s.request(1, row(1, 10));
+  const Batch b = s.next(0, unit_cost);
+  EXPECT_TRUE(b.loads.empty());
+  EXPECT_EQ(s.queued_load_chunks(), 10u);
+}
+
+TEST(BatchScheduler, ANewViewReplacesTheOwnersQueuedLoads) {
+  BatchScheduler s;
+  s.request(7, row(1, 1000));
+  s.request(7, row(2, 1000));
+  s.request(7, row(3, 5));  // the newest view wins
+  EXPECT_EQ(s.queued_load_chunks(), 5u);
+  EXPECT_EQ(s.load_owners(), 1u);
+  const Batch b = s.next(100, unit_cost);
+  ASSERT_EQ(b.loads.size(), 1u);
+  EXPECT_EQ(b.loads[0].chunks, row(3, 5));
+  EXPECT_FALSE(s.has_loads());
+}
+
+TEST(BatchScheduler, ADroppedOwnerLeavesNoQueuedWork) {
+  BatchScheduler s;
+  for (LoadOwner o = 1; o <= 50; ++o) s.request(o, row(static_cast<int>(o), 7153));
+  for (LoadOwner o = 1; o <= 50; ++o) s.drop(o);
+  EXPECT_EQ(s.queued_load_chunks(), 0u);
+  EXPECT_EQ(s.load_owners(), 0u);
+  EXPECT_TRUE(s.next(1000, unit_cost).loads.empty());
+}
+
+TEST(BatchScheduler, OwnersAreServedRoundRobinSoABigViewDoesNotDelayAnothersFirstChunks) {
+  BatchScheduler s(32);
+  s.request(1, row(1, 7153));  // a huge view queued first
+  s.request(2, row(2, 40));    // a new player's small view behind it
+  const Batch b = s.next(64, unit_cost);
+  ASSERT_EQ(b.loads.size(), 2u);
+  EXPECT_EQ(b.loads[0].owner, 1u);
+  EXPECT_EQ(b.loads[0].chunks.size(), 32u);
+  EXPECT_EQ(b.loads[1].owner, 2u);
+  EXPECT_EQ(b.loads[1].chunks.size(), 32u);
+  EXPECT_EQ(b.loads[1].chunks.front(), (ChunkCoord{2, 0, 0})) << "its nearest chunk first";
+  // Next batch: owner 1 again (the rotation goes on), owner 2 finishes, owner 1 takes
+  // what is left of the budget.
+  const Batch b2 = s.next(64, unit_cost);
+  ASSERT_EQ(b2.loads.size(), 3u);
+  EXPECT_EQ(b2.loads[0].owner, 1u);
+  EXPECT_EQ(b2.loads[1].owner, 2u);
+  EXPECT_EQ(b2.loads[1].chunks.size(), 8u);
+  EXPECT_EQ(b2.loads[2].owner, 1u);
+  EXPECT_EQ(b2.loads[2].chunks.size(), 24u);
+  EXPECT_EQ(s.load_owners(), 1u);
+}
+
+TEST(BatchScheduler, ChunksWithNothingToDoCostNoTurnAndNoBudget) {
+  BatchScheduler s(4);
+  s.request(1, row(1, 100));
+  // Only every tenth chunk needs work (a view that moved by one chunk).
+  auto cost = [](ChunkCoord c) { return c.z % 10 == 0 ? size_t{5} : size_t{0}; };
+  const Batch b = s.next(20, cost);
+  ASSERT_EQ(b.loads.size(), 1u);
+  EXPECT_EQ(b.loads[0].chunks, (std::vector<ChunkCoord>{{1, 0, 0}, {1, 0, 10}, {1, 0, 20}, {1, 0, 30}}));
+}
+
+TEST(BatchScheduler, DoneRunsWithTheLastSliceOrIsHandedBackWhenReplaced) {
+  BatchScheduler s(8);
+  int finished = 0;
+  s.request(1, row(1, 10), [&] { ++finished; });
+  Batch b = s.next(8, unit_cost);
+  ASSERT_EQ(b.loads.size(), 1u);
+  EXPECT_FALSE(b.loads[0].done);
+  b = s.next(8, unit_cost);
+  ASSERT_TRUE(b.loads[0].done);
+  b.loads[0].done();
+  EXPECT_EQ(finished, 1);
+  s.request(2, row(2, 10), [&] { finished += 10; });
+  auto replaced = s.request(2, row(2, 3));
+  ASSERT_TRUE(replaced);
+  replaced();
+  EXPECT_EQ(finished, 11);
+}
+
+TEST(BatchScheduler, ARequestWhoseChunksAllExistFinishesAtOnce) {
+  BatchScheduler s;
+  bool done = false;
+  s.request(1, row(1, 500), [&] { done = true; });
+  Batch b = s.next(10, [](ChunkCoord) { return size_t{0}; });
+  ASSERT_EQ(b.loads.size(), 1u);
+  EXPECT_TRUE(b.loads[0].chunks.empty());
+  b.loads[0].done();
+  EXPECT_TRUE(done);
+  EXPECT_FALSE(s.has_loads());
+}
+
+TEST(BatchScheduler, BallIsNearestFirstAndHoldsExactlyTheViewSphere) {
+  const auto ball = ball_nearest_first({5, -3, 2}, 4);
+  EXPECT_EQ(ball.front(), (ChunkCoord{5, -3, 2}));
+  int64_t last = -1;
+  std::set<ChunkCoord> unique(ball.begin(), ball.end());
+  EXPECT_EQ(unique.size(), ball.size());
+  for (const ChunkCoord& c : ball) {
+    const int64_t dx = c.x - 5, dy = c.y + 3, dz = c.z - 2, d = dx * dx + dy * dy + dz * dz;
+    EXPECT_LE(d, 16);
+    EXPECT_GE(d, last);
+    last = d;
+  }
+  EXPECT_EQ(ball.size(), 257u);  // chunks within radius 4
+}
+
+TEST(MemoryBudget, EvictsAboveNinetyPercentDownToEighty) {
+  const MemoryBudget b(1000 * 1000);
+  EXPECT_FALSE(b.should_evict(900 * 1000));
+  EXPECT_TRUE(b.should_evict(900 * 1000 + 1));
+  EXPECT_EQ(b.evict_target(100 * 1000), 700u * 1000);
+  EXPECT_EQ(b.evict_target(2000 * 1000), 0u);
+}
+
+TEST(MemoryBudget, LoadsStopAtTheBudgetAndAPassCannotOvershootTenPercent) {
+  const size_t max = 100u << 20;
+  const MemoryBudget b(max);
+  EXPECT_EQ(b.load_work(max, 2048), 0u);
+  EXPECT_EQ(b.load_work(max + 5, 2048), 0u);
+  EXPECT_EQ(b.load_work(0, 2048), 2048u);
+  const size_t near = max - 1;
+  const size_t work = b.load_work(near, 2048);
+  EXPECT_GT(work, 0u);
+  EXPECT_LE(near + work * MemoryBudget::kBytesPerLoadWork, max + max / 10);
+  EXPECT_FALSE(b.may_generate(max, 0));
+  EXPECT_TRUE(b.may_generate(max - 1, 0));
+  EXPECT_TRUE(b.may_generate(max / 2, 100));
+  EXPECT_FALSE(b.may_generate(max - (1 << 20), 300)) << "300 chunks could take 28 MiB";
+}
+
+TEST(MemoryBudget, NoBudgetMeansNoLimit) {
+  const MemoryBudget b;
+  EXPECT_FALSE(b.should_evict(SIZE_MAX / 2));
+  EXPECT_EQ(b.load_work(SIZE_MAX / 2, 77), 77u);
+  EXPECT_TRUE(b.may_generate(SIZE_MAX / 2, 1000));
+}
+
+}  // namespace
+}  // namespace vox::pipeline
