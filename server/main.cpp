@@ -4,30 +4,82 @@
 #include <utility>
 #include <boost/asio.hpp>
 #include <boost/program_options.hpp>
+#include <cmath>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <thread>
+#include <unistd.h>
 
+#include "metrics/metrics_endpoint.hpp"
 #include "net/server.hpp"
 
 namespace po = boost::program_options;
 namespace asio = boost::asio;
 
+namespace {
+
+// "1073741824", "512M", "2G", "64K" (binary units) -> bytes; nullopt when malformed.
+std::optional<size_t> parse_bytes(const std::string& text) {
+  size_t used = 0;
+  unsigned long long value = 0;
+  try {
+    value = std::stoull(text, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  const std::string unit = text.substr(used);
+  int shift = 0;
+  if (unit == "K" || unit == "KiB") shift = 10;
+  else if (unit == "M" || unit == "MiB") shift = 20;
+  else if (unit == "G" || unit == "GiB") shift = 30;
+  else if (!unit.empty()) return std::nullopt;
+  if (value > (SIZE_MAX >> shift)) return std::nullopt;
+  return static_cast<size_t>(value) << shift;
+}
+
+// Written whole (renamed into place), so a script never reads half a number.
+void write_port_file(const std::string& path, uint16_t port) {
+  const std::string tmp = path + ".tmp";
+  std::ofstream(tmp) << port << "\n";
+  std::rename(tmp.c_str(), path.c_str());
+}
+
+// Half the machine's memory, at most 4 GiB: a dedicated server's share.
+size_t default_max_memory() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  const size_t half = pages > 0 && page > 0 ? static_cast<size_t>(pages) * page / 2 : size_t{1} << 30;
+  return std::min(half, size_t{4} << 30);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   vox::net::ServerConfig net;
   vox::pipeline::PipelineConfig world;
-  std::string port_file, log_level;
+  std::string port_file, log_level, max_memory, metrics_port_file;
+  int metrics_port = -1;
   int io_threads = 1, stats_seconds = 10;
-  long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000;
+  long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000;
   po::options_description opts("voxeld options");
   opts.add_options()("help,h", "show this help")(
       "port", po::value<uint16_t>(&net.port)->default_value(7777), "TCP port (0: pick a free one)")(
       "bind", po::value<std::string>(&net.bind)->default_value("127.0.0.1"), "address to listen on")(
       "port-file", po::value<std::string>(&port_file), "write the bound port to this file")(
+      "metrics-port", po::value<int>(&metrics_port), "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)")(
+      "metrics-port-file", po::value<std::string>(&metrics_port_file), "write the metrics port to this file")(
       "seed", po::value<uint64_t>(&world.seed)->default_value(1), "world seed")(
       "threads", po::value<int>(&world.threads)->default_value(0), "world pipeline threads (0: all cores)")(
       "io-threads", po::value<int>(&io_threads)->default_value(1), "network threads")(
-      "max-clients", po::value<size_t>(&net.max_clients)->default_value(256), "connections beyond this are refused")(
+      "max-clients", po::value<size_t>(&net.max_clients)->default_value(256), "players beyond this are refused (SERVER_FULL)")(
+      "max-handshaking", po::value<size_t>(&net.max_handshaking)->default_value(64), "connections before Hello (not players) at once")(
+      "max-per-address", po::value<size_t>(&net.max_per_address)->default_value(16), "connections from one address (0: no cap)")(
+      "max-memory", po::value<std::string>(&max_memory), "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)")(
+      "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000), "samples per second a player's edits may touch (0: unlimited)")(
+      "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000), "samples a player's edits may touch at once")(
+      "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(5), "SetViews per second per player; more are coalesced (0: unlimited)")(
+      "message-rate", po::value<double>(&net.message_rate)->default_value(200), "messages per second per connection before it is read slower (0: unlimited)")(
+      "frame-timeout-ms", po::value<long>(&frame_ms)->default_value(10000), "a started frame must complete within this")(
       "max-view-radius", po::value<uint32_t>(&net.max_view_radius)->default_value(12), "largest view radius in chunks")(
       "idle-timeout-ms", po::value<long>(&idle_ms)->default_value(60000), "disconnect clients silent this long")(
       "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000), "time allowed for Hello")(
@@ -48,26 +100,53 @@ int main(int argc, char** argv) {
   }
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
   if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 || write_ms <= 0 ||
-      net.max_view_radius > 32 || net.max_clients < 1) {
+      frame_ms <= 0 || metrics_port > 65535 || (vm.count("metrics-port") && metrics_port < 0) ||
+      net.max_view_radius > 32 || net.max_clients < 1 || net.max_handshaking < 1) {
     std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, --max-clients >= 1, "
-                 "timeouts > 0\n";
+                 "--max-handshaking >= 1, timeouts > 0\n";
+    return 2;
+  }
+  // The largest edit (a box of side 2 * max radius) must fit in the budget's burst.
+  const double largest_edit = std::pow(2.0 * world.limits.max_radius + 5, 3);
+  if (net.edit_budget_rate > 0 && net.edit_budget_burst < largest_edit) {
+    std::cerr << "voxeld: --edit-burst must be at least " << static_cast<uint64_t>(largest_edit)
+              << " samples (the largest edit)\n";
+    return 2;
+  }
+  if (max_memory.empty()) {
+    world.max_memory = default_max_memory();
+  } else if (auto bytes = parse_bytes(max_memory); bytes && *bytes >= (size_t{64} << 20)) {
+    world.max_memory = *bytes;
+  } else {
+    std::cerr << "voxeld: --max-memory must be bytes with an optional K/M/G suffix, at least 64M\n";
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
   net.idle_timeout = std::chrono::milliseconds(idle_ms);
   net.handshake_timeout = std::chrono::milliseconds(handshake_ms);
   net.write_timeout = std::chrono::milliseconds(write_ms);
+  net.frame_timeout = std::chrono::milliseconds(frame_ms);
+  if (net.max_per_address == 0) spdlog::warn("--max-per-address 0: one address may fill the server");
+  spdlog::info("memory budget {} MiB (--max-memory); per player: {:.0f} edit samples/s (burst {:.0f}), {} SetViews/s",
+               world.max_memory >> 20, net.edit_budget_rate, net.edit_budget_burst, net.set_view_rate);
 
   try {
-    vox::pipeline::WorldPipeline pipeline(world);
+    vox::net::ServerCounters counters;
+    vox::pipeline::PipelineObserver observer{
+        .batch = [&counters](double s, size_t, size_t) { counters.batch_duration.observe(s); },
+        .remesh = [&counters](double s, size_t) { counters.remesh_duration.observe(s); }};
+    vox::pipeline::WorldPipeline pipeline(world, observer);
     asio::io_context io;
-    vox::net::Server server(io, net, pipeline);
+    vox::net::Server server(io, net, pipeline, counters);
     server.start();
-    if (!port_file.empty()) {
-      const std::string tmp = port_file + ".tmp";
-      std::ofstream(tmp) << server.port() << "\n";
-      std::rename(tmp.c_str(), port_file.c_str());
+    std::unique_ptr<vox::metrics::MetricsEndpoint> metrics;
+    if (metrics_port >= 0) {
+      metrics = std::make_unique<vox::metrics::MetricsEndpoint>(net.bind, static_cast<uint16_t>(metrics_port),
+                                                                counters, pipeline);
+      spdlog::info("metrics on http://{}:{}/metrics", net.bind, metrics->port());
+      if (!metrics_port_file.empty()) write_port_file(metrics_port_file, metrics->port());
     }
+    if (!port_file.empty()) write_port_file(port_file, server.port());
     if (stats_seconds > 0) server.start_stats_log(std::chrono::seconds(stats_seconds));
     asio::signal_set signals(io, SIGINT, SIGTERM);
     signals.async_wait([&](boost::system::error_code ec, int signal) {

@@ -297,7 +297,11 @@ TEST(Server, RefusesClientsOverTheLimitAndSilentHandshakes) {
   test::ServerProcess server({"--max-clients", "2", "--handshake-timeout-ms", "300"});
   auto a = player(server, "a");
   auto b = player(server, "b");
-  auto c = connect_to(server);
+  auto c = connect_to(server);  // connecting is fine: players are counted at Hello
+  wire::Envelope hello;
+  hello.mutable_hello()->set_protocol_version(1);
+  hello.mutable_hello()->set_player_name("c");
+  c->send(hello);
   EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::SERVER_FULL);
   b.reset();  // a slot frees up
   auto silent = std::make_unique<Client>();
@@ -349,7 +353,7 @@ namespace {
 // are refused with TOO_MANY_EDITS, every edit still gets exactly one result, and the
 // server goes on serving.
 TEST(Server, EditFloodIsBoundedPerClient) {
-  test::ServerProcess server;
+  test::ServerProcess server({"--edit-budget", "0"});  // the in-flight limit alone
   auto c = player(server, "flood");
   const float y = surface_y(16, 16);
   constexpr uint64_t kEdits = 2000;

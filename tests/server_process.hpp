@@ -10,6 +10,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -30,9 +31,22 @@ class ServerProcess {
     dir_ = std::filesystem::temp_directory_path() / ("voxeld_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
     std::filesystem::create_directories(dir_);
     const std::string port_file = (dir_ / "port").string();
-    std::vector<std::string> args = {VOXELD_PATH, "--port", "0", "--bind", "127.0.0.1", "--port-file", port_file,
-                                     "--threads", "2", "--stats-interval", "0", "--log-level", "warn"};
+    std::vector<std::string> args = {VOXELD_PATH, "--port", "0", "--bind", "127.0.0.1", "--port-file", port_file};
+    // Defaults a test may override: every test client comes from 127.0.0.1, so the
+    // per-address cap is off unless a test sets it.
+    const std::vector<std::pair<std::string, std::string>> defaults = {
+        {"--threads", "2"}, {"--stats-interval", "0"}, {"--log-level", "warn"}, {"--max-per-address", "0"}};
+    for (const auto& [flag, value] : defaults) {
+      if (std::find(extra_args.begin(), extra_args.end(), flag) == extra_args.end()) {
+        args.push_back(flag);
+        args.push_back(value);
+      }
+    }
     args.insert(args.end(), extra_args.begin(), extra_args.end());
+    if (std::find(extra_args.begin(), extra_args.end(), "--metrics-port") != extra_args.end()) {
+      args.push_back("--metrics-port-file");
+      args.push_back((dir_ / "metrics_port").string());
+    }
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -72,6 +86,18 @@ class ServerProcess {
     if (std::getenv("VOXEL_KEEP_SERVER_LOGS") == nullptr) std::filesystem::remove_all(dir_, ec);
   }
   uint16_t port() const { return port_; }
+  std::filesystem::path log_path() const { return dir_ / "voxeld.log"; }
+  // With --metrics-port: the bound metrics port (written just after the main port file).
+  uint16_t metrics_port() const {
+    for (int i = 0; i < 500; ++i) {
+      std::ifstream in(dir_ / "metrics_port");
+      uint16_t port = 0;
+      if (in >> port && port != 0) return port;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // polling a file the child writes
+    }
+    return 0;
+  }
+  pid_t pid() const { return pid_; }
   // SIGTERM, then the exit code (-1 when it did not exit within the timeout).
   int terminate(std::chrono::seconds timeout = std::chrono::seconds(10)) {
     ::kill(pid_, SIGTERM);

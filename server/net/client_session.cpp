@@ -1,8 +1,8 @@
+// The session's lifecycle, read chain (frames, rate, timeouts) and write chain; the
+// message handlers are in session_handlers.cpp.
 #include "net/client_session.hpp"
 
 #include <spdlog/spdlog.h>
-
-#include <cmath>
 
 #include "net/wire_convert.hpp"
 #include "proto/mesh_codec.hpp"
@@ -10,6 +10,7 @@
 namespace vox::net {
 
 using world::ChunkCoord;
+using Clock = std::chrono::steady_clock;
 
 namespace {
 
@@ -29,27 +30,37 @@ std::vector<uint8_t> frame_of(const wire::Envelope& message) {
   return out;
 }
 
-bool finite(const wire::Vec3& v) {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
 }  // namespace
 
-ClientSession::ClientSession(asio::ip::tcp::socket socket, uint64_t id, const ServerConfig& config,
-                             pipeline::WorldPipeline& pipeline, ServerCounters& counters)
+ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, uint64_t id,
+                             const ServerConfig& config, pipeline::WorldPipeline& pipeline,
+                             SessionServices services)
     : socket_(std::move(socket)),
       strand_(asio::make_strand(socket_.get_executor())),
       handshake_timer_(strand_),
       idle_timer_(strand_),
       write_timer_(strand_),
+      frame_timer_(strand_),
+      read_pause_timer_(strand_),
+      view_timer_(strand_),
+      address_(std::move(address)),
       id_(id),
       config_(config),
       pipeline_(pipeline),
-      counters_(counters),
-      decoder_(config.max_frame_bytes) {}
+      counters_(services.counters),
+      services_(services),
+      decoder_(config.max_frame_bytes),
+      edit_budget_(config.edit_budget_rate, config.edit_budget_burst),
+      view_budget_(config.set_view_rate, config.set_view_burst),
+      message_budget_(config.message_rate, config.message_burst),
+      error_budget_(config.protocol_error_rate, config.protocol_error_burst) {
+  counters_.handshaking.fetch_add(1, std::memory_order_relaxed);
+}
 
 ClientSession::~ClientSession() {
-  if (player_) counters_.players.fetch_sub(1);
+  (player_ ? counters_.players : counters_.handshaking).fetch_sub(1);
+  counters_.session_bytes.fetch_sub(memory_bytes_.load(), std::memory_order_relaxed);
+  services_.admission.release(address_, player_);
   pipeline_.drop_view(id_);
 }
 
@@ -63,19 +74,22 @@ void ClientSession::start() {
       }
     });
     self->arm_idle_timer();
+    self->update_memory();
     self->read_more();
   });
 }
 
+// Idle means no complete message: bytes trickled in do not count.
 void ClientSession::arm_idle_timer() {
   idle_timer_.expires_after(config_.idle_timeout);
   idle_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
     if (!ec && !self->closing_)
-      self->send_error(wire::Error::IDLE_TIMEOUT, "nothing received for too long", true);
+      self->send_error(wire::Error::IDLE_TIMEOUT, "no complete message for too long", true);
   });
 }
 
 void ClientSession::read_more() {
+  if (closing_ || reading_paused_) return;
   socket_.async_read_some(
       asio::buffer(read_buffer_),
       asio::bind_executor(strand_, [self = shared_from_this()](boost::system::error_code ec,
@@ -87,17 +101,56 @@ void ClientSession::read_more() {
           return;
         }
         self->decoder_.feed({self->read_buffer_.data(), n});
-        while (auto frame = self->decoder_.next()) {
-          self->on_frame(*frame);
-          if (self->closing_) return;
-        }
-        if (!self->decoder_.error().empty()) {
-          self->send_error(wire::Error::FRAME_TOO_LARGE, self->decoder_.error(), true);
+        self->process_frames();
+      }));
+}
+
+// Handles the complete frames buffered; stops reading for a while when the client sends
+// faster than its message rate (TCP pushes back on it), then reads on.
+void ClientSession::process_frames() {
+  while (auto frame = decoder_.next()) {
+    ++frames_completed_;
+    arm_idle_timer();
+    on_frame(*frame);
+    if (closing_) return;
+    const auto wait = message_budget_.take(1, Clock::now());
+    if (wait.count() > 0) {
+      reading_paused_ = true;
+      ServerCounters::bump(counters_.reads_paused);
+      read_pause_timer_.expires_after(std::min(wait, std::chrono::milliseconds(1000)));
+      read_pause_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+        if (ec || self->closing_) return;
+        self->reading_paused_ = false;
+        self->process_frames();
+      });
+      return;
+    }
+  }
+  if (!decoder_.error().empty()) {
+    send_error(wire::Error::FRAME_TOO_LARGE, decoder_.error(), true);
+    return;
+  }
+  watch_partial_frame();
+  read_more();
+}
+
+// A frame that has started must finish within the frame timeout, so a client cannot hold
+// a connection by trickling bytes.
+void ClientSession::watch_partial_frame() {
+  if (decoder_.buffered() == 0 || frame_watch_) return;
+  frame_watch_ = true;
+  frame_timer_.expires_after(config_.frame_timeout);
+  frame_timer_.async_wait(
+      [self = shared_from_this(), seen = frames_completed_](boost::system::error_code ec) {
+        self->frame_watch_ = false;
+        if (ec || self->closing_) return;
+        if (self->frames_completed_ == seen && self->decoder_.buffered() > 0) {
+          self->send_error(wire::Error::FRAME_TIMEOUT,
+                           "a frame was not completed within the frame timeout", true);
           return;
         }
-        self->arm_idle_timer();
-        self->read_more();
-      }));
+        self->watch_partial_frame();  // frames completed meanwhile: watch the current one
+      });
 }
 
 void ClientSession::on_frame(const std::vector<uint8_t>& body) {
@@ -107,6 +160,11 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
     return;
   }
   if (has_unknown_fields(message)) {
+    // An Edit still gets its one EditResult.
+    if (message.body_case() == wire::Envelope::kEdit && player_) {
+      queue_result(message.edit().request_id(), wire::EditResult::BAD_VALUE,
+                   "the edit has fields this protocol version does not define");
+    }
     send_error(wire::Error::UNKNOWN_MESSAGE,
                "the message has fields this protocol version does not define", false);
     return;
@@ -136,170 +194,34 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
   }
 }
 
-void ClientSession::handle_hello(const wire::Hello& hello) {
-  if (player_) {
-    send_error(wire::Error::DUPLICATE_HELLO, "Hello was already received", false);
-    return;
-  }
-  if (hello.protocol_version() != kProtocolVersion) {
-    send_error(wire::Error::BAD_VERSION,
-               "protocol version " + std::to_string(hello.protocol_version()) +
-                   " is not supported (server speaks " + std::to_string(kProtocolVersion) + ")",
-               true);
-    return;
-  }
-  if (hello.player_name().empty() || hello.player_name().size() > 32) {
-    send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
-    return;
-  }
-  name_ = hello.player_name();
-  player_ = true;
-  handshake_timer_.cancel();
-  const uint64_t players = counters_.players.fetch_add(1) + 1;
-  wire::Envelope welcome;
-  auto* w = welcome.mutable_welcome();
-  w->set_server_version(config_.server_version);
-  w->set_world_seed(pipeline_.config().seed);
-  w->set_chunk_size(world::kChunkSize);
-  w->set_protocol_version(kProtocolVersion);
-  w->set_max_view_radius(config_.max_view_radius);
-  w->set_max_frame_bytes(static_cast<uint32_t>(config_.max_frame_bytes));
-  w->set_max_edit_radius(pipeline_.config().limits.max_radius);
-  w->set_max_edit_strength(pipeline_.config().limits.max_strength);
-  w->set_mesh_format(proto::kMeshFormat);
-  w->set_players(static_cast<uint32_t>(players));
-  w->set_max_edits_in_flight(static_cast<uint32_t>(config_.max_edits_in_flight));
-  queue_control(welcome);
-  boost::system::error_code ec;
-  const auto peer = socket_.remote_endpoint(ec);
-  spdlog::info("session {}: player '{}' joined from {}", id_, name_,
-               ec ? std::string("?") : peer.address().to_string());
-}
-
-void ClientSession::handle_set_view(const wire::SetView& view) {
-  const auto& limits = pipeline_.config().limits;
-  if (!finite(view.position())) {
-    send_error(wire::Error::BAD_VALUE, "SetView position must be finite", false);
-    return;
-  }
-  const float p[3] = {view.position().x(), view.position().y(), view.position().z()};
-  for (int a = 0; a < 3; ++a) {
-    if (p[a] < static_cast<float>(limits.world_min[a]) ||
-        p[a] > static_cast<float>(limits.world_max[a])) {
-      send_error(wire::Error::BAD_VALUE, "SetView position is outside the world", false);
-      return;
-    }
-  }
-  if (view.radius() > config_.max_view_radius) {
-    send_error(wire::Error::BAD_VALUE,
-               "view radius " + std::to_string(view.radius()) + " is over the limit of " +
-                   std::to_string(config_.max_view_radius),
-               false);
-    return;
-  }
-  const int r = static_cast<int>(view.radius());
-  const ChunkCoord center = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])),
-                                                  static_cast<int32_t>(std::floor(p[1])),
-                                                  static_cast<int32_t>(std::floor(p[2])));
-  {
-    std::lock_guard lock(view_mutex_);
-    view_center_ = center;
-    view_radius_ = r;
-  }
-  const std::vector<ChunkCoord> left = scheduler_.set_view(center, r);
-  if (!left.empty()) {
-    wire::Envelope unload;
-    for (const ChunkCoord& c : left) *unload.mutable_chunk_unload()->add_coords() = to_wire(c);
-    queue_control(unload);
-  }
-  // The pipeline loads what is missing (this view replaces the session's previous one);
-  // newly published meshes arrive through on_chunks_published.
-  pipeline_.set_view(id_, center, r);
-  pump();
-}
-
-void ClientSession::handle_edit(const wire::Edit& edit) {
-  WireEdit converted = edit_from_wire(edit);
-  const uint64_t request = edit.request_id();
-  if (converted.edit && edits_in_flight_ >= config_.max_edits_in_flight) {
-    // A client cannot queue unbounded work in the shared pipeline.
-    converted.edit.reset();
-    converted.status = wire::EditResult::TOO_MANY_EDITS;
-    converted.reason =
-        "over " + std::to_string(config_.max_edits_in_flight) + " edits still being applied";
-  }
-  if (!converted.edit) {
-    if (converted.unknown_enum) send_error(wire::Error::UNKNOWN_ENUM, converted.reason, false);
-    wire::Envelope result;
-    auto* r = result.mutable_edit_result();
-    r->set_request_id(request);
-    r->set_status(converted.status);
-    r->set_reason(converted.reason);
-    queue_control(result);
-    return;
-  }
-  counters_.edits.fetch_add(1, std::memory_order_relaxed);
-  ++edits_in_flight_;
-  pipeline_.submit(std::move(*converted.edit),
-                   [self = shared_from_this(), request](const pipeline::EditResult& r) {
-                     wire::Envelope result;  // built on the pipeline thread, queued on the strand
-                     auto* w = result.mutable_edit_result();
-                     w->set_request_id(request);
-                     w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
-                     w->set_reason(r.message);
-                     for (const ChunkCoord& c : r.changed_chunks)
-                       *w->add_changed_chunks() = to_wire(c);
-                     asio::post(self->strand_, [self, result = std::move(result)] {
-                       --self->edits_in_flight_;
-                       self->queue_control(result);
-                     });
-                   });
-}
-
-bool ClientSession::may_see(const std::vector<ChunkCoord>& chunks) const {
-  ChunkCoord center;
-  int64_t r;
-  {
-    std::lock_guard lock(view_mutex_);
-    center = view_center_;
-    r = view_radius_;
-  }
-  if (r < 0) return false;
-  for (const ChunkCoord& c : chunks) {
-    const int64_t dx = c.x - center.x, dy = c.y - center.y, dz = c.z - center.z;
-    if (dx * dx + dy * dy + dz * dz <= r * r) return true;
-  }
-  return false;
-}
-
-void ClientSession::on_chunks_published(std::shared_ptr<const std::vector<ChunkCoord>> chunks) {
-  asio::post(strand_, [self = shared_from_this(), chunks = std::move(chunks)] {
-    if (self->closing_ || !self->scheduler_.has_view()) return;
-    for (const ChunkCoord& c : *chunks) self->scheduler_.mark_stale(c);
-    self->pump();
-  });
-}
-
 void ClientSession::queue_control(const wire::Envelope& message) {
   if (closing_) return;
   control_.push_back(frame_of(message));
   control_bytes_ += control_.back().size();
   if (control_bytes_ > config_.max_control_bytes) {
-    spdlog::warn("session {}: '{}' does not read its messages; disconnecting", id_, name_);
-    counters_.disconnects.fetch_add(1);
-    shutdown();
+    drop_slow(DroppedBy::kSlowReader, "does not read its messages");
     return;
   }
   pump();
 }
 
+// Protocol errors: logged at most once per second per code (with a count of the others),
+// counted, sent; a client that keeps making kept-connection errors is closed.
 void ClientSession::send_error(wire::Error::Code code, const std::string& message, bool close) {
   if (closing_) return;
+  if (!close && error_budget_.take(1, Clock::now()).count() > 0) close = true;
+  const auto kind = static_cast<size_t>(code);
+  if (kind < counters_.errors_sent.size()) ServerCounters::bump(counters_.errors_sent[kind]);
+  const std::string& name = wire::Error::Code_Name(code);
+  if (auto suppressed = services_.logs.allow("error:" + name)) {
+    spdlog::info("session {}: {} ({}){}{}", id_, name, escape_for_log(message, 200),
+                 close ? ", closing" : "",
+                 *suppressed ? fmt::format(" [{} more {} since the last such line]", *suppressed, name)
+                             : std::string());
+  }
   wire::Envelope error;
   error.mutable_error()->set_code(code);
   error.mutable_error()->set_message(message);
-  spdlog::info("session {}: {} ({}){}", id_, wire::Error::Code_Name(code), message,
-               close ? ", closing" : "");
   queue_control(error);
   if (close) {
     closing_ = true;
@@ -317,6 +239,17 @@ void ClientSession::close_with_error(wire::Error::Code code, std::string message
   asio::post(strand_, [self = shared_from_this(), code, message = std::move(message)] {
     self->send_error(code, message, true);
   });
+}
+
+void ClientSession::drop_slow(DroppedBy why, const char* what) {
+  ServerCounters::bump(counters_.dropped[static_cast<size_t>(why)]);
+  counters_.disconnects.fetch_add(1);
+  if (auto suppressed = services_.logs.allow(std::string("dropped:") + what)) {
+    spdlog::warn("session {}: '{}' {}; disconnecting{}", id_, log_name_, what,
+                 *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
+                             : std::string());
+  }
+  shutdown();
 }
 
 // Appends the newest version of the nearest stale chunk the client does not hold yet
@@ -345,25 +278,26 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
 void ClientSession::pump() {
   if (writing_ || !socket_.is_open()) return;
   write_buffer_.clear();
+  size_t messages = 0;
   while (!control_.empty() && write_buffer_.size() < config_.max_bytes_in_flight) {
     write_buffer_.insert(write_buffer_.end(), control_.front().begin(), control_.front().end());
     control_bytes_ -= control_.front().size();
     control_.pop_front();
+    ++messages;
   }
   if (!closing_) {
     while (write_buffer_.size() < config_.max_bytes_in_flight && append_next_mesh(write_buffer_)) {
+      ++messages;
     }
   }
   if (write_buffer_.empty()) return;
+  counters_.messages_sent.fetch_add(messages, std::memory_order_relaxed);
   writing_ = true;
   if (!closing_) {
     write_timer_.expires_after(config_.write_timeout);
     write_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
       if (ec || !self->writing_) return;
-      spdlog::warn("session {}: '{}' stopped reading (a write took over {} ms); disconnecting",
-                   self->id_, self->name_, self->config_.write_timeout.count());
-      self->counters_.disconnects.fetch_add(1);
-      self->shutdown();
+      self->drop_slow(DroppedBy::kWriteTimeout, "stopped reading (a write took too long)");
     });
   }
   asio::async_write(socket_, asio::buffer(write_buffer_),
@@ -380,8 +314,20 @@ void ClientSession::pump() {
                         return;
                       }
                       if (!self->closing_) self->write_timer_.cancel();
+                      self->update_memory();
                       self->pump();
                     }));
+}
+
+// The session's accounted memory: its view map and stale heap, queued control frames,
+// the write and read buffers and a partial frame.
+void ClientSession::update_memory() {
+  constexpr size_t kPerVisibleChunk = 64;  // map node + heap entry
+  const size_t bytes = sizeof(ClientSession) + scheduler_.visible_count() * kPerVisibleChunk +
+                       control_bytes_ + write_buffer_.capacity() + decoder_.buffered() +
+                       results_.size() * 64;
+  const size_t old = memory_bytes_.exchange(bytes, std::memory_order_relaxed);
+  counters_.session_bytes.fetch_add(bytes - old, std::memory_order_relaxed);  // wraps: exact
 }
 
 void ClientSession::shutdown() {
@@ -389,15 +335,26 @@ void ClientSession::shutdown() {
   handshake_timer_.cancel();
   idle_timer_.cancel();
   write_timer_.cancel();
+  frame_timer_.cancel();
+  read_pause_timer_.cancel();
+  view_timer_.cancel();
   if (socket_.is_open()) {
     boost::system::error_code ignored;
     socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
     socket_.close(ignored);
-    if (player_) spdlog::info("session {}: player '{}' left", id_, name_);
+    if (player_) {
+      if (auto suppressed = services_.logs.allow("left", 20)) {
+        spdlog::info("session {}: player '{}' left{}", id_, log_name_,
+                     *suppressed ? fmt::format(" [{} more left]", *suppressed) : std::string());
+      }
+    }
   }
   scheduler_.clear();
   control_.clear();
+  control_bytes_ = 0;
+  pending_view_.reset();
   pipeline_.drop_view(id_);  // its queued loads go with it
+  update_memory();
 }
 
 }  // namespace vox::net

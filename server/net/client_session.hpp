@@ -7,11 +7,16 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
+#include "net/admission_control.hpp"
 #include "net/asio.hpp"
+#include "net/log_hygiene.hpp"
+#include "net/result_order.hpp"
 #include "net/send_scheduler.hpp"
 #include "net/server_counters.hpp"
+#include "net/token_bucket.hpp"
 #include "pipeline/world_pipeline.hpp"
 #include "proto/framing.hpp"
 #include "voxel.pb.h"
@@ -23,7 +28,9 @@ namespace asio = boost::asio;
 struct ServerConfig {
   std::string bind = "127.0.0.1";
   uint16_t port = 7777;
-  size_t max_clients = 256;
+  size_t max_clients = 256;      // players (past Hello)
+  size_t max_handshaking = 64;   // connections before Hello, not counted in max_clients
+  size_t max_per_address = 16;   // connections from one address (0: no cap)
   uint32_t max_view_radius = 12;            // chunks
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
@@ -33,13 +40,34 @@ struct ServerConfig {
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect
-  std::string server_version = "voxeld 0.1.0";
+  std::chrono::milliseconds frame_timeout{10000};  // a started frame not finished in this time
+  // Per-session budgets (token buckets; rate <= 0: unlimited). An edit costs the samples
+  // its box touches (a 64^3 stamp: 274,625).
+  double edit_budget_rate = 300000;   // samples per second
+  double edit_budget_burst = 600000;  // samples
+  double set_view_rate = 5;           // per second; more are coalesced into the newest
+  double set_view_burst = 10;
+  double message_rate = 200;          // messages per second; over it the session stops reading
+  double message_burst = 400;
+  double protocol_error_rate = 5;     // kept-connection errors per second; over it: closed
+  double protocol_error_burst = 20;
+  std::string server_version = "voxeld 0.2.0";
+};
+
+// What every session shares with the server. Any thread.
+struct SessionServices {
+  ServerCounters& counters;
+  AdmissionGate& admission;
+  SharedLogRateLimit& logs;
 };
 
 class ClientSession : public std::enable_shared_from_this<ClientSession> {
  public:
-  ClientSession(asio::ip::tcp::socket socket, uint64_t id, const ServerConfig& config,
-                pipeline::WorldPipeline& pipeline, ServerCounters& counters);
+  // `address` was admitted (AdmissionGate::connect) for this connection; the session
+  // releases it when it ends.
+  ClientSession(asio::ip::tcp::socket socket, std::string address, uint64_t id,
+                const ServerConfig& config, pipeline::WorldPipeline& pipeline,
+                SessionServices services);
   ~ClientSession();
 
   void start();  // any thread, once
@@ -54,36 +82,62 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void close_with_error(wire::Error::Code code, std::string message);
   uint64_t id() const { return id_; }
   bool is_player() const { return player_.load(std::memory_order_relaxed); }
+  // Any thread: the session's accounted memory (view map, queues, buffers), refreshed on
+  // its strand.
+  size_t memory_bytes() const { return memory_bytes_.load(std::memory_order_relaxed); }
 
  private:
   // All strand only.
   void read_more();
+  void process_frames();
+  void watch_partial_frame();
   void on_frame(const std::vector<uint8_t>& body);
   void handle_hello(const wire::Hello& hello);
+  void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
+  void apply_view(world::ChunkCoord center, int radius);
   void handle_edit(const wire::Edit& edit);
+  void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
+                    uint32_t retry_after_ms = 0);
   void send_error(wire::Error::Code code, const std::string& message, bool close);
   void queue_control(const wire::Envelope& message);
   void pump();
   bool append_next_mesh(std::vector<uint8_t>& out);
   void arm_idle_timer();
+  void drop_slow(DroppedBy why, const char* what);
   void shutdown();
+  void update_memory();
 
   asio::ip::tcp::socket socket_;
   asio::strand<asio::any_io_executor> strand_;
-  asio::steady_timer handshake_timer_, idle_timer_, write_timer_;
+  asio::steady_timer handshake_timer_, idle_timer_, write_timer_, frame_timer_, read_pause_timer_,
+      view_timer_;
+  const std::string address_;  // the peer's address, as admitted
   const uint64_t id_;
   const ServerConfig& config_;
   pipeline::WorldPipeline& pipeline_;
   ServerCounters& counters_;
+  SessionServices services_;
   std::atomic<bool> player_{false};
+  std::atomic<size_t> memory_bytes_{0};
 
   proto::FrameDecoder decoder_;
   std::array<uint8_t, 16 * 1024> read_buffer_;
-  std::string name_;
+  uint64_t frames_completed_ = 0;
+  bool frame_watch_ = false;      // frame_timer_ is armed for a partial frame
+  bool reading_paused_ = false;   // over the message rate: read_pause_timer_ resumes
+  std::string name_;              // as the client sent it
+  std::string log_name_;          // escaped, for logs
   bool closing_ = false;
   bool writing_ = false;
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued
+  TokenBucket edit_budget_, view_budget_, message_budget_, error_budget_;
+  ResultOrder results_;
+  struct PendingView {
+    world::ChunkCoord center;
+    int radius = 0;
+  };
+  std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
 
   SendScheduler scheduler_;
   mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)

@@ -2,10 +2,21 @@
 
 #include <spdlog/spdlog.h>
 
+#include "proto/framing.hpp"
+
 namespace vox::net {
 
-Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline)
-    : io_(io), config_(std::move(config)), pipeline_(pipeline), acceptor_(io), stats_timer_(io) {}
+Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline,
+               ServerCounters& counters)
+    : io_(io),
+      config_(std::move(config)),
+      pipeline_(pipeline),
+      acceptor_(io),
+      stats_timer_(io),
+      housekeeping_timer_(io),
+      counters_(counters),
+      admission_(AdmissionLimits{config_.max_clients, config_.max_handshaking,
+                                 config_.max_per_address}) {}
 
 Server::~Server() {
   if (subscription_ != 0) pipeline_.unsubscribe(subscription_);
@@ -38,9 +49,12 @@ void Server::start() {
       if (s->may_see(changed)) s->on_chunks_published(shared);
     }
   });
-  spdlog::info("voxeld listening on {}:{} (seed {}, max {} clients)", config_.bind, port_,
-               pipeline_.config().seed, config_.max_clients);
+  spdlog::info(
+      "voxeld listening on {}:{} (seed {}, max {} players, {} in handshake, {} per address)",
+      config_.bind, port_, pipeline_.config().seed, config_.max_clients, config_.max_handshaking,
+      config_.max_per_address);
   last_stats_.at = std::chrono::steady_clock::now();
+  housekeeping();
   accept();
 }
 
@@ -48,41 +62,73 @@ void Server::accept() {
   acceptor_.async_accept(
       asio::make_strand(io_), [this](boost::system::error_code ec, asio::ip::tcp::socket socket) {
         if (ec) {
-          if (ec != asio::error::operation_aborted) {
-            spdlog::warn("accept failed: {}", ec.message());
-            accept();
+          if (ec == asio::error::operation_aborted) return;
+          // Out of descriptors and the like: log (rate-limited) and go on accepting.
+          if (auto suppressed = logs_.allow("accept")) {
+            spdlog::warn("accept failed: {} [{} more]", ec.message(), *suppressed);
           }
-          return;
-        }
-        boost::system::error_code ignored;
-        socket.set_option(asio::ip::tcp::no_delay(true), ignored);
-        auto session = std::make_shared<ClientSession>(std::move(socket), next_session_++, config_,
-                                                       pipeline_, counters_);
-        size_t count;
-        {
-          std::lock_guard lock(sessions_mutex_);
-          std::erase_if(sessions_, [](const auto& p) { return p.second.expired(); });
-          count = sessions_.size();
-          if (count < config_.max_clients) sessions_.emplace(session->id(), session);
-        }
-        session->start();
-        if (count >= config_.max_clients) {
-          // One line per second at most: a crowd at the door must not flood the log.
-          const auto now = std::chrono::steady_clock::now();
-          if (now - last_full_warning_ >= std::chrono::seconds(1)) {
-            spdlog::warn(
-                "refusing a connection: {} clients already (--max-clients); {} more refused since "
-                "the last such line",
-                count, refused_quietly_);
-            last_full_warning_ = now;
-            refused_quietly_ = 0;
-          } else {
-            ++refused_quietly_;
-          }
-          session->close_with_error(wire::Error::SERVER_FULL, "the server is full");
+        } else {
+          admit(std::move(socket));
         }
         accept();
       });
+}
+
+// Admission: handshaking connections have their own cap, each address its own; players
+// are counted at Hello (the session asks the gate).
+void Server::admit(asio::ip::tcp::socket socket) {
+  boost::system::error_code ec;
+  const auto peer = socket.remote_endpoint(ec);
+  if (ec) return;  // already gone
+  const std::string address = peer.address().to_string();
+  const auto verdict = admission_.connect(address);
+  if (verdict != AdmissionControl::Verdict::kAdmit) {
+    refuse(std::move(socket), verdict);
+    return;
+  }
+  socket.set_option(asio::ip::tcp::no_delay(true), ec);
+  auto session =
+      std::make_shared<ClientSession>(std::move(socket), address, next_session_++, config_,
+                                      pipeline_, SessionServices{counters_, admission_, logs_});
+  {
+    std::lock_guard lock(sessions_mutex_);
+    std::erase_if(sessions_, [](const auto& p) { return p.second.expired(); });
+    sessions_.emplace(session->id(), session);
+  }
+  session->start();
+}
+
+// A refused connection gets one Error frame, written without waiting (a full socket
+// buffer just loses it), and is closed at once: it costs no session and no timer.
+void Server::refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why) {
+  const bool handshakes = why == AdmissionControl::Verdict::kHandshakesFull;
+  ServerCounters::bump(counters_.refused[static_cast<size_t>(
+      handshakes ? RefusedBy::kHandshakesFull : RefusedBy::kAddressFull)]);
+  ServerCounters::bump(counters_.errors_sent[wire::Error::TOO_MANY_CONNECTIONS]);
+  wire::Envelope error;
+  error.mutable_error()->set_code(wire::Error::TOO_MANY_CONNECTIONS);
+  error.mutable_error()->set_message(handshakes ? "too many connections are in their handshake"
+                                                : "too many connections from your address");
+  std::vector<uint8_t> frame;
+  const std::string body = error.SerializeAsString();
+  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);
+  boost::system::error_code ec;
+  socket.non_blocking(true, ec);
+  socket.write_some(asio::buffer(frame), ec);
+  socket.close(ec);
+  if (auto suppressed = logs_.allow(std::string("refused:") + to_string(why))) {
+    spdlog::warn("refusing a connection: {}{}", to_string(why),
+                 *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
+                             : std::string());
+  }
+}
+
+void Server::housekeeping() {
+  pipeline_.set_other_bytes(counters_.session_bytes.load(std::memory_order_relaxed));
+  housekeeping_timer_.expires_after(std::chrono::seconds(1));
+  housekeeping_timer_.async_wait([this](boost::system::error_code ec) {
+    if (!ec) housekeeping();
+  });
 }
 
 void Server::stop() {
@@ -90,6 +136,7 @@ void Server::stop() {
     boost::system::error_code ignored;
     acceptor_.close(ignored);
     stats_timer_.cancel();
+    housekeeping_timer_.cancel();
   });
   std::vector<std::shared_ptr<ClientSession>> live;
   {

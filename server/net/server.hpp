@@ -7,15 +7,19 @@
 #include <mutex>
 #include <unordered_map>
 
+#include "net/admission_control.hpp"
 #include "net/asio.hpp"
 #include "net/client_session.hpp"
+#include "net/log_hygiene.hpp"
 #include "net/server_counters.hpp"
 
 namespace vox::net {
 
 class Server {
  public:
-  Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline);
+  // `counters` outlive the server (the pipeline's observer writes to them too).
+  Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline,
+         ServerCounters& counters);
   ~Server();
 
   // Binds and starts accepting; throws boost::system::system_error when it cannot bind.
@@ -29,25 +33,27 @@ class Server {
 
  private:
   void accept();
+  void admit(asio::ip::tcp::socket socket);
+  void refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why);
+  void housekeeping();  // every second: the sessions' memory into the pipeline's budget
   void log_stats();
 
   asio::io_context& io_;
   const ServerConfig config_;
   pipeline::WorldPipeline& pipeline_;
   asio::ip::tcp::acceptor acceptor_;
-  asio::steady_timer stats_timer_;
+  asio::steady_timer stats_timer_, housekeeping_timer_;
   std::chrono::seconds stats_interval_{10};
   uint16_t port_ = 0;
-  ServerCounters counters_;
+  ServerCounters& counters_;
+  AdmissionGate admission_;
+  SharedLogRateLimit logs_;
   uint64_t subscription_ = 0;
   uint64_t next_session_ = 1;  // acceptor handler only
 
   // Leaf lock: guards sessions_; no call into a session while it is held.
   mutable std::mutex sessions_mutex_;
   std::unordered_map<uint64_t, std::weak_ptr<ClientSession>> sessions_;
-  // SERVER_FULL log rate limit (touched only by the accept chain, one handler at a time).
-  std::chrono::steady_clock::time_point last_full_warning_{};
-  size_t refused_quietly_ = 0;
 
   struct Snapshot {
     uint64_t edits = 0, meshes = 0, bytes = 0;

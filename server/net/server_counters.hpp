@@ -1,18 +1,44 @@
-// Counters the sessions bump and the server's periodic stats line reads. Any thread.
+// Counters and histograms the sessions, the server and the pipeline observer bump; the
+// stats line and the metrics endpoint read them. Any thread (relaxed atomics).
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 
+#include "net/latency_histogram.hpp"
+
 namespace vox::net {
 
+enum class RefusedBy : uint8_t { kHandshakesFull, kAddressFull, kServerFull, kCount };
+enum class DroppedBy : uint8_t { kSlowReader, kWriteTimeout, kCount };
+
 struct ServerCounters {
-  std::atomic<uint64_t> players{0};
-  std::atomic<uint64_t> edits{0};
-  std::atomic<uint64_t> meshes_sent{0};
-  std::atomic<uint64_t> deltas_sent{0};
-  std::atomic<uint64_t> bytes_sent{0};
-  std::atomic<uint64_t> disconnects{0};
+  using Counter = std::atomic<uint64_t>;
+  static constexpr size_t kStatuses = 16;  // EditResult.Status values
+  static constexpr size_t kErrorCodes = 16;  // Error.Code values
+
+  Counter players{0};      // gauge: sessions past Hello
+  Counter handshaking{0};  // gauge: connections before Hello
+  Counter edits{0};
+  Counter meshes_sent{0};
+  Counter deltas_sent{0};
+  Counter bytes_sent{0};
+  Counter messages_sent{0};
+  Counter disconnects{0};
+  Counter set_views_coalesced{0};
+  Counter reads_paused{0};  // times a session stopped reading (message rate)
+  std::array<Counter, kStatuses> edit_results{};  // by EditResult.Status
+  std::array<Counter, kErrorCodes> errors_sent{};  // by Error.Code
+  std::array<Counter, static_cast<size_t>(RefusedBy::kCount)> refused{};
+  std::array<Counter, static_cast<size_t>(DroppedBy::kCount)> dropped{};
+  Counter session_bytes{0};  // gauge: sessions' accounted memory
+
+  LatencyHistogram edit_to_publish;  // submit -> the pipeline's result (meshes published)
+  LatencyHistogram batch_duration;
+  LatencyHistogram remesh_duration;
+
+  static void bump(Counter& c) { c.fetch_add(1, std::memory_order_relaxed); }
 };
 
 }  // namespace vox::net

@@ -1,0 +1,198 @@
+#include "metrics/metrics_endpoint.hpp"
+
+#include <prometheus/collectable.h>
+#include <prometheus/exposer.h>
+#include <prometheus/metric_family.h>
+#include <unistd.h>
+
+#include <fstream>
+
+#include "voxel.pb.h"
+
+namespace vox::metrics {
+
+namespace {
+
+using prometheus::ClientMetric;
+using prometheus::MetricFamily;
+using prometheus::MetricType;
+
+MetricFamily family(std::string name, std::string help, MetricType type) {
+  return MetricFamily{std::move(name), std::move(help), type, {}};
+}
+
+void add(MetricFamily& f, double value, std::vector<ClientMetric::Label> labels = {}) {
+  ClientMetric m;
+  m.label = std::move(labels);
+  if (f.type == MetricType::Counter) {
+    m.counter.value = value;
+  } else {
+    m.gauge.value = value;
+  }
+  f.metric.push_back(std::move(m));
+}
+
+MetricFamily histogram(std::string name, std::string help, const net::LatencyHistogram& h) {
+  MetricFamily f = family(std::move(name), std::move(help), MetricType::Histogram);
+  const auto snap = h.snapshot();
+  ClientMetric m;
+  for (size_t i = 0; i < net::LatencyHistogram::kBounds.size(); ++i) {
+    m.histogram.bucket.push_back({snap.cumulative[i], net::LatencyHistogram::kBounds[i]});
+  }
+  m.histogram.bucket.push_back({snap.cumulative.back(), std::numeric_limits<double>::infinity()});
+  m.histogram.sample_count = snap.cumulative.back();
+  m.histogram.sample_sum = snap.sum;
+  f.metric.push_back(std::move(m));
+  return f;
+}
+
+double value_of(const std::atomic<uint64_t>& c) {
+  return static_cast<double>(c.load(std::memory_order_relaxed));
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+}  // namespace
+
+size_t resident_bytes() {
+  std::ifstream statm("/proc/self/statm");
+  size_t pages_total = 0, pages_resident = 0;
+  if (!(statm >> pages_total >> pages_resident)) return 0;
+  return pages_resident * static_cast<size_t>(::sysconf(_SC_PAGE_SIZE));
+}
+
+class MetricsEndpoint::Collector : public prometheus::Collectable {
+ public:
+  Collector(const net::ServerCounters& counters, const pipeline::WorldPipeline& pipeline)
+      : c_(counters), pipeline_(pipeline) {}
+
+  std::vector<MetricFamily> Collect() const override {  // exposer threads
+    std::vector<MetricFamily> out;
+    connections(out);
+    edits(out);
+    world(out);
+    traffic(out);
+    out.push_back(histogram("voxeld_edit_publish_seconds",
+                            "From an accepted edit's arrival to its meshes being published",
+                            c_.edit_to_publish));
+    out.push_back(histogram("voxeld_batch_duration_seconds", "World pipeline batch duration",
+                            c_.batch_duration));
+    out.push_back(histogram("voxeld_remesh_duration_seconds",
+                            "Time to re-mesh and encode one batch's dirty chunks",
+                            c_.remesh_duration));
+    return out;
+  }
+
+ private:
+  void connections(std::vector<MetricFamily>& out) const {
+    auto players = family("voxeld_players", "Connected players (past Hello)", MetricType::Gauge);
+    add(players, value_of(c_.players));
+    auto conns = family("voxeld_connections", "Open connections by state", MetricType::Gauge);
+    add(conns, value_of(c_.handshaking), {{"state", "handshaking"}});
+    add(conns, value_of(c_.players), {{"state", "player"}});
+    auto refused = family("voxeld_connections_refused_total", "Connections or Hellos refused",
+                          MetricType::Counter);
+    const char* reasons[] = {"handshakes_full", "address_full", "server_full"};
+    for (size_t i = 0; i < c_.refused.size(); ++i) add(refused, value_of(c_.refused[i]), {{"reason", reasons[i]}});
+    auto disconnects = family("voxeld_disconnects_total", "Connections the server closed, by reason",
+                              MetricType::Counter);
+    add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kSlowReader)]), {{"reason", "slow_reader"}});
+    add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kWriteTimeout)]), {{"reason", "write_timeout"}});
+    for (auto code : {wire::Error::IDLE_TIMEOUT, wire::Error::HANDSHAKE_TIMEOUT, wire::Error::FRAME_TIMEOUT}) {
+      add(disconnects, value_of(c_.errors_sent[code]), {{"reason", lower(wire::Error::Code_Name(code))}});
+    }
+    auto errors = family("voxeld_errors_sent_total", "Error messages sent to clients, by code",
+                         MetricType::Counter);
+    for (int code = 1; code < static_cast<int>(c_.errors_sent.size()); ++code) {
+      if (!wire::Error::Code_IsValid(code)) continue;
+      add(errors, value_of(c_.errors_sent[code]),
+          {{"code", wire::Error::Code_Name(static_cast<wire::Error::Code>(code))}});
+    }
+    for (auto* f : {&players, &conns, &refused, &disconnects, &errors}) out.push_back(std::move(*f));
+  }
+
+  void edits(std::vector<MetricFamily>& out) const {
+    auto edits = family("voxeld_edits_total", "Edit results, by status", MetricType::Counter);
+    for (int s = 0; s < static_cast<int>(c_.edit_results.size()); ++s) {
+      if (!wire::EditResult::Status_IsValid(s)) continue;
+      add(edits, value_of(c_.edit_results[s]),
+          {{"status", lower(wire::EditResult::Status_Name(static_cast<wire::EditResult::Status>(s)))}});
+    }
+    auto coalesced = family("voxeld_set_views_coalesced_total",
+                            "SetViews over the rate, coalesced into a newer one", MetricType::Counter);
+    add(coalesced, value_of(c_.set_views_coalesced));
+    auto paused = family("voxeld_reads_paused_total",
+                         "Times a connection was read slower for its message rate", MetricType::Counter);
+    add(paused, value_of(c_.reads_paused));
+    for (auto* f : {&edits, &coalesced, &paused}) out.push_back(std::move(*f));
+  }
+
+  void world(std::vector<MetricFamily>& out) const {
+    const pipeline::PipelineStats s = pipeline_.stats();
+    auto gauge = [&out](const char* name, const char* help, double v) {
+      auto f = family(name, help, MetricType::Gauge);
+      add(f, v);
+      out.push_back(std::move(f));
+    };
+    auto counter = [&out](const char* name, const char* help, double v) {
+      auto f = family(name, help, MetricType::Counter);
+      add(f, v);
+      out.push_back(std::move(f));
+    };
+    gauge("voxeld_load_chunks_queued", "Chunks queued for loading (every view's)", double(s.queued_load_chunks));
+    gauge("voxeld_load_owners", "Views and loads with queued chunks", double(s.load_owners));
+    gauge("voxeld_edits_queued", "Edits waiting for the next batch", double(s.queued_edits));
+    gauge("voxeld_chunks_loaded", "Chunks in memory", double(s.loaded_chunks));
+    gauge("voxeld_chunks_modified", "Chunks changed by edits (never evicted)", double(s.modified_chunks));
+    gauge("voxeld_meshes_loaded", "Published meshes in the store", double(s.mesh_count));
+    auto accounted = family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
+    add(accounted, double(s.chunk_bytes), {{"part", "chunks"}});
+    add(accounted, double(s.mesh_bytes), {{"part", "meshes"}});
+    add(accounted, double(s.other_bytes), {{"part", "sessions"}});
+    out.push_back(std::move(accounted));
+    gauge("voxeld_memory_budget_bytes", "--max-memory", double(pipeline_.config().max_memory));
+    gauge("voxeld_loads_blocked", "1 while loads wait for memory", s.loads_blocked ? 1 : 0);
+    gauge("voxeld_resident_memory_bytes", "The process's resident set size", double(resident_bytes()));
+    counter("voxeld_batches_total", "World pipeline batches", double(s.batches));
+    counter("voxeld_chunks_generated_total", "Chunks generated from the seed", double(s.chunks_generated));
+    counter("voxeld_chunks_evicted_total", "Chunks evicted", double(s.chunks_evicted));
+    counter("voxeld_meshes_published_total", "Mesh versions published", double(s.meshes_published));
+    counter("voxeld_memory_blocked_total", "Times loads started waiting for memory", double(s.memory_blocked));
+  }
+
+  void traffic(std::vector<MetricFamily>& out) const {
+    auto counter = [&out](const char* name, const char* help, double v) {
+      auto f = family(name, help, MetricType::Counter);
+      add(f, v);
+      out.push_back(std::move(f));
+    };
+    counter("voxeld_sent_bytes_total", "Bytes written to clients", value_of(c_.bytes_sent));
+    counter("voxeld_sent_messages_total", "Messages written to clients", value_of(c_.messages_sent));
+    counter("voxeld_meshes_sent_total", "ChunkMesh messages sent", value_of(c_.meshes_sent));
+    counter("voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas", value_of(c_.deltas_sent));
+  }
+
+  const net::ServerCounters& c_;
+  const pipeline::WorldPipeline& pipeline_;
+};
+
+MetricsEndpoint::MetricsEndpoint(const std::string& bind, uint16_t port,
+                                 const net::ServerCounters& counters,
+                                 const pipeline::WorldPipeline& pipeline)
+    : collector_(std::make_shared<Collector>(counters, pipeline)) {
+  const std::string address =
+      (bind.find(':') != std::string::npos ? "[" + bind + "]" : bind) + ":" + std::to_string(port);
+  exposer_ = std::make_unique<prometheus::Exposer>(address, 2);
+  exposer_->RegisterCollectable(collector_);
+  const auto ports = exposer_->GetListeningPorts();
+  port_ = ports.empty() ? port : static_cast<uint16_t>(ports.front());
+}
+
+MetricsEndpoint::~MetricsEndpoint() {
+  if (exposer_) exposer_->RemoveCollectable(collector_);
+}
+
+}  // namespace vox::metrics

@@ -1,0 +1,253 @@
+// The session's message handlers: Hello (admission), SetView (rate, coalescing), Edit
+// (budget, ordered results), and the publish fan-out's entry points. Strand only, but
+// where a comment says otherwise.
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+
+#include "net/client_session.hpp"
+#include "net/wire_convert.hpp"
+#include "proto/mesh_codec.hpp"
+
+namespace vox::net {
+
+using world::ChunkCoord;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+bool finite(const wire::Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
+
+// Samples an edit's box touches: its cost against the edit budget.
+double edit_cost(const world::Edit& edit) {
+  const world::VoxelBox box = world::touched_box(edit);
+  double samples = 1;
+  for (int a = 0; a < 3; ++a) samples *= static_cast<double>(box.hi[a]) - box.lo[a] + 1;
+  return samples;
+}
+
+uint32_t clamp_ms(std::chrono::milliseconds ms) {
+  return static_cast<uint32_t>(std::min<long long>(ms.count(), UINT32_MAX));
+}
+
+}  // namespace
+
+void ClientSession::handle_hello(const wire::Hello& hello) {
+  if (player_) {
+    send_error(wire::Error::DUPLICATE_HELLO, "Hello was already received", false);
+    return;
+  }
+  if (hello.protocol_version() != kProtocolVersion) {
+    send_error(wire::Error::BAD_VERSION,
+               "protocol version " + std::to_string(hello.protocol_version()) +
+                   " is not supported (server speaks " + std::to_string(kProtocolVersion) + ")",
+               true);
+    return;
+  }
+  if (hello.player_name().empty() || hello.player_name().size() > 32) {
+    send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
+    return;
+  }
+  if (services_.admission.promote() != AdmissionControl::Verdict::kAdmit) {
+    ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kServerFull)]);
+    send_error(wire::Error::SERVER_FULL,
+               "the server is full (" + std::to_string(config_.max_clients) + " players)", true);
+    return;
+  }
+  name_ = hello.player_name();
+  log_name_ = escape_for_log(name_);
+  player_ = true;
+  counters_.handshaking.fetch_sub(1);
+  const uint64_t players = counters_.players.fetch_add(1) + 1;
+  handshake_timer_.cancel();
+  send_welcome(players);
+  if (auto suppressed = services_.logs.allow("joined", 20)) {
+    spdlog::info("session {}: player '{}' joined from {}{}", id_, log_name_, address_,
+                 *suppressed ? fmt::format(" [{} more joined]", *suppressed) : std::string());
+  }
+}
+
+void ClientSession::send_welcome(uint64_t players) {
+  wire::Envelope welcome;
+  auto* w = welcome.mutable_welcome();
+  w->set_server_version(config_.server_version);
+  w->set_world_seed(pipeline_.config().seed);
+  w->set_chunk_size(world::kChunkSize);
+  w->set_protocol_version(kProtocolVersion);
+  w->set_max_view_radius(config_.max_view_radius);
+  w->set_max_frame_bytes(static_cast<uint32_t>(config_.max_frame_bytes));
+  w->set_max_edit_radius(pipeline_.config().limits.max_radius);
+  w->set_max_edit_strength(pipeline_.config().limits.max_strength);
+  w->set_mesh_format(proto::kMeshFormat);
+  w->set_players(static_cast<uint32_t>(players));
+  w->set_max_edits_in_flight(static_cast<uint32_t>(config_.max_edits_in_flight));
+  w->set_edit_budget_per_second(std::max(0.0, config_.edit_budget_rate));
+  w->set_edit_budget_burst(config_.edit_budget_rate > 0 ? config_.edit_budget_burst : 0);
+  w->set_max_set_views_per_second(std::max(0.0, config_.set_view_rate));
+  w->set_max_connections_per_address(static_cast<uint32_t>(config_.max_per_address));
+  queue_control(welcome);
+}
+
+void ClientSession::handle_set_view(const wire::SetView& view) {
+  const auto& limits = pipeline_.config().limits;
+  if (!finite(view.position())) {
+    send_error(wire::Error::BAD_VALUE, "SetView position must be finite", false);
+    return;
+  }
+  const float p[3] = {view.position().x(), view.position().y(), view.position().z()};
+  for (int a = 0; a < 3; ++a) {
+    if (p[a] < static_cast<float>(limits.world_min[a]) ||
+        p[a] > static_cast<float>(limits.world_max[a])) {
+      send_error(wire::Error::BAD_VALUE, "SetView position is outside the world", false);
+      return;
+    }
+  }
+  if (view.radius() > config_.max_view_radius) {
+    send_error(wire::Error::BAD_VALUE,
+               "view radius " + std::to_string(view.radius()) + " is over the limit of " +
+                   std::to_string(config_.max_view_radius),
+               false);
+    return;
+  }
+  const int r = static_cast<int>(view.radius());
+  const ChunkCoord center = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])),
+                                                  static_cast<int32_t>(std::floor(p[1])),
+                                                  static_cast<int32_t>(std::floor(p[2])));
+  // Over the SetView rate, the newest view waits for the next token; older ones are
+  // coalesced into it.
+  if (pending_view_) {
+    pending_view_ = {center, r};
+    ServerCounters::bump(counters_.set_views_coalesced);
+    return;
+  }
+  const auto wait = view_budget_.take(1, Clock::now());
+  if (wait.count() == 0) {
+    apply_view(center, r);
+    return;
+  }
+  pending_view_ = {center, r};
+  ServerCounters::bump(counters_.set_views_coalesced);
+  view_timer_.expires_after(wait);
+  view_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    if (ec || self->closing_ || !self->pending_view_) return;
+    const PendingView v = *self->pending_view_;
+    self->pending_view_.reset();
+    (void)self->view_budget_.take(1, Clock::now());
+    self->apply_view(v.center, v.radius);
+  });
+}
+
+void ClientSession::apply_view(ChunkCoord center, int r) {
+  {
+    std::lock_guard lock(view_mutex_);
+    view_center_ = center;
+    view_radius_ = r;
+  }
+  const std::vector<ChunkCoord> left = scheduler_.set_view(center, r);
+  if (!left.empty()) {
+    wire::Envelope unload;
+    for (const ChunkCoord& c : left) *unload.mutable_chunk_unload()->add_coords() = to_wire(c);
+    queue_control(unload);
+  }
+  // The pipeline loads what is missing (this view replaces the session's previous one);
+  // newly published meshes arrive through on_chunks_published.
+  pipeline_.set_view(id_, center, r);
+  update_memory();
+  pump();
+}
+
+void ClientSession::queue_result(uint64_t request, wire::EditResult::Status status,
+                                 const std::string& reason, uint32_t retry_after_ms) {
+  wire::Envelope result;
+  auto* r = result.mutable_edit_result();
+  r->set_request_id(request);
+  r->set_status(status);
+  r->set_reason(reason);
+  r->set_retry_after_ms(retry_after_ms);
+  ServerCounters::bump(counters_.edit_results[static_cast<size_t>(status) %
+                                              ServerCounters::kStatuses]);
+  results_.push_ready(std::move(result));
+  results_.drain([this](const wire::Envelope& e) { queue_control(e); });
+}
+
+void ClientSession::handle_edit(const wire::Edit& edit) {
+  WireEdit converted = edit_from_wire(edit);
+  const uint64_t request = edit.request_id();
+  if (!converted.edit) {
+    if (converted.unknown_enum) send_error(wire::Error::UNKNOWN_ENUM, converted.reason, false);
+    queue_result(request, converted.status, converted.reason);
+    return;
+  }
+  if (auto refusal = world::validate(*converted.edit, pipeline_.config().limits)) {
+    queue_result(request, status_of(refusal->reason), refusal->message);
+    return;
+  }
+  if (edits_in_flight_ >= config_.max_edits_in_flight) {
+    // A client cannot queue unbounded work in the shared pipeline.
+    queue_result(request, wire::EditResult::TOO_MANY_EDITS,
+                 "over " + std::to_string(config_.max_edits_in_flight) +
+                     " edits still being applied");
+    return;
+  }
+  const double cost = edit_cost(*converted.edit);
+  if (const auto wait = edit_budget_.take(cost, Clock::now()); wait.count() > 0) {
+    queue_result(request, wire::EditResult::RATE_LIMITED,
+                 "over the edit budget (" + std::to_string(static_cast<uint64_t>(cost)) +
+                     " samples)",
+                 clamp_ms(wait));
+    return;
+  }
+  counters_.edits.fetch_add(1, std::memory_order_relaxed);
+  ++edits_in_flight_;
+  const uint64_t ticket = results_.reserve();
+  const auto submitted = Clock::now();
+  pipeline_.submit(std::move(*converted.edit), [self = shared_from_this(), request, ticket,
+                                                submitted](const pipeline::EditResult& r) {
+    // Pipeline thread: build the result here, queue it on the strand.
+    self->counters_.edit_to_publish.observe(
+        std::chrono::duration<double>(Clock::now() - submitted).count());
+    wire::Envelope result;
+    auto* w = result.mutable_edit_result();
+    w->set_request_id(request);
+    w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
+    w->set_reason(r.message);
+    if (r.reason == world::RefusalReason::kServerBusy) w->set_retry_after_ms(1000);
+    for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
+    ServerCounters::bump(self->counters_.edit_results[static_cast<size_t>(w->status()) %
+                                                      ServerCounters::kStatuses]);
+    asio::post(self->strand_, [self, ticket, result = std::move(result)]() mutable {
+      --self->edits_in_flight_;
+      self->results_.fill(ticket, std::move(result));
+      self->results_.drain([&self](const wire::Envelope& e) { self->queue_control(e); });
+    });
+  });
+}
+
+bool ClientSession::may_see(const std::vector<ChunkCoord>& chunks) const {  // any thread
+  ChunkCoord center;
+  int64_t r;
+  {
+    std::lock_guard lock(view_mutex_);
+    center = view_center_;
+    r = view_radius_;
+  }
+  if (r < 0) return false;
+  for (const ChunkCoord& c : chunks) {
+    const int64_t dx = c.x - center.x, dy = c.y - center.y, dz = c.z - center.z;
+    if (dx * dx + dy * dy + dz * dz <= r * r) return true;
+  }
+  return false;
+}
+
+void ClientSession::on_chunks_published(  // any thread
+    std::shared_ptr<const std::vector<ChunkCoord>> chunks) {
+  asio::post(strand_, [self = shared_from_this(), chunks = std::move(chunks)] {
+    if (self->closing_ || !self->scheduler_.has_view()) return;
+    for (const ChunkCoord& c : *chunks) self->scheduler_.mark_stale(c);
+    self->pump();
+  });
+}
+
+}  // namespace vox::net

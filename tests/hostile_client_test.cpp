@@ -1,0 +1,270 @@
+// A real voxeld on 127.0.0.1 against hostile clients: view floods, squatters, trickled
+// frames, empty-frame floods, forged names, edit floods; and its metrics endpoint. Each
+// test is bounded in connections and time. Squatters connect from 127.0.0.2 (still
+// loopback) so that the honest player's address, 127.0.0.1, has its own per-address cap.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "client-cli/voxel_client.hpp"
+#include "proto/framing.hpp"
+#include "server/world/terrain_generator.hpp"
+#include "tests/server_process.hpp"
+
+namespace vox::net {
+namespace {
+
+using namespace std::chrono_literals;
+using client::Client;
+namespace asio = boost::asio;
+
+#ifdef VOXEL_SANITIZED
+constexpr int kSlow = 6;
+#else
+constexpr int kSlow = 1;
+#endif
+
+std::unique_ptr<Client> player(const test::ServerProcess& server, const std::string& name) {
+  auto c = std::make_unique<Client>();
+  c->connect("127.0.0.1", server.port(), 5s);
+  c->handshake(name, 5s);
+  return c;
+}
+
+template <class Pred>
+std::optional<wire::Envelope> wait_for(Client& c, Pred pred, std::chrono::milliseconds limit) {
+  const auto deadline = client::Clock::now() + limit * kSlow;
+  while (client::Clock::now() < deadline) {
+    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
+    if (!m) return std::nullopt;
+    if (m->has_chunk_mesh()) (void)c.apply(m->chunk_mesh());
+    if (pred(*m)) return m;
+  }
+  return std::nullopt;
+}
+
+int error_code_of(const std::optional<wire::Envelope>& m) { return m && m->has_error() ? m->error().code() : -1; }
+bool is_error(const wire::Envelope& m) { return m.has_error(); }
+
+float surface_y(float x, float z) {
+  return world::TerrainGenerator(1).height_at(static_cast<int>(x), static_cast<int>(z));
+}
+
+std::vector<uint8_t> frame(const wire::Envelope& m) {
+  const std::string body = m.SerializeAsString();
+  std::vector<uint8_t> out;
+  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, out);
+  return out;
+}
+
+// A raw connection from `source` (a loopback address), for squatters.
+struct RawSocket {
+  asio::io_context io;
+  asio::ip::tcp::socket socket{io};
+  RawSocket(const std::string& source, uint16_t port) {
+    socket.open(asio::ip::tcp::v4());
+    socket.bind({asio::ip::make_address(source), 0});
+    socket.connect({asio::ip::make_address("127.0.0.1"), port});
+  }
+  void send(const std::vector<uint8_t>& bytes) {
+    boost::system::error_code ec;
+    asio::write(socket, asio::buffer(bytes), ec);
+  }
+};
+
+// GET /metrics, parsed into "name{labels}" -> value.
+std::map<std::string, double> scrape(uint16_t port) {
+  asio::io_context io;
+  asio::ip::tcp::socket s(io);
+  s.connect({asio::ip::make_address("127.0.0.1"), port});
+  const std::string request = "GET /metrics HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
+  asio::write(s, asio::buffer(request));
+  std::string response;
+  boost::system::error_code ec;
+  std::array<char, 8192> buf;
+  for (;;) {
+    const size_t n = s.read_some(asio::buffer(buf), ec);
+    response.append(buf.data(), n);
+    if (ec) break;
+  }
+  std::map<std::string, double> out;
+  const size_t body = response.find("\r\n\r\n");
+  EXPECT_NE(body, std::string::npos);
+  EXPECT_NE(response.find("200 OK"), std::string::npos) << response.substr(0, 200);
+  std::istringstream lines(response.substr(body + 4));
+  for (std::string line; std::getline(lines, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    const size_t space = line.rfind(' ');
+    EXPECT_NE(space, std::string::npos) << line;
+    if (space == std::string::npos) continue;
+    out[line.substr(0, space)] = std::stod(line.substr(space + 1));
+  }
+  return out;
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  return std::string((std::istreambuf_iterator<char>(in)), {});
+}
+
+// Regression: 256 post-Hello squatters locked every real player out (SERVER_FULL), and
+// 300 silent connections locked them out for 5 s per wave.
+TEST(HostileClients, SquattersFromOneAddressDoNotKeepARealPlayerOut) {
+  test::ServerProcess server({"--max-clients", "8", "--max-per-address", "6", "--max-handshaking", "16"});
+  std::vector<std::unique_ptr<RawSocket>> squatters;
+  wire::Envelope hello = client::make_hello("squatter");
+  for (int i = 0; i < 40; ++i) {
+    squatters.push_back(std::make_unique<RawSocket>("127.0.0.2", server.port()));
+    if (i % 2 == 0) squatters.back()->send(frame(hello));  // half say Hello, half never do
+  }
+  auto real = player(server, "real");  // from 127.0.0.1: its own cap, a free player slot
+  real->send(client::make_set_view(0, surface_y(0, 0), 0, 1));
+  EXPECT_TRUE(wait_for(*real, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s));
+  EXPECT_TRUE(server.running());
+}
+
+TEST(HostileClients, AFrameTrickledInIsClosedAndBytesDoNotCountAsActivity) {
+  test::ServerProcess server({"--frame-timeout-ms", "400", "--idle-timeout-ms", "60000"});
+  auto c = player(server, "trickler");
+  const std::vector<uint8_t> header = {200, 0, 0, 0};  // a 200-byte frame, then a byte a while
+  c->send_raw(header);
+  std::optional<wire::Envelope> error;
+  for (int i = 0; i < 40 * kSlow && !error; ++i) {
+    c->send_raw(std::vector<uint8_t>{8});
+    error = wait_for(*c, is_error, 100ms);
+  }
+  EXPECT_EQ(error_code_of(error), wire::Error::FRAME_TIMEOUT);
+
+  test::ServerProcess idle({"--frame-timeout-ms", "60000", "--idle-timeout-ms", "500"});
+  auto d = player(idle, "dribbler");
+  d->send_raw(header);
+  error.reset();
+  for (int i = 0; i < 40 * kSlow && !error; ++i) {
+    d->send_raw(std::vector<uint8_t>{8});
+    error = wait_for(*d, is_error, 100ms);
+  }
+  EXPECT_EQ(error_code_of(error), wire::Error::IDLE_TIMEOUT) << "a byte is not a message";
+}
+
+// Regression: empty frames after Hello wrote one log line each (8.8 MB/s).
+TEST(HostileClients, EmptyFrameFloodIsClosedAndLogsAtMostALineASecond) {
+  test::ServerProcess server({"--log-level", "info"});
+  auto c = player(server, "empty");
+  std::vector<uint8_t> flood;
+  for (int i = 0; i < 5000; ++i) flood.insert(flood.end(), {0, 0, 0, 0});
+  c->send_raw(flood);
+  size_t errors = 0;
+  const auto deadline = client::Clock::now() + 10s * kSlow;
+  while (!c->closed() && client::Clock::now() < deadline) {
+    if (auto m = c->receive(500ms); m && m->has_error()) ++errors;
+  }
+  EXPECT_TRUE(c->closed()) << "a client that keeps making protocol errors is closed";
+  EXPECT_LT(errors, 100u) << "not one Error per empty frame";
+  auto honest = player(server, "honest");  // the server still serves others
+  const std::string log = read_file(server.log_path());
+  size_t lines = 0;
+  for (size_t at = 0; (at = log.find("UNKNOWN_MESSAGE", at)) != std::string::npos; ++at) ++lines;
+  EXPECT_LE(lines, 3u) << log;
+  EXPECT_TRUE(server.running());
+}
+
+// Regression: a player name with a newline wrote a forged log line.
+TEST(HostileClients, PlayerNamesAreEscapedInTheLog) {
+  test::ServerProcess server({"--log-level", "info"});
+  auto c = player(server, "eve\n[2026-01-01] forged");  // 26 bytes: under the name limit
+  c.reset();
+  std::this_thread::sleep_for(300ms);  // the server logs the leave
+  const std::string log = read_file(server.log_path());
+  EXPECT_NE(log.find("eve\\x0a[2026"), std::string::npos) << log;
+  EXPECT_EQ(log.find("\n[2026-01-01] forged"), std::string::npos) << log;
+}
+
+TEST(HostileClients, EditsOverTheBudgetAreRateLimitedWithARetryAfterAndResultsStayInOrder) {
+  test::ServerProcess server({"--edit-budget", "100000", "--edit-burst", "400000"});
+  auto c = player(server, "heavy");
+  const float y = surface_y(0, 0);
+  for (uint64_t i = 1; i <= 6; ++i) {
+    wire::Envelope m;
+    m.mutable_edit()->set_request_id(i);
+    auto* x = m.mutable_edit()->mutable_explosion();
+    x->mutable_center()->set_x(static_cast<float>(i) * 4);
+    x->mutable_center()->set_y(y);
+    x->mutable_center()->set_z(0);
+    x->set_radius(32);  // 65^3 = 274,625 samples: one fits the burst, the next does not
+    x->set_power(0.5f);
+    c->send(m);
+  }
+  std::vector<wire::EditResult> results;
+  while (results.size() < 6) {
+    auto r = wait_for(*c, [](const wire::Envelope& m) { return m.has_edit_result(); }, 30s);
+    ASSERT_TRUE(r);
+    results.push_back(r->edit_result());
+  }
+  for (size_t i = 0; i < results.size(); ++i) EXPECT_EQ(results[i].request_id(), i + 1) << "in order";
+  EXPECT_EQ(results[0].status(), wire::EditResult::ACCEPTED);
+  EXPECT_EQ(results[1].status(), wire::EditResult::RATE_LIMITED);
+  EXPECT_GT(results[1].retry_after_ms(), 1000u);  // 150k samples missing at 100k/s
+  EXPECT_LE(results[1].retry_after_ms(), 3000u);
+}
+
+// Regression: an edit behind a flood of radius-12 views waited tens of seconds, and the
+// flood's loads stayed queued after its client left (5 GB).
+TEST(HostileClients, ViewFloodThenDisconnectLeavesNoQueuedWorkAndEditsStayFast) {
+  test::ServerProcess server({"--metrics-port", "0", "--set-view-rate", "0", "--message-rate", "0"});
+  auto flooder = player(server, "flooder");
+  for (int i = 0; i < 40; ++i) {
+    flooder->send(client::make_set_view(static_cast<float>(i) * 20000, 0, -static_cast<float>(i) * 20000, 12));
+  }
+  auto honest = player(server, "honest");
+  const float y = surface_y(0, 0);
+  wire::Envelope edit;
+  edit.mutable_edit()->set_request_id(1);
+  auto* b = edit.mutable_edit()->mutable_brush();
+  b->mutable_center()->set_y(y);
+  b->set_radius(3);
+  b->set_strength(1);
+  const auto sent = client::Clock::now();
+  honest->send(edit);
+  auto result = wait_for(*honest, [](const wire::Envelope& m) { return m.has_edit_result(); }, 5s);
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
+  EXPECT_LT(client::Clock::now() - sent, 2s * kSlow) << "the edit waited behind the flood's loads";
+  const auto during = scrape(server.metrics_port());
+  EXPECT_LE(during.at("voxeld_load_chunks_queued"), 7153 * 2) << "one pending view per session";
+  flooder.reset();  // disconnects
+  double queued = -1;
+  for (int i = 0; i < 100 * kSlow && queued != 0; ++i) {
+    std::this_thread::sleep_for(50ms);  // the server notices the close
+    queued = scrape(server.metrics_port()).at("voxeld_load_chunks_queued");
+  }
+  EXPECT_EQ(queued, 0) << "the flood's loads are dropped with its session";
+}
+
+TEST(HostileClients, MetricsEndpointServesPrometheusTextWithTheNamedSeries) {
+  test::ServerProcess server({"--metrics-port", "0"});
+  auto c = player(server, "watcher");
+  c->send(client::make_set_view(0, surface_y(0, 0), 0, 1));
+  EXPECT_TRUE(wait_for(*c, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s));
+  const auto m = scrape(server.metrics_port());
+  for (const char* name :
+       {"voxeld_players", "voxeld_connections{state=\"handshaking\"}", "voxeld_connections{state=\"player\"}",
+        "voxeld_edits_total{status=\"accepted\"}", "voxeld_edits_total{status=\"rate_limited\"}",
+        "voxeld_edit_publish_seconds_count", "voxeld_batch_duration_seconds_count",
+        "voxeld_remesh_duration_seconds_sum", "voxeld_load_chunks_queued", "voxeld_chunks_loaded",
+        "voxeld_meshes_loaded", "voxeld_memory_accounted_bytes{part=\"chunks\"}", "voxeld_resident_memory_bytes",
+        "voxeld_sent_bytes_total", "voxeld_sent_messages_total", "voxeld_disconnects_total{reason=\"slow_reader\"}",
+        "voxeld_disconnects_total{reason=\"idle_timeout\"}",
+        "voxeld_connections_refused_total{reason=\"address_full\"}", "voxeld_memory_budget_bytes"}) {
+    EXPECT_TRUE(m.count(name)) << name;
+  }
+  EXPECT_EQ(m.at("voxeld_players"), 1);
+  EXPECT_GT(m.at("voxeld_chunks_loaded"), 0);
+  EXPECT_GT(m.at("voxeld_sent_bytes_total"), 0);
+  EXPECT_GT(m.at("voxeld_resident_memory_bytes"), 1e6);
+}
+
+}  // namespace
+}  // namespace vox::net

@@ -1,0 +1,107 @@
+// The session's pure policies: token buckets, admission, log rate limits and escaping,
+// result ordering.
+#include <gtest/gtest.h>
+
+#include "server/net/admission_control.hpp"
+#include "server/net/log_hygiene.hpp"
+#include "server/net/result_order.hpp"
+#include "server/net/token_bucket.hpp"
+
+namespace vox::net {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+TEST(TokenBucket, TakesWithinTheBurstThenSaysHowLongToWait) {
+  const auto t0 = Clock::now();
+  TokenBucket b(1000, 3000, t0);
+  EXPECT_EQ(b.take(2000, t0).count(), 0);
+  const auto wait = b.take(2000, t0);
+  EXPECT_EQ(wait, 1000ms) << "1,000 tokens missing at 1,000/s";
+  EXPECT_EQ(b.take(2000, t0 + 1s).count(), 0) << "refilled";
+  EXPECT_EQ(b.take(5000, t0 + 100s), std::chrono::milliseconds::max()) << "over the burst: never";
+  EXPECT_LE(b.tokens(t0 + 100s), 3000) << "never above the burst";
+}
+
+TEST(TokenBucket, ZeroRateIsUnlimited) {
+  TokenBucket b(0, 0);
+  for (int i = 0; i < 1000; ++i) EXPECT_EQ(b.take(1e9, Clock::now()).count(), 0);
+}
+
+TEST(AdmissionControl, HandshakingConnectionsDoNotCountAsPlayersButHaveTheirOwnCap) {
+  AdmissionControl a({.max_players = 2, .max_handshaking = 3, .max_per_address = 0});
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(a.connect("10.0.0." + std::to_string(i)), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.connect("10.0.0.9"), AdmissionControl::Verdict::kHandshakesFull);
+  EXPECT_EQ(a.promote(), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.promote(), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.promote(), AdmissionControl::Verdict::kServerFull) << "a third player";
+  EXPECT_EQ(a.handshaking(), 1u) << "the refused one holds its handshake slot until it closes";
+  EXPECT_EQ(a.connect("10.0.0.8"), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.connect("10.0.0.9"), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.connect("10.0.0.10"), AdmissionControl::Verdict::kHandshakesFull);
+  a.release("10.0.0.2", false);
+  EXPECT_EQ(a.connect("10.0.0.10"), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.players(), 2u);
+  EXPECT_EQ(a.handshaking(), 3u);
+}
+
+TEST(AdmissionControl, OneAddressCannotFillTheServer) {
+  AdmissionControl a({.max_players = 100, .max_handshaking = 100, .max_per_address = 4});
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAddressFull);
+  EXPECT_EQ(a.connect("5.6.7.8"), AdmissionControl::Verdict::kAdmit);
+  EXPECT_EQ(a.promote(), AdmissionControl::Verdict::kAdmit);
+  a.release("1.2.3.4", true);
+  EXPECT_EQ(a.connections_from("1.2.3.4"), 3u);
+  EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAdmit);
+  for (int i = 0; i < 4; ++i) a.release("1.2.3.4", false);
+  EXPECT_EQ(a.connections_from("1.2.3.4"), 0u);
+}
+
+TEST(LogHygiene, EscapesEverythingThatCouldForgeALine) {
+  EXPECT_EQ(escape_for_log("alice"), "alice");
+  EXPECT_EQ(escape_for_log("a\nb"), "a\\x0ab");
+  EXPECT_EQ(escape_for_log("\r\t\x1b[31m'\"\\"), "\\x0d\\x09\\x1b[31m\\x27\\x22\\x5c");
+  EXPECT_EQ(escape_for_log("\xc3\xa9"), "\\xc3\\xa9");
+  EXPECT_EQ(escape_for_log(std::string(100, 'x'), 8), "xxxxxxxx...");
+}
+
+TEST(LogHygiene, AtMostOneLineASecondPerKindWithTheSuppressedCount) {
+  LogRateLimit limit(1s);
+  const auto t0 = Clock::now();
+  EXPECT_EQ(limit.allow("UNKNOWN_MESSAGE", t0), 0u);
+  for (int i = 0; i < 999; ++i) EXPECT_FALSE(limit.allow("UNKNOWN_MESSAGE", t0 + 1ms * i));
+  EXPECT_EQ(limit.allow("BAD_VALUE", t0), 0u) << "kinds are limited separately";
+  EXPECT_EQ(limit.allow("UNKNOWN_MESSAGE", t0 + 1s), 999u);
+  EXPECT_EQ(limit.allow("joined", t0, 3), 0u);
+  EXPECT_EQ(limit.allow("joined", t0, 3), 0u);
+  EXPECT_EQ(limit.allow("joined", t0, 3), 0u);
+  EXPECT_FALSE(limit.allow("joined", t0, 3));
+}
+
+TEST(ResultOrder, ARefusalWaitsBehindEarlierEditsStillInThePipeline) {
+  ResultOrder order;
+  std::vector<uint64_t> sent;
+  auto result = [](uint64_t id) {
+    wire::Envelope e;
+    e.mutable_edit_result()->set_request_id(id);
+    return e;
+  };
+  auto out = [&sent](const wire::Envelope& e) { sent.push_back(e.edit_result().request_id()); };
+  const uint64_t first = order.reserve();
+  const uint64_t second = order.reserve();
+  order.push_ready(result(3));
+  order.drain(out);
+  EXPECT_TRUE(sent.empty());
+  order.fill(second, result(2));
+  order.drain(out);
+  EXPECT_TRUE(sent.empty());
+  order.fill(first, result(1));
+  order.drain(out);
+  EXPECT_EQ(sent, (std::vector<uint64_t>{1, 2, 3}));
+  EXPECT_EQ(order.size(), 0u);
+}
+
+}  // namespace
+}  // namespace vox::net
