@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <ostream>
+#include <string>
 
 namespace vox::loadtest {
 
@@ -45,8 +46,8 @@ void json_percentiles(std::ostream& out, const char* name, const Percentiles& p)
   out << buf;
 }
 
-void json_map(std::ostream& out, const char* name, const std::map<std::string, uint64_t>& m) {
-  out << "\"" << name << "_by_cause\":{";
+void json_map(std::ostream& out, const char* key, const std::map<std::string, uint64_t>& m) {
+  out << "\"" << key << "\":{";
   bool first = true;
   for (const auto& [k, v] : m) {
     out << (first ? "" : ",") << "\"" << k << "\":" << v;
@@ -68,6 +69,18 @@ std::vector<Percentiles> per_second(const std::vector<LatencySample>& samples, s
   return out;
 }
 
+// "server_rss": the sampled pid, max and final KiB, and every sample (one a second).
+void write_rss_json(const LoadStats& s, std::ostream& out) {
+  if (s.server_rss_kib.empty()) return;
+  auto kib = [](double v) { return static_cast<unsigned long long>(v); };
+  out << ",\"server_rss\":{\"pid\":" << s.server_pid
+      << ",\"max_kib\":" << kib(*std::max_element(s.server_rss_kib.begin(), s.server_rss_kib.end()))
+      << ",\"final_kib\":" << kib(s.server_rss_kib.back()) << ",\"per_second_kib\":[";
+  for (size_t i = 0; i < s.server_rss_kib.size(); ++i)
+    out << (i ? "," : "") << kib(s.server_rss_kib[i]);
+  out << "]}";
+}
+
 }  // namespace
 
 uint64_t LoadStats::error_count() const { return total(errors); }
@@ -79,7 +92,8 @@ void write_table(const LoadStats& s, std::ostream& out) {
   const auto view = percentiles(s.first_view_ms);
   const double per_player_s = std::max(1e-9, s.duration_s * std::max(1, s.players));
   char buf[512];
-  out << "voxel-loadtest results\n";
+  out << (s.attack.mix.empty() ? "voxel-loadtest results\n"
+                               : "voxel-loadtest results (honest players; attackers below)\n");
   std::snprintf(buf, sizeof buf,
                 "  players %d (%d connected), %.1f s, %llu edits sent (%llu refused)\n", s.players,
                 s.players_connected, s.duration_s, static_cast<unsigned long long>(s.edits_sent),
@@ -106,6 +120,16 @@ void write_table(const LoadStats& s, std::ostream& out) {
   out << "\n";
   for (const auto& [k, v] : s.errors) out << "    error " << k << ": " << v << "\n";
   for (const auto& [k, v] : s.disconnects) out << "    disconnect " << k << ": " << v << "\n";
+  for (const auto& [k, v] : s.refused_by_status) out << "    refused " << k << ": " << v << "\n";
+  if (!s.server_rss_kib.empty()) {
+    std::snprintf(buf, sizeof buf,
+                  "voxeld RSS (pid %d): start %.1f MiB, max %.1f MiB, final %.1f MiB\n",
+                  s.server_pid, s.server_rss_kib.front() / 1024,
+                  *std::max_element(s.server_rss_kib.begin(), s.server_rss_kib.end()) / 1024,
+                  s.server_rss_kib.back() / 1024);
+    out << buf;
+  }
+  write_attack_table(s.attack, out);
 }
 
 void write_json(const LoadStats& s, std::ostream& out) {
@@ -134,11 +158,18 @@ void write_json(const LoadStats& s, std::ostream& out) {
                 static_cast<unsigned long long>(s.error_count()),
                 static_cast<unsigned long long>(s.disconnect_count()));
   out << buf;
-  json_map(out, "errors", s.errors);
+  json_map(out, "errors_by_cause", s.errors);
   out << ",";
-  json_map(out, "disconnects", s.disconnects);
+  json_map(out, "disconnects_by_cause", s.disconnects);
+  out << ",";
+  json_map(out, "refused_by_status", s.refused_by_status);
   out << ",\"verified\":" << (s.verified ? "true" : "false")
       << ",\"verify_mismatches\":" << s.verify_mismatches;
+  write_rss_json(s, out);
+  if (!s.attack.mix.empty()) {
+    out << ",";
+    write_attack_json(s.attack, out);
+  }
   // Over time: per second of the test, edit -> delta percentiles and bytes received.
   const auto seconds = per_second(s.edit_to_delta, s.bytes_per_second.size());
   out << ",\"per_second\":[";
@@ -152,39 +183,51 @@ void write_json(const LoadStats& s, std::ostream& out) {
   out << "]}\n";
 }
 
-// Two panels over time: edit -> delta latency (p50, p99 per second) and bytes received per second.
+// Panels over time: edit -> delta latency (p50, p99 per second), bytes received per second
+// and, when it was sampled, voxeld's RSS.
 void write_svg(const LoadStats& s, std::ostream& out) {
   const auto buckets = per_second(s.edit_to_delta, s.bytes_per_second.size());
-  const int seconds = static_cast<int>(buckets.size());
-  std::vector<double> p50, p99;
-  double max_ms = 1, max_bytes = 1;
+  std::vector<double> p50, p99, rss_mib;
+  double max_ms = 1, max_bytes = 1, max_mib = 1;
   for (const auto& p : buckets) {
     p50.push_back(p.p50);
     p99.push_back(p.p99);
     max_ms = std::max(max_ms, p.p99);
   }
   for (double b : s.bytes_per_second) max_bytes = std::max(max_bytes, b);
+  for (double kib : s.server_rss_kib) rss_mib.push_back(kib / 1024);
+  for (double mib : rss_mib) max_mib = std::max(max_mib, mib);
+  const int panels = rss_mib.empty() ? 2 : 3;
   const double w = 800, h = 220, left = 60, gap = 60;
-  auto x_of = [&](int i) {
-    return left + (w - left - 20) * (seconds > 1 ? i / static_cast<double>(seconds - 1) : 0.0);
-  };
+  // Each series spreads over the full width: one point a second, from the start.
   auto polyline = [&](const std::vector<double>& v, double top, double scale, const char* colour) {
     out << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"1.5\" points=\"";
-    for (int i = 0; i < static_cast<int>(v.size()); ++i)
-      out << x_of(i) << "," << top + h - v[static_cast<size_t>(i)] / scale * h << " ";
+    const double n = static_cast<double>(v.size());
+    for (size_t i = 0; i < v.size(); ++i)
+      out << left + (w - left - 20) * (n > 1 ? static_cast<double>(i) / (n - 1) : 0.0) << ","
+          << top + h - v[i] / scale * h << " ";
     out << "\"/>\n";
   };
+  auto number = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", v);
+    return std::string(buf);
+  };
+  auto title = [&](int panel, const std::string& text) {
+    out << "<text x=\"" << left << "\" y=\"" << panel * (h + gap) + 40
+        << "\" font-family=\"sans-serif\" font-size=\"14\">" << text << "</text>\n";
+  };
   out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\""
-      << 2 * h + 3 * gap << "\">\n"
-      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      << "<text x=\"" << left
-      << "\" y=\"20\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest: " << s.players
-      << " players, edit to decoded delta (ms): p50 blue, p99 red; max " << max_ms << " ms</text>\n"
-      << "<text x=\"" << left << "\" y=\"" << h + gap + 40
-      << "\" font-family=\"sans-serif\" font-size=\"14\">bytes received per second, all players; "
-         "max "
-      << max_bytes << "</text>\n";
-  for (double top : {gap, h + 2 * gap}) {
+      << panels * (h + gap) + gap << "\">\n"
+      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
+  title(0, "voxel-loadtest: " + std::to_string(s.players) +
+               (s.attack.mix.empty() ? "" : " honest") +
+               " players, edit to decoded delta (ms): p50 blue, p99 red; max " + number(max_ms) +
+               " ms");
+  title(1, "bytes received per second, all players; max " + number(max_bytes));
+  if (panels == 3) title(2, "voxeld RSS (MiB); max " + number(max_mib));
+  for (int panel = 0; panel < panels; ++panel) {
+    const double top = gap + panel * (h + gap);
     out << "<line x1=\"" << left << "\" y1=\"" << top + h << "\" x2=\"" << w - 20 << "\" y2=\""
         << top + h << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\""
         << left << "\" y2=\"" << top + h << "\" stroke=\"black\"/>\n";
@@ -192,6 +235,7 @@ void write_svg(const LoadStats& s, std::ostream& out) {
   polyline(p50, gap, max_ms, "#2060c0");
   polyline(p99, gap, max_ms, "#c02020");
   polyline(s.bytes_per_second, h + 2 * gap, max_bytes, "#208040");
+  if (panels == 3) polyline(rss_mib, 2 * h + 3 * gap, max_mib, "#8040a0");
   out << "</svg>\n";
 }
 

@@ -1,5 +1,6 @@
 // What the load test measures, and its reports: a human-readable table, JSON, and an SVG
-// of latency percentiles and throughput over time.
+// of latency percentiles and throughput over time. Every figure but `attack` and the
+// server's RSS is the honest players' alone.
 #pragma once
 
 #include <cstdint>
@@ -7,6 +8,8 @@
 #include <map>
 #include <string>
 #include <vector>
+
+#include "loadtest/attack_stats.hpp"
 
 namespace vox::loadtest {
 
@@ -25,6 +28,7 @@ struct LoadStats {
   int players = 0;
   double duration_s = 0;  // the measured (editing) part
   uint64_t edits_sent = 0, results = 0, refused = 0;
+  std::map<std::string, uint64_t> refused_by_status;  // EditResult status name -> count
   uint64_t messages_received = 0, bytes_received = 0, chunks_streamed = 0;
   uint64_t decode_failures = 0;
   int players_connected = 0;
@@ -35,6 +39,9 @@ struct LoadStats {
   std::vector<double> bytes_per_second;         // received by all players, per second of the test
   uint64_t verify_mismatches = 0;
   bool verified = false;
+  AttackStats attack;                  // the hostile clients (--attack); mix empty: none
+  int server_pid = 0;                  // whose RSS was sampled; 0: none
+  std::vector<double> server_rss_kib;  // voxeld's VmRSS, one sample a second from the start
 
   uint64_t error_count() const;
   uint64_t disconnect_count() const;

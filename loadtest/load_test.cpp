@@ -1,11 +1,13 @@
 #include "loadtest/load_test.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <ostream>
 #include <thread>
 
 #include "client-cli/voxel_client.hpp"
+#include "loadtest/attacker.hpp"
 #include "loadtest/sim_player.hpp"
 
 namespace vox::loadtest {
@@ -15,7 +17,16 @@ using namespace std::chrono_literals;
 
 namespace {
 constexpr double kDrainS = 3.0;  // after the editing stops: results and meshes of the last edits
+
+// The pid whose RSS to sample: --server-pid, else the owner of the listening socket when
+// the server is on loopback (best effort: 0, no sampling, when it cannot be found).
+int server_pid_of(const LoadConfig& config) {
+  if (config.server_pid != 0) return std::max(0, config.server_pid);
+  const bool local =
+      config.host.rfind("127.", 0) == 0 || config.host == "::1" || config.host == "0.0.0.0";
+  return local ? find_listening_pid(config.port).value_or(0) : 0;
 }
+}  // namespace
 
 double spawn_half_width(const LoadConfig& config) {
   if (config.spawn_area > 0) return config.spawn_area;
@@ -25,6 +36,7 @@ double spawn_half_width(const LoadConfig& config) {
 LoadTest::LoadTest(LoadConfig config)
     : config_(std::move(config)),
       half_width_(spawn_half_width(config_)),
+      rss_(server_pid_of(config_)),
       bytes_per_second_(static_cast<size_t>(config_.ramp_s + config_.duration_s + kDrainS) + 16) {
   stats_.players = config_.players;
 }
@@ -39,6 +51,11 @@ std::array<float, 3> LoadTest::someone_elses_position(int self, std::mt19937& rn
   const auto other = std::uniform_int_distribution<size_t>(0, players_.size() - 1)(rng);
   return players_[other == static_cast<size_t>(self) ? (other + 1) % players_.size() : other]
       ->position();
+}
+
+std::array<float, 3> LoadTest::random_player_position(std::mt19937& rng) const {
+  if (players_.empty()) return {0, 0, 0};
+  return players_[std::uniform_int_distribution<size_t>(0, players_.size() - 1)(rng)]->position();
 }
 
 bool LoadTest::set_world_seed(uint64_t seed) {
@@ -67,10 +84,13 @@ void LoadTest::record_edit_sent() {
   ++stats_.edits_sent;
 }
 
-void LoadTest::record_result(double sent_s, double now_s, bool refused) {
+void LoadTest::record_result(double sent_s, double now_s, const std::string& refusal) {
   std::lock_guard lock(mutex_);
   ++stats_.results;
-  if (refused) ++stats_.refused;
+  if (!refusal.empty()) {
+    ++stats_.refused;
+    ++stats_.refused_by_status[refusal];
+  }
   stats_.edit_to_result.push_back({now_s, (now_s - sent_s) * 1000});
 }
 
@@ -107,6 +127,9 @@ void LoadTest::collect_counters() {
   stats_.bytes_received = bytes_.load();
   stats_.chunks_streamed = chunks_.load();
   stats_.decode_failures = decode_failures_.load();
+  stats_.attack = attack_tally_.snapshot(config_.attack);
+  stats_.server_pid = rss_.pid();
+  stats_.server_rss_kib = rss_.kib();
   const auto seconds = static_cast<size_t>(std::ceil(now_s()));
   stats_.bytes_per_second.assign(std::min(seconds, bytes_per_second_.size()), 0);
   for (size_t i = 0; i < stats_.bytes_per_second.size(); ++i) {
@@ -134,8 +157,21 @@ void LoadTest::tick_progress(std::ostream& progress) {
       static_cast<unsigned long long>(edits - last_progress_edits_),
       percentiles(std::move(delta_ms)).p99, static_cast<unsigned long long>(errors));
   last_progress_edits_ = edits;
-  progress << (config_.progress_tty ? "\r" : "") << line << (config_.progress_tty ? "" : "\n")
-           << std::flush;
+  std::string extra;
+  if (!rss_.kib().empty())
+    extra += ", voxeld RSS " + std::to_string(static_cast<int>(rss_.kib().back() / 1024)) + " MiB";
+  if (!config_.attack.empty()) {
+    const AttackStats a = attack_tally_.snapshot(config_.attack);
+    uint64_t connects = 0, closed = 0;
+    for (const auto& k : a.kinds) {
+      connects += k.connects;
+      closed += k.disconnects;
+    }
+    extra += ", attackers " + std::to_string(connects) + " connections, " + std::to_string(closed) +
+             " closed";
+  }
+  progress << (config_.progress_tty ? "\r" : "") << line << extra
+           << (config_.progress_tty ? "" : "\n") << std::flush;
 }
 
 // Ramp: players join evenly over --ramp seconds, each on its own strand.
@@ -153,10 +189,36 @@ void LoadTest::start_players() {
   }
 }
 
+// Attackers join over the ramp too, interleaved with the players (the first after the
+// first player), each on its own strand; squatters are kSquatGroupSize sockets apiece.
+void LoadTest::start_attackers() {
+  std::mt19937 seeds(static_cast<uint32_t>(config_.seed) ^ 0x5eedu);
+  for (AttackKind kind : kAttackKinds) {
+    for (int i = 0; i < config_.attack.connections(kind); ++i)
+      attackers_.push_back(std::make_shared<Attacker>(*this, kind, i, seeds()));
+  }
+  std::shuffle(attackers_.begin(), attackers_.end(), seeds);  // kinds arrive mixed
+  const auto n = static_cast<double>(attackers_.size());
+  for (size_t i = 0; i < attackers_.size(); ++i) {
+    const double at = config_.ramp_s * (static_cast<double>(i) + 0.5) / n;
+    auto t = std::make_shared<asio::steady_timer>(
+        io_, std::chrono::microseconds(static_cast<int64_t>(at * 1e6)));
+    t->async_wait([t, a = attackers_[i]](boost::system::error_code ec) {
+      if (!ec) a->start();
+    });
+  }
+}
+
+void LoadTest::stop_attackers() {
+  for (auto& a : attackers_) a->stop();
+}
+
 LoadStats LoadTest::run(std::ostream& progress) {
   start_ = std::chrono::steady_clock::now();
   editing_ = true;
   start_players();
+  start_attackers();
+  rss_.sample();
   auto work = asio::make_work_guard(io_);
   const int thread_count = config_.threads > 0
                                ? config_.threads
@@ -167,14 +229,19 @@ LoadStats LoadTest::run(std::ostream& progress) {
   for (double next = 1; now_s() < end; next += 1) {
     std::this_thread::sleep_for(
         std::chrono::duration<double>(std::max(0.0, std::min(next, end) - now_s())));
+    rss_.sample();
     tick_progress(progress);
   }
   editing_ = false;
+  stop_attackers();  // the drain measures the players' last edits without attackers
   {
     std::lock_guard lock(mutex_);
     stats_.duration_s = now_s();
   }
-  std::this_thread::sleep_for(std::chrono::duration<double>(kDrainS));
+  for (double slept = 0; slept < kDrainS; slept += 1) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(1.0, kDrainS - slept)));
+    rss_.sample();
+  }
   // Freeze the players (no handler runs once the threads are joined) for the verification.
   io_.stop();
   for (auto& t : threads) t.join();

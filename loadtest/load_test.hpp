@@ -15,8 +15,11 @@
 #include <vector>
 
 #include "client-cli/chunk_cache.hpp"
+#include "loadtest/attack_mix.hpp"
+#include "loadtest/attack_stats.hpp"
 #include "loadtest/decode_memo.hpp"
 #include "loadtest/load_stats.hpp"
+#include "loadtest/rss_sampler.hpp"
 #include "server/net/asio.hpp"
 #include "server/world/terrain_generator.hpp"
 
@@ -39,6 +42,11 @@ struct LoadConfig {
   bool decode_all = false;  // every player decodes every mesh (no DecodeMemo)
   bool verify = false;
   bool progress_tty = false;  // rewrite one progress line instead of printing lines
+  // Hostile clients beside the players (--attack); counted apart, never in the exit code.
+  AttackMix attack;
+  // voxeld's pid for its RSS over the run; 0: look for the process listening on the
+  // server's port when the server is on this machine's loopback, -1: do not sample.
+  int server_pid = 0;
 };
 
 // The half-width of the square players live in: --spawn-area, or for 0 one that keeps the
@@ -46,6 +54,7 @@ struct LoadConfig {
 double spawn_half_width(const LoadConfig& config);
 
 class SimPlayer;
+class Attacker;
 
 class LoadTest {
  public:
@@ -63,6 +72,8 @@ class LoadTest {
   bool stopping() const { return stopping_.load(std::memory_order_relaxed); }
   // A random player's position, for edits near others.
   std::array<float, 3> someone_elses_position(int self, std::mt19937& rng) const;
+  // Any player's position (attackers aim at the players); the origin before they exist.
+  std::array<float, 3> random_player_position(std::mt19937& rng) const;
   float terrain_height(float x, float z) const;
   // The world seed from a Welcome: the first builds the terrain the players walk on; a
   // different one later is an error (returns false).
@@ -72,7 +83,8 @@ class LoadTest {
   // Tallies (thread-safe).
   void record_connected();
   void record_edit_sent();
-  void record_result(double sent_s, double now_s, bool refused);
+  // `refusal`: the EditResult status name, empty when accepted.
+  void record_result(double sent_s, double now_s, const std::string& refusal);
   void record_delta(double sent_s, double now_s);
   void record_first_view(double ms);
   void record_error(const std::string& cause);
@@ -81,9 +93,12 @@ class LoadTest {
   void count_chunk() { chunks_.fetch_add(1, std::memory_order_relaxed); }
   void count_decode_failure() { decode_failures_.fetch_add(1, std::memory_order_relaxed); }
   void count_bytes(size_t n);
+  AttackTally& attack_tally() { return attack_tally_; }  // any thread
 
  private:
   void start_players();
+  void start_attackers();  // after start_players: attackers aim at the players
+  void stop_attackers();
   void tick_progress(std::ostream& progress);
   void verify_all();
   void collect_counters();
@@ -92,6 +107,9 @@ class LoadTest {
   double half_width_;
   boost::asio::io_context io_;
   std::vector<std::shared_ptr<SimPlayer>> players_;
+  std::vector<std::shared_ptr<Attacker>> attackers_;  // fixed once started, like players_
+  AttackTally attack_tally_;
+  RssSampler rss_;  // main thread only
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> editing_{false}, stopping_{false};
   DecodeMemo memo_;

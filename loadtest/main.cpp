@@ -9,10 +9,11 @@
 #include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
 
-int main(int argc, char** argv) {
+namespace {
+int run(int argc, char** argv) {
   namespace po = boost::program_options;
   vox::loadtest::LoadConfig config;
-  std::string server, json, svg, sweep;
+  std::string server, json, svg, sweep, attack;
   double sweep_limit_ms = 100;
   po::options_description opts("voxel-loadtest options");
   opts.add_options()("help,h", "show this help")(
@@ -43,7 +44,14 @@ int main(int argc, char** argv) {
       "sweep", po::value<std::string>(&sweep),
       "N1,N2,...: run once per player count; --svg then draws p99 against players")(
       "sweep-limit-ms", po::value<double>(&sweep_limit_ms)->default_value(100),
-      "the p99 limit the sweep reports against");
+      "the p99 limit the sweep reports against")(
+      "attack", po::value<std::string>(&attack),
+      "MIX of hostile clients beside the players, KIND:COUNT,... with KIND flood, heavy, "
+      "squat (a group of 32 sockets), slow or empty and COUNT 0..1000; counted apart, never "
+      "in the exit code")(
+      "server-pid", po::value<int>(&config.server_pid)->default_value(0),
+      "voxeld's pid, to sample its RSS every second (0: find the process listening on the "
+      "port when the server is on loopback; -1: do not sample)");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, opts), vm);
@@ -66,6 +74,18 @@ int main(int argc, char** argv) {
     std::cerr << "voxel-loadtest: --players 1..10000, --duration > 0, --edit-rate > 0, --ramp >= "
                  "0, --view-radius <= 64, "
                  "--spawn-area 0..1e6, --threads 0..64\n";
+    return 2;
+  }
+  if (vm.count("attack")) {
+    auto mix = vox::loadtest::parse_attack_mix(attack);
+    if (!mix) {
+      std::cerr << "voxel-loadtest: --attack: " << mix.error() << "\n";
+      return 2;
+    }
+    config.attack = *mix;
+  }
+  if (config.server_pid < -1) {
+    std::cerr << "voxel-loadtest: --server-pid is a pid, 0 or -1\n";
     return 2;
   }
   config.progress_tty = ::isatty(STDERR_FILENO) != 0;
@@ -110,4 +130,16 @@ int main(int argc, char** argv) {
                   stats.decode_failures == 0 && stats.verify_mismatches == 0 &&
                   stats.players_connected == config.players;
   return ok ? 0 : 1;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  // A server that refuses or drops the verifying client, say, ends the run with one line
+  // and exit code 1, not an abort.
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "voxel-loadtest: " << e.what() << "\n";
+    return 1;
+  }
 }

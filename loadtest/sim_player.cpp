@@ -27,6 +27,11 @@ DecodeScratch& decode_scratch() {
   return scratch;
 }
 
+std::string status_name(int status) {
+  const std::string& name = wire::EditResult::Status_Name(status);
+  return name.empty() ? "status " + std::to_string(status) : name;
+}
+
 std::vector<uint8_t> frame_of(const wire::Envelope& m) {
   std::vector<uint8_t> out;
   const std::string body = m.SerializeAsString();
@@ -189,8 +194,11 @@ void SimPlayer::on_message(const wire::Envelope& m) {
         fail("EditResult for an unknown request", false);
         break;
       }
-      test_.record_result(it->second.sent_s, test_.now_s(),
-                          r.status() != wire::EditResult::ACCEPTED);
+      // RATE_LIMITED and SERVER_BUSY are refusals like the others: an honest player does
+      // not retry, so a limit that hits honest players shows as refused edits.
+      test_.record_result(
+          it->second.sent_s, test_.now_s(),
+          r.status() == wire::EditResult::ACCEPTED ? std::string() : status_name(r.status()));
       it->second.have_result = true;
       for (const auto& c : r.changed_chunks()) {
         const ChunkKey k = client::key_of(c);

@@ -1,0 +1,108 @@
+#include "loadtest/rss_sampler.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <charconv>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace vox::loadtest {
+
+namespace {
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string_view next_field(std::string_view& line) {
+  const size_t start = line.find_first_not_of(" \t");
+  if (start == std::string_view::npos) {
+    line = {};
+    return {};
+  }
+  line.remove_prefix(start);
+  const size_t end = std::min(line.find_first_of(" \t"), line.size());
+  const std::string_view field = line.substr(0, end);
+  line.remove_prefix(end);
+  return field;
+}
+
+template <class T>
+std::optional<T> number(std::string_view text, int base) {
+  T value{};
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value, base);
+  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
+  return value;
+}
+
+}  // namespace
+
+std::optional<uint64_t> parse_vm_rss_kib(std::string_view status) {
+  constexpr std::string_view kKey = "VmRSS:";
+  for (size_t at = 0; at < status.size();) {
+    const size_t end = std::min(status.find('\n', at), status.size());
+    std::string_view line = status.substr(at, end - at);
+    at = end + 1;
+    if (line.substr(0, kKey.size()) != kKey) continue;
+    line.remove_prefix(kKey.size());
+    const auto value = number<uint64_t>(next_field(line), 10);
+    if (value && next_field(line) == "kB") return value;
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+// Lines: "sl local_address rem_address st ... uid timeout inode ...", the local address
+// as HEXADDR:HEXPORT and st 0A for LISTEN (see proc(5)).
+std::optional<uint64_t> find_listening_inode(std::string_view text, uint16_t port) {
+  for (size_t at = text.find('\n'); at != std::string_view::npos && at < text.size();) {
+    const size_t end = std::min(text.find('\n', at + 1), text.size());
+    std::string_view line = text.substr(at + 1, end - at - 1);
+    at = end;
+    std::array<std::string_view, 10> f;
+    for (auto& field : f) field = next_field(line);
+    const size_t colon = f[1].rfind(':');
+    if (colon == std::string_view::npos || f[3] != "0A") continue;
+    if (number<uint16_t>(f[1].substr(colon + 1), 16) != port) continue;
+    if (auto inode = number<uint64_t>(f[9], 10); inode && *inode != 0) return inode;
+  }
+  return std::nullopt;
+}
+
+std::optional<int> find_listening_pid(uint16_t port) {
+  std::optional<uint64_t> inode;
+  for (const char* table : {"/proc/net/tcp", "/proc/net/tcp6"}) {
+    if ((inode = find_listening_inode(read_file(table), port))) break;
+  }
+  if (!inode) return std::nullopt;
+  const std::string target = "socket:[" + std::to_string(*inode) + "]";
+  namespace fs = std::filesystem;
+  try {  // processes come and go while we look: any error means "not found"
+    std::error_code ec;
+    for (const auto& proc : fs::directory_iterator("/proc", ec)) {
+      const auto pid = number<int>(proc.path().filename().string(), 10);
+      if (!pid) continue;
+      std::error_code fd_ec;  // other users' processes: permission denied, skipped
+      for (const auto& fd : fs::directory_iterator(proc.path() / "fd", fd_ec)) {
+        std::error_code link_ec;
+        if (fs::read_symlink(fd.path(), link_ec).string() == target) return pid;
+      }
+    }
+  } catch (const fs::filesystem_error&) {
+  }
+  return std::nullopt;
+}
+
+void RssSampler::sample() {
+  if (pid_ <= 0 || kib_.size() >= kMaxSamples) return;
+  if (const auto kib = parse_vm_rss_kib(read_file("/proc/" + std::to_string(pid_) + "/status")))
+    kib_.push_back(static_cast<double>(*kib));
+}
+
+}  // namespace vox::loadtest
