@@ -60,7 +60,7 @@ int main(int argc, char** argv) {
   std::string port_file, log_level, max_memory, metrics_port_file;
   int metrics_port = -1;
   int io_threads = 1, stats_seconds = 10;
-  long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000;
+  long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000, evict_after_s = 120;
   po::options_description opts("voxeld options");
   opts.add_options()("help,h", "show this help")(
       "port", po::value<uint16_t>(&net.port)->default_value(7777), "TCP port (0: pick a free one)")(
@@ -80,6 +80,7 @@ int main(int argc, char** argv) {
       "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(5), "SetViews per second per player; more are coalesced (0: unlimited)")(
       "message-rate", po::value<double>(&net.message_rate)->default_value(200), "messages per second per connection before it is read slower (0: unlimited)")(
       "frame-timeout-ms", po::value<long>(&frame_ms)->default_value(10000), "a started frame must complete within this")(
+      "evict-after", po::value<long>(&evict_after_s)->default_value(120), "seconds before an unused unmodified chunk is evicted")(
       "max-view-radius", po::value<uint32_t>(&net.max_view_radius)->default_value(12), "largest view radius in chunks")(
       "idle-timeout-ms", po::value<long>(&idle_ms)->default_value(60000), "disconnect clients silent this long")(
       "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000), "time allowed for Hello")(
@@ -100,7 +101,7 @@ int main(int argc, char** argv) {
   }
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
   if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 || write_ms <= 0 ||
-      frame_ms <= 0 || metrics_port > 65535 || (vm.count("metrics-port") && metrics_port < 0) ||
+      frame_ms <= 0 || evict_after_s < 1 || metrics_port > 65535 || (vm.count("metrics-port") && metrics_port < 0) ||
       net.max_view_radius > 32 || net.max_clients < 1 || net.max_handshaking < 1) {
     std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, --max-clients >= 1, "
                  "--max-handshaking >= 1, timeouts > 0\n";
@@ -126,6 +127,7 @@ int main(int argc, char** argv) {
   net.handshake_timeout = std::chrono::milliseconds(handshake_ms);
   net.write_timeout = std::chrono::milliseconds(write_ms);
   net.frame_timeout = std::chrono::milliseconds(frame_ms);
+  world.evict_after = std::chrono::seconds(evict_after_s);
   if (net.max_per_address == 0) spdlog::warn("--max-per-address 0: one address may fill the server");
   spdlog::info("memory budget {} MiB (--max-memory); per player: {:.0f} edit samples/s (burst {:.0f}), {} SetViews/s",
                world.max_memory >> 20, net.edit_budget_rate, net.edit_budget_burst, net.set_view_rate);
