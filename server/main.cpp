@@ -74,10 +74,11 @@ int main(int argc, char** argv) {
       "max-clients", po::value<size_t>(&net.max_clients)->default_value(256), "players beyond this are refused (SERVER_FULL)")(
       "max-handshaking", po::value<size_t>(&net.max_handshaking)->default_value(64), "connections before Hello (not players) at once")(
       "max-per-address", po::value<size_t>(&net.max_per_address)->default_value(16), "connections from one address (0: no cap)")(
+      "max-handshaking-per-address", po::value<size_t>(&net.max_handshaking_per_address)->default_value(4), "of those, before Hello (0: no cap)")(
       "max-memory", po::value<std::string>(&max_memory), "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)")(
       "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000), "samples per second a player's edits may touch (0: unlimited)")(
       "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000), "samples a player's edits may touch at once")(
-      "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(5), "SetViews per second per player; more are coalesced (0: unlimited)")(
+      "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(2), "SetViews per second per player; more are coalesced (0: unlimited)")(
       "message-rate", po::value<double>(&net.message_rate)->default_value(200), "messages per second per connection before it is read slower (0: unlimited)")(
       "frame-timeout-ms", po::value<long>(&frame_ms)->default_value(10000), "a started frame must complete within this")(
       "evict-after", po::value<long>(&evict_after_s)->default_value(120), "seconds before an unused unmodified chunk is evicted")(

@@ -21,6 +21,17 @@ EditTask edit_tagged(int tag, std::vector<int>& log) {
 
 size_t unit_cost(ChunkCoord) { return 1; }
 
+// What the pipeline does per batch: every ordered task, then a load pass.
+struct Taken {
+  std::vector<OrderedTask> ordered;
+  std::vector<LoadSlice> loads;
+};
+Taken next(BatchScheduler& s, size_t budget, const BatchScheduler::Cost& cost) {
+  Taken t{s.take_ordered(), {}};
+  t.loads = s.take_loads(budget, cost);
+  return t;
+}
+
 std::vector<ChunkCoord> row(int owner_tag, int n) {
   std::vector<ChunkCoord> out;
   for (int i = 0; i < n; ++i) out.push_back({owner_tag, 0, i});
@@ -32,7 +43,7 @@ TEST(BatchScheduler, EveryQueuedEditIsInTheNextBatchWhateverTheLoadBacklog) {
   for (LoadOwner o = 1; o <= 20; ++o) s.request(o, row(static_cast<int>(o), 7153));  // 20 radius-12 views
   std::vector<int> log;
   for (int i = 0; i < 5000; ++i) s.add(edit_tagged(i, log));
-  const Batch b = s.next(64, unit_cost);
+  const Taken b = next(s, 64, unit_cost);
   ASSERT_EQ(b.ordered.size(), 5000u);
   for (size_t i = 0; i < b.ordered.size(); ++i) std::get<EditTask>(b.ordered[i]).done({});
   for (int i = 0; i < 5000; ++i) ASSERT_EQ(log[i], i) << "arrival order";
@@ -48,7 +59,7 @@ TEST(BatchScheduler, EditsAndInspectionsKeepTheirArrivalOrder) {
   s.add(edit_tagged(1, log));
   s.add(InspectTask{[&log](bool) { log.push_back(2); }});
   s.add(edit_tagged(3, log));
-  Batch b = s.next(0, unit_cost);
+  Taken b = next(s, 0, unit_cost);
   ASSERT_EQ(b.ordered.size(), 3u);
   std::get<EditTask>(b.ordered[0]).done({});
   std::get<InspectTask>(b.ordered[1]).run(false);
@@ -59,7 +70,7 @@ TEST(BatchScheduler, EditsAndInspectionsKeepTheirArrivalOrder) {
 TEST(BatchScheduler, ABudgetOfZeroTakesNoLoads) {
   BatchScheduler s;
   s.request(1, row(1, 10));
-  const Batch b = s.next(0, unit_cost);
+  const Taken b = next(s, 0, unit_cost);
   EXPECT_TRUE(b.loads.empty());
   EXPECT_EQ(s.queued_load_chunks(), 10u);
 }
@@ -71,7 +82,7 @@ TEST(BatchScheduler, ANewViewReplacesTheOwnersQueuedLoads) {
   s.request(7, row(3, 5));  // the newest view wins
   EXPECT_EQ(s.queued_load_chunks(), 5u);
   EXPECT_EQ(s.load_owners(), 1u);
-  const Batch b = s.next(100, unit_cost);
+  const Taken b = next(s, 100, unit_cost);
   ASSERT_EQ(b.loads.size(), 1u);
   EXPECT_EQ(b.loads[0].chunks, row(3, 5));
   EXPECT_FALSE(s.has_loads());
@@ -83,14 +94,14 @@ TEST(BatchScheduler, ADroppedOwnerLeavesNoQueuedWork) {
   for (LoadOwner o = 1; o <= 50; ++o) s.drop(o);
   EXPECT_EQ(s.queued_load_chunks(), 0u);
   EXPECT_EQ(s.load_owners(), 0u);
-  EXPECT_TRUE(s.next(1000, unit_cost).loads.empty());
+  EXPECT_TRUE(next(s, 1000, unit_cost).loads.empty());
 }
 
 TEST(BatchScheduler, OwnersAreServedRoundRobinSoABigViewDoesNotDelayAnothersFirstChunks) {
   BatchScheduler s(32);
   s.request(1, row(1, 7153));  // a huge view queued first
   s.request(2, row(2, 40));    // a new player's small view behind it
-  const Batch b = s.next(64, unit_cost);
+  const Taken b = next(s, 64, unit_cost);
   ASSERT_EQ(b.loads.size(), 2u);
   EXPECT_EQ(b.loads[0].owner, 1u);
   EXPECT_EQ(b.loads[0].chunks.size(), 32u);
@@ -99,7 +110,7 @@ TEST(BatchScheduler, OwnersAreServedRoundRobinSoABigViewDoesNotDelayAnothersFirs
   EXPECT_EQ(b.loads[1].chunks.front(), (ChunkCoord{2, 0, 0})) << "its nearest chunk first";
   // Next batch: owner 1 again (the rotation goes on), owner 2 finishes, owner 1 takes
   // what is left of the budget.
-  const Batch b2 = s.next(64, unit_cost);
+  const Taken b2 = next(s, 64, unit_cost);
   ASSERT_EQ(b2.loads.size(), 3u);
   EXPECT_EQ(b2.loads[0].owner, 1u);
   EXPECT_EQ(b2.loads[1].owner, 2u);
@@ -114,7 +125,7 @@ TEST(BatchScheduler, ChunksWithNothingToDoCostNoTurnAndNoBudget) {
   s.request(1, row(1, 100));
   // Only every tenth chunk needs work (a view that moved by one chunk).
   auto cost = [](ChunkCoord c) { return c.z % 10 == 0 ? size_t{5} : size_t{0}; };
-  const Batch b = s.next(20, cost);
+  const Taken b = next(s, 20, cost);
   ASSERT_EQ(b.loads.size(), 1u);
   EXPECT_EQ(b.loads[0].chunks, (std::vector<ChunkCoord>{{1, 0, 0}, {1, 0, 10}, {1, 0, 20}, {1, 0, 30}}));
 }
@@ -123,10 +134,10 @@ TEST(BatchScheduler, DoneRunsWithTheLastSliceOrIsHandedBackWhenReplaced) {
   BatchScheduler s(8);
   int finished = 0;
   s.request(1, row(1, 10), [&] { ++finished; });
-  Batch b = s.next(8, unit_cost);
+  Taken b = next(s, 8, unit_cost);
   ASSERT_EQ(b.loads.size(), 1u);
   EXPECT_FALSE(b.loads[0].done);
-  b = s.next(8, unit_cost);
+  b = next(s, 8, unit_cost);
   ASSERT_TRUE(b.loads[0].done);
   b.loads[0].done();
   EXPECT_EQ(finished, 1);
@@ -141,12 +152,22 @@ TEST(BatchScheduler, ARequestWhoseChunksAllExistFinishesAtOnce) {
   BatchScheduler s;
   bool done = false;
   s.request(1, row(1, 500), [&] { done = true; });
-  Batch b = s.next(10, [](ChunkCoord) { return size_t{0}; });
+  Taken b = next(s, 10, [](ChunkCoord) { return size_t{0}; });
   ASSERT_EQ(b.loads.size(), 1u);
   EXPECT_TRUE(b.loads[0].chunks.empty());
   b.loads[0].done();
   EXPECT_TRUE(done);
   EXPECT_FALSE(s.has_loads());
+}
+
+TEST(BatchScheduler, APassConsidersAtMostTheScanLimit) {
+  BatchScheduler s(32);
+  for (LoadOwner o = 1; o <= 10; ++o) s.request(o, row(static_cast<int>(o), 7153));
+  size_t considered = 0;
+  const auto loads = s.take_loads(1000, [&](ChunkCoord) { ++considered; return size_t{0}; }, 5000);
+  EXPECT_EQ(considered, 5000u) << "fully meshed views are not scanned whole under the lock";
+  EXPECT_TRUE(loads.empty());
+  EXPECT_EQ(s.queued_load_chunks(), 10 * 7153u - 5000);
 }
 
 TEST(BatchScheduler, BallIsNearestFirstAndHoldsExactlyTheViewSphere) {

@@ -35,7 +35,8 @@ class ServerProcess {
     // Defaults a test may override: every test client comes from 127.0.0.1, so the
     // per-address cap is off unless a test sets it.
     const std::vector<std::pair<std::string, std::string>> defaults = {
-        {"--threads", "2"}, {"--stats-interval", "0"}, {"--log-level", "warn"}, {"--max-per-address", "0"}};
+        {"--threads", "2"}, {"--stats-interval", "0"}, {"--log-level", "warn"}, {"--max-per-address", "0"},
+        {"--max-handshaking-per-address", "0"}};
     for (const auto& [flag, value] : defaults) {
       if (std::find(extra_args.begin(), extra_args.end(), flag) == extra_args.end()) {
         args.push_back(flag);

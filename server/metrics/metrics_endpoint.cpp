@@ -76,7 +76,7 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     world(out);
     traffic(out);
     out.push_back(histogram("voxeld_edit_publish_seconds",
-                            "From an accepted edit's arrival to its meshes being published",
+                            "From an edit's submission to the pipeline to its result (its meshes published)",
                             c_.edit_to_publish));
     out.push_back(histogram("voxeld_batch_duration_seconds", "World pipeline batch duration",
                             c_.batch_duration));

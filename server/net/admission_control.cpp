@@ -4,36 +4,42 @@ namespace vox::net {
 
 AdmissionControl::Verdict AdmissionControl::connect(const std::string& address) {
   if (handshaking_ >= limits_.max_handshaking) return Verdict::kHandshakesFull;
-  size_t& from = per_address_[address];
-  if (limits_.max_per_address != 0 && from >= limits_.max_per_address) {
-    if (from == 0) per_address_.erase(address);
+  auto it = per_address_.find(address);
+  const Count from = it == per_address_.end() ? Count{} : it->second;
+  if (limits_.max_per_address != 0 && from.all >= limits_.max_per_address)
     return Verdict::kAddressFull;
-  }
-  ++from;
+  if (limits_.max_handshaking_per_address != 0 &&
+      from.handshaking >= limits_.max_handshaking_per_address)
+    return Verdict::kAddressFull;
+  Count& c = per_address_[address];
+  ++c.all;
+  ++c.handshaking;
   ++handshaking_;
   return Verdict::kAdmit;
 }
 
-AdmissionControl::Verdict AdmissionControl::promote() {
+AdmissionControl::Verdict AdmissionControl::promote(const std::string& address) {
   if (players_ >= limits_.max_players) return Verdict::kServerFull;
   --handshaking_;
   ++players_;
+  --per_address_.at(address).handshaking;
   return Verdict::kAdmit;
 }
 
 void AdmissionControl::release(const std::string& address, bool was_player) {
+  Count& c = per_address_.at(address);
   if (was_player) {
     --players_;
   } else {
     --handshaking_;
+    --c.handshaking;
   }
-  auto it = per_address_.find(address);
-  if (it != per_address_.end() && --it->second == 0) per_address_.erase(it);
+  if (--c.all == 0) per_address_.erase(address);
 }
 
 size_t AdmissionControl::connections_from(const std::string& address) const {
   auto it = per_address_.find(address);
-  return it == per_address_.end() ? 0 : it->second;
+  return it == per_address_.end() ? 0 : it->second.all;
 }
 
 const char* to_string(AdmissionControl::Verdict v) {

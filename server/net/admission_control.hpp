@@ -4,7 +4,9 @@
 // - A connection that has not finished Hello does not count against the player cap; the
 //   handshaking ones have their own small cap (and the handshake timeout).
 // - Each address may hold at most `max_per_address` connections (players and
-//   handshaking together), so one address cannot fill the server.
+//   handshaking together), so one address cannot fill the server, and at most
+//   `max_handshaking_per_address` of them before Hello, so a few addresses cannot hold
+//   every handshake slot.
 // - A Hello beyond `max_players` players is refused (SERVER_FULL).
 #pragma once
 
@@ -19,6 +21,7 @@ struct AdmissionLimits {
   size_t max_players = 256;
   size_t max_handshaking = 64;
   size_t max_per_address = 16;  // 0: no cap
+  size_t max_handshaking_per_address = 4;  // 0: no cap
 };
 
 class AdmissionControl {
@@ -33,7 +36,7 @@ class AdmissionControl {
   Verdict connect(const std::string& address);
   // Its Hello arrived: kAdmit makes it a player; kServerFull leaves it handshaking (the
   // caller closes it and calls release).
-  Verdict promote();
+  Verdict promote(const std::string& address);
   // The connection closed; `was_player` as promote() left it.
   void release(const std::string& address, bool was_player);
 
@@ -44,7 +47,10 @@ class AdmissionControl {
  private:
   AdmissionLimits limits_;
   size_t players_ = 0, handshaking_ = 0;
-  std::unordered_map<std::string, size_t> per_address_;
+  struct Count {
+    size_t all = 0, handshaking = 0;
+  };
+  std::unordered_map<std::string, Count> per_address_;  // only addresses with connections
 };
 
 const char* to_string(AdmissionControl::Verdict v);
@@ -58,9 +64,9 @@ class AdmissionGate {
     std::lock_guard lock(mutex_);
     return control_.connect(address);
   }
-  AdmissionControl::Verdict promote() {
+  AdmissionControl::Verdict promote(const std::string& address) {
     std::lock_guard lock(mutex_);
-    return control_.promote();
+    return control_.promote(address);
   }
   void release(const std::string& address, bool was_player) {
     std::lock_guard lock(mutex_);

@@ -60,7 +60,7 @@ ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, 
 ClientSession::~ClientSession() {
   (player_ ? counters_.players : counters_.handshaking).fetch_sub(1);
   counters_.session_bytes.fetch_sub(memory_bytes_.load(), std::memory_order_relaxed);
-  services_.admission.release(address_, player_);
+  services_.admission->release(address_, player_);
   pipeline_.drop_view(id_);
 }
 
@@ -108,8 +108,9 @@ void ClientSession::read_more() {
 // Handles the complete frames buffered; stops reading for a while when the client sends
 // faster than its message rate (TCP pushes back on it), then reads on.
 void ClientSession::process_frames() {
+  bool completed = false;
   while (auto frame = decoder_.next()) {
-    ++frames_completed_;
+    completed = true;
     arm_idle_timer();
     on_frame(*frame);
     if (closing_) return;
@@ -130,6 +131,12 @@ void ClientSession::process_frames() {
     send_error(wire::Error::FRAME_TOO_LARGE, decoder_.error(), true);
     return;
   }
+  // A partial frame left after complete ones started in this read.
+  if (decoder_.buffered() == 0) {
+    partial_since_.reset();
+  } else if (completed || !partial_since_) {
+    partial_since_ = Clock::now();
+  }
   watch_partial_frame();
   read_more();
 }
@@ -137,26 +144,29 @@ void ClientSession::process_frames() {
 // A frame that has started must finish within the frame timeout, so a client cannot hold
 // a connection by trickling bytes.
 void ClientSession::watch_partial_frame() {
-  if (decoder_.buffered() == 0 || frame_watch_) return;
+  if (!partial_since_ || frame_watch_) return;
   frame_watch_ = true;
-  frame_timer_.expires_after(config_.frame_timeout);
-  frame_timer_.async_wait(
-      [self = shared_from_this(), seen = frames_completed_](boost::system::error_code ec) {
-        self->frame_watch_ = false;
-        if (ec || self->closing_) return;
-        if (self->frames_completed_ == seen && self->decoder_.buffered() > 0) {
-          self->send_error(wire::Error::FRAME_TIMEOUT,
-                           "a frame was not completed within the frame timeout", true);
-          return;
-        }
-        self->watch_partial_frame();  // frames completed meanwhile: watch the current one
-      });
+  frame_timer_.expires_at(*partial_since_ + config_.frame_timeout);
+  frame_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    self->frame_watch_ = false;
+    if (ec || self->closing_ || !self->partial_since_) return;
+    if (Clock::now() >= *self->partial_since_ + self->config_.frame_timeout) {
+      self->send_error(wire::Error::FRAME_TIMEOUT,
+                       "a frame was not completed within the frame timeout", true);
+      return;
+    }
+    self->watch_partial_frame();  // a later frame is partial now: watch it
+  });
 }
 
 void ClientSession::on_frame(const std::vector<uint8_t>& body) {
   wire::Envelope message;
   if (!message.ParseFromArray(body.data(), static_cast<int>(body.size()))) {
     send_error(wire::Error::MALFORMED, "the frame is not a valid Envelope", true);
+    return;
+  }
+  if (!player_ && message.body_case() != wire::Envelope::kHello) {
+    send_error(wire::Error::NOT_HELLO, "the first message must be Hello", true);
     return;
   }
   if (has_unknown_fields(message)) {
@@ -167,10 +177,6 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
     }
     send_error(wire::Error::UNKNOWN_MESSAGE,
                "the message has fields this protocol version does not define", false);
-    return;
-  }
-  if (!player_ && message.body_case() != wire::Envelope::kHello) {
-    send_error(wire::Error::NOT_HELLO, "the first message must be Hello", true);
     return;
   }
   switch (message.body_case()) {
@@ -213,7 +219,7 @@ void ClientSession::send_error(wire::Error::Code code, const std::string& messag
   const auto kind = static_cast<size_t>(code);
   if (kind < counters_.errors_sent.size()) ServerCounters::bump(counters_.errors_sent[kind]);
   const std::string& name = wire::Error::Code_Name(code);
-  if (auto suppressed = services_.logs.allow("error:" + name)) {
+  if (auto suppressed = services_.logs->allow("error:" + name)) {
     spdlog::info("session {}: {} ({}){}{}", id_, name, escape_for_log(message, 200),
                  close ? ", closing" : "",
                  *suppressed ? fmt::format(" [{} more {} since the last such line]", *suppressed, name)
@@ -244,7 +250,7 @@ void ClientSession::close_with_error(wire::Error::Code code, std::string message
 void ClientSession::drop_slow(DroppedBy why, const char* what) {
   ServerCounters::bump(counters_.dropped[static_cast<size_t>(why)]);
   counters_.disconnects.fetch_add(1);
-  if (auto suppressed = services_.logs.allow(std::string("dropped:") + what)) {
+  if (auto suppressed = services_.logs->allow(std::string("dropped:") + what)) {
     spdlog::warn("session {}: '{}' {}; disconnecting{}", id_, log_name_, what,
                  *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
                              : std::string());
@@ -343,7 +349,7 @@ void ClientSession::shutdown() {
     socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
     socket_.close(ignored);
     if (player_) {
-      if (auto suppressed = services_.logs.allow("left", 20)) {
+      if (auto suppressed = services_.logs->allow("left", 20)) {
         spdlog::info("session {}: player '{}' left{}", id_, log_name_,
                      *suppressed ? fmt::format(" [{} more left]", *suppressed) : std::string());
       }

@@ -31,6 +31,7 @@ struct ServerConfig {
   size_t max_clients = 256;      // players (past Hello)
   size_t max_handshaking = 64;   // connections before Hello, not counted in max_clients
   size_t max_per_address = 16;   // connections from one address (0: no cap)
+  size_t max_handshaking_per_address = 4;  // of them before Hello (0: no cap)
   uint32_t max_view_radius = 12;            // chunks
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
@@ -45,8 +46,8 @@ struct ServerConfig {
   // its box touches (a 64^3 stamp: 274,625).
   double edit_budget_rate = 300000;   // samples per second
   double edit_budget_burst = 600000;  // samples
-  double set_view_rate = 5;           // per second; more are coalesced into the newest
-  double set_view_burst = 10;
+  double set_view_rate = 2;           // per second; more are coalesced into the newest
+  double set_view_burst = 4;
   double message_rate = 200;          // messages per second; over it the session stops reading
   double message_burst = 400;
   double protocol_error_rate = 5;     // kept-connection errors per second; over it: closed
@@ -54,11 +55,12 @@ struct ServerConfig {
   std::string server_version = "voxeld 0.2.0";
 };
 
-// What every session shares with the server. Any thread.
+// What every session shares with the server. Any thread. The gate and the log limit are
+// shared: a session destroyed after the Server (in ~io_context) still releases its slot.
 struct SessionServices {
-  ServerCounters& counters;
-  AdmissionGate& admission;
-  SharedLogRateLimit& logs;
+  ServerCounters& counters;  // outlives the io_context
+  std::shared_ptr<AdmissionGate> admission;
+  std::shared_ptr<SharedLogRateLimit> logs;
 };
 
 class ClientSession : public std::enable_shared_from_this<ClientSession> {
@@ -97,6 +99,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void handle_set_view(const wire::SetView& view);
   void apply_view(world::ChunkCoord center, int radius);
   void handle_edit(const wire::Edit& edit);
+  void on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks);
   void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
                     uint32_t retry_after_ms = 0);
   void send_error(wire::Error::Code code, const std::string& message, bool close);
@@ -123,7 +126,8 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
 
   proto::FrameDecoder decoder_;
   std::array<uint8_t, 16 * 1024> read_buffer_;
-  uint64_t frames_completed_ = 0;
+  // When the partial frame in decoder_ started (none: no partial frame).
+  std::optional<std::chrono::steady_clock::time_point> partial_since_;
   bool frame_watch_ = false;      // frame_timer_ is armed for a partial frame
   bool reading_paused_ = false;   // over the message rate: read_pause_timer_ resumes
   std::string name_;              // as the client sent it

@@ -6,6 +6,22 @@
 
 namespace vox::net {
 
+namespace {
+
+// What the per-address caps count by: an IPv4 address, or an IPv6 /64 (one subscriber's
+// prefix: a client owns all of it).
+std::string address_key(const asio::ip::address& a) {
+  if (a.is_v6() && !a.to_v6().is_v4_mapped()) {
+    auto bytes = a.to_v6().to_bytes();
+    std::fill(bytes.begin() + 8, bytes.end(), 0);
+    return asio::ip::address_v6(bytes).to_string() + "/64";
+  }
+  return a.is_v6() ? asio::ip::make_address_v4(asio::ip::v4_mapped, a.to_v6()).to_string()
+                   : a.to_string();
+}
+
+}  // namespace
+
 Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline,
                ServerCounters& counters)
     : io_(io),
@@ -15,8 +31,10 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
       stats_timer_(io),
       housekeeping_timer_(io),
       counters_(counters),
-      admission_(AdmissionLimits{config_.max_clients, config_.max_handshaking,
-                                 config_.max_per_address}) {}
+      admission_(std::make_shared<AdmissionGate>(
+          AdmissionLimits{config_.max_clients, config_.max_handshaking, config_.max_per_address,
+                          config_.max_handshaking_per_address})),
+      logs_(std::make_shared<SharedLogRateLimit>()) {}
 
 Server::~Server() {
   if (subscription_ != 0) pipeline_.unsubscribe(subscription_);
@@ -64,7 +82,7 @@ void Server::accept() {
         if (ec) {
           if (ec == asio::error::operation_aborted) return;
           // Out of descriptors and the like: log (rate-limited) and go on accepting.
-          if (auto suppressed = logs_.allow("accept")) {
+          if (auto suppressed = logs_->allow("accept")) {
             spdlog::warn("accept failed: {} [{} more]", ec.message(), *suppressed);
           }
         } else {
@@ -80,8 +98,8 @@ void Server::admit(asio::ip::tcp::socket socket) {
   boost::system::error_code ec;
   const auto peer = socket.remote_endpoint(ec);
   if (ec) return;  // already gone
-  const std::string address = peer.address().to_string();
-  const auto verdict = admission_.connect(address);
+  const std::string address = address_key(peer.address());
+  const auto verdict = admission_->connect(address);
   if (verdict != AdmissionControl::Verdict::kAdmit) {
     refuse(std::move(socket), verdict);
     return;
@@ -116,7 +134,7 @@ void Server::refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why)
   socket.non_blocking(true, ec);
   socket.write_some(asio::buffer(frame), ec);
   socket.close(ec);
-  if (auto suppressed = logs_.allow(std::string("refused:") + to_string(why))) {
+  if (auto suppressed = logs_->allow(std::string("refused:") + to_string(why))) {
     spdlog::warn("refusing a connection: {}{}", to_string(why),
                  *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
                              : std::string());
@@ -173,11 +191,12 @@ void Server::log_stats() {
   const auto p = pipeline_.stats();
   spdlog::info(
       "stats: {} players, {:.0f} edits/s, {:.0f} meshes sent/s, {:.0f} KiB/s sent, {} chunks "
-      "loaded ({} MiB), {} meshes ({} MiB)",
+      "loaded ({} MiB), {} meshes ({} MiB), {} MiB accounted of {} MiB, {} chunks queued",
       counters_.players.load(), static_cast<double>(current.edits - last_stats_.edits) / s,
       static_cast<double>(current.meshes - last_stats_.meshes) / s,
       static_cast<double>(current.bytes - last_stats_.bytes) / s / 1024, p.loaded_chunks,
-      p.chunk_bytes >> 20, p.mesh_count, p.mesh_bytes >> 20);
+      p.chunk_bytes >> 20, p.mesh_count, p.mesh_bytes >> 20, p.accounted_bytes >> 20,
+      pipeline_.config().max_memory >> 20, p.queued_load_chunks);
   last_stats_ = current;
 }
 

@@ -46,8 +46,8 @@ class Server {
   std::chrono::seconds stats_interval_{10};
   uint16_t port_ = 0;
   ServerCounters& counters_;
-  AdmissionGate admission_;
-  SharedLogRateLimit logs_;
+  std::shared_ptr<AdmissionGate> admission_;  // shared with the sessions
+  std::shared_ptr<SharedLogRateLimit> logs_;
   uint64_t subscription_ = 0;
   uint64_t next_session_ = 1;  // acceptor handler only
 

@@ -28,6 +28,12 @@ double edit_cost(const world::Edit& edit) {
   return samples;
 }
 
+// What generating one chunk of terrain (or making a uniform one full) costs against the
+// edit budget: its samples.
+constexpr double kSamplesPerChunk = world::kChunkVolume;
+// SERVER_BUSY: memory frees as eviction runs (several times a second under pressure).
+constexpr uint32_t kBusyRetryMs = 1000;
+
 uint32_t clamp_ms(std::chrono::milliseconds ms) {
   return static_cast<uint32_t>(std::min<long long>(ms.count(), UINT32_MAX));
 }
@@ -50,7 +56,7 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
     send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
     return;
   }
-  if (services_.admission.promote() != AdmissionControl::Verdict::kAdmit) {
+  if (services_.admission->promote(address_) != AdmissionControl::Verdict::kAdmit) {
     ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kServerFull)]);
     send_error(wire::Error::SERVER_FULL,
                "the server is full (" + std::to_string(config_.max_clients) + " players)", true);
@@ -63,7 +69,7 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   const uint64_t players = counters_.players.fetch_add(1) + 1;
   handshake_timer_.cancel();
   send_welcome(players);
-  if (auto suppressed = services_.logs.allow("joined", 20)) {
+  if (auto suppressed = services_.logs->allow("joined", 20)) {
     spdlog::info("session {}: player '{}' joined from {}{}", id_, log_name_, address_,
                  *suppressed ? fmt::format(" [{} more joined]", *suppressed) : std::string());
   }
@@ -203,26 +209,44 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
   ++edits_in_flight_;
   const uint64_t ticket = results_.reserve();
   const auto submitted = Clock::now();
-  pipeline_.submit(std::move(*converted.edit), [self = shared_from_this(), request, ticket,
-                                                submitted](const pipeline::EditResult& r) {
-    // Pipeline thread: build the result here, queue it on the strand.
-    self->counters_.edit_to_publish.observe(
-        std::chrono::duration<double>(Clock::now() - submitted).count());
-    wire::Envelope result;
-    auto* w = result.mutable_edit_result();
-    w->set_request_id(request);
-    w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
-    w->set_reason(r.message);
-    if (r.reason == world::RefusalReason::kServerBusy) w->set_retry_after_ms(1000);
-    for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
-    ServerCounters::bump(self->counters_.edit_results[static_cast<size_t>(w->status()) %
-                                                      ServerCounters::kStatuses]);
-    asio::post(self->strand_, [self, ticket, result = std::move(result)]() mutable {
-      --self->edits_in_flight_;
-      self->results_.fill(ticket, std::move(result));
-      self->results_.drain([&self](const wire::Envelope& e) { self->queue_control(e); });
-    });
-  });
+  pipeline_.submit(
+      std::move(*converted.edit),
+      [self = shared_from_this(), request, ticket, submitted](const pipeline::EditResult& r) {
+        // Pipeline thread: build the result here, queue it on the strand.
+        self->counters_.edit_to_publish.observe(
+            std::chrono::duration<double>(Clock::now() - submitted).count());
+        wire::Envelope result;
+        auto* w = result.mutable_edit_result();
+        w->set_request_id(request);
+        w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
+        w->set_reason(r.message);
+        if (r.reason == world::RefusalReason::kServerBusy) w->set_retry_after_ms(kBusyRetryMs);
+        for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
+        asio::post(self->strand_, [self, ticket, result = std::move(result),
+                                   work = r.chunks_generated + r.chunks_expanded]() mutable {
+          self->on_edit_result(ticket, std::move(result), work);
+        });
+      },
+      id_);
+}
+
+// Strand: the pipeline's answer. Terrain the edit made the server generate (and uniform
+// chunks it made full) is charged afterwards, as debt: an edit where nothing is loaded
+// costs far more than its samples.
+void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks) {
+  --edits_in_flight_;
+  const auto now = Clock::now();
+  if (work_chunks > 0) {
+    edit_budget_.charge(static_cast<double>(work_chunks) * kSamplesPerChunk, now);
+  }
+  auto* r = result.mutable_edit_result();
+  if (r->status() == wire::EditResult::RATE_LIMITED) {
+    r->set_retry_after_ms(clamp_ms(edit_budget_.wait_for(kSamplesPerChunk, now)));
+  }
+  ServerCounters::bump(counters_.edit_results[static_cast<size_t>(r->status()) %
+                                              ServerCounters::kStatuses]);
+  results_.fill(ticket, std::move(result));
+  results_.drain([this](const wire::Envelope& e) { queue_control(e); });
 }
 
 bool ClientSession::may_see(const std::vector<ChunkCoord>& chunks) const {  // any thread

@@ -25,15 +25,26 @@ class TokenBucket {
   // long until there will be (a cost over the burst can never pass: max duration).
   // Zero duration means taken.
   std::chrono::milliseconds take(double cost, Clock::time_point now) {
+    const auto wait = wait_for(cost, now);
+    if (wait.count() == 0 && !unlimited()) tokens_ -= cost;
+    return wait;
+  }
+  // How long until `cost` tokens will be there (0: now); takes nothing.
+  std::chrono::milliseconds wait_for(double cost, Clock::time_point now) {
     if (unlimited()) return std::chrono::milliseconds(0);
     refill(now);
-    if (cost <= tokens_) {
-      tokens_ -= cost;
-      return std::chrono::milliseconds(0);
-    }
+    if (cost <= tokens_) return std::chrono::milliseconds(0);
     if (cost > burst_) return std::chrono::milliseconds::max();
-    const double wait_s = (cost - tokens_) / rate_;
-    return std::chrono::milliseconds(std::max<long long>(1, static_cast<long long>(std::ceil(wait_s * 1000))));
+    return std::chrono::milliseconds(
+        std::max<long long>(1, static_cast<long long>(std::ceil((cost - tokens_) / rate_ * 1000))));
+  }
+
+  // Takes `cost` whatever the level: the bucket may go into debt, which later takes wait
+  // for (work whose cost is known only once it is done).
+  void charge(double cost, Clock::time_point now) {
+    if (unlimited()) return;
+    refill(now);
+    tokens_ -= cost;
   }
   double tokens(Clock::time_point now) {
     refill(now);

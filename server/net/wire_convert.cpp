@@ -84,6 +84,7 @@ wire::EditResult::Status status_of(world::RefusalReason r) {
     case world::RefusalReason::kBadMaterial: return wire::EditResult::BAD_MATERIAL;
     case world::RefusalReason::kShuttingDown: return wire::EditResult::SHUTTING_DOWN;
     case world::RefusalReason::kServerBusy: return wire::EditResult::SERVER_BUSY;
+    case world::RefusalReason::kOverBudget: return wire::EditResult::RATE_LIMITED;
   }
   return wire::EditResult::ACCEPTED;
 }

@@ -31,20 +31,27 @@ std::function<void()> BatchScheduler::drop(LoadOwner owner) {
   return done;
 }
 
-Batch BatchScheduler::next(size_t load_budget, const Cost& cost) {
-  Batch batch;
-  batch.ordered.assign(std::make_move_iterator(ordered_.begin()),
-                       std::make_move_iterator(ordered_.end()));
+std::vector<OrderedTask> BatchScheduler::take_ordered() {
+  std::vector<OrderedTask> all(std::make_move_iterator(ordered_.begin()),
+                               std::make_move_iterator(ordered_.end()));
   ordered_.clear();
-  size_t spent = 0;
-  while (spent < load_budget && !rotation_.empty()) {
+  return all;
+}
+
+std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost& cost,
+                                                  size_t scan_limit) {
+  std::vector<LoadSlice> loads;
+  size_t spent = 0, scanned = 0;
+  while (spent < load_budget && scanned < scan_limit && !rotation_.empty()) {
     const LoadOwner owner = rotation_.front();
     rotation_.pop_front();
     Request& r = requests_.at(owner);
     LoadSlice slice{owner, {}, {}};
-    while (r.next < r.chunks.size() && slice.chunks.size() < group_ && spent < load_budget) {
+    while (r.next < r.chunks.size() && slice.chunks.size() < group_ && spent < load_budget &&
+           scanned < scan_limit) {
       const ChunkCoord c = r.chunks[r.next++];
       --queued_chunks_;
+      ++scanned;
       const size_t work = cost(c);
       if (work == 0) continue;  // nothing to do: costs no turn
       slice.chunks.push_back(c);
@@ -56,16 +63,9 @@ Batch BatchScheduler::next(size_t load_budget, const Cost& cost) {
     } else {
       rotation_.push_back(owner);
     }
-    if (!slice.chunks.empty() || slice.done) batch.loads.push_back(std::move(slice));
+    if (!slice.chunks.empty() || slice.done) loads.push_back(std::move(slice));
   }
-  return batch;
-}
-
-std::vector<OrderedTask> BatchScheduler::take_all_ordered() {
-  std::vector<OrderedTask> all(std::make_move_iterator(ordered_.begin()),
-                               std::make_move_iterator(ordered_.end()));
-  ordered_.clear();
-  return all;
+  return loads;
 }
 
 std::vector<std::function<void()>> BatchScheduler::take_all_load_callbacks() {

@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstddef>
 #include <deque>
 #include <functional>
 #include <unordered_map>
@@ -27,9 +28,12 @@ namespace vox::pipeline {
 
 struct EditResult;
 
+using LoadOwner = uint64_t;
+
 struct EditTask {
   world::Edit edit;
   std::function<void(const EditResult&)> done;
+  LoadOwner owner = 0;  // the session that sent it (0: none, e.g. a test or the CLI)
 };
 struct InspectTask {
   // Runs on the pipeline thread between edits; with `cancelled` when the pipeline stopped
@@ -39,19 +43,12 @@ struct InspectTask {
 // Edits and inspections share one queue: an inspection sees every edit queued before it.
 using OrderedTask = std::variant<EditTask, InspectTask>;
 
-using LoadOwner = uint64_t;
-
 // Part of an owner's request taken into a batch. `done` is set on the request's last
 // slice: run it once the slice's chunks are published.
 struct LoadSlice {
   LoadOwner owner = 0;
   std::vector<world::ChunkCoord> chunks;
   std::function<void()> done;
-};
-
-struct Batch {
-  std::vector<OrderedTask> ordered;  // every queued edit and inspection, in arrival order
-  std::vector<LoadSlice> loads;      // round robin over owners, nearest first per owner
 };
 
 class BatchScheduler {
@@ -70,18 +67,20 @@ class BatchScheduler {
   // Drops the owner's queued loads; returns their `done` like request().
   std::function<void()> drop(LoadOwner owner);
 
-  // The next batch: all ordered tasks, then loads round robin, `group` chunks per turn,
-  // until `load_budget` is spent (chunks of zero cost are skipped and cost no turn).
-  // A budget of 0 takes no loads (e.g. while memory is full).
-  Batch next(size_t load_budget, const Cost& cost);
+  // A batch starts with every queued edit and inspection, in arrival order...
+  std::vector<OrderedTask> take_ordered();
+  // ...then takes loads round robin, `group` chunks per turn, until `load_budget` is spent
+  // or `scan_limit` chunks were considered (chunks of zero cost are skipped and cost no
+  // turn, but count as considered). A budget of 0 takes no loads (e.g. memory is full).
+  std::vector<LoadSlice> take_loads(size_t load_budget, const Cost& cost,
+                                    size_t scan_limit = SIZE_MAX);
 
   bool has_ordered() const { return !ordered_.empty(); }
   size_t ordered_count() const { return ordered_.size(); }
   bool has_loads() const { return !rotation_.empty(); }
   size_t queued_load_chunks() const { return queued_chunks_; }
   size_t load_owners() const { return rotation_.size(); }
-  // Everything queued, for shutdown: ordered tasks first, then every request's `done`.
-  std::vector<OrderedTask> take_all_ordered();
+  // For shutdown: every request's `done` (the ordered tasks come from take_ordered()).
   std::vector<std::function<void()>> take_all_load_callbacks();
 
  private:

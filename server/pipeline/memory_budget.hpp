@@ -1,6 +1,6 @@
 // When the world pipeline evicts and how much it may load, given the bytes it accounts
 // (chunks, meshes, and what sessions report). Pure: no I/O, no threads; unit-tested in
-// tests/memory_budget_test.cpp.
+// tests/batch_scheduler_test.cpp.
 //
 // - Above 90 % of the budget, unused unmodified chunks and meshes are evicted (least
 //   recently used first) down to 80 %.

@@ -80,8 +80,8 @@ void WorldPipeline::enqueue(OrderedTask task) {
   }
 }
 
-void WorldPipeline::submit(world::Edit edit, EditCallback done) {
-  enqueue(EditTask{std::move(edit), std::move(done)});
+void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner) {
+  enqueue(EditTask{std::move(edit), std::move(done), owner});
 }
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
@@ -119,6 +119,7 @@ void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius) {
     std::lock_guard lock(queue_mutex_);
     if (stopping_) return;
     replaced = scheduler_.request(owner, std::move(chunks));
+    view_updates_[owner] = {center, radius};
     queue_cv_.notify_one();
   }
   if (replaced) replaced();
@@ -129,6 +130,7 @@ void WorldPipeline::drop_view(LoadOwner owner) {
   {
     std::lock_guard lock(queue_mutex_);
     dropped = scheduler_.drop(owner);
+    view_updates_[owner] = {{}, -1};
   }
   if (dropped) dropped();
 }
@@ -197,11 +199,11 @@ size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
   return budget_.load_work(accounted_bytes(), full);
 }
 
+// A batch: every queued edit and inspection first; then, on the world as the edits left
+// it, one load pass within what the work and memory budgets allow.
 void WorldPipeline::run() {
   for (;;) {
-    Batch batch;
-    LoadPlan plan;
-    Clock::time_point now;
+    std::vector<OrderedTask> ordered;
     {
       std::unique_lock lock(queue_mutex_);
       while (!stopping_ && !batch_ready()) {
@@ -211,15 +213,54 @@ void WorldPipeline::run() {
         }
         // Loads wait for memory: retry eviction now and then (sessions release meshes).
         queue_cv_.wait_for(lock, kPressureRetry);
+        take_view_updates();
         lock.unlock();
         manage_memory(Clock::now());
         lock.lock();
       }
       if (stopping_) break;
-      now = Clock::now();
-      WorldState& st = *state_;
-      // Pipeline thread, under the queue lock: only pipeline-thread state is touched.
-      batch = scheduler_.next(load_work_allowed(scheduler_.has_ordered()), [&](ChunkCoord c) {
+      take_view_updates();
+      ordered = scheduler_.take_ordered();
+    }
+    const Clock::time_point now = Clock::now();
+    PipelineStats counts;  // the whole batch's, for the slow-batch log
+    process_ordered(ordered, now, counts);
+    LoadPlan plan;
+    std::vector<LoadSlice> loads = take_loads(plan, now);
+    process_loads(loads, plan, now, counts);
+    {
+      std::lock_guard lock(stats_mutex_);
+      stats_.batches += 1;
+    }
+    manage_memory(Clock::now());
+    const double took = seconds_since(now);
+    if (observer_.batch) observer_.batch(took, ordered.size(), plan.to_mesh.size());
+    if (took > std::chrono::duration<double>(kSlowBatch).count()) {
+      spdlog::warn(
+          "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
+          "published)",
+          took * 1000, counts.edits_applied + counts.edits_refused, plan.to_mesh.size(),
+          counts.chunks_generated, counts.meshes_published);
+    }
+  }
+  drain_after_stop();
+}
+
+void WorldPipeline::take_view_updates() {
+  for (const auto& [owner, view] : view_updates_) state_->views.set(owner, view.first, view.second);
+  view_updates_.clear();
+}
+
+// The batch's load pass, planned on the world as its edits left it. Pipeline thread; the
+// scheduler is read under the queue lock, and its cost callback touches only
+// pipeline-thread state.
+std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_point now) {
+  WorldState& st = *state_;
+  std::lock_guard lock(queue_mutex_);
+  if (!scheduler_.has_loads()) return {};
+  return scheduler_.take_loads(
+      load_work_allowed(scheduler_.has_ordered()),
+      [&](ChunkCoord c) {
         if (plan.to_mesh.count(c)) return size_t{0};
         if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
           it->second.last_used = now;  // meshed already: only marked as viewed
@@ -234,27 +275,8 @@ void WorldPipeline::run() {
             }
         plan.to_mesh.insert(c);
         return work;
-      });
-    }
-    PipelineStats counts;  // the whole batch's, for the slow-batch log
-    process_ordered(batch.ordered, now, counts);
-    process_loads(batch.loads, plan, now, counts);
-    {
-      std::lock_guard lock(stats_mutex_);
-      stats_.batches += 1;
-    }
-    manage_memory(Clock::now());
-    const double took = seconds_since(now);
-    if (observer_.batch) observer_.batch(took, batch.ordered.size(), plan.to_mesh.size());
-    if (took > std::chrono::duration<double>(kSlowBatch).count()) {
-      spdlog::warn(
-          "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
-          "published)",
-          took * 1000, counts.edits_applied + counts.edits_refused, plan.to_mesh.size(),
-          counts.chunks_generated, counts.meshes_published);
-    }
-  }
-  drain_after_stop();
+      },
+      config_.load_scan_limit);
 }
 
 void WorldPipeline::drain_after_stop() {
@@ -262,7 +284,7 @@ void WorldPipeline::drain_after_stop() {
   std::vector<std::function<void()>> loads;
   {
     std::lock_guard lock(queue_mutex_);
-    ordered = scheduler_.take_all_ordered();
+    ordered = scheduler_.take_ordered();
     loads = scheduler_.take_all_load_callbacks();
   }
   for (OrderedTask& t : ordered) {
@@ -280,9 +302,13 @@ void WorldPipeline::drain_after_stop() {
 
 // Applies one valid edit: loads what it and the meshes it dirties need, changes the
 // touched chunks (in parallel), and appends the chunks whose meshes must be rebuilt.
-// False (and nothing changed) when it needs chunks generated while memory is full.
-bool WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
-                                    std::vector<ChunkCoord>& dirtied, size_t& generated) {
+// Refuses it (nothing changed) when it would generate more than `max_generate` chunks, or
+// when what it may add (generated chunks, uniform chunks turned full) does not fit the
+// memory budget even after evicting unused chunks (once per batch: the scan is not free).
+world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
+                                                    size_t max_generate,
+                                                    std::vector<ChunkCoord>& dirtied,
+                                                    EditResult& result) {
   WorldState& st = *state_;
   const world::VoxelBox box = world::touched_box(edit);
   const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
@@ -296,17 +322,23 @@ bool WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point n
         wanted.push_back({x, y, z});
         missing += st.info.count(wanted.back()) ? 0 : 1;
       }
-  if (missing > 0 && !budget_.may_generate(accounted_bytes(), missing)) {
-    // Make room from unused chunks first (once per batch: the scan is not free).
-    if (evicted_for_edits_) return false;
+  if (missing > max_generate) return world::RefusalReason::kOverBudget;
+  size_t may_expand = 0;  // touched chunks that are (or may come out) uniform
+  for (const ChunkCoord& c : touched) {
+    const world::Chunk* chunk = st.chunks.find(c);
+    may_expand += !chunk || chunk->is_uniform() ? 1 : 0;
+  }
+  if (!budget_.may_generate(accounted_bytes(), missing + may_expand)) {
+    if (evicted_for_edits_) return world::RefusalReason::kServerBusy;
     evicted_for_edits_ = true;
-    const size_t need = missing * MemoryBudget::kBytesPerChunk;
+    const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
     const size_t target = budget_.evict_target(other_bytes_.load(std::memory_order_relaxed));
     st.evict(meshes_, now, config_.evict_after,
              std::min(config_.evict_min_age, config_.evict_after), target > need ? target - need : 0);
-    if (!budget_.may_generate(accounted_bytes(), missing)) return false;
+    if (!budget_.may_generate(accounted_bytes(), missing + may_expand))
+      return world::RefusalReason::kServerBusy;
   }
-  generated += st.ensure_loaded(wanted, generator_, now);
+  result.chunks_generated = st.ensure_loaded(wanted, generator_, now);
 
   std::optional<world::SampleSnapshot> snapshot;
   if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
@@ -329,13 +361,14 @@ bool WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point n
   }
   for (size_t i = 0; i < touched.size(); ++i) {
     st.chunks.note_changed(was_uniform[i] != 0, *targets[i]);
+    result.chunks_expanded += was_uniform[i] && !targets[i]->is_uniform() ? 1 : 0;
     if (!changed[i].changed) continue;
-    bool& modified = st.info[touched[i]].modified;
+    bool& modified = st.info.at(touched[i]).modified;
     st.modified_count += modified ? 0 : 1;
     modified = true;
     world::append_dirty_chunks(touched[i], changed[i], dirtied);
   }
-  return true;
+  return world::RefusalReason::kNone;
 }
 
 // Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
@@ -382,6 +415,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   std::vector<ChunkCoord> dirty;  // may repeat; deduplicated below
   std::vector<std::vector<ChunkCoord>> edit_dirty(tasks.size());
   std::vector<EditResult> results(tasks.size());
+  std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
   bool any_edit = false;
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
@@ -390,7 +424,8 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       insp->run(false);
       continue;
     }
-    const world::Edit& edit = std::get<EditTask>(tasks[t]).edit;
+    const EditTask& task = std::get<EditTask>(tasks[t]);
+    const world::Edit& edit = task.edit;
     any_edit = true;
     if (auto refusal = world::validate(edit, config_.limits)) {
       results[t].reason = refusal->reason;
@@ -398,15 +433,23 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       ++delta.edits_refused;
       continue;
     }
-    if (!apply_edit_task(edit, now, edit_dirty[t], delta.chunks_generated)) {
-      results[t].reason = world::RefusalReason::kServerBusy;
-      results[t].message = "the server's memory budget is full; edits in unloaded areas wait";
+    size_t& generated = generated_by[task.owner];
+    const size_t max_generate =
+        task.owner == 0 ? SIZE_MAX : config_.max_generated_per_owner - std::min(generated, config_.max_generated_per_owner);
+    const world::RefusalReason refused = apply_edit_task(edit, now, max_generate, edit_dirty[t], results[t]);
+    if (refused != world::RefusalReason::kNone) {
+      results[t].reason = refused;
+      results[t].message = refused == world::RefusalReason::kServerBusy
+                               ? "the server's memory budget is full; edits that need new chunks wait"
+                               : "your edits made the server generate too much terrain at once";
       ++delta.edits_refused;
-      ++delta.edits_refused_busy;
+      delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
       continue;
     }
+    generated += results[t].chunks_generated;
     results[t].accepted = true;
     ++delta.edits_applied;
+    delta.chunks_generated += results[t].chunks_generated;
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
   }
   if (!any_edit) return;
@@ -441,7 +484,7 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
       std::vector<ChunkCoord>(plan.to_generate.begin(), plan.to_generate.end()), generator_, now);
   st.column_heights.clear();
   std::vector<ChunkCoord> dirty(plan.to_mesh.begin(), plan.to_mesh.end());
-  for (const ChunkCoord& c : dirty) st.info[c].last_used = now;
+  for (const ChunkCoord& c : dirty) st.info.at(c).last_used = now;  // generated just above
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
   delta.meshes_published += published.size();
   commit_stats(delta, batch);
@@ -491,9 +534,9 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
                         (last_eviction_freed_ || now - st.last_eviction > kPressureRetry);
   if (periodic || pressure) {
     st.last_eviction = now;
-    const size_t target = budget_.limited()
-                              ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed))
-                              : SIZE_MAX;
+    // The periodic pass drops only idle chunks; under pressure, down to the target.
+    const size_t target = pressure ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed))
+                                   : SIZE_MAX;
     const size_t dropped = st.evict(meshes_, now, config_.evict_after,
                                     std::min(config_.evict_min_age, config_.evict_after), target);
     last_eviction_freed_ = dropped > 0;

@@ -16,6 +16,7 @@
 #include <memory>
 #include <mutex>
 #include <thread>
+#include <unordered_map>
 #include <vector>
 
 #include "mesh/region_mesher.hpp"
@@ -35,15 +36,21 @@ struct PipelineConfig {
   world::TerrainParams terrain;
   int threads = 0;  // worker threads for apply/generate/mesh, 0 = all cores
   world::EditLimits limits;
-  // Load work per pass (a chunk to generate is 4 units, one to mesh 1): about 80 ms cold
-  // on 2 cores; while edits wait, a pass takes only the smaller budget (about 10 ms).
-  size_t load_pass_work = 2048;
-  size_t load_pass_work_while_edits_wait = 256;
+  // Load work per pass (a chunk to generate is 4 units, one to mesh 1): about 25 ms cold
+  // on 2 cores, so an edit arriving during a pass waits little; while edits wait, a pass
+  // takes only the smaller budget.
+  size_t load_pass_work = 512;
+  size_t load_pass_work_while_edits_wait = 128;
   // Unmodified chunks unused this long (and whose mesh no one else holds) are dropped;
   // they regenerate from the seed. Modified chunks stay.
   std::chrono::milliseconds evict_after{std::chrono::minutes(2)};
   // Chunks used more recently than this are never evicted, even over the memory budget.
   std::chrono::milliseconds evict_min_age{std::chrono::seconds(5)};
+  // Chunks one owner's edits may make a batch generate; more are refused kOverBudget. A
+  // largest edit in untouched terrain needs 7^3 = 343.
+  size_t max_generated_per_owner = 400;
+  // Chunks the load scheduler considers per pass (most of a moved view is meshed already).
+  size_t load_scan_limit = 16384;
   size_t max_memory = 0;  // bytes; 0: no budget (see MemoryBudget)
 };
 
@@ -52,6 +59,9 @@ struct EditResult {
   world::RefusalReason reason = world::RefusalReason::kNone;
   std::string message;                            // why it was refused
   std::vector<world::ChunkCoord> changed_chunks;  // chunks given a new mesh version
+  // What the edit cost the server beyond its samples, charged to its sender: chunks of
+  // terrain generated for it, and uniform chunks it turned into full ones.
+  size_t chunks_generated = 0, chunks_expanded = 0;
 };
 
 struct PipelineStats {
@@ -83,7 +93,9 @@ class WorldPipeline {
 
   // Any thread. `done` runs on the pipeline thread once the edit's meshes are published
   // (or it was refused); it must not block. Every queued edit is in the next batch.
-  void submit(world::Edit edit, EditCallback done);
+  // `owner` (a session id; 0 for none) bounds the terrain its edits may make the pipeline
+  // generate in one batch.
+  void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0);
   std::future<EditResult> submit(world::Edit edit);
   // Any thread. Generates and meshes whatever of the box is missing; `done` runs on the
   // pipeline thread once every chunk of the box has a published mesh.
@@ -118,14 +130,17 @@ class WorldPipeline {
   void enqueue(OrderedTask task);
   void run();
   bool batch_ready() const;  // under queue_mutex_
+  void take_view_updates();  // under queue_mutex_, pipeline thread
+  std::vector<LoadSlice> take_loads(LoadPlan& plan, Clock::time_point now);  // pipeline thread
   size_t load_work_allowed(bool edits_waiting);
   void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now, PipelineStats& batch);
   void process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan, Clock::time_point now,
                      PipelineStats& batch);
   void commit_stats(const PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
-  bool apply_edit_task(const world::Edit& edit, Clock::time_point now,
-                       std::vector<world::ChunkCoord>& dirtied, size_t& generated);
+  world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
+                                       size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
+                                       EditResult& result);
   std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty);
   void drain_after_stop();
   void manage_memory(Clock::time_point now);
@@ -142,6 +157,8 @@ class WorldPipeline {
   BatchScheduler scheduler_;
   bool stopping_ = false;
   uint64_t next_anonymous_owner_ = 1;  // under queue_mutex_
+  // Views set or dropped since the last batch (radius -1: dropped); under queue_mutex_.
+  std::unordered_map<LoadOwner, std::pair<world::ChunkCoord, int>> view_updates_;
   std::atomic<bool> loads_blocked_{false};  // over budget with nothing evictable
   std::atomic<size_t> other_bytes_{0};
 

@@ -58,7 +58,7 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   };
   std::vector<Candidate> candidates;
   for (const auto& [c, chunk_info] : info) {
-    if (chunk_info.modified || now - chunk_info.last_used < min_age) continue;
+    if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c)) continue;
     const MeshVersionPtr mesh = meshes.get(c);
     if (mesh && mesh.use_count() > 2) continue;  // someone besides the store (and us) holds it
     candidates.push_back({chunk_info.last_used, c});

@@ -15,6 +15,7 @@
 #include "mesh/marching_cubes.hpp"
 #include "mesh/padded_block.hpp"
 #include "pipeline/mesh_store.hpp"
+#include "pipeline/view_index.hpp"
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
 #include "world/chunk_map.hpp"
@@ -49,6 +50,7 @@ struct WorldState {
   // Surface heights of the columns generated during one load pass.
   std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
   Clock::time_point last_eviction = Clock::now();
+  ViewIndex views;  // every session's current view: chunks in one are never evicted
 
   // Generates every chunk of `coords` that is missing, in parallel over columns so each
   // column's surface heights are computed once; marks present ones used. Returns the number
@@ -56,10 +58,10 @@ struct WorldState {
   size_t ensure_loaded(const std::vector<world::ChunkCoord>& coords,
                        const world::TerrainGenerator& gen, Clock::time_point now);
 
-  // Drops unmodified chunks (and their meshes) that no one but the store holds, least
-  // recently used first: every one unused for `idle`, then more until the chunks and
-  // meshes take at most `target_bytes`. A chunk used within `min_age` always stays (a view
-  // may be about to send it). Returns the number dropped.
+  // Drops unmodified chunks (and their meshes) that are in no view and whose mesh no one
+  // but the store holds, least recently used first: every one unused for `idle`, then
+  // more until the chunks and meshes take at most `target_bytes`. A chunk used within
+  // `min_age` always stays. Returns the number dropped.
   size_t evict(MeshStore& meshes, Clock::time_point now, std::chrono::milliseconds idle,
                std::chrono::milliseconds min_age, size_t target_bytes);
 };

@@ -70,6 +70,7 @@ const char* to_string(RefusalReason r) {
     case RefusalReason::kBadMaterial: return "bad material";
     case RefusalReason::kShuttingDown: return "shutting down";
     case RefusalReason::kServerBusy: return "server busy";
+    case RefusalReason::kOverBudget: return "over budget";
   }
   return "unknown";
 }

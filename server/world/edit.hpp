@@ -67,6 +67,7 @@ enum class RefusalReason : uint8_t {
   kBadMaterial,       // material 0 (air) where a solid material is needed
   kShuttingDown,      // the pipeline stopped before applying it
   kServerBusy,        // it needs chunks loaded while the memory budget is full
+  kOverBudget,        // its sender's edits made the server generate too much terrain at once
 };
 const char* to_string(RefusalReason r);
 

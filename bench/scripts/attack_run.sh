@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# One load-test run against a fresh voxeld, as docs/PERFORMANCE.md reports it:
+#   bench/scripts/attack_run.sh NAME PLAYERS DURATION [ATTACK_MIX] [-- extra voxel-loadtest args]
+# Starts build/bin/voxeld on a free port (--max-memory 1G, --max-per-address 0, metrics on),
+# runs voxel-loadtest with --json, then prints the honest players' edit->delta p50/p99, errors,
+# disconnects, refusals, voxeld's max RSS and the server's own edit->publish histogram sum/count.
+# Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+bin="${VOXEL_BIN:-$root/build/bin}"
+name="$1" players="$2" duration="$3" attack="${4:-}"
+shift 3; [ $# -gt 0 ] && shift
+[ "${1:-}" = "--" ] && shift
+out=/tmp/voxeld_bench; mkdir -p "$out"
+rm -f "$out/$name".{port,mport}
+"$bin/voxeld" --port 0 --port-file "$out/$name.port" --metrics-port 0 --metrics-port-file "$out/$name.mport" \
+  --max-memory 1G --max-clients 4000 --max-per-address 0 --max-handshaking-per-address 0 --max-handshaking 1000 --stats-interval 10 \
+  ${VOXELD_ARGS:-} > "$out/$name.log" 2>&1 &
+server=$!
+trap 'kill $server 2>/dev/null || true' EXIT
+for _ in $(seq 100); do [ -s "$out/$name.mport" ] && break; sleep 0.1; done
+args=(--server "127.0.0.1:$(cat "$out/$name.port")" --players "$players" --duration "$duration" --ramp 10
+      --edit-rate 0.5 --view-radius 4 --server-pid "$server" --json "$out/$name.json")
+[ -n "$attack" ] && args+=(--attack "$attack")
+set +e
+"$bin/voxel-loadtest" "${args[@]}" "$@" > "$out/$name.table" 2> "$out/$name.progress"
+code=$?
+set -e
+curl -s "http://127.0.0.1:$(cat "$out/$name.mport")/metrics" > "$out/$name.metrics" || true
+kill -TERM $server; wait $server || true
+/usr/bin/python3 - "$out/$name.json" "$out/$name.metrics" "$name" "$code" <<'PY'
+import json, sys
+j = json.load(open(sys.argv[1]))
+m = {}
+for line in open(sys.argv[2]):
+    if line.startswith('#') or ' ' not in line: continue
+    k, v = line.rsplit(' ', 1); m[k] = float(v)
+d, r = j['edit_to_delta_ms'], j['edit_to_result_ms']
+rss = j.get('server_rss', {})
+pub_n = m.get('voxeld_edit_publish_seconds_count', 0)
+pub_mean = 1000 * m.get('voxeld_edit_publish_seconds_sum', 0) / pub_n if pub_n else 0
+print(f"{sys.argv[3]}: exit {sys.argv[4]}, players {j['players_connected']}/{j['players']}, "
+      f"edit->result p50 {r['p50']:.1f} p99 {r['p99']:.1f} ms, edit->delta p50 {d['p50']:.1f} p99 {d['p99']:.1f} "
+      f"max {d['max']:.0f} ms (n {d['count']}), errors {j['errors']}, disconnects {j['disconnects']}, "
+      f"refused {j.get('refused_by_status', {})}, max RSS {rss.get('max_kib', 0)/1024:.0f} MiB, "
+      f"server edit->publish mean {pub_mean:.1f} ms")
+PY
