@@ -242,7 +242,6 @@ TEST(WorldPipeline, EvictsUnusedUnmodifiedChunksButKeepsModifiedOnes) {
   const world::TerrainGenerator gen(kSeed);
   const EditResult r = p.submit(world::Explosion{{48, gen.height_at(48, 48), 48}, 6, 2}).get();
   ASSERT_TRUE(r.accepted);
-  ASSERT_FALSE(r.changed_chunks.empty());
   p.submit(world::Paint{{0, 0, 0}, 1, 2}).get();  // one more batch: eviction runs after each
   size_t modified_kept = 0;
   p.inspect([&](const world::ChunkMap& map) {
@@ -295,6 +294,38 @@ TEST(WorldPipeline, ConcurrentWritersAndReadersSeeConsistentVersions) {
 // A big cold load is split into groups and edits go first in every batch: an edit queued
 // right behind the load gets its result while most of the load is still to come, and the
 // load's completion still runs exactly once, with every chunk of the box meshed.
+// An edit where no one has a mesh generates only the chunks it touches (27 for the
+// largest box), not their neighbours' neighbours (343): those meshes are made when a view
+// loads them. Where meshes exist, the dirtied ones are re-meshed with their neighbours.
+TEST(WorldPipeline, AnEditWhereNothingIsMeshedGeneratesOnlyWhatItTouches) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const world::TerrainGenerator gen(kSeed);
+  const float x = 100000, y = gen.height_at(100000, 0);
+  const world::Stamp box{world::Stamp::Shape::kBox, {x + 2, y - 28, 2}, {x + 62, y + 28, 62}, {}, 1, true, 3};
+  const EditResult far = p.submit(box).get();
+  ASSERT_TRUE(far.accepted);
+  EXPECT_LE(far.chunks_generated, 27u);
+  EXPECT_TRUE(far.changed_chunks.empty()) << "no one holds a mesh there";
+  // A view then loads the area: the edited chunks are meshed with the edit in them.
+  const ChunkCoord c = world::chunk_of_voxel(static_cast<int32_t>(x) + 32, static_cast<int32_t>(y), 32);
+  p.load({c.offset(-1, -1, -1), c.offset(1, 1, 1)}).get();
+  const MeshVersionPtr mesh = p.meshes().get(c);
+  ASSERT_TRUE(mesh);
+  world::ChunkMap reference;
+  p.inspect([&](const world::ChunkMap& map) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const ChunkCoord n = c.offset(dx, dy, dz);
+          if (const world::Chunk* chunk = map.find(n)) reference.insert(n, *chunk);
+        }
+  });
+  EXPECT_EQ(mesh->mesh.indices, mesh::mesh_chunks(reference, {c, c})[0].indices);
+  // An edit next to meshed chunks re-meshes them (and loads what that needs).
+  const EditResult near = p.submit(world::Explosion{{x + 40, y, 40}, 4, 2}).get();  // in the box
+  EXPECT_FALSE(near.changed_chunks.empty());
+}
+
 TEST(WorldPipeline, EditsDoNotWaitBehindABigLoad) {
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
   const mesh::ChunkBox small = surface_box();

@@ -312,16 +312,28 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   WorldState& st = *state_;
   const world::VoxelBox box = world::touched_box(edit);
   const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
-  // Touched chunks, the neighbours they may dirty, and those neighbours' neighbours.
-  const ChunkCoord lo = touched.front().offset(-2, -2, -2), hi = touched.back().offset(2, 2, 2);
-  std::vector<ChunkCoord> wanted;
-  size_t missing = 0;
+  // What must be loaded: the touched chunks (and what a smooth reads), and every meshed
+  // chunk the edit may dirty (the touched ones and their neighbours) with its neighbours,
+  // to re-mesh it. Chunks no one has a mesh of are not re-meshed (a view that loads them
+  // meshes them then), so an edit where nothing is meshed generates only what it touches.
+  std::vector<ChunkCoord> wanted = touched;
+  if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
+    wanted = world::chunks_overlapping(world::smooth_read_box(*smooth));
+  }
+  const ChunkCoord lo = touched.front().offset(-1, -1, -1), hi = touched.back().offset(1, 1, 1);
   for (int32_t z = lo.z; z <= hi.z; ++z)
     for (int32_t y = lo.y; y <= hi.y; ++y)
       for (int32_t x = lo.x; x <= hi.x; ++x) {
-        wanted.push_back({x, y, z});
-        missing += st.info.count(wanted.back()) ? 0 : 1;
+        auto it = st.info.find({x, y, z});
+        if (it == st.info.end() || !it->second.meshed) continue;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) wanted.push_back({x + dx, y + dy, z + dz});
       }
+  std::sort(wanted.begin(), wanted.end());
+  wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+  size_t missing = 0;
+  for (const ChunkCoord& c : wanted) missing += st.info.count(c) ? 0 : 1;
   if (missing > max_generate) return world::RefusalReason::kOverBudget;
   size_t may_expand = 0;  // touched chunks that are (or may come out) uniform
   for (const ChunkCoord& c : touched) {
@@ -333,8 +345,10 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     evicted_for_edits_ = true;
     const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
     const size_t target = budget_.evict_target(other_bytes_.load(std::memory_order_relaxed));
-    st.evict(meshes_, now, config_.evict_after,
-             std::min(config_.evict_min_age, config_.evict_after), target > need ? target - need : 0);
+    // Chunks this batch used (loaded or touched: last used `now`) always stay.
+    st.evict(meshes_, now, config_.evict_after, std::max<std::chrono::milliseconds>(
+                 std::min(config_.evict_min_age, config_.evict_after), std::chrono::milliseconds(1)),
+             target > need ? target - need : 0);
     if (!budget_.may_generate(accounted_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
@@ -345,6 +359,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     snapshot = world::take_snapshot(st.chunks, world::smooth_read_box(*smooth));
   }
   std::vector<world::ChangedBox> changed(touched.size());
+  std::vector<ChunkCoord> dirty_here;  // chunks whose mesh reads a changed sample
   std::vector<world::Chunk*> targets(touched.size());
   std::vector<char> was_uniform(touched.size());
   for (size_t i = 0; i < touched.size(); ++i) {
@@ -366,7 +381,10 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     bool& modified = st.info.at(touched[i]).modified;
     st.modified_count += modified ? 0 : 1;
     modified = true;
-    world::append_dirty_chunks(touched[i], changed[i], dirtied);
+    world::append_dirty_chunks(touched[i], changed[i], dirty_here);
+  }
+  for (const ChunkCoord& c : dirty_here) {
+    if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) dirtied.push_back(c);
   }
   return world::RefusalReason::kNone;
 }

@@ -45,7 +45,7 @@ struct PipelineConfig {
   // they regenerate from the seed. Modified chunks stay.
   std::chrono::milliseconds evict_after{std::chrono::minutes(2)};
   // Chunks used more recently than this are never evicted, even over the memory budget.
-  std::chrono::milliseconds evict_min_age{std::chrono::seconds(5)};
+  std::chrono::milliseconds evict_min_age{std::chrono::seconds(1)};
   // Chunks one owner's edits may make a batch generate; more are refused kOverBudget. A
   // largest edit in untouched terrain needs 7^3 = 343.
   size_t max_generated_per_owner = 400;
