@@ -130,8 +130,13 @@ int main(int argc, char** argv) {
   net.frame_timeout = std::chrono::milliseconds(frame_ms);
   world.evict_after = std::chrono::seconds(evict_after_s);
   if (net.max_per_address == 0) spdlog::warn("--max-per-address 0: one address may fill the server");
-  spdlog::info("memory budget {} MiB (--max-memory); per player: {:.0f} edit samples/s (burst {:.0f}), {} SetViews/s",
-               world.max_memory >> 20, net.edit_budget_rate, net.edit_budget_burst, net.set_view_rate);
+#ifdef VOXEL_JEMALLOC
+  constexpr const char* kAllocator = "jemalloc";
+#else
+  constexpr const char* kAllocator = "the system allocator";
+#endif
+  spdlog::info("memory budget {} MiB (--max-memory, {}); per player: {:.0f} edit samples/s (burst {:.0f}), {} SetViews/s",
+               world.max_memory >> 20, kAllocator, net.edit_budget_rate, net.edit_budget_burst, net.set_view_rate);
 
   try {
     vox::net::ServerCounters counters;

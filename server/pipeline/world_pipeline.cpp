@@ -1,6 +1,5 @@
 #include "pipeline/world_pipeline.hpp"
 
-#include <malloc.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -207,12 +206,9 @@ void WorldPipeline::run() {
     {
       std::unique_lock lock(queue_mutex_);
       while (!stopping_ && !batch_ready()) {
-        if (!scheduler_.has_loads()) {
-          queue_cv_.wait(lock);
-          continue;
-        }
-        // Loads wait for memory: retry eviction now and then (sessions release meshes).
-        queue_cv_.wait_for(lock, kPressureRetry);
+        // Idle: wake now and then to evict idle chunks. Loads waiting for memory: retry
+        // eviction more often (sessions release meshes).
+        queue_cv_.wait_for(lock, scheduler_.has_loads() ? kPressureRetry : config_.evict_after / 4);
         take_view_updates();
         lock.unlock();
         manage_memory(Clock::now());
@@ -558,8 +554,6 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
     const size_t dropped = st.evict(meshes_, now, config_.evict_after,
                                     std::min(config_.evict_min_age, config_.evict_after), target);
     last_eviction_freed_ = dropped > 0;
-    // Freed chunk arrays go back to the operating system, not only to malloc's free lists.
-    if (dropped > 0) ::malloc_trim(0);
     std::lock_guard lock(stats_mutex_);
     stats_.chunks_evicted += dropped;
     stats_.loaded_chunks = st.chunks.size();

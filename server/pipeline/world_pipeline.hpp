@@ -39,8 +39,8 @@ struct PipelineConfig {
   // Load work per pass (a chunk to generate is 4 units, one to mesh 1): about 25 ms cold
   // on 2 cores, so an edit arriving during a pass waits little; while edits wait, a pass
   // takes only the smaller budget.
-  size_t load_pass_work = 512;
-  size_t load_pass_work_while_edits_wait = 128;
+  size_t load_pass_work = 192;
+  size_t load_pass_work_while_edits_wait = 96;
   // Unmodified chunks unused this long (and whose mesh no one else holds) are dropped;
   // they regenerate from the seed. Modified chunks stay.
   std::chrono::milliseconds evict_after{std::chrono::minutes(2)};
