@@ -7,6 +7,7 @@
 #include <set>
 
 #include "server/pipeline/memory_budget.hpp"
+#include "server/pipeline/view_index.hpp"
 #include "server/pipeline/world_pipeline.hpp"
 
 namespace vox::pipeline {
@@ -214,6 +215,30 @@ TEST(MemoryBudget, NoBudgetMeansNoLimit) {
   EXPECT_FALSE(b.should_evict(SIZE_MAX / 2));
   EXPECT_EQ(b.load_work(SIZE_MAX / 2, 77), 77u);
   EXPECT_TRUE(b.may_generate(SIZE_MAX / 2, 1000));
+}
+
+}  // namespace
+}  // namespace vox::pipeline
+
+namespace vox::pipeline {
+namespace {
+
+TEST(ViewIndex, KnowsExactlyTheChunksInSomeonesViewAcrossRegions) {
+  ViewIndex v;
+  v.set(1, {15, 0, 0}, 3);  // straddles two regions on x
+  EXPECT_TRUE(v.viewed({15, 0, 0}));
+  EXPECT_TRUE(v.viewed({18, 0, 0}));
+  EXPECT_TRUE(v.viewed({12, 0, 0}));
+  EXPECT_FALSE(v.viewed({19, 0, 0}));
+  EXPECT_FALSE(v.viewed({17, 2, 2})) << "outside the ball, inside its box";
+  v.set(2, {-40, 5, -40}, 1);
+  EXPECT_TRUE(v.viewed({-40, 6, -40}));
+  v.set(1, {100, 0, 0}, 2);  // moved: the old place is no longer viewed
+  EXPECT_FALSE(v.viewed({15, 0, 0}));
+  EXPECT_TRUE(v.viewed({101, 1, 0}));
+  v.remove(2);
+  EXPECT_FALSE(v.viewed({-40, 5, -40}));
+  EXPECT_EQ(v.size(), 1u);
 }
 
 }  // namespace

@@ -32,6 +32,14 @@ void add(MetricFamily& f, double value, std::vector<ClientMetric::Label> labels 
   f.metric.push_back(std::move(m));
 }
 
+// A family of one unlabelled sample.
+void single(std::vector<MetricFamily>& out, const char* name, const char* help, MetricType type,
+            double value) {
+  MetricFamily f = family(name, help, type);
+  add(f, value);
+  out.push_back(std::move(f));
+}
+
 MetricFamily histogram(std::string name, std::string help, const net::LatencyHistogram& h) {
   MetricFamily f = family(std::move(name), std::move(help), MetricType::Histogram);
   const auto snap = h.snapshot();
@@ -133,14 +141,10 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
   void world(std::vector<MetricFamily>& out) const {
     const pipeline::PipelineStats s = pipeline_.stats();
     auto gauge = [&out](const char* name, const char* help, double v) {
-      auto f = family(name, help, MetricType::Gauge);
-      add(f, v);
-      out.push_back(std::move(f));
+      single(out, name, help, MetricType::Gauge, v);
     };
     auto counter = [&out](const char* name, const char* help, double v) {
-      auto f = family(name, help, MetricType::Counter);
-      add(f, v);
-      out.push_back(std::move(f));
+      single(out, name, help, MetricType::Counter, v);
     };
     gauge("voxeld_load_chunks_queued", "Chunks queued for loading (every view's)", double(s.queued_load_chunks));
     gauge("voxeld_load_owners", "Views and loads with queued chunks", double(s.load_owners));
@@ -165,9 +169,7 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
 
   void traffic(std::vector<MetricFamily>& out) const {
     auto counter = [&out](const char* name, const char* help, double v) {
-      auto f = family(name, help, MetricType::Counter);
-      add(f, v);
-      out.push_back(std::move(f));
+      single(out, name, help, MetricType::Counter, v);
     };
     counter("voxeld_sent_bytes_total", "Bytes written to clients", value_of(c_.bytes_sent));
     counter("voxeld_sent_messages_total", "Messages written to clients", value_of(c_.messages_sent));
