@@ -76,6 +76,8 @@ int main(int argc, char** argv) {
       "max-per-address", po::value<size_t>(&net.max_per_address)->default_value(16), "connections from one address (0: no cap)")(
       "max-handshaking-per-address", po::value<size_t>(&net.max_handshaking_per_address)->default_value(4), "of those, before Hello (0: no cap)")(
       "max-memory", po::value<std::string>(&max_memory), "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)")(
+      "load-budget", po::value<double>(&world.load_work_per_owner)->default_value(250), "terrain load work per second per player (4 per chunk generated, 1 per mesh; 0: unlimited)")(
+      "load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(4000), "load work a player may take at once (a first radius-4 view is about 2,700)")(
       "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000), "samples per second a player's edits may touch (0: unlimited)")(
       "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000), "samples a player's edits may touch at once")(
       "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(2), "SetViews per second per player; more are coalesced (0: unlimited)")(

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <set>
 
 #include "server/pipeline/memory_budget.hpp"
@@ -159,6 +160,28 @@ TEST(BatchScheduler, ARequestWhoseChunksAllExistFinishesAtOnce) {
   b.loads[0].done();
   EXPECT_TRUE(done);
   EXPECT_FALSE(s.has_loads());
+}
+
+TEST(BatchScheduler, AnOwnerOverItsLoadBudgetWaitsWhileOthersGoOn) {
+  using namespace std::chrono_literals;
+  BatchScheduler s(32, /*owner_rate=*/100, /*owner_burst=*/64);
+  const auto t0 = BatchScheduler::Clock::now();
+  s.request(1, row(1, 7153));  // a flooder's view
+  s.request(2, row(2, 200));   // a player's
+  s.request(BatchScheduler::kUnlimitedOwners | 1, row(3, 200));  // a one-off load: never budgeted
+  std::map<LoadOwner, size_t> by_owner;
+  for (int batch = 0; batch < 10; ++batch) {
+    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0)) {
+      by_owner[slice.owner] += slice.chunks.size();
+    }
+  }
+  EXPECT_LE(by_owner[1], 64u + 32u) << "the burst (and at most one group of debt)";
+  EXPECT_LE(by_owner[2], 64u + 32u);
+  EXPECT_EQ(by_owner[BatchScheduler::kUnlimitedOwners | 1], 200u) << "one-off loads are not budgeted";
+  EXPECT_FALSE(s.has_ready_loads(t0));
+  EXPECT_TRUE(s.has_ready_loads(t0 + 2s)) << "the budget refills";
+  const auto later = s.take_loads(1000, unit_cost, SIZE_MAX, t0 + 2s);
+  ASSERT_FALSE(later.empty());
 }
 
 TEST(BatchScheduler, APassConsidersAtMostTheScanLimit) {

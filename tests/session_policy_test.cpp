@@ -5,10 +5,12 @@
 #include "server/net/admission_control.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/result_order.hpp"
-#include "server/net/token_bucket.hpp"
+#include "server/pipeline/token_bucket.hpp"
 
 namespace vox::net {
 namespace {
+
+using pipeline::TokenBucket;
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;

@@ -16,7 +16,7 @@
 #include "net/result_order.hpp"
 #include "net/send_scheduler.hpp"
 #include "net/server_counters.hpp"
-#include "net/token_bucket.hpp"
+#include "pipeline/token_bucket.hpp"
 #include "pipeline/world_pipeline.hpp"
 #include "proto/framing.hpp"
 #include "voxel.pb.h"
@@ -135,7 +135,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   bool closing_ = false;
   bool writing_ = false;
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued
-  TokenBucket edit_budget_, view_budget_, message_budget_, error_budget_;
+  pipeline::TokenBucket edit_budget_, view_budget_, message_budget_, error_budget_;
   ResultOrder results_;
   struct PendingView {
     world::ChunkCoord center;

@@ -22,6 +22,7 @@ std::function<void()> BatchScheduler::request(LoadOwner owner, std::vector<Chunk
 }
 
 std::function<void()> BatchScheduler::drop(LoadOwner owner) {
+  budgets_.erase(owner);
   auto it = requests_.find(owner);
   if (it == requests_.end()) return {};
   std::function<void()> done = std::move(it->second.done);
@@ -38,13 +39,35 @@ std::vector<OrderedTask> BatchScheduler::take_ordered() {
   return all;
 }
 
+TokenBucket& BatchScheduler::budget_of(LoadOwner owner, Clock::time_point now) {
+  return budgets_.try_emplace(owner, owner_rate_, owner_burst_, now).first->second;
+}
+
+bool BatchScheduler::has_ready_loads(Clock::time_point now) {
+  for (LoadOwner owner : rotation_) {
+    if ((owner & kUnlimitedOwners) || budget_of(owner, now).wait_for(1, now).count() == 0)
+      return true;
+  }
+  return false;
+}
+
 std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost& cost,
-                                                  size_t scan_limit) {
+                                                  size_t scan_limit, Clock::time_point now) {
   std::vector<LoadSlice> loads;
   size_t spent = 0, scanned = 0;
-  while (spent < load_budget && scanned < scan_limit && !rotation_.empty()) {
+  // Owners out of budget are passed over (they keep their place); the pass ends when a
+  // whole round finds no owner with budget.
+  size_t passed_over = 0;
+  while (spent < load_budget && scanned < scan_limit && passed_over < rotation_.size()) {
     const LoadOwner owner = rotation_.front();
     rotation_.pop_front();
+    TokenBucket* budget = (owner & kUnlimitedOwners) ? nullptr : &budget_of(owner, now);
+    if (budget && budget->wait_for(1, now).count() > 0) {
+      rotation_.push_back(owner);
+      ++passed_over;
+      continue;
+    }
+    passed_over = 0;
     Request& r = requests_.at(owner);
     LoadSlice slice{owner, {}, {}};
     while (r.next < r.chunks.size() && slice.chunks.size() < group_ && spent < load_budget &&
@@ -56,6 +79,7 @@ std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost
       if (work == 0) continue;  // nothing to do: costs no turn
       slice.chunks.push_back(c);
       spent += work;
+      if (budget) budget->charge(static_cast<double>(work), now);
     }
     if (r.next == r.chunks.size()) {
       slice.done = std::move(r.done);

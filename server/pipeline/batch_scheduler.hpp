@@ -10,9 +10,12 @@
 //   an owner drops its queued loads.
 // - Owners are served round robin, a group of chunks per turn, each request nearest
 //   first, so one big view does not delay another owner's first chunks.
+// - Each session owner has a load budget (work units per second, a token bucket): an
+//   owner that has spent it waits, so view floods cannot take the whole pipeline.
 #pragma once
 
 #include <cstddef>
+#include <chrono>
 #include <cstdint>
 #include <cstddef>
 #include <deque>
@@ -21,6 +24,7 @@
 #include <variant>
 #include <vector>
 
+#include "pipeline/token_bucket.hpp"
 #include "world/chunk_coord.hpp"
 #include "world/edit.hpp"
 
@@ -57,7 +61,12 @@ class BatchScheduler {
   // chunk considered, in the order the chunks are taken, so it may count shared work once.
   using Cost = std::function<size_t(world::ChunkCoord)>;
 
-  explicit BatchScheduler(size_t group = 32) : group_(group) {}
+  using Clock = std::chrono::steady_clock;
+  // `owner_rate` work units per second per session owner, up to `owner_burst` (rate 0:
+  // unlimited). One-off loads (owners with the top bit set) are never limited.
+  explicit BatchScheduler(size_t group = 32, double owner_rate = 0, double owner_burst = 0)
+      : group_(group), owner_rate_(owner_rate), owner_burst_(owner_burst) {}
+  static constexpr LoadOwner kUnlimitedOwners = LoadOwner{1} << 63;
 
   void add(OrderedTask task);
   // Replaces `owner`'s pending request with `chunks` (nearest first). Returns the replaced
@@ -72,8 +81,11 @@ class BatchScheduler {
   // ...then takes loads round robin, `group` chunks per turn, until `load_budget` is spent
   // or `scan_limit` chunks were considered (chunks of zero cost are skipped and cost no
   // turn, but count as considered). A budget of 0 takes no loads (e.g. memory is full).
+  // An owner whose budget is spent is skipped until it refills.
   std::vector<LoadSlice> take_loads(size_t load_budget, const Cost& cost,
-                                    size_t scan_limit = SIZE_MAX);
+                                    size_t scan_limit = SIZE_MAX, Clock::time_point now = {});
+  // Whether some owner with queued loads has budget left at `now`.
+  bool has_ready_loads(Clock::time_point now);
 
   bool has_ordered() const { return !ordered_.empty(); }
   size_t ordered_count() const { return ordered_.size(); }
@@ -90,7 +102,11 @@ class BatchScheduler {
     std::function<void()> done;
   };
 
+  TokenBucket& budget_of(LoadOwner owner, Clock::time_point now);
+
   const size_t group_;
+  const double owner_rate_, owner_burst_;
+  std::unordered_map<LoadOwner, TokenBucket> budgets_;  // session owners seen; dropped with them
   std::deque<OrderedTask> ordered_;
   std::unordered_map<LoadOwner, Request> requests_;
   std::deque<LoadOwner> rotation_;  // owners with a request, next to serve at the front

@@ -33,8 +33,13 @@ constexpr size_t kLoadGroup = 32;
 // Load work units: a chunk to generate, a chunk to mesh.
 constexpr size_t kGenerateWork = 4;
 constexpr size_t kMeshWork = 1;
-// One-off loads (load(box)) get owners from the top half, sessions use their ids.
-constexpr LoadOwner kAnonymousOwner = LoadOwner{1} << 63;
+// One-off loads (load(box)) get owners from the top half (never budgeted), sessions use
+// their ids.
+constexpr LoadOwner kAnonymousOwner = BatchScheduler::kUnlimitedOwners;
+// Chunks one pass under memory pressure looks at (about 1 ms), so it never stalls a batch.
+constexpr size_t kPressureScan = 4096;
+// Loads waiting only for their owners' load budgets are looked at again this often.
+constexpr auto kBudgetRetry = std::chrono::milliseconds(20);
 // While over the memory budget, eviction is retried at most this often.
 constexpr auto kPressureRetry = std::chrono::milliseconds(250);
 
@@ -52,7 +57,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       observer_(std::move(observer)),
       generator_(config_.seed, config_.terrain),
       budget_(config_.max_memory),
-      scheduler_(kLoadGroup),
+      scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner),
       state_(std::make_unique<WorldState>(config_.threads)) {
   thread_ = std::thread([this] { run(); });
 }
@@ -182,9 +187,10 @@ void WorldPipeline::stop() {
   if (thread_.joinable()) thread_.join();
 }
 
-bool WorldPipeline::batch_ready() const {
+bool WorldPipeline::batch_ready() {
   return scheduler_.has_ordered() ||
-         (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed));
+         (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
+          scheduler_.has_ready_loads(Clock::now()));
 }
 
 size_t WorldPipeline::accounted_bytes() const {
@@ -207,8 +213,12 @@ void WorldPipeline::run() {
       std::unique_lock lock(queue_mutex_);
       while (!stopping_ && !batch_ready()) {
         // Idle: wake now and then to evict idle chunks. Loads waiting for memory: retry
-        // eviction more often (sessions release meshes).
-        queue_cv_.wait_for(lock, scheduler_.has_loads() ? kPressureRetry : config_.evict_after / 4);
+        // eviction more often (sessions release meshes). Loads waiting for their owners'
+        // budgets: look again soon.
+        const auto wait = !scheduler_.has_loads() ? std::chrono::duration_cast<std::chrono::milliseconds>(config_.evict_after / 4)
+                          : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
+                                                                            : kBudgetRetry;
+        queue_cv_.wait_for(lock, wait);
         take_view_updates();
         lock.unlock();
         manage_memory(Clock::now());
@@ -272,7 +282,7 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
         plan.to_mesh.insert(c);
         return work;
       },
-      config_.load_scan_limit);
+      config_.load_scan_limit, now);
 }
 
 void WorldPipeline::drain_after_stop() {
@@ -344,7 +354,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     // Chunks this batch used (loaded or touched: last used `now`) always stay.
     st.evict(meshes_, now, config_.evict_after, std::max<std::chrono::milliseconds>(
                  std::min(config_.evict_min_age, config_.evict_after), std::chrono::milliseconds(1)),
-             target > need ? target - need : 0);
+             target > need ? target - need : 0, kPressureScan);
     if (!budget_.may_generate(accounted_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
@@ -551,8 +561,10 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
     // The periodic pass drops only idle chunks; under pressure, down to the target.
     const size_t target = pressure ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed))
                                    : SIZE_MAX;
-    const size_t dropped = st.evict(meshes_, now, config_.evict_after,
-                                    std::min(config_.evict_min_age, config_.evict_after), target);
+    const size_t dropped =
+        st.evict(meshes_, now, config_.evict_after,
+                 std::min(config_.evict_min_age, config_.evict_after), target,
+                 periodic ? SIZE_MAX : kPressureScan);
     last_eviction_freed_ = dropped > 0;
     std::lock_guard lock(stats_mutex_);
     stats_.chunks_evicted += dropped;

@@ -40,7 +40,7 @@ struct PipelineConfig {
   // on 2 cores, so an edit arriving during a pass waits little; while edits wait, a pass
   // takes only the smaller budget.
   size_t load_pass_work = 192;
-  size_t load_pass_work_while_edits_wait = 96;
+  size_t load_pass_work_while_edits_wait = 48;
   // Unmodified chunks unused this long (and whose mesh no one else holds) are dropped;
   // they regenerate from the seed. Modified chunks stay.
   std::chrono::milliseconds evict_after{std::chrono::minutes(2)};
@@ -51,6 +51,11 @@ struct PipelineConfig {
   size_t max_generated_per_owner = 400;
   // Chunks the load scheduler considers per pass (most of a moved view is meshed already).
   size_t load_scan_limit = 16384;
+  // Load work one session's views may take per second (4 units per chunk generated), and
+  // at once: a first radius-4 view fits the burst; a view flood gets a fair share, not the
+  // pipeline. 0: unlimited.
+  double load_work_per_owner = 250;
+  double load_burst_per_owner = 4000;
   size_t max_memory = 0;  // bytes; 0: no budget (see MemoryBudget)
 };
 
@@ -129,7 +134,7 @@ class WorldPipeline {
 
   void enqueue(OrderedTask task);
   void run();
-  bool batch_ready() const;  // under queue_mutex_
+  bool batch_ready();  // under queue_mutex_
   void take_view_updates();  // under queue_mutex_, pipeline thread
   std::vector<LoadSlice> take_loads(LoadPlan& plan, Clock::time_point now);  // pipeline thread
   size_t load_work_allowed(bool edits_waiting);

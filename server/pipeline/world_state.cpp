@@ -51,18 +51,27 @@ size_t WorldState::ensure_loaded(const std::vector<ChunkCoord>& coords,
 }
 
 size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::milliseconds idle,
-                         std::chrono::milliseconds min_age, size_t target_bytes) {
+                         std::chrono::milliseconds min_age, size_t target_bytes,
+                         size_t max_scan) {
   struct Candidate {
     Clock::time_point used;
     ChunkCoord coord;
   };
   std::vector<Candidate> candidates;
-  for (const auto& [c, chunk_info] : info) {
-    if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c)) continue;
-    const MeshVersionPtr mesh = meshes.get(c);
-    if (mesh && mesh.use_count() > 2) continue;  // someone besides the store (and us) holds it
-    candidates.push_back({chunk_info.last_used, c});
+  // Bucket by bucket from the cursor: erasing keeps bucket numbers, and a rehash between
+  // calls only makes a window see some chunks twice or later.
+  const size_t buckets = info.bucket_count();
+  size_t scanned = 0, b = evict_cursor_ % buckets;
+  for (size_t seen = 0; seen < buckets && scanned < max_scan; ++seen, b = (b + 1) % buckets) {
+    for (auto it = info.begin(b); it != info.end(b); ++it, ++scanned) {
+      const auto& [c, chunk_info] = *it;
+      if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c)) continue;
+      const MeshVersionPtr mesh = meshes.get(c);
+      if (mesh && mesh.use_count() > 2) continue;  // someone besides the store (and us) holds it
+      candidates.push_back({chunk_info.last_used, c});
+    }
   }
+  evict_cursor_ = b;
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
     return a.used != b.used ? a.used < b.used : a.coord < b.coord;
   });

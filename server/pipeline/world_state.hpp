@@ -62,8 +62,13 @@ struct WorldState {
   // but the store holds, least recently used first: every one unused for `idle`, then
   // more until the chunks and meshes take at most `target_bytes`. A chunk used within
   // `min_age` always stays. Returns the number dropped.
+  // Looks at most `max_scan` chunks, continuing where the last call stopped (a pass under
+  // memory pressure must not stall a batch on a scan of the whole world).
   size_t evict(MeshStore& meshes, Clock::time_point now, std::chrono::milliseconds idle,
-               std::chrono::milliseconds min_age, size_t target_bytes);
+               std::chrono::milliseconds min_age, size_t target_bytes, size_t max_scan = SIZE_MAX);
+
+ private:
+  size_t evict_cursor_ = 0;  // the bucket of `info` the next limited scan starts at
 };
 
 }  // namespace vox::pipeline

@@ -1,13 +1,14 @@
 // A token bucket: `rate` tokens per second up to `burst`. Pure (the caller passes the
 // time); used for each session's edit budget (tokens = samples an edit touches), its
-// SetView rate and its message rate. Not synchronised: one owner (a session's strand).
+// SetView and message rates, and each view's load work in the BatchScheduler. Not
+// synchronised: one owner (a session's strand, or the scheduler under its lock).
 #pragma once
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 
-namespace vox::net {
+namespace vox::pipeline {
 
 class TokenBucket {
  public:
@@ -62,4 +63,4 @@ class TokenBucket {
   Clock::time_point at_;
 };
 
-}  // namespace vox::net
+}  // namespace vox::pipeline
