@@ -326,18 +326,30 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
     wanted = world::chunks_overlapping(world::smooth_read_box(*smooth));
   }
-  const ChunkCoord lo = touched.front().offset(-1, -1, -1), hi = touched.back().offset(1, 1, 1);
-  for (int32_t z = lo.z; z <= hi.z; ++z)
-    for (int32_t y = lo.y; y <= hi.y; ++y)
-      for (int32_t x = lo.x; x <= hi.x; ++x) {
+  // Neighbours of meshed chunks, marked in the box touched +-2 (no sort, no duplicates).
+  const ChunkCoord lo = touched.front().offset(-2, -2, -2), hi = touched.back().offset(2, 2, 2);
+  const int nx = hi.x - lo.x + 1, ny = hi.y - lo.y + 1, nz = hi.z - lo.z + 1;
+  std::vector<char> marked(static_cast<size_t>(nx) * ny * nz, 0);
+  auto index = [&](int32_t x, int32_t y, int32_t z) {
+    return static_cast<size_t>(x - lo.x) + static_cast<size_t>(nx) * ((y - lo.y) + static_cast<size_t>(ny) * (z - lo.z));
+  };
+  for (const ChunkCoord& c : wanted) {
+    if (c.x >= lo.x && c.x <= hi.x && c.y >= lo.y && c.y <= hi.y && c.z >= lo.z && c.z <= hi.z)
+      marked[index(c.x, c.y, c.z)] = 1;  // already wanted
+  }
+  for (int32_t z = lo.z + 1; z < hi.z; ++z)
+    for (int32_t y = lo.y + 1; y < hi.y; ++y)
+      for (int32_t x = lo.x + 1; x < hi.x; ++x) {
         auto it = st.info.find({x, y, z});
         if (it == st.info.end() || !it->second.meshed) continue;
         for (int dz = -1; dz <= 1; ++dz)
           for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) wanted.push_back({x + dx, y + dy, z + dz});
+            for (int dx = -1; dx <= 1; ++dx) {
+              char& m = marked[index(x + dx, y + dy, z + dz)];
+              if (!m) wanted.push_back({x + dx, y + dy, z + dz});
+              m = 1;
+            }
       }
-  std::sort(wanted.begin(), wanted.end());
-  wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
   size_t missing = 0;
   for (const ChunkCoord& c : wanted) missing += st.info.count(c) ? 0 : 1;
   if (missing > max_generate) return world::RefusalReason::kOverBudget;
