@@ -39,6 +39,12 @@ void single(std::vector<MetricFamily>& out, const char* name, const char* help, 
   add(f, value);
   out.push_back(std::move(f));
 }
+void gauge(std::vector<MetricFamily>& out, const char* name, const char* help, double value) {
+  single(out, name, help, MetricType::Gauge, value);
+}
+void counter(std::vector<MetricFamily>& out, const char* name, const char* help, double value) {
+  single(out, name, help, MetricType::Counter, value);
+}
 
 MetricFamily histogram(std::string name, std::string help, const net::LatencyHistogram& h) {
   MetricFamily f = family(std::move(name), std::move(help), MetricType::Histogram);
@@ -140,41 +146,32 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
 
   void world(std::vector<MetricFamily>& out) const {
     const pipeline::PipelineStats s = pipeline_.stats();
-    auto gauge = [&out](const char* name, const char* help, double v) {
-      single(out, name, help, MetricType::Gauge, v);
-    };
-    auto counter = [&out](const char* name, const char* help, double v) {
-      single(out, name, help, MetricType::Counter, v);
-    };
-    gauge("voxeld_load_chunks_queued", "Chunks queued for loading (every view's)", double(s.queued_load_chunks));
-    gauge("voxeld_load_owners", "Views and loads with queued chunks", double(s.load_owners));
-    gauge("voxeld_edits_queued", "Edits waiting for the next batch", double(s.queued_edits));
-    gauge("voxeld_chunks_loaded", "Chunks in memory", double(s.loaded_chunks));
-    gauge("voxeld_chunks_modified", "Chunks changed by edits (never evicted)", double(s.modified_chunks));
-    gauge("voxeld_meshes_loaded", "Published meshes in the store", double(s.mesh_count));
+    gauge(out, "voxeld_load_chunks_queued", "Chunks queued for loading (every view's)", double(s.queued_load_chunks));
+    gauge(out, "voxeld_load_owners", "Views and loads with queued chunks", double(s.load_owners));
+    gauge(out, "voxeld_edits_queued", "Edits waiting for the next batch", double(s.queued_edits));
+    gauge(out, "voxeld_chunks_loaded", "Chunks in memory", double(s.loaded_chunks));
+    gauge(out, "voxeld_chunks_modified", "Chunks changed by edits (never evicted)", double(s.modified_chunks));
+    gauge(out, "voxeld_meshes_loaded", "Published meshes in the store", double(s.mesh_count));
     auto accounted = family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
     add(accounted, double(s.chunk_bytes), {{"part", "chunks"}});
     add(accounted, double(s.mesh_bytes), {{"part", "meshes"}});
     add(accounted, double(s.other_bytes), {{"part", "sessions"}});
     out.push_back(std::move(accounted));
-    gauge("voxeld_memory_budget_bytes", "--max-memory", double(pipeline_.config().max_memory));
-    gauge("voxeld_loads_blocked", "1 while loads wait for memory", s.loads_blocked ? 1 : 0);
-    gauge("voxeld_resident_memory_bytes", "The process's resident set size", double(resident_bytes()));
-    counter("voxeld_batches_total", "World pipeline batches", double(s.batches));
-    counter("voxeld_chunks_generated_total", "Chunks generated from the seed", double(s.chunks_generated));
-    counter("voxeld_chunks_evicted_total", "Chunks evicted", double(s.chunks_evicted));
-    counter("voxeld_meshes_published_total", "Mesh versions published", double(s.meshes_published));
-    counter("voxeld_memory_blocked_total", "Times loads started waiting for memory", double(s.memory_blocked));
+    gauge(out, "voxeld_memory_budget_bytes", "--max-memory", double(pipeline_.config().max_memory));
+    gauge(out, "voxeld_loads_blocked", "1 while loads wait for memory", s.loads_blocked ? 1 : 0);
+    gauge(out, "voxeld_resident_memory_bytes", "The process's resident set size", double(resident_bytes()));
+    counter(out, "voxeld_batches_total", "World pipeline batches", double(s.batches));
+    counter(out, "voxeld_chunks_generated_total", "Chunks generated from the seed", double(s.chunks_generated));
+    counter(out, "voxeld_chunks_evicted_total", "Chunks evicted", double(s.chunks_evicted));
+    counter(out, "voxeld_meshes_published_total", "Mesh versions published", double(s.meshes_published));
+    counter(out, "voxeld_memory_blocked_total", "Times loads started waiting for memory", double(s.memory_blocked));
   }
 
   void traffic(std::vector<MetricFamily>& out) const {
-    auto counter = [&out](const char* name, const char* help, double v) {
-      single(out, name, help, MetricType::Counter, v);
-    };
-    counter("voxeld_sent_bytes_total", "Bytes written to clients", value_of(c_.bytes_sent));
-    counter("voxeld_sent_messages_total", "Messages written to clients", value_of(c_.messages_sent));
-    counter("voxeld_meshes_sent_total", "ChunkMesh messages sent", value_of(c_.meshes_sent));
-    counter("voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas", value_of(c_.deltas_sent));
+    counter(out, "voxeld_sent_bytes_total", "Bytes written to clients", value_of(c_.bytes_sent));
+    counter(out, "voxeld_sent_messages_total", "Messages written to clients", value_of(c_.messages_sent));
+    counter(out, "voxeld_meshes_sent_total", "ChunkMesh messages sent", value_of(c_.meshes_sent));
+    counter(out, "voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas", value_of(c_.deltas_sent));
   }
 
   const net::ServerCounters& c_;

@@ -21,6 +21,13 @@ bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
          a.materials == b.materials;
 }
 
+void refuse_shutting_down(EditTask& task) {
+  EditResult r;
+  r.reason = world::RefusalReason::kShuttingDown;
+  r.message = "shutting down: the world pipeline has stopped";
+  if (task.done) task.done(r);
+}
+
 double seconds_since(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
@@ -75,10 +82,7 @@ void WorldPipeline::enqueue(OrderedTask task) {
   }
   // Stopped: answer on the caller's thread.
   if (auto* e = std::get_if<EditTask>(&task)) {
-    EditResult r;
-    r.reason = world::RefusalReason::kShuttingDown;
-    r.message = "shutting down: the world pipeline has stopped";
-    if (e->done) e->done(r);
+    refuse_shutting_down(*e);
   } else {
     std::get<InspectTask>(task).run(true);
   }
@@ -295,10 +299,7 @@ void WorldPipeline::drain_after_stop() {
   }
   for (OrderedTask& t : ordered) {
     if (auto* e = std::get_if<EditTask>(&t)) {
-      EditResult r;
-      r.reason = world::RefusalReason::kShuttingDown;
-      r.message = "shutting down: the world pipeline has stopped";
-      if (e->done) e->done(r);
+      refuse_shutting_down(*e);
     } else {
       std::get<InspectTask>(t).run(false);  // on the pipeline thread: state is still ours
     }
