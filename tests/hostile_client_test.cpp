@@ -194,7 +194,7 @@ TEST(HostileClients, PlayerNamesAreEscapedInTheLog) {
 }
 
 TEST(HostileClients, EditsOverTheBudgetAreRateLimitedWithARetryAfterAndResultsStayInOrder) {
-  test::ServerProcess server({"--edit-budget", "100000", "--edit-burst", "400000"});
+  test::ServerProcess server({"--edit-budget", "100000", "--edit-burst", "400000", "--load-budget", "0"});
   auto c = player(server, "heavy");
   const float y = surface_y(0, 0);
   // Its view covers every chunk the edits need (so no terrain generation is charged).

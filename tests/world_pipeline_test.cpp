@@ -407,6 +407,7 @@ TEST(WorldPipeline, StaysWithinItsMemoryBudgetWhileAViewMovesFar) {
   WorldPipeline p(PipelineConfig{.seed = kSeed,
                                  .threads = 2,
                                  .evict_min_age = std::chrono::milliseconds(0),
+                                 .load_work_per_owner = 0,  // memory is under test, not budgets
                                  .max_memory = budget});
   const world::TerrainGenerator gen(kSeed);
   size_t peak = 0;
