@@ -326,6 +326,19 @@ TEST(WorldPipeline, AnEditWhereNothingIsMeshedGeneratesOnlyWhatItTouches) {
   EXPECT_FALSE(near.changed_chunks.empty());
 }
 
+// Regression: batches with edits but no loads never dropped the column heights their
+// edits computed, so far edits grew an unaccounted cache without bound.
+TEST(WorldPipeline, EditOnlyBatchesKeepNoColumnHeights) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  const world::TerrainGenerator gen(kSeed);
+  for (int i = 0; i < 20; ++i) {
+    const float x = 50000.0f + static_cast<float>(i) * 200;
+    ASSERT_TRUE(p.submit(world::Brush{{x, gen.height_at(static_cast<int>(x), 0), 0}, 3, 1}).get().accepted);
+  }
+  p.inspect([](const world::ChunkMap&) {});  // the last edit's batch has ended
+  EXPECT_EQ(p.stats().cached_columns, 0u);
+}
+
 TEST(WorldPipeline, EditsDoNotWaitBehindABigLoad) {
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
   const mesh::ChunkBox small = surface_box();

@@ -17,6 +17,7 @@
 #include <mutex>
 #include <thread>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "mesh/region_mesher.hpp"
@@ -74,6 +75,7 @@ struct PipelineStats {
            meshes_published = 0, chunks_generated = 0, chunks_evicted = 0, memory_blocked = 0;
   size_t loaded_chunks = 0, modified_chunks = 0, chunk_bytes = 0, mesh_count = 0, mesh_bytes = 0;
   size_t queued_edits = 0, queued_load_chunks = 0, load_owners = 0;
+  size_t cached_columns = 0;  // column heights left by earlier batches at the last batch's start (0)
   size_t other_bytes = 0;      // reported by set_other_bytes (sessions)
   size_t accounted_bytes = 0;  // chunks + meshes + other
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
@@ -130,7 +132,16 @@ class WorldPipeline {
   void stop();
 
  private:
-  struct LoadPlan;  // the chunks a batch's loads generate and mesh
+  // What a batch's loads generate and mesh, built while the scheduler takes them (so a
+  // chunk two owners want is counted once).
+  struct LoadPlan {
+    std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> to_mesh, to_generate;
+  };
+  // Chunks one eviction pass under memory pressure looks at (about 1 ms): a batch never
+  // stalls on a scan of the whole world.
+  static constexpr size_t kPressureScan = 4096;
+  // While over the memory budget, eviction is retried at most this often.
+  static constexpr auto kPressureRetry = std::chrono::milliseconds(250);
 
   void enqueue(OrderedTask task);
   void run();
