@@ -134,5 +134,51 @@ TEST(SendScheduler, MovingTheViewUnloadsHeldChunksThatLeftIt) {
   EXPECT_EQ(send->coord, (ChunkCoord{4, 0, 0})) << "the new centre comes first";
 }
 
+// The session sent a chunk's newest version, published by the batch of the client's own
+// edit, before that edit's EditResult: a client matching deltas to its edits then waited
+// for a change it already had (seconds in the 500-player run).
+TEST(SendScheduler, AVersionAtOrAboveTheLimitWaitsUntilReleased) {
+  FakeStore store;
+  store.publish({0, 0, 0});
+  store.publish({1, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  while (s.next(store.lookup())) {
+  }
+  const uint64_t first_of_edit = store.next_version;  // the edit's batch publishes from here
+  store.publish({0, 0, 0});
+  s.mark_stale({0, 0, 0});
+  s.mark_stale({1, 0, 0});  // nothing newer: skipped
+  EXPECT_FALSE(s.next(store.lookup(), first_of_edit)) << "sent before the edit's result";
+  EXPECT_EQ(s.deferred_count(), 1u);
+  store.publish({0, 0, 0});  // changed again meanwhile: deferred once
+  s.mark_stale({0, 0, 0});
+  EXPECT_FALSE(s.next(store.lookup(), first_of_edit));
+  EXPECT_EQ(s.deferred_count(), 1u);
+  s.release_deferred();  // the result is queued
+  auto send = s.next(store.lookup());
+  ASSERT_TRUE(send);
+  EXPECT_EQ(send->coord, (ChunkCoord{0, 0, 0}));
+  EXPECT_EQ(send->version->version, store.meshes.at({0, 0, 0})->version);
+  EXPECT_TRUE(send->base) << "a delta against what the client held";
+  EXPECT_FALSE(s.next(store.lookup()));
+}
+
+TEST(SendScheduler, VersionsBelowTheLimitStillFlow) {
+  FakeStore store;
+  store.publish({0, 0, 0});
+  store.publish({2, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 2);
+  const uint64_t limit = store.next_version;
+  store.publish({1, 0, 0});  // at the limit: may show the pending edit
+  size_t sent = 0;
+  while (s.next(store.lookup(), limit)) ++sent;
+  EXPECT_EQ(sent, 2u);
+  EXPECT_EQ(s.deferred_count(), 1u);
+  s.set_view({0, 0, 0}, 2);  // a new view re-checks everything; nothing stays deferred
+  EXPECT_EQ(s.deferred_count(), 0u);
+}
+
 }  // namespace
 }  // namespace vox::net

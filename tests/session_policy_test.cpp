@@ -115,5 +115,21 @@ TEST(ResultOrder, ARefusalWaitsBehindEarlierEditsStillInThePipeline) {
   EXPECT_EQ(order.size(), 0u);
 }
 
+TEST(ResultOrder, VersionsFromTheOldestEditStillInThePipelineMayNotBeSent) {
+  ResultOrder order;
+  EXPECT_EQ(order.first_unsendable_version(), ResultOrder::kNoLimit);
+  const uint64_t first = order.reserve(10);  // newest published was 9 when it was submitted
+  const uint64_t second = order.reserve(14);
+  EXPECT_EQ(order.first_unsendable_version(), 10u);
+  auto noop = [](const wire::Envelope&) {};
+  order.fill(first, {});
+  order.drain(noop);
+  EXPECT_EQ(order.first_unsendable_version(), 14u);
+  order.push_ready({});  // a refusal makes no version
+  order.fill(second, {});
+  order.drain(noop);
+  EXPECT_EQ(order.first_unsendable_version(), ResultOrder::kNoLimit);
+}
+
 }  // namespace
 }  // namespace vox::net

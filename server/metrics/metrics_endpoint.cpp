@@ -92,6 +92,10 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     out.push_back(histogram("voxeld_edit_publish_seconds",
                             "From an edit's submission to the pipeline to its result (its meshes published)",
                             c_.edit_to_publish));
+    out.push_back(histogram("voxeld_edit_delta_written_seconds",
+                            "From an edit's submission to the pipeline to a delta showing it written "
+                            "to a player's socket (once per player who receives it)",
+                            c_.edit_to_delta_written));
     out.push_back(histogram("voxeld_batch_duration_seconds", "World pipeline batch duration",
                             c_.batch_duration));
     out.push_back(histogram("voxeld_remesh_duration_seconds",

@@ -261,7 +261,9 @@ void ClientSession::drop_slow(DroppedBy why, const char* what) {
 // Appends the newest version of the nearest stale chunk the client does not hold yet
 // (a delta when it holds an older one); false when nothing is left to send.
 bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
-  const auto send = scheduler_.next([this](ChunkCoord c) { return pipeline_.meshes().get(c); });
+  // No version that may show an edit of this client goes out before the edit's result.
+  const auto send = scheduler_.next([this](ChunkCoord c) { return pipeline_.meshes().get(c); },
+                                    results_.first_unsendable_version());
   if (!send) return false;
   // One message object reused for every mesh: its payload string keeps its capacity.
   auto* m = mesh_message_.mutable_chunk_mesh();
@@ -272,6 +274,7 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
     m->set_base_version(send->base->version);
     m->set_payload(delta->data(), delta->size());
     counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
+    if (send->version->edited_at != Clock::time_point{}) write_edits_.push_back(send->version->edited_at);
   } else {
     m->set_base_version(0);
     m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
@@ -284,6 +287,7 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
 void ClientSession::pump() {
   if (writing_ || !socket_.is_open()) return;
   write_buffer_.clear();
+  write_edits_.clear();
   size_t messages = 0;
   while (!control_.empty() && write_buffer_.size() < config_.max_bytes_in_flight) {
     write_buffer_.insert(write_buffer_.end(), control_.front().begin(), control_.front().end());
@@ -320,9 +324,20 @@ void ClientSession::pump() {
                         return;
                       }
                       if (!self->closing_) self->write_timer_.cancel();
+                      self->observe_written_edits();
                       self->update_memory();
                       self->pump();
                     }));
+}
+
+// Strand, after a write completed: the kernel has every delta of write_buffer_.
+void ClientSession::observe_written_edits() {
+  if (write_edits_.empty()) return;
+  const auto now = Clock::now();
+  for (const auto submitted : write_edits_) {
+    counters_.edit_to_delta_written.observe(std::chrono::duration<double>(now - submitted).count());
+  }
+  write_edits_.clear();
 }
 
 // The session's accounted memory: its view map and stale heap, queued control frames,

@@ -110,6 +110,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void drop_slow(DroppedBy why, const char* what);
   void shutdown();
   void update_memory();
+  void observe_written_edits();
 
   asio::ip::tcp::socket socket_;
   asio::strand<asio::any_io_executor> strand_;
@@ -151,6 +152,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   size_t control_bytes_ = 0;
   std::vector<uint8_t> write_buffer_;
   wire::Envelope mesh_message_;  // reused by append_next_mesh
+  // When the edits shown by the deltas in write_buffer_ were submitted (observed into
+  // counters_.edit_to_delta_written when the write completes); capacity reused.
+  std::vector<std::chrono::steady_clock::time_point> write_edits_;
 };
 
 }  // namespace vox::net

@@ -31,8 +31,10 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
         if (dx * dx + dy * dy + dz * dz <= r2) visible_.try_emplace(center.offset(dx, dy, dz));
       }
   stale_.clear();  // re-ordered around the new centre
+  deferred_.clear();
   for (auto& [c, held] : visible_) {
     held.queued = true;
+    held.deferred = false;
     stale_.push_back({distance2(c), c});
   }
   std::make_heap(stale_.begin(), stale_.end(), std::greater<>());
@@ -40,6 +42,8 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
 }
 
 void SendScheduler::mark_stale(ChunkCoord c) {
+  // Most published chunks are outside this view: the distance says so without a lookup.
+  if (distance2(c) > static_cast<int64_t>(radius_) * radius_) return;
   auto it = visible_.find(c);
   if (it == visible_.end() || it->second.queued) return;
   it->second.queued = true;
@@ -47,7 +51,17 @@ void SendScheduler::mark_stale(ChunkCoord c) {
   std::push_heap(stale_.begin(), stale_.end(), std::greater<>());
 }
 
-std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup) {
+void SendScheduler::release_deferred() {
+  for (const ChunkCoord c : deferred_) {
+    auto it = visible_.find(c);
+    if (it == visible_.end()) continue;
+    it->second.deferred = false;
+    mark_stale(c);
+  }
+  deferred_.clear();
+}
+
+std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup, uint64_t first_unsendable) {
   while (!stale_.empty()) {
     std::pop_heap(stale_.begin(), stale_.end(), std::greater<>());
     const ChunkCoord c = stale_.back().second;
@@ -59,6 +73,13 @@ std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup) {
     pipeline::MeshVersionPtr current = lookup(c);
     if (!current) continue;
     if (held.version && held.version->version >= current->version) continue;
+    if (current->version >= first_unsendable) {
+      if (!held.deferred) {
+        held.deferred = true;
+        deferred_.push_back(c);
+      }
+      continue;
+    }
     if (!held.version && current->mesh.empty()) {
       held.version = std::move(current);  // nothing to draw; sent only once it changes
       continue;
@@ -74,6 +95,7 @@ std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup) {
 void SendScheduler::clear() {
   visible_.clear();
   stale_.clear();
+  deferred_.clear();
   radius_ = -1;
 }
 

@@ -3,6 +3,7 @@
 // session calls it on its strand, tests call it directly.
 #pragma once
 
+#include <cstdint>
 #include <functional>
 #include <optional>
 #include <unordered_map>
@@ -36,8 +37,13 @@ class SendScheduler {
   // The nearest stale chunk whose newest version (from `lookup`) is newer than what the
   // client holds, recorded as held from now on. Chunks not published yet are skipped
   // (they are marked again when published); a first version without triangles is
-  // recorded but not sent. nullopt when nothing is left.
-  std::optional<Send> next(const Lookup& lookup);
+  // recorded but not sent. A newest version at or above `first_unsendable` (one that may
+  // show an edit whose result the client has not been sent) is deferred until
+  // release_deferred(). nullopt when nothing is left.
+  std::optional<Send> next(const Lookup& lookup, uint64_t first_unsendable = UINT64_MAX);
+  // Marks the deferred chunks stale again (the limit given to next() has moved).
+  void release_deferred();
+  size_t deferred_count() const { return deferred_.size(); }
 
   void clear();
 
@@ -50,12 +56,14 @@ class SendScheduler {
     pipeline::MeshVersionPtr version;  // what the client holds (null: nothing yet)
     bool sent = false;                 // false: an empty first version, never sent
     bool queued = false;               // in stale_
+    bool deferred = false;             // in deferred_
   };
   using Entry = std::pair<int64_t, world::ChunkCoord>;  // distance², chunk
   std::unordered_map<world::ChunkCoord, Held, world::ChunkCoordHash> visible_;
   // Min-heap, nearest first (ties by coordinate); a vector, so marking a chunk stale
   // allocates nothing once warm (a std::set allocated a node per mark).
   std::vector<Entry> stale_;
+  std::vector<world::ChunkCoord> deferred_;  // each visible chunk at most once
 };
 
 }  // namespace vox::net

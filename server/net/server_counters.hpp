@@ -35,6 +35,7 @@ struct ServerCounters {
   Counter session_bytes{0};  // gauge: sessions' accounted memory
 
   LatencyHistogram edit_to_publish;  // submit -> the pipeline's result (meshes published)
+  LatencyHistogram edit_to_delta_written;  // submit -> a delta showing it written to a socket
   LatencyHistogram batch_duration;
   LatencyHistogram remesh_duration;
 

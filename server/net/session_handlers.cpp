@@ -207,7 +207,8 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
   }
   counters_.edits.fetch_add(1, std::memory_order_relaxed);
   ++edits_in_flight_;
-  const uint64_t ticket = results_.reserve();
+  // Read before submitting: every version this edit makes is above it.
+  const uint64_t ticket = results_.reserve(pipeline_.meshes().newest_version() + 1);
   const auto submitted = Clock::now();
   pipeline_.submit(
       std::move(*converted.edit),
@@ -247,6 +248,11 @@ void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_
                                               ServerCounters::kStatuses]);
   results_.fill(ticket, std::move(result));
   results_.drain([this](const wire::Envelope& e) { queue_control(e); });
+  // The result is queued ahead of any mesh: versions held back for it may go now.
+  if (scheduler_.deferred_count() > 0) {
+    scheduler_.release_deferred();
+    pump();
+  }
 }
 
 bool ClientSession::may_see(const std::vector<ChunkCoord>& chunks) const {  // any thread

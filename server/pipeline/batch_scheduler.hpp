@@ -38,6 +38,7 @@ struct EditTask {
   world::Edit edit;
   std::function<void(const EditResult&)> done;
   LoadOwner owner = 0;  // the session that sent it (0: none, e.g. a test or the CLI)
+  std::chrono::steady_clock::time_point submitted{};  // set by WorldPipeline::submit
 };
 struct InspectTask {
   // Runs on the pipeline thread between edits; with `cancelled` when the pipeline stopped

@@ -39,6 +39,7 @@ MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {
 
 void MeshStore::publish(MeshVersionPtr mesh) {
   const size_t added = mesh->memory_bytes();
+  if (mesh->version > newest_.load(std::memory_order_relaxed)) newest_.store(mesh->version, std::memory_order_release);
   MeshVersionPtr old;  // released after the lock, so a last reference is freed outside it
   {
     Shard& s = shard(mesh->coord);

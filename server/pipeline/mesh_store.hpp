@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -22,6 +23,9 @@ struct MeshVersion {
   mesh::ChunkMesh mesh;  // chunk-local positions
   std::vector<uint8_t> encoding;    // the wire encoding (docs/PROTOCOL.md section 2)
   std::vector<uint8_t> full_frame;  // zstd frame of `encoding`: a full ChunkMesh payload
+  // When the oldest edit this version shows was submitted to the pipeline; the epoch when
+  // no edit made it (a load). Sessions measure edit -> delta written from it.
+  std::chrono::steady_clock::time_point edited_at{};
   size_t memory_bytes() const;
 
   // The delta payload that turns `base` (an older version of this chunk) into this one:
@@ -42,6 +46,9 @@ class MeshStore {
   void erase(world::ChunkCoord c);               // pipeline thread
   size_t size() const { return count_.load(std::memory_order_relaxed); }
   size_t memory_bytes() const { return bytes_.load(std::memory_order_relaxed); }
+  // The highest version published so far (any thread). Versions only grow, so every
+  // version published after this call returns is greater.
+  uint64_t newest_version() const { return newest_.load(std::memory_order_acquire); }
 
  private:
   static constexpr size_t kShards = 64;
@@ -53,6 +60,7 @@ class MeshStore {
 
   mutable std::array<Shard, kShards> shards_;
   std::atomic<size_t> count_{0}, bytes_{0};
+  std::atomic<uint64_t> newest_{0};
 };
 
 }  // namespace vox::pipeline

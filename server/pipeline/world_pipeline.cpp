@@ -75,7 +75,7 @@ void WorldPipeline::enqueue(OrderedTask task) {
 }
 
 void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner) {
-  enqueue(EditTask{std::move(edit), std::move(done), owner});
+  enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now()});
 }
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
@@ -358,7 +358,8 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
 
 // Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
 // publishes them as new versions. Returns the chunks given a new version.
-std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty) {
+std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty,
+                                                          const EditTimes* edited_at) {
   WorldState& st = *state_;
   const Clock::time_point start = Clock::now();
   std::sort(dirty.begin(), dirty.end());
@@ -385,6 +386,9 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
   for (size_t i = 0; i < dirty.size(); ++i) {
     if (!fresh[i]) continue;
     fresh[i]->version = st.next_version++;
+    if (edited_at) {
+      if (auto it = edited_at->find(dirty[i]); it != edited_at->end()) fresh[i]->edited_at = it->second;
+    }
     meshes_.publish(std::move(fresh[i]));
     published.push_back(dirty[i]);
   }
@@ -401,6 +405,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   std::vector<std::vector<ChunkCoord>> edit_dirty(tasks.size());
   std::vector<EditResult> results(tasks.size());
   std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
+  EditTimes edited_at;                                 // per dirty chunk, its oldest edit
   bool any_edit = false;
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
@@ -436,9 +441,10 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
     ++delta.edits_applied;
     delta.chunks_generated += results[t].chunks_generated;
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
+    for (const ChunkCoord& c : edit_dirty[t]) edited_at.try_emplace(c, task.submitted);  // arrival order
   }
   if (!any_edit) return;
-  const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
+  const std::vector<ChunkCoord> published = remesh_and_publish(dirty, &edited_at);
   const CoordSet published_set(published.begin(), published.end());
   delta.meshes_published += published.size();
   commit_stats(delta, batch);  // before the results: whoever waits on one sees its counts

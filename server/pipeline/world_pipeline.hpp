@@ -157,7 +157,10 @@ class WorldPipeline {
   world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                        size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
                                        EditResult& result);
-  std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty);
+  // `edited_at`: per chunk, when the oldest edit that dirtied it was submitted (none: a load).
+  using EditTimes = std::unordered_map<world::ChunkCoord, Clock::time_point, world::ChunkCoordHash>;
+  std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty,
+                                                    const EditTimes* edited_at = nullptr);
   void drain_after_stop();
   void manage_memory(Clock::time_point now);
   size_t accounted_bytes() const;  // pipeline thread
