@@ -2,8 +2,8 @@
 
 namespace vox::client {
 
-proto::Result<std::vector<uint8_t>> ChunkCache::expand(const wire::ChunkMesh& m,
-                                                       proto::ZstdCodec& zstd) {
+std::optional<std::string> ChunkCache::expand(const wire::ChunkMesh& m, proto::ZstdCodec& zstd,
+                                              mesh::Buffer<uint8_t>& out) {
   const ChunkKey key = key_of(m.coord());
   const std::span<const uint8_t> payload(reinterpret_cast<const uint8_t*>(m.payload().data()),
                                          m.payload().size());
@@ -13,32 +13,33 @@ proto::Result<std::vector<uint8_t>> ChunkCache::expand(const wire::ChunkMesh& m,
     const uint64_t held = it == chunks_.end() ? 0 : it->second.version;
     if (held != m.base_version()) {
       chunks_.erase(key);
-      return proto::Error{"delta against version " + std::to_string(m.base_version()) +
-                          " but the client holds " + std::to_string(held)};
+      return "delta against version " + std::to_string(m.base_version()) +
+             " but the client holds " + std::to_string(held);
     }
     base = it->second.encoding;
   }
-  auto encoding = zstd.decompress(payload, base, proto::DecodeLimits{}.max_encoding_bytes);
-  if (!encoding) chunks_.erase(key);
-  return encoding;
+  if (auto error = zstd.decompress_into(payload, base, proto::DecodeLimits{}.max_encoding_bytes, out)) {
+    chunks_.erase(key);
+    return error->message;
+  }
+  return std::nullopt;
 }
 
-void ChunkCache::hold(const ChunkKey& key, uint64_t version, std::vector<uint8_t> encoding) {
+void ChunkCache::hold(const ChunkKey& key, uint64_t version, std::span<const uint8_t> encoding) {
   HeldChunk& held = chunks_[key];
   held.version = version;
-  held.encoding = std::move(encoding);
+  held.encoding.assign(encoding.begin(), encoding.end());
 }
 
 std::optional<std::string> ChunkCache::apply(const wire::ChunkMesh& m, proto::ZstdCodec& zstd,
                                              proto::CodecScratch& scratch,
                                              mesh::ChunkMesh& decoded) {
-  auto encoding = expand(m, zstd);
-  if (!encoding) return encoding.error();
-  if (auto error = proto::decode_mesh(*encoding, {}, scratch, decoded)) {
+  if (auto error = expand(m, zstd, scratch_)) return error;
+  if (auto error = proto::decode_mesh(scratch_, {}, scratch, decoded)) {
     drop(key_of(m.coord()));
     return error->message;
   }
-  hold(key_of(m.coord()), m.version(), std::move(*encoding));
+  hold(key_of(m.coord()), m.version(), scratch_);
   return std::nullopt;
 }
 

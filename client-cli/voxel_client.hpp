@@ -40,7 +40,7 @@ class Client {
   // when the payload does not decode (wrong base, corruption).
   std::optional<std::string> apply(const wire::ChunkMesh& m);
   void forget(const wire::ChunkUnload& u);
-  const std::map<ChunkKey, HeldChunk>& chunks() const { return cache_.chunks(); }
+  const HeldChunks& chunks() const { return cache_.chunks(); }
 
  private:
   boost::asio::io_context io_;

@@ -4,16 +4,8 @@
 
 namespace vox::loadtest {
 
-size_t DecodeMemo::KeyHash::operator()(const client::ChunkKey& k) const {
-  const auto [x, y, z] = k;
-  uint64_t h = static_cast<uint32_t>(x) * 0x9E3779B97F4A7C15ull;
-  h ^= static_cast<uint32_t>(y) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
-  h ^= static_cast<uint32_t>(z) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
-  return static_cast<size_t>(h);
-}
-
 DecodeMemo::Shard& DecodeMemo::shard_of(const client::ChunkKey& key) const {
-  return shards_[KeyHash{}(key) % kShards];
+  return shards_[client::ChunkKeyHash{}(key) % kShards];
 }
 
 bool DecodeMemo::known_good(const client::ChunkKey& key, uint64_t version,

@@ -31,12 +31,9 @@ class DecodeMemo {
     uint64_t version = 0;
     std::shared_ptr<const std::vector<uint8_t>> encoding;
   };
-  struct KeyHash {
-    size_t operator()(const client::ChunkKey& k) const;
-  };
   struct Shard {
     mutable std::mutex mutex;
-    std::unordered_map<client::ChunkKey, Entry, KeyHash> entries;
+    std::unordered_map<client::ChunkKey, Entry, client::ChunkKeyHash> entries;
   };
   static constexpr size_t kShards = 16;
   Shard& shard_of(const client::ChunkKey& key) const;

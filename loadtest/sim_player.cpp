@@ -21,6 +21,7 @@ struct DecodeScratch {
   proto::ZstdCodec zstd;
   proto::CodecScratch scratch;
   mesh::ChunkMesh decoded;
+  mesh::Buffer<uint8_t> expanded;
 };
 DecodeScratch& decode_scratch() {
   thread_local DecodeScratch scratch;
@@ -202,7 +203,7 @@ void SimPlayer::on_message(const wire::Envelope& m) {
       it->second.have_result = true;
       for (const auto& c : r.changed_chunks()) {
         const ChunkKey k = client::key_of(c);
-        if (in_view(k)) it->second.waiting.insert(k);
+        if (in_view(k) && (!getenv("HELD_ONLY") || cache_.chunks().count(k))) it->second.waiting.insert(k);
       }
       if (it->second.waiting.empty()) pending_.erase(it);  // nothing visible changed
       break;
@@ -241,18 +242,18 @@ void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
 // are a version another player already decoded (DecodeMemo).
 std::optional<std::string> SimPlayer::apply_mesh(const wire::ChunkMesh& m) {
   DecodeScratch& d = decode_scratch();
-  auto encoding = cache_.expand(m, d.zstd);
-  if (!encoding) return encoding.error();
+  if (auto error = cache_.expand(m, d.zstd, d.expanded)) return error;
+  const std::span<const uint8_t> encoding(d.expanded.data(), d.expanded.size());
   const ChunkKey key = client::key_of(m.coord());
   DecodeMemo* memo = test_.decode_memo();
-  if (!memo || !memo->known_good(key, m.version(), *encoding)) {
-    if (auto error = proto::decode_mesh(*encoding, {}, d.scratch, d.decoded)) {
+  if (!memo || !memo->known_good(key, m.version(), encoding)) {
+    if (auto error = proto::decode_mesh(encoding, {}, d.scratch, d.decoded)) {
       cache_.drop(key);
       return error->message;
     }
-    if (memo) memo->remember(key, m.version(), *encoding);
+    if (memo) memo->remember(key, m.version(), encoding);
   }
-  cache_.hold(key, m.version(), std::move(*encoding));
+  cache_.hold(key, m.version(), encoding);
   return std::nullopt;
 }
 
