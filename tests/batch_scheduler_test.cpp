@@ -184,6 +184,44 @@ TEST(BatchScheduler, AnOwnerOverItsLoadBudgetWaitsWhileOthersGoOn) {
   ASSERT_FALSE(later.empty());
 }
 
+// A view flooder that disconnected and reconnected got a fresh burst every time: 3
+// flooders generated 62,000 chunks in 70 s instead of what their budgets allow.
+TEST(BatchScheduler, ReconnectingFromTheSameAddressDoesNotRefillTheLoadBudget) {
+  using namespace std::chrono_literals;
+  BatchScheduler s(32, /*owner_rate=*/100, /*owner_burst=*/64, /*group_rate=*/100, /*group_burst=*/96);
+  const auto t0 = BatchScheduler::Clock::now();
+  constexpr uint64_t kAddress = 42, kOther = 43;
+  size_t taken = 0;
+  for (LoadOwner session = 1; session <= 5; ++session) {  // connect, load, disconnect
+    s.request(session, row(1, 1000), {}, kAddress);
+    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0)) taken += slice.chunks.size();
+    s.drop(session, t0);
+  }
+  EXPECT_LE(taken, 96u + 32u) << "the address's burst (and at most one group of debt)";
+  EXPECT_EQ(s.budget_groups(), 1u) << "an address in debt is remembered after its sessions left";
+  s.request(9, row(9, 1000), {}, kOther);  // another address is not held back
+  EXPECT_EQ(s.take_loads(1000, unit_cost, SIZE_MAX, t0).at(0).chunks.size(), 32u);
+  s.drop(9, t0 + 10s);  // both refilled by then: nothing left to remember
+  EXPECT_EQ(s.budget_groups(), 0u);
+}
+
+TEST(BatchScheduler, SessionsFromOneAddressShareItsBudgetAndKeepTheirOwn) {
+  BatchScheduler s(8, /*owner_rate=*/100, /*owner_burst=*/16, /*group_rate=*/100, /*group_burst=*/40);
+  const auto t0 = BatchScheduler::Clock::now();
+  for (LoadOwner session = 1; session <= 4; ++session) s.request(session, row(static_cast<int>(session), 100), {}, 7);
+  std::map<LoadOwner, size_t> by_owner;
+  for (int pass = 0; pass < 20; ++pass) {
+    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0)) by_owner[slice.owner] += slice.chunks.size();
+  }
+  size_t total = 0;
+  for (const auto& [owner, n] : by_owner) {
+    EXPECT_LE(n, 16u) << "each session within its own burst";
+    total += n;
+  }
+  EXPECT_LE(total, 40u + 8u) << "all of them within the address's";
+  EXPECT_GE(total, 40u);
+}
+
 TEST(BatchScheduler, APassConsidersAtMostTheScanLimit) {
   BatchScheduler s(32);
   for (LoadOwner o = 1; o <= 10; ++o) s.request(o, row(static_cast<int>(o), 7153));

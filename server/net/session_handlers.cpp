@@ -159,7 +159,7 @@ void ClientSession::apply_view(ChunkCoord center, int r) {
   }
   // The pipeline loads what is missing (this view replaces the session's previous one);
   // newly published meshes arrive through on_chunks_published.
-  pipeline_.set_view(id_, center, r);
+  pipeline_.set_view(id_, center, r, std::hash<std::string>{}(address_) | 1);  // never 0
   update_memory();
   pump();
 }

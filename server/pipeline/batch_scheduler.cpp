@@ -9,20 +9,24 @@ using world::ChunkCoord;
 void BatchScheduler::add(OrderedTask task) { ordered_.push_back(std::move(task)); }
 
 std::function<void()> BatchScheduler::request(LoadOwner owner, std::vector<ChunkCoord> chunks,
-                                              std::function<void()> done) {
+                                              std::function<void()> done, uint64_t budget_group) {
   auto [it, inserted] = requests_.try_emplace(owner);
   Request& r = it->second;
   std::function<void()> replaced = std::move(r.done);
   queued_chunks_ -= r.chunks.size() - r.next;
-  r = Request{std::move(chunks), 0, std::move(done)};
+  r = Request{std::move(chunks), 0, std::move(done), budget_group};
   queued_chunks_ += r.chunks.size();
   // A replaced request keeps its owner's place in the rotation.
   if (inserted) rotation_.push_back(owner);
   return replaced;
 }
 
-std::function<void()> BatchScheduler::drop(LoadOwner owner) {
-  budgets_.erase(owner);
+std::function<void()> BatchScheduler::drop(LoadOwner owner, Clock::time_point now) {
+  if (auto b = budgets_.find(owner); b != budgets_.end()) {
+    if (auto g = groups_.find(b->second.group); g != groups_.end()) --g->second.owners;
+    budgets_.erase(b);
+    purge_groups(now);
+  }
   auto it = requests_.find(owner);
   if (it == requests_.end()) return {};
   std::function<void()> done = std::move(it->second.done);
@@ -39,14 +43,44 @@ std::vector<OrderedTask> BatchScheduler::take_ordered() {
   return all;
 }
 
-TokenBucket& BatchScheduler::budget_of(LoadOwner owner, Clock::time_point now) {
-  return budgets_.try_emplace(owner, owner_rate_, owner_burst_, now).first->second;
+// Created on first use, while the owner has a request (which names its group).
+BatchScheduler::OwnerBudget& BatchScheduler::budget_of(LoadOwner owner, Clock::time_point now) {
+  auto [it, inserted] = budgets_.try_emplace(owner, OwnerBudget{TokenBucket(owner_rate_, owner_burst_, now), 0});
+  const auto r = requests_.find(owner);
+  const uint64_t group = r == requests_.end() ? 0 : r->second.group;
+  if (inserted && group != 0 && group_rate_ > 0) {
+    it->second.group = group;
+    ++groups_.try_emplace(group, GroupBudget{TokenBucket(group_rate_, group_burst_, now), 0})
+          .first->second.owners;
+  }
+  return it->second;
+}
+
+bool BatchScheduler::ready(LoadOwner owner, Clock::time_point now) {
+  if (owner & kUnlimitedOwners) return true;
+  OwnerBudget& b = budget_of(owner, now);
+  if (b.bucket.wait_for(1, now).count() > 0) return false;
+  auto g = groups_.find(b.group);
+  return g == groups_.end() || g->second.bucket.wait_for(1, now).count() == 0;
+}
+
+void BatchScheduler::charge(LoadOwner owner, double work, Clock::time_point now) {
+  if (owner & kUnlimitedOwners) return;
+  OwnerBudget& b = budget_of(owner, now);
+  b.bucket.charge(work, now);
+  if (auto g = groups_.find(b.group); g != groups_.end()) g->second.bucket.charge(work, now);
+}
+
+void BatchScheduler::purge_groups(Clock::time_point now) {
+  for (auto it = groups_.begin(); it != groups_.end();) {
+    GroupBudget& g = it->second;
+    it = g.owners == 0 && g.bucket.tokens(now) >= g.bucket.burst() ? groups_.erase(it) : std::next(it);
+  }
 }
 
 bool BatchScheduler::has_ready_loads(Clock::time_point now) {
   for (LoadOwner owner : rotation_) {
-    if ((owner & kUnlimitedOwners) || budget_of(owner, now).wait_for(1, now).count() == 0)
-      return true;
+    if (ready(owner, now)) return true;
   }
   return false;
 }
@@ -61,8 +95,7 @@ std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost
   while (spent < load_budget && scanned < scan_limit && passed_over < rotation_.size()) {
     const LoadOwner owner = rotation_.front();
     rotation_.pop_front();
-    TokenBucket* budget = (owner & kUnlimitedOwners) ? nullptr : &budget_of(owner, now);
-    if (budget && budget->wait_for(1, now).count() > 0) {
+    if (!ready(owner, now)) {
       rotation_.push_back(owner);
       ++passed_over;
       continue;
@@ -79,7 +112,7 @@ std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost
       if (work == 0) continue;  // nothing to do: costs no turn
       slice.chunks.push_back(c);
       spent += work;
-      if (budget) budget->charge(static_cast<double>(work), now);
+      charge(owner, static_cast<double>(work), now);
     }
     if (r.next == r.chunks.size()) {
       slice.done = std::move(r.done);

@@ -64,18 +64,23 @@ class BatchScheduler {
 
   using Clock = std::chrono::steady_clock;
   // `owner_rate` work units per second per session owner, up to `owner_burst` (rate 0:
-  // unlimited). One-off loads (owners with the top bit set) are never limited.
-  explicit BatchScheduler(size_t group = 32, double owner_rate = 0, double owner_burst = 0)
-      : group_(group), owner_rate_(owner_rate), owner_burst_(owner_burst) {}
+  // unlimited). One-off loads (owners with the top bit set) are never limited. Owners in
+  // the same budget group (one address) also share `group_rate` / `group_burst`: a group's
+  // budget outlives its owners until it has refilled, so reconnecting does not refill it.
+  explicit BatchScheduler(size_t group = 32, double owner_rate = 0, double owner_burst = 0,
+                          double group_rate = 0, double group_burst = 0)
+      : group_(group), owner_rate_(owner_rate), owner_burst_(owner_burst),
+        group_rate_(group_rate), group_burst_(group_burst) {}
   static constexpr LoadOwner kUnlimitedOwners = LoadOwner{1} << 63;
 
   void add(OrderedTask task);
   // Replaces `owner`'s pending request with `chunks` (nearest first). Returns the replaced
   // request's `done` (empty when none): the caller runs it, outside its locks.
+  // `budget_group` (0: none) is the owner's address; an owner keeps its first group.
   std::function<void()> request(LoadOwner owner, std::vector<world::ChunkCoord> chunks,
-                                std::function<void()> done = {});
+                                std::function<void()> done = {}, uint64_t budget_group = 0);
   // Drops the owner's queued loads; returns their `done` like request().
-  std::function<void()> drop(LoadOwner owner);
+  std::function<void()> drop(LoadOwner owner, Clock::time_point now = Clock::now());
 
   // A batch starts with every queued edit and inspection, in arrival order...
   std::vector<OrderedTask> take_ordered();
@@ -93,6 +98,7 @@ class BatchScheduler {
   bool has_loads() const { return !rotation_.empty(); }
   size_t queued_load_chunks() const { return queued_chunks_; }
   size_t load_owners() const { return rotation_.size(); }
+  size_t budget_groups() const { return groups_.size(); }  // live, or refilling after they left
   // For shutdown: every request's `done` (the ordered tasks come from take_ordered()).
   std::vector<std::function<void()>> take_all_load_callbacks();
 
@@ -101,13 +107,28 @@ class BatchScheduler {
     std::vector<world::ChunkCoord> chunks;
     size_t next = 0;  // chunks before it were taken
     std::function<void()> done;
+    uint64_t group = 0;  // the owner's budget group
   };
 
-  TokenBucket& budget_of(LoadOwner owner, Clock::time_point now);
+  struct GroupBudget {
+    TokenBucket bucket;
+    size_t owners = 0;  // live owners in the group
+  };
+  struct OwnerBudget {
+    TokenBucket bucket;
+    uint64_t group = 0;  // 0: none
+  };
+  OwnerBudget& budget_of(LoadOwner owner, Clock::time_point now);
+  // Whether the owner may take load work now (its own and its group's budget).
+  bool ready(LoadOwner owner, Clock::time_point now);
+  void charge(LoadOwner owner, double work, Clock::time_point now);
+  // Forgets groups without owners whose budget has refilled (equal to a fresh one).
+  void purge_groups(Clock::time_point now);
 
   const size_t group_;
-  const double owner_rate_, owner_burst_;
-  std::unordered_map<LoadOwner, TokenBucket> budgets_;  // session owners seen; dropped with them
+  const double owner_rate_, owner_burst_, group_rate_, group_burst_;
+  std::unordered_map<LoadOwner, OwnerBudget> budgets_;  // session owners seen; dropped with them
+  std::unordered_map<uint64_t, GroupBudget> groups_;
   std::deque<OrderedTask> ordered_;
   std::unordered_map<LoadOwner, Request> requests_;
   std::deque<LoadOwner> rotation_;  // owners with a request, next to serve at the front

@@ -50,7 +50,8 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       observer_(std::move(observer)),
       generator_(config_.seed, config_.terrain),
       budget_(config_.max_memory),
-      scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner),
+      scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
+                 config_.load_work_per_address, config_.load_burst_per_address),
       state_(std::make_unique<WorldState>(config_.threads)) {
   thread_ = std::thread([this] { run(); });
 }
@@ -106,13 +107,13 @@ std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
   return future;
 }
 
-void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius) {
+void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius, uint64_t budget_group) {
   std::vector<ChunkCoord> chunks = ball_nearest_first(center, radius);  // outside the lock
   std::function<void()> replaced;
   {
     std::lock_guard lock(queue_mutex_);
     if (stopping_) return;
-    replaced = scheduler_.request(owner, std::move(chunks));
+    replaced = scheduler_.request(owner, std::move(chunks), {}, budget_group);
     view_updates_[owner] = {center, radius};
     queue_cv_.notify_one();
   }

@@ -57,6 +57,10 @@ struct PipelineConfig {
   // pipeline. 0: unlimited.
   double load_work_per_owner = 250;
   double load_burst_per_owner = 4000;
+  // The same for all sessions from one address together (set_view's budget_group); it
+  // outlives them until refilled, so reconnecting does not bring a fresh burst. 0: none.
+  double load_work_per_address = 1000;
+  double load_burst_per_address = 8000;
   size_t max_memory = 0;  // bytes; 0: no budget (see MemoryBudget)
 };
 
@@ -111,7 +115,8 @@ class WorldPipeline {
   // Any thread. The view of `owner` (a session id, below 2^63) becomes the ball of
   // `radius` chunks around `center`: its queued loads are replaced by the new view's
   // missing chunks, nearest first. Newly published meshes reach subscribers.
-  void set_view(LoadOwner owner, world::ChunkCoord center, int radius);
+  // `budget_group`: the owner's address (0: none), for the per-address load budget.
+  void set_view(LoadOwner owner, world::ChunkCoord center, int radius, uint64_t budget_group = 0);
   // Any thread: drops the owner's queued loads (its session closed).
   void drop_view(LoadOwner owner);
   // Runs fn on the pipeline thread between batches, and waits for it (tests, persistence).
