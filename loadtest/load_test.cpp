@@ -174,6 +174,12 @@ void LoadTest::tick_progress(std::ostream& progress) {
            << (config_.progress_tty ? "" : "\n") << std::flush;
 }
 
+std::string spread_source_address(int kind, int client) {
+  const std::string last = std::to_string(client % 254 + 1);  // no .0 or .255
+  if (kind == 0) return "127.1." + std::to_string(client / 254 % 256) + "." + last;
+  return "127.2." + std::to_string(kind - 1) + "." + last;
+}
+
 // Ramp: players join evenly over --ramp seconds, each on its own strand.
 void LoadTest::start_players() {
   std::mt19937 seeds(static_cast<uint32_t>(config_.seed));

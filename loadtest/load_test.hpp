@@ -47,7 +47,16 @@ struct LoadConfig {
   // voxeld's pid for its RSS over the run; 0: look for the process listening on the
   // server's port when the server is on this machine's loopback, -1: do not sample.
   int server_pid = 0;
+  // Each player, and each hostile client, connects from its own loopback address
+  // (127.1.x.y for players, 127.2.k.n for attackers of kind k), so the server's
+  // per-address caps and budgets see them as the distinct machines they stand for.
+  // Needs a server on 127.0.0.1.
+  bool spread_addresses = false;
 };
+
+// The loopback address a spread player or attacker connects from (see spread_addresses).
+// `kind` 0 is the players; attackers use 1 + their kind's index.
+std::string spread_source_address(int kind, int client);
 
 // The half-width of the square players live in: --spawn-area, or for 0 one that keeps the
 // density of 50 players in +-96 voxels (about 70 players within a radius-4 view).

@@ -49,6 +49,9 @@ int run(int argc, char** argv) {
       "MIX of hostile clients beside the players, KIND:COUNT,... with KIND flood, heavy, "
       "squat (a group of 32 sockets), slow or empty and COUNT 0..1000; counted apart, never "
       "in the exit code")(
+      "spread-addresses", po::bool_switch(&config.spread_addresses),
+      "each player and hostile client connects from its own loopback address (127.1.x.y, "
+      "127.2.k.n), as separate machines would; the server must be on 127.0.0.1")(
       "server-pid", po::value<int>(&config.server_pid)->default_value(0),
       "voxeld's pid, to sample its RSS every second (0: find the process listening on the "
       "port when the server is on loopback; -1: do not sample)");
@@ -63,6 +66,8 @@ int run(int argc, char** argv) {
     const auto [host, port] = vox::cli::parse_server(server);
     config.host = host;
     config.port = port;
+    if (config.spread_addresses && host != "127.0.0.1")
+      throw std::invalid_argument("--spread-addresses needs --server 127.0.0.1:PORT");
   } catch (const std::exception& e) {
     std::cerr << "voxel-loadtest: " << e.what() << " (see --help)\n";
     return 2;

@@ -76,6 +76,15 @@ void SimPlayer::start() {
 void SimPlayer::connect() {
   asio::ip::tcp::endpoint endpoint(asio::ip::make_address(test_.config().host),
                                    test_.config().port);
+  if (test_.config().spread_addresses) {
+    boost::system::error_code ec;
+    socket_.open(endpoint.protocol(), ec);
+    if (!ec) socket_.bind({asio::ip::make_address(spread_source_address(0, id_)), 0}, ec);
+    if (ec) {
+      fail("cannot bind a spread source address: " + ec.message(), true);
+      return;
+    }
+  }
   socket_.async_connect(endpoint, [self = shared_from_this()](boost::system::error_code ec) {
     if (ec) {
       self->fail("connect failed: " + ec.message(), true);

@@ -148,6 +148,28 @@ std::vector<std::string> generous_server_args() {
   return {"--max-clients", "2000", "--max-handshaking", "1000"};
 }
 
+// With --spread-addresses each player connects from its own loopback address, so a
+// server with a per-address cap of one admits every player (the attack runs of
+// docs/PERFORMANCE.md keep the caps and budgets at their defaults this way).
+TEST(AttackLoadTest, SpreadAddressesMakeEachPlayerItsOwnAddress) {
+  vox::test::ServerProcess server({"--max-per-address", "1", "--max-handshaking-per-address", "1"});
+  const std::string json = (std::filesystem::temp_directory_path() /
+                            ("spread_" + std::to_string(::getpid()) + ".json")).string();
+  const int players = 6;
+  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
+                          " --players " + std::to_string(players) + " --duration 2 --ramp 0.5 --view-radius 2" +
+                          " --spread-addresses --json " + json + " > /dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  std::ifstream in(json);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
+  std::filesystem::remove(json);
+  for (const std::string& key : {"\"players_connected\":" + std::to_string(players), std::string("\"errors\":0")}) {
+    EXPECT_NE(text.find(key), std::string::npos) << key << " in " << text;
+  }
+}
+
 // Every kind of attacker for a few seconds beside a few players: the tester still exits 0
 // (attackers' errors are not the players'), the players' figures stand apart and clean,
 // and the report has the attackers and the server's RSS.

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # One load-test run against a fresh voxeld, as docs/PERFORMANCE.md reports it:
 #   bench/scripts/attack_run.sh NAME PLAYERS DURATION [ATTACK_MIX] [-- extra voxel-loadtest args]
-# Starts build/bin/voxeld on a free port (--max-memory 1G, --max-per-address 0, metrics on),
-# runs voxel-loadtest with --json, then prints the honest players' edit->delta p50/p99, errors,
+# Starts build/bin/voxeld on a free port (--max-memory 1G, metrics on, the per-address caps
+# and budgets at their defaults), runs voxel-loadtest --spread-addresses (every player and
+# hostile client from its own loopback address) with --json, then prints the honest players' edit->delta p50/p99, errors,
 # disconnects, refusals, voxeld's max RSS and the server's own edit->publish histogram sum/count.
 # Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
 set -euo pipefail
@@ -14,13 +15,13 @@ shift 3; [ $# -gt 0 ] && shift
 out=/tmp/voxeld_bench; mkdir -p "$out"
 rm -f "$out/$name".{port,mport}
 LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --port 0 --port-file "$out/$name.port" --metrics-port 0 --metrics-port-file "$out/$name.mport" \
-  --max-memory 1G --max-clients 4000 --max-per-address 0 --max-handshaking-per-address 0 --max-handshaking 1000 --stats-interval 10 \
+  --max-memory 1G --max-clients 4000 --stats-interval 10 \
   ${VOXELD_ARGS:-} > "$out/$name.log" 2>&1 &
 server=$!
 trap 'kill $server 2>/dev/null || true' EXIT
 for _ in $(seq 100); do [ -s "$out/$name.mport" ] && break; sleep 0.1; done
 args=(--server "127.0.0.1:$(cat "$out/$name.port")" --players "$players" --duration "$duration" --ramp 10
-      --edit-rate 0.5 --view-radius 4 --server-pid "$server" --json "$out/$name.json")
+      --edit-rate 0.5 --view-radius 4 --server-pid "$server" --json "$out/$name.json" --spread-addresses)
 [ -n "$attack" ] && args+=(--attack "$attack")
 set +e
 "$bin/voxel-loadtest" "${args[@]}" "$@" > "$out/$name.table" 2> "$out/$name.progress"
