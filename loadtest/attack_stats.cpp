@@ -93,23 +93,15 @@ AttackStats AttackTally::snapshot(const AttackMix& mix) const {
 void write_attack_table(const AttackStats& s, std::ostream& out) {
   if (s.mix.empty()) return;
   out << "attackers (" << s.mix << "; not part of the figures above)\n";
-  char buf[512];
   for (AttackKind kind : kAttackKinds) {
     const AttackKindStats& k = s.kinds[static_cast<size_t>(kind)];
     if (k.clients == 0) continue;
-    std::snprintf(buf, sizeof buf,
-                  "  %-5s x%d (%d sockets): %llu connections (%llu failed, %llu welcomed), %llu "
-                  "closed by the server, %llu messages sent (%llu dropped: socket full), %llu "
-                  "received\n",
-                  attack_kind_name(kind), k.clients, k.connections,
-                  static_cast<unsigned long long>(k.connects),
-                  static_cast<unsigned long long>(k.connect_failures),
-                  static_cast<unsigned long long>(k.welcomed),
-                  static_cast<unsigned long long>(k.disconnects),
-                  static_cast<unsigned long long>(k.messages_sent),
-                  static_cast<unsigned long long>(k.sends_dropped),
-                  static_cast<unsigned long long>(k.messages_received));
-    out << buf;
+    char name[16];
+    std::snprintf(name, sizeof name, "%-5s", attack_kind_name(kind));
+    out << "  " << name << " x" << k.clients << " (" << k.connections << " sockets): " << k.connects
+        << " connections (" << k.connect_failures << " failed, " << k.welcomed << " welcomed), "
+        << k.disconnects << " closed by the server, " << k.messages_sent << " messages sent ("
+        << k.sends_dropped << " dropped: socket full), " << k.messages_received << " received\n";
     if (!k.errors.empty()) out << "        errors from the server: " << joined(k.errors) << "\n";
     if (k.edits_sent > 0) {
       out << "        edits sent " << k.edits_sent << ", results: " << joined(k.edit_results)
@@ -129,23 +121,16 @@ void write_attack_json(const AttackStats& s, std::ostream& out) {
   for (AttackKind kind : kAttackKinds) {
     const AttackKindStats& k = s.kinds[static_cast<size_t>(kind)];
     if (k.clients == 0) continue;
-    char buf[512];
-    std::snprintf(buf, sizeof buf,
-                  "%s\"%s\":{\"clients\":%d,\"sockets\":%d,\"connects\":%llu,\"connect_failures\":"
-                  "%llu,\"welcomed\":%llu,\"disconnects\":%llu,\"messages_sent\":%llu,\"sends_"
-                  "dropped\":%llu,\"messages_received\":%llu,\"bytes_received\":%llu,\"edits_"
-                  "sent\":%llu,",
-                  first ? "" : ",", attack_kind_name(kind), k.clients, k.connections,
-                  static_cast<unsigned long long>(k.connects),
-                  static_cast<unsigned long long>(k.connect_failures),
-                  static_cast<unsigned long long>(k.welcomed),
-                  static_cast<unsigned long long>(k.disconnects),
-                  static_cast<unsigned long long>(k.messages_sent),
-                  static_cast<unsigned long long>(k.sends_dropped),
-                  static_cast<unsigned long long>(k.messages_received),
-                  static_cast<unsigned long long>(k.bytes_received),
-                  static_cast<unsigned long long>(k.edits_sent));
-    out << buf;
+    out << (first ? "" : ",") << "\"" << attack_kind_name(kind) << "\":{\"clients\":" << k.clients
+        << ",\"sockets\":" << k.connections;
+    const std::pair<const char*, uint64_t> counters[] = {
+        {"connects", k.connects},           {"connect_failures", k.connect_failures},
+        {"welcomed", k.welcomed},           {"disconnects", k.disconnects},
+        {"messages_sent", k.messages_sent}, {"sends_dropped", k.sends_dropped},
+        {"messages_received", k.messages_received}, {"bytes_received", k.bytes_received},
+        {"edits_sent", k.edits_sent}};
+    for (const auto& [key, value] : counters) out << ",\"" << key << "\":" << value;
+    out << ",";
     json_counts(out, "errors_by_code", k.errors);
     out << ",";
     json_counts(out, "edit_results_by_status", k.edit_results);
