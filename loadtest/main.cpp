@@ -8,6 +8,7 @@
 
 #include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
+#include "loadtest/sweep.hpp"
 
 namespace {
 int run(int argc, char** argv) {
@@ -42,7 +43,8 @@ int run(int argc, char** argv) {
       "svg", po::value<std::string>(&svg),
       "write latency and throughput over time as SVG to this file")(
       "sweep", po::value<std::string>(&sweep),
-      "N1,N2,...: run once per player count; --svg then draws p99 against players")(
+      "N1,N2,...: run once per player count (1..10000 each); --svg then draws p99 against "
+      "players; exits 1 when a run had errors or no count met --sweep-limit-ms")(
       "sweep-limit-ms", po::value<double>(&sweep_limit_ms)->default_value(100),
       "the p99 limit the sweep reports against")(
       "attack", po::value<std::string>(&attack),
@@ -94,31 +96,22 @@ int run(int argc, char** argv) {
     return 2;
   }
   config.progress_tty = ::isatty(STDERR_FILENO) != 0;
-  if (!sweep.empty()) {
-    std::vector<vox::loadtest::SweepPoint> points;
-    std::istringstream counts(sweep);
-    int best = 0;
-    for (std::string n; std::getline(counts, n, ',');) {
-      config.players = std::stoi(n);
-      vox::loadtest::LoadTest run(config);
-      const auto stats = run.run(std::cerr);
-      std::vector<double> ms;
-      for (const auto& s : stats.edit_to_delta) ms.push_back(s.ms);
-      const double p99 = vox::loadtest::percentiles(ms).p99;
-      const uint64_t errors =
-          stats.error_count() + stats.disconnect_count() + stats.decode_failures;
-      points.push_back({config.players, p99, errors});
-      std::cout << "players " << config.players << ": edit->delta p99 " << p99 << " ms, errors "
-                << errors << "\n";
-      if (p99 <= sweep_limit_ms && errors == 0) best = std::max(best, config.players);
+  if (vm.count("sweep")) {
+    if (!(sweep_limit_ms > 0)) {
+      std::cerr << "voxel-loadtest: --sweep-limit-ms must be > 0\n";
+      return 2;
     }
-    std::cout << "largest player count with p99 <= " << sweep_limit_ms
-              << " ms and no errors: " << best << "\n";
+    const auto counts = vox::loadtest::parse_sweep_counts(sweep);
+    if (!counts) {
+      std::cerr << "voxel-loadtest: --sweep: " << counts.error() << "\n";
+      return 2;
+    }
+    const auto result = vox::loadtest::run_sweep(config, *counts, sweep_limit_ms, std::cerr, std::cout);
     if (!svg.empty()) {
       std::ofstream out(svg);
-      vox::loadtest::write_sweep_svg(points, sweep_limit_ms, out);
+      vox::loadtest::write_sweep_svg(result.points, sweep_limit_ms, out);
     }
-    return 0;
+    return result.any_errors || result.best == 0 ? 1 : 0;
   }
   vox::loadtest::LoadTest test(config);
   const vox::loadtest::LoadStats stats = test.run(std::cerr);

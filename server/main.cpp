@@ -116,6 +116,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   world.load_burst_per_address = 8 * world.load_work_per_address;
+  // spdlog reads an unknown name as "off": a typo would silence the server.
+  if (spdlog::level::from_str(log_level) == spdlog::level::off && log_level != "off") {
+    std::cerr << "voxeld: --log-level must be trace, debug, info, warn, error, critical or off (got '"
+              << log_level << "')\n";
+    return 2;
+  }
   // The largest edit (a box of side 2 * max radius) must fit in the budget's burst.
   const double largest_edit = std::pow(2.0 * world.limits.max_radius + 5, 3);
   if (net.edit_budget_rate > 0 && net.edit_budget_burst < largest_edit) {

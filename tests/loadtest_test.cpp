@@ -12,6 +12,7 @@
 
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/rss_sampler.hpp"
+#include "loadtest/sweep.hpp"
 #include "server/net/asio.hpp"
 #include "tests/server_process.hpp"
 
@@ -137,6 +138,59 @@ TEST(RssSampler, FindsThisProcessListeningOnLoopback) {
 
 TEST(AttackLoadTest, BadMixIsAUsageErrorWithExitCode2) {
   const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --attack flood:2,bogus:1 > /dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+}
+
+TEST(Sweep, CountsAreWholeNumbersInRangeAndNothingElse) {
+  const auto ok = vox::loadtest::parse_sweep_counts("300,400,500");
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(*ok, (std::vector<int>{300, 400, 500}));
+  for (const char* bad : {"", "abc", "300,", ",300", "300,,400", "0", "10001", "-5", "3.5", "300 ", "1e3",
+                          "99999999999999999999"}) {
+    EXPECT_FALSE(vox::loadtest::parse_sweep_counts(bad)) << "'" << bad << "'";
+  }
+  std::string many;
+  for (int i = 0; i < 65; ++i) {
+    if (i > 0) many.push_back(',');
+    many.push_back('1');
+  }
+  EXPECT_FALSE(vox::loadtest::parse_sweep_counts(many));
+}
+
+// `--sweep abc` aborted the tester (exit 134, an uncaught std::stoi exception).
+TEST(Sweep, ABadCountIsAUsageErrorWithExitCode2NotAnAbort) {
+  for (const char* args : {" --sweep abc", " --sweep 300,abc", " --sweep 0", " --sweep 100 --sweep-limit-ms 0"}) {
+    const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + args + " > /dev/null 2>&1";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << args;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << args;
+  }
+}
+
+TEST(Sweep, RunsEachCountAndExitsZeroOnlyWhenOneMetTheLimit) {
+  vox::test::ServerProcess server({"--load-budget", "0"});
+  const std::string base = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
+                           " --duration 1 --ramp 0.2 --view-radius 2 --sweep 2,3";
+  const std::string out = (std::filesystem::temp_directory_path() / ("sweep_" + std::to_string(::getpid()))).string();
+  int status = std::system((base + " > " + out + " 2>/dev/null").c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  std::ifstream in(out);
+  const std::string text((std::istreambuf_iterator<char>(in)), {});
+  std::filesystem::remove(out);
+  EXPECT_NE(text.find("players 2: "), std::string::npos) << text;
+  EXPECT_NE(text.find("players 3: "), std::string::npos) << text;
+  EXPECT_NE(text.find("largest player count"), std::string::npos) << text;
+  status = std::system((base + " --sweep-limit-ms 0.000001 > /dev/null 2>&1").c_str());  // no count can meet it
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 1);
+}
+
+// A mistyped --log-level turned voxeld's logging off without a word.
+TEST(CommandLine, VoxeldRefusesAnUnknownLogLevel) {
+  const std::string cmd = std::string(VOXELD_PATH) + " --port 0 --log-level inf0 > /dev/null 2>&1";
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 2);
