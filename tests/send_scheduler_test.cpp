@@ -92,7 +92,9 @@ TEST(SendScheduler, CoalescesToTheNewestVersionAndDeltasFromTheHeldOne) {
 
 TEST(SendScheduler, EmptyFirstVersionIsNotSentButItsSuccessorIsSentInFull) {
   FakeStore store;
-  store.publish({1, 0, 0}, true);
+  for (int z = -1; z <= 1; ++z)
+    for (int y = -1; y <= 1; ++y)
+      for (int x = -1; x <= 1; ++x) store.publish({x, y, z}, true);
   SendScheduler s;
   s.set_view({0, 0, 0}, 1);
   EXPECT_FALSE(s.next(store.lookup()));
@@ -108,14 +110,71 @@ TEST(SendScheduler, UnpublishedChunksWaitAndInvisibleOnesAreIgnored) {
   SendScheduler s;
   s.set_view({0, 0, 0}, 1);
   EXPECT_FALSE(s.next(store.lookup()));  // nothing published yet
-  store.publish({0, 1, 0});
+  store.publish({0, 0, 0});
   store.publish({9, 9, 9});
-  s.mark_stale({0, 1, 0});
+  s.mark_stale({0, 0, 0});
   s.mark_stale({9, 9, 9});
   auto send = s.next(store.lookup());
   ASSERT_TRUE(send);
-  EXPECT_EQ(send->coord, (ChunkCoord{0, 1, 0}));
+  EXPECT_EQ(send->coord, (ChunkCoord{0, 0, 0}));
   EXPECT_FALSE(s.next(store.lookup()));
+}
+
+// An outside client saw 51 cached chunks out to distance² 16 arrive before the centre of
+// a view that partly overlapped the previous one: nearest first held only among chunks
+// already loaded.
+TEST(SendScheduler, NewChunksGoNearestFirstWhateverIsAlreadyLoaded) {
+  FakeStore store;
+  for (int x = 1; x <= 3; ++x) store.publish({x, 0, 0});  // loaded for an earlier view
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 3);
+  EXPECT_FALSE(s.next(store.lookup())) << "the centre is still loading";
+  store.publish({0, 0, 0});
+  s.mark_stale({0, 0, 0});
+  std::vector<ChunkCoord> order;
+  while (auto send = s.next(store.lookup())) order.push_back(send->coord);
+  ASSERT_FALSE(order.empty());
+  EXPECT_EQ(order.front(), (ChunkCoord{0, 0, 0}));
+  // (1,0,0) at distance 1 came next; (2,0,0) waits for the unloaded chunks at distance 1.
+  EXPECT_EQ(order, (std::vector<ChunkCoord>{{0, 0, 0}, {1, 0, 0}}));
+  // Everything nearer than (2,0,0) finishes loading.
+  for (int z = -2; z <= 2; ++z)
+    for (int y = -2; y <= 2; ++y)
+      for (int x = -2; x <= 2; ++x) {
+        const ChunkCoord c{x, y, z};
+        if (d2(c, {0, 0, 0}) >= 4 || store.meshes.count(c)) continue;
+        store.publish(c);
+        s.mark_stale(c);
+      }
+  int64_t last = 0;
+  while (auto send = s.next(store.lookup())) {
+    const int64_t d = d2(send->coord, {0, 0, 0});
+    EXPECT_GE(d, last);
+    last = d;
+    if (send->coord == ChunkCoord{2, 0, 0}) break;
+  }
+  EXPECT_EQ(last, 4) << "(2,0,0) once nothing nearer is loading";
+}
+
+// Issue 18: an edit's change of a chunk the client holds waited behind the client's own
+// new-view chunks, nearest first.
+TEST(SendScheduler, ANewerVersionOfAHeldChunkGoesBeforeNewTerrain) {
+  FakeStore store;
+  store.publish({2, 0, 0});
+  SendScheduler s;
+  s.set_view({2, 0, 0}, 0);
+  ASSERT_TRUE(s.next(store.lookup()));  // the client holds (2,0,0)
+  s.set_view({0, 0, 0}, 2);             // walks: (2,0,0) is now at the edge
+  for (int x = -1; x <= 1; ++x) store.publish({x, 0, 0});
+  store.publish({2, 0, 0});  // an edit changed it
+  for (int x = -1; x <= 2; ++x) s.mark_stale({x, 0, 0});
+  auto send = s.next(store.lookup());
+  ASSERT_TRUE(send);
+  EXPECT_EQ(send->coord, (ChunkCoord{2, 0, 0}));
+  EXPECT_TRUE(send->base) << "a delta";
+  send = s.next(store.lookup());
+  ASSERT_TRUE(send);
+  EXPECT_EQ(send->coord, (ChunkCoord{0, 0, 0})) << "then new terrain, nearest first";
 }
 
 TEST(SendScheduler, MovingTheViewUnloadsHeldChunksThatLeftIt) {
@@ -166,17 +225,19 @@ TEST(SendScheduler, AVersionAtOrAboveTheLimitWaitsUntilReleased) {
 
 TEST(SendScheduler, VersionsBelowTheLimitStillFlow) {
   FakeStore store;
-  store.publish({0, 0, 0});
-  store.publish({2, 0, 0});
+  for (int z = -1; z <= 1; ++z)
+    for (int y = -1; y <= 1; ++y)
+      for (int x = -1; x <= 1; ++x)
+        if (ChunkCoord{x, y, z} != ChunkCoord{1, 0, 0}) store.publish({x, y, z});
   SendScheduler s;
-  s.set_view({0, 0, 0}, 2);
+  s.set_view({0, 0, 0}, 1);
   const uint64_t limit = store.next_version;
   store.publish({1, 0, 0});  // at the limit: may show the pending edit
   size_t sent = 0;
   while (s.next(store.lookup(), limit)) ++sent;
-  EXPECT_EQ(sent, 2u);
+  EXPECT_EQ(sent, 6u) << "the centre and its other five neighbours";
   EXPECT_EQ(s.deferred_count(), 1u);
-  s.set_view({0, 0, 0}, 2);  // a new view re-checks everything; nothing stays deferred
+  s.set_view({0, 0, 0}, 1);  // a new view re-checks everything; nothing stays deferred
   EXPECT_EQ(s.deferred_count(), 0u);
 }
 

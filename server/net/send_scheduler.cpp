@@ -30,15 +30,27 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
       for (int dx = -radius; dx <= radius; ++dx) {
         if (dx * dx + dy * dy + dz * dz <= r2) visible_.try_emplace(center.offset(dx, dy, dz));
       }
-  stale_.clear();  // re-ordered around the new centre
+  updates_.clear();  // re-ordered around the new centre
+  fresh_.clear();
+  waiting_.clear();
   deferred_.clear();
   for (auto& [c, held] : visible_) {
     held.queued = true;
     held.deferred = false;
-    stale_.push_back({distance2(c), c});
+    held.waiting = false;
+    (held.version ? updates_ : fresh_).push_back({distance2(c), c});
   }
-  std::make_heap(stale_.begin(), stale_.end(), std::greater<>());
+  std::make_heap(updates_.begin(), updates_.end(), std::greater<>());
+  std::make_heap(fresh_.begin(), fresh_.end(), std::greater<>());
   return unloaded;
+}
+
+void SendScheduler::queue(ChunkCoord c, Held& held) {
+  held.queued = true;
+  held.waiting = false;  // marked: it has been published since
+  auto& heap = held.version ? updates_ : fresh_;
+  heap.push_back({distance2(c), c});
+  std::push_heap(heap.begin(), heap.end(), std::greater<>());
 }
 
 void SendScheduler::mark_stale(ChunkCoord c) {
@@ -46,9 +58,7 @@ void SendScheduler::mark_stale(ChunkCoord c) {
   if (distance2(c) > static_cast<int64_t>(radius_) * radius_) return;
   auto it = visible_.find(c);
   if (it == visible_.end() || it->second.queued) return;
-  it->second.queued = true;
-  stale_.push_back({distance2(c), c});
-  std::push_heap(stale_.begin(), stale_.end(), std::greater<>());
+  queue(c, it->second);
 }
 
 void SendScheduler::release_deferred() {
@@ -61,17 +71,43 @@ void SendScheduler::release_deferred() {
   deferred_.clear();
 }
 
+int64_t SendScheduler::nearest_waiting() {
+  while (!waiting_.empty()) {
+    const Entry& top = waiting_.front();
+    auto it = visible_.find(top.second);
+    if (it != visible_.end() && it->second.waiting) return top.first;
+    std::pop_heap(waiting_.begin(), waiting_.end(), std::greater<>());
+    waiting_.pop_back();
+  }
+  return INT64_MAX;
+}
+
 std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup, uint64_t first_unsendable) {
-  while (!stale_.empty()) {
-    std::pop_heap(stale_.begin(), stale_.end(), std::greater<>());
-    const ChunkCoord c = stale_.back().second;
-    stale_.pop_back();
+  if (auto send = take(updates_, false, lookup, first_unsendable)) return send;
+  return take(fresh_, true, lookup, first_unsendable);
+}
+
+std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap, bool fresh,
+                                                       const Lookup& lookup, uint64_t first_unsendable) {
+  while (!heap.empty()) {
+    if (fresh && heap.front().first > nearest_waiting()) return std::nullopt;  // a nearer one loads
+    std::pop_heap(heap.begin(), heap.end(), std::greater<>());
+    const ChunkCoord c = heap.back().second;
+    heap.pop_back();
     auto it = visible_.find(c);
     if (it == visible_.end()) continue;
     Held& held = it->second;
     held.queued = false;
     pipeline::MeshVersionPtr current = lookup(c);
-    if (!current) continue;
+    if (!current) {
+      if (!held.version && !held.waiting) {
+        held.waiting = true;
+        waiting_.push_back({distance2(c), c});
+        std::push_heap(waiting_.begin(), waiting_.end(), std::greater<>());
+      }
+      continue;
+    }
+    held.waiting = false;
     if (held.version && held.version->version >= current->version) continue;
     if (current->version >= first_unsendable) {
       if (!held.deferred) {
@@ -94,7 +130,9 @@ std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup, uin
 
 void SendScheduler::clear() {
   visible_.clear();
-  stale_.clear();
+  updates_.clear();
+  fresh_.clear();
+  waiting_.clear();
   deferred_.clear();
   radius_ = -1;
 }
