@@ -176,8 +176,7 @@ void LoadTest::tick_progress(std::ostream& progress) {
 
 std::string spread_source_address(int kind, int client) {
   const std::string last = std::to_string(client % 254 + 1);  // no .0 or .255
-  if (kind == 0) return "127.1." + std::to_string(client / 254 % 256) + "." + last;
-  return "127.2." + std::to_string(kind - 1) + "." + last;
+  return "127." + std::to_string(1 + kind) + "." + std::to_string(client / 254 % 256) + "." + last;
 }
 
 // Ramp: players join evenly over --ramp seconds, each on its own strand.

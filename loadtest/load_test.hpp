@@ -48,7 +48,7 @@ struct LoadConfig {
   // server's port when the server is on this machine's loopback, -1: do not sample.
   int server_pid = 0;
   // Each player, and each hostile client, connects from its own loopback address
-  // (127.1.x.y for players, 127.2.k.n for attackers of kind k), so the server's
+  // (127.1.x.y for players, 127.(2+k).x.y for attackers of kind k), so the server's
   // per-address caps and budgets see them as the distinct machines they stand for.
   // Needs a server on 127.0.0.1.
   bool spread_addresses = false;

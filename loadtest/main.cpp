@@ -53,7 +53,7 @@ int run(int argc, char** argv) {
       "in the exit code")(
       "spread-addresses", po::bool_switch(&config.spread_addresses),
       "each player and hostile client connects from its own loopback address (127.1.x.y, "
-      "127.2.k.n), as separate machines would; the server must be on 127.0.0.1")(
+      "127.2.x.y and up by kind), as separate machines would; the server must be on 127.0.0.1")(
       "server-pid", po::value<int>(&config.server_pid)->default_value(0),
       "voxeld's pid, to sample its RSS every second (0: find the process listening on the "
       "port when the server is on loopback; -1: do not sample)");

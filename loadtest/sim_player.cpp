@@ -212,7 +212,7 @@ void SimPlayer::on_message(const wire::Envelope& m) {
       it->second.have_result = true;
       for (const auto& c : r.changed_chunks()) {
         const ChunkKey k = client::key_of(c);
-        if (in_view(k) && (!getenv("HELD_ONLY") || cache_.chunks().count(k))) it->second.waiting.insert(k);
+        if (in_view(k)) it->second.waiting.insert(k);
       }
       if (it->second.waiting.empty()) pending_.erase(it);  // nothing visible changed
       break;

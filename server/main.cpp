@@ -111,8 +111,9 @@ int main(int argc, char** argv) {
                  "--max-handshaking >= 1, timeouts > 0\n";
     return 2;
   }
-  if (!(world.load_work_per_address >= 0)) {
-    std::cerr << "voxeld: --load-budget-per-address must be >= 0\n";
+  // The burst (8x) must hold one work unit, or no view of the address would ever load.
+  if (!(world.load_work_per_address == 0 || world.load_work_per_address >= 0.125)) {
+    std::cerr << "voxeld: --load-budget-per-address must be 0 (unlimited) or at least 0.125\n";
     return 2;
   }
   world.load_burst_per_address = 8 * world.load_work_per_address;

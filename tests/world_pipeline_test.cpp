@@ -6,6 +6,7 @@
 #include <cmath>
 #include <map>
 #include <random>
+#include <future>
 #include <thread>
 
 #include "tests/mesh_test_util.hpp"
@@ -400,6 +401,40 @@ TEST(WorldPipeline, EditBehindTwentyHugeViewsCompletesInBoundedTime) {
 // Regression: a burst of far-apart views from a client that then disconnects queued
 // chunk loads that were never cancelled (5 GB). A newer view replaces the owner's queued
 // one, and dropping the owner leaves nothing queued.
+// Found by review: a view set while a batch ran had its request taken by that batch's
+// load pass (its chunks were meshed already: nothing to do) while eviction still saw the
+// views of the batch's start, so the chunks were evicted and no one loaded them again;
+// with strictly nearest-first sending the session then waited for them for good.
+TEST(WorldPipeline, AViewSetDuringABatchProtectsItsChunksFromThatBatchsEviction) {
+  using namespace std::chrono_literals;
+  // Chunks in no view are evicted once unused for 1 s: the box survives until the view
+  // is set (well within that), and the blocked batch ends after it.
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .evict_after = 1000ms, .evict_min_age = 0ms});
+  const mesh::ChunkBox box = surface_box();
+  p.load(box).get();  // one-off load: meshed, in no view
+  const world::ChunkCoord centre = box.at(box.count() / 2);
+  std::promise<void> entered, release;
+  std::thread blocker([&] {
+    p.inspect([&](const world::ChunkMap&) {  // holds the pipeline inside a batch
+      entered.set_value();
+      release.get_future().wait();
+    });
+  });
+  entered.get_future().wait();
+  p.set_view(5, centre, 1);  // arrives mid-batch
+  std::this_thread::sleep_for(1200ms);  // older than evict_after when the batch ends
+  release.set_value();
+  blocker.join();
+  p.inspect([](const world::ChunkMap&) {});  // the batch (and its eviction) is over
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const world::ChunkCoord c = centre.offset(dx, dy, dz);
+        if (dx * dx + dy * dy + dz * dz > 1) continue;
+        EXPECT_TRUE(p.meshes().get(c)) << "evicted while in a view";
+      }
+}
+
 TEST(WorldPipeline, ViewFloodThenDropLeavesNoQueuedWork) {
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
   for (int i = 0; i < 200; ++i) p.set_view(1, {i * 1000, 0, -i * 1000}, 12);

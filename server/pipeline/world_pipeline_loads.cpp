@@ -39,6 +39,10 @@ void WorldPipeline::take_view_updates() {
 std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_point now) {
   WorldState& st = *state_;
   std::lock_guard lock(queue_mutex_);
+  // The views whose requests this pass takes must be the ones eviction protects: a view
+  // set after the batch started would otherwise have its meshed chunks passed over here
+  // (nothing to load) yet evicted below, and the session would wait for them forever.
+  take_view_updates();
   if (!scheduler_.has_loads()) return {};
   return scheduler_.take_loads(
       load_work_allowed(scheduler_.has_ordered()),
