@@ -340,10 +340,12 @@ void ClientSession::observe_written_edits() {
   write_edits_.clear();
 }
 
-// The session's accounted memory: its view map and stale heap, queued control frames,
+// The session's accounted memory: its view map and send queues, queued control frames,
 // the write and read buffers and a partial frame.
 void ClientSession::update_memory() {
-  constexpr size_t kPerVisibleChunk = 64;  // map node + heap entry
+  // Map node (~64) + an entry in the updates or new-chunk heap (24), in the waiting heap
+  // (24) and in the deferred list (12), at most.
+  constexpr size_t kPerVisibleChunk = 128;
   const size_t bytes = sizeof(ClientSession) + scheduler_.visible_count() * kPerVisibleChunk +
                        control_bytes_ + write_buffer_.capacity() + decoder_.buffered() +
                        results_.size() * 64;
