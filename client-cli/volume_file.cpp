@@ -31,6 +31,7 @@ class Tokens {
     while (p_ < end_ && !is_space(*p_)) ++p_;
     return {start, static_cast<size_t>(p_ - start)};
   }
+  size_t remaining() const { return static_cast<size_t>(end_ - p_); }
 
  private:
   const char* p_;
@@ -84,6 +85,13 @@ mesh::Volume read_text_volume(const std::string& path) {
   }
   check_dims(path, volume.dims);
   const size_t n = sample_count(volume.dims);
+  // Each value takes a byte and a separator: a header may not make us allocate for more
+  // values than the file can hold (17 bytes once asked for 632 MB).
+  const size_t room = (tokens.remaining() + 1) / 2;
+  if (n > room) {
+    throw VolumeError(path + ": expected " + std::to_string(n) + " values, the file has room for at most " +
+                      std::to_string(room));
+  }
   volume.values.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const std::string_view t = tokens.next();

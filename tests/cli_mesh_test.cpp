@@ -110,7 +110,10 @@ struct BadCase {
 TEST_F(CliMesh, BadInputGivesOneLineErrorAndNoOutputFile) {
   const std::vector<BadCase> cases = {
       {"missing file", "", {}, "cannot open"},
-      {"short file", "3 3 3\n1 2 3", {}, "expected 27 values, found 3"},
+      {"short file", "3 3 3\n1 2 3", {}, "expected 27 values, the file has room for at most 3"},
+      {"short by one", "2 2 2\n1 2 3 4 5 6 7   ", {}, "expected 8 values, found 7"},
+      // A header is not trusted before the file is: this one asked for 8.6 GB.
+      {"huge header", "1290 1290 1290\n0", {}, "expected 2146689000 values, the file has room for at most 1"},
       {"non-number", "2 2 2\n1 2 3 x 5 6 7 8", {}, "value 3 is not a number"},
       {"nan", "2 2 2\n1 2 3 nan 5 6 7 8", {}, "value 3 is not finite"},
       {"bad header", "2 two 2\n", {}, "ydim is not an integer"},
