@@ -25,21 +25,37 @@ constexpr int kPlayers = 8;
 constexpr int kPlayers = 20;
 #endif
 
+// Runs voxel-loadtest against `server` with `args` and --json; the exit code (-1: it did
+// not exit normally) and the JSON it wrote.
+struct TesterRun {
+  int exit_code = -1;
+  std::string json;
+};
+TesterRun run_tester(const vox::test::ServerProcess& server, const std::string& args) {
+  static int counter = 0;
+  const std::string json = (std::filesystem::temp_directory_path() /
+                            ("loadtest_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ".json"))
+                               .string();
+  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
+                          " " + args + " --json " + json + " > /dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  TesterRun run;
+  if (WIFEXITED(status)) run.exit_code = WEXITSTATUS(status);
+  std::ifstream in(json);
+  run.json.assign(std::istreambuf_iterator<char>(in), {});
+  std::filesystem::remove(json);
+  return run;
+}
+
 TEST(LoadTest, TwentyPlayersFiveSecondsWithoutErrorsAndVerified) {
   // --verify compares with a fresh client after a quiet spell; a per-player load budget
   // stretches a view's loading past such spells under the sanitizers, so it is off here
   // (the load budget has its own tests).
   vox::test::ServerProcess server({"--load-budget", "0"});
-  const std::string json = (std::filesystem::temp_directory_path() / ("loadtest_" + std::to_string(::getpid()) + ".json")).string();
-  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
-                          " --players " + std::to_string(kPlayers) + " --duration 5 --ramp 1 --edit-rate 1 --view-radius 3 --verify --json " + json +
-                          " > /dev/null 2>&1";
-  const int status = std::system(cmd.c_str());
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 0);
-  std::ifstream in(json);
-  const std::string text((std::istreambuf_iterator<char>(in)), {});
-  std::filesystem::remove(json);
+  const TesterRun run = run_tester(
+      server, "--players " + std::to_string(kPlayers) + " --duration 5 --ramp 1 --edit-rate 1 --view-radius 3 --verify");
+  EXPECT_EQ(run.exit_code, 0);
+  const std::string& text = run.json;
   for (const std::string& key : {"\"players\":" + std::to_string(kPlayers), std::string("\"errors\":0"),
                                  std::string("\"disconnects\":0"), std::string("\"decode_failures\":0"),
                                  std::string("\"verified\":true"), std::string("\"verify_mismatches\":0"),
@@ -207,18 +223,11 @@ std::vector<std::string> generous_server_args() {
 // docs/PERFORMANCE.md keep the caps and budgets at their defaults this way).
 TEST(AttackLoadTest, SpreadAddressesMakeEachPlayerItsOwnAddress) {
   vox::test::ServerProcess server({"--max-per-address", "1", "--max-handshaking-per-address", "1"});
-  const std::string json = (std::filesystem::temp_directory_path() /
-                            ("spread_" + std::to_string(::getpid()) + ".json")).string();
   const int players = 6;
-  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
-                          " --players " + std::to_string(players) + " --duration 2 --ramp 0.5 --view-radius 2" +
-                          " --spread-addresses --json " + json + " > /dev/null 2>&1";
-  const int status = std::system(cmd.c_str());
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 0);
-  std::ifstream in(json);
-  const std::string text((std::istreambuf_iterator<char>(in)), {});
-  std::filesystem::remove(json);
+  const TesterRun run = run_tester(
+      server, "--players " + std::to_string(players) + " --duration 2 --ramp 0.5 --view-radius 2 --spread-addresses");
+  EXPECT_EQ(run.exit_code, 0);
+  const std::string& text = run.json;
   for (const std::string& key : {"\"players_connected\":" + std::to_string(players), std::string("\"errors\":0")}) {
     EXPECT_NE(text.find(key), std::string::npos) << key << " in " << text;
   }
@@ -229,19 +238,13 @@ TEST(AttackLoadTest, SpreadAddressesMakeEachPlayerItsOwnAddress) {
 // and the report has the attackers and the server's RSS.
 TEST(AttackLoadTest, PlayersBesideEveryKindOfAttackerExitZeroWithSeparateFigures) {
   vox::test::ServerProcess server(generous_server_args());
-  const std::string json = (std::filesystem::temp_directory_path() /
-                            ("attack_" + std::to_string(::getpid()) + ".json")).string();
   const int players = kPlayers / 2;
-  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
-                          " --players " + std::to_string(players) + " --duration 4 --ramp 1 --edit-rate 1 --view-radius 3" +
-                          " --attack flood:1,heavy:1,squat:1,slow:1,empty:1 --json " + json + " > /dev/null 2>&1";
-  const int status = std::system(cmd.c_str());
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 0);
+  const TesterRun run = run_tester(server, "--players " + std::to_string(players) +
+                                               " --duration 4 --ramp 1 --edit-rate 1 --view-radius 3" +
+                                               " --attack flood:1,heavy:1,squat:1,slow:1,empty:1");
+  EXPECT_EQ(run.exit_code, 0);
   EXPECT_TRUE(server.running());
-  std::ifstream in(json);
-  const std::string text((std::istreambuf_iterator<char>(in)), {});
-  std::filesystem::remove(json);
+  const std::string& text = run.json;
   // The honest figures stay at the top level; the attackers' own "disconnects" are inside
   // "attackers", so the honest ones are matched with their neighbours.
   for (const std::string& key : {"\"players_connected\":" + std::to_string(players),
