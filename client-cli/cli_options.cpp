@@ -54,6 +54,11 @@ std::array<float, N> parse_floats(const std::string& text, const char* what) {
 std::array<float, 3> parse_vec3(const std::string& text, const char* what) { return parse_floats<3>(text, what); }
 std::array<float, 2> parse_vec2(const std::string& text, const char* what) { return parse_floats<2>(text, what); }
 
+std::chrono::milliseconds timeout_of(double seconds) {
+  if (!(seconds > 0) || seconds > 86400) throw std::invalid_argument("--timeout must be in (0, 86400] seconds");
+  return std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000));
+}
+
 std::pair<std::string, uint16_t> parse_server(const std::string& text) {
   const auto colon = text.rfind(':');
   if (colon == std::string::npos || colon == 0) throw std::invalid_argument("--server must be HOST:PORT, got '" + text + "'");

@@ -3,6 +3,7 @@
 
 #include <array>
 #include <boost/program_options.hpp>
+#include <chrono>
 #include <ostream>
 #include <stdexcept>
 #include <string>
@@ -22,6 +23,8 @@ int parse_options(const std::vector<std::string>& args, const po::options_descri
 std::array<float, 3> parse_vec3(const std::string& text, const char* what);
 // "X,Z" of finite numbers.
 std::array<float, 2> parse_vec2(const std::string& text, const char* what);
+// A --timeout in seconds (> 0, at most a day) as a duration; throws std::invalid_argument.
+std::chrono::milliseconds timeout_of(double seconds);
 // "HOST:PORT"; throws std::invalid_argument.
 std::pair<std::string, uint16_t> parse_server(const std::string& text);
 

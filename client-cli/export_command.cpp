@@ -21,7 +21,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
   opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(), "X,Y,Z: centre")(
       "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
       "out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb")(
-      "quiet-ms", po::value<int>()->default_value(1500), "done when nothing arrives for this long")(
+      "timeout", po::value<double>()->default_value(120), "seconds to wait for the whole view")(
       "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   po::variables_map vm;
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE", vm, out,
@@ -33,7 +33,7 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
     const auto region = fetch_region(vm["server"].as<std::string>(), "voxel-cli-export", at,
                                      vm["radius"].as<uint32_t>(),
-                                     std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>())));
+                                     timeout_of(vm["timeout"].as<double>()));
     const client::Client& c = *region;
     // Decode every chunk into a dense grid over their bounding box, then weld.
     std::array<int, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};

@@ -272,7 +272,7 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
     const double seconds = vm.count("for") ? vm["for"].as<double>() : 1e12;
     if (!(seconds > 0)) throw std::invalid_argument("--for must be > 0");
     auto c = open_session(vm["server"].as<std::string>(), "voxel-cli-watch");
-    c->send(client::make_set_view(at[0], at[1], at[2], vm["radius"].as<uint32_t>()));
+    c->send(client::make_set_view(at[0], at[1], at[2], vm["radius"].as<uint32_t>(), 1));
     g_interrupted = false;
     auto previous = std::signal(SIGINT, on_sigint);
     const auto t0 = Clock::now();
@@ -295,6 +295,11 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
         c->forget(m->chunk_unload());
         out << "unload " << m->chunk_unload().coords_size() << " chunks\n";
       }
+      if (m->has_view_ready()) {
+        const auto& r = m->view_ready();
+        out << "view ready: " << r.chunks_sent() << " chunks with a surface, " << r.chunks_empty() << " empty, after "
+            << std::fixed << std::setprecision(2) << std::chrono::duration<double>(Clock::now() - t0).count() << " s\n";
+      }
       if (!m->has_chunk_mesh()) continue;
       const auto& k = m->chunk_mesh().coord();
       const bool delta = m->chunk_mesh().base_version() != 0;
@@ -305,7 +310,10 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
       out << "chunk (" << k.x() << "," << k.y() << "," << k.z() << ") v" << m->chunk_mesh().version() << " "
           << (delta ? "delta from v" + std::to_string(m->chunk_mesh().base_version()) : std::string("full")) << " "
           << m->chunk_mesh().payload().size() << " bytes" << (error ? " DECODE FAILED: " + *error : "") << "\n";
-      failures += error ? 1 : 0;
+      if (error) {  // the documented recovery: ask for a full copy
+        ++failures;
+        c->send(client::make_resync({&k, 1}));
+      }
     }
     std::signal(SIGINT, previous);
     out << "watched " << std::fixed << std::setprecision(1) << std::chrono::duration<double>(Clock::now() - t0).count()

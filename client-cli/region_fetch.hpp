@@ -11,11 +11,11 @@
 namespace vox::cli {
 
 // Connects to `server` ("HOST:PORT"), asks for the view of `radius` chunks around `at`
-// and receives until nothing new arrives for `quiet` (the first reply may take up to
-// 30 s: terrain is generated on demand). The returned client holds the chunks. Throws
+// and receives until the server says the view is complete (ViewReady), or `timeout`
+// (terrain is generated on demand). The returned client holds the chunks. Throws
 // std::invalid_argument for a bad server string, std::runtime_error for anything else.
 std::unique_ptr<client::Client> fetch_region(const std::string& server, const std::string& name,
                                              const std::array<float, 3>& at, uint32_t radius,
-                                             std::chrono::milliseconds quiet);
+                                             std::chrono::milliseconds timeout);
 
 }  // namespace vox::cli

@@ -110,7 +110,7 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
       "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
       "levels", po::value<int>()->default_value(8), "number of contour heights (1..64)")(
       "out,o", po::value<std::string>()->required(), "output .svg")(
-      "quiet-ms", po::value<int>()->default_value(1500), "done when nothing arrives for this long")(
+      "timeout", po::value<double>()->default_value(120), "seconds to wait for the whole view")(
       "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   po::variables_map vm;
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli slice --y H --at X,Z --radius N --out map.svg", vm,
@@ -125,7 +125,7 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     const std::string output = vm["out"].as<std::string>();
     const auto radius = vm["radius"].as<uint32_t>();
     const auto region = fetch_region(vm["server"].as<std::string>(), "voxel-cli-slice", {xz[0], y, xz[1]}, radius,
-                                     std::chrono::milliseconds(std::max(100, vm["quiet-ms"].as<int>())));
+                                     timeout_of(vm["timeout"].as<double>()));
     const client::Client& c = *region;
     HeightMap map;
     map.size = static_cast<int>(2 * radius + 1) * 32 + 1;

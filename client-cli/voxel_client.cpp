@@ -94,6 +94,22 @@ std::optional<std::string> Client::apply(const wire::ChunkMesh& m) { return cach
 
 void Client::forget(const wire::ChunkUnload& u) { cache_.forget(u); }
 
+wire::ViewReady Client::receive_view(uint64_t view_id, std::chrono::milliseconds timeout) {
+  const auto deadline = Clock::now() + timeout;
+  while (Clock::now() < deadline) {
+    auto m = receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    if (!m) break;
+    if (m->has_error()) throw std::runtime_error("server error: " + m->error().message());
+    if (m->has_chunk_unload()) forget(m->chunk_unload());
+    if (m->has_chunk_mesh()) {
+      if (auto error = apply(m->chunk_mesh())) throw std::runtime_error("bad mesh from the server: " + *error);
+    }
+    if (m->has_view_ready() && m->view_ready().view_id() == view_id) return m->view_ready();
+  }
+  throw std::runtime_error(closed_ ? "the server closed the connection before the view was complete"
+                                   : "the view was not complete in time");
+}
+
 wire::Envelope make_hello(const std::string& name, uint32_t version) {
   wire::Envelope m;
   m.mutable_hello()->set_protocol_version(version);
@@ -101,13 +117,20 @@ wire::Envelope make_hello(const std::string& name, uint32_t version) {
   return m;
 }
 
-wire::Envelope make_set_view(float x, float y, float z, uint32_t radius) {
+wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id) {
   wire::Envelope m;
   auto* v = m.mutable_set_view();
+  v->set_view_id(view_id);
   v->mutable_position()->set_x(x);
   v->mutable_position()->set_y(y);
   v->mutable_position()->set_z(z);
   v->set_radius(radius);
+  return m;
+}
+
+wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords) {
+  wire::Envelope m;
+  for (const auto& c : coords) *m.mutable_resync()->add_coords() = c;
   return m;
 }
 

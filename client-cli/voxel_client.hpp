@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 
 #include "client-cli/chunk_cache.hpp"
@@ -40,6 +41,10 @@ class Client {
   // when the payload does not decode (wrong base, corruption).
   std::optional<std::string> apply(const wire::ChunkMesh& m);
   void forget(const wire::ChunkUnload& u);
+  // Receives until the ViewReady of `view_id` (PROTOCOL.md 4.2 item 5), applying meshes
+  // and unloads on the way; throws on an Error, a mesh that does not apply, a close, or
+  // when `timeout` passes first.
+  wire::ViewReady receive_view(uint64_t view_id, std::chrono::milliseconds timeout);
   const HeldChunks& chunks() const { return cache_.chunks(); }
 
  private:
@@ -55,6 +60,7 @@ class Client {
 };
 
 wire::Envelope make_hello(const std::string& name, uint32_t version = 1);
-wire::Envelope make_set_view(float x, float y, float z, uint32_t radius);
+wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id = 0);
+wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords);
 
 }  // namespace vox::client

@@ -17,6 +17,7 @@ using namespace std::chrono_literals;
 
 namespace {
 constexpr double kDrainS = 3.0;  // after the editing stops: results and meshes of the last edits
+constexpr double kViewWaitS = 60;  // --verify: longest wait for a view to complete
 
 // The pid whose RSS to sample: --server-pid, else the owner of the listening socket when
 // the server is on loopback (best effort: 0, no sampling, when it cannot be found).
@@ -247,6 +248,11 @@ LoadStats LoadTest::run(std::ostream& progress) {
     std::this_thread::sleep_for(std::chrono::duration<double>(std::min(1.0, kDrainS - slept)));
     rss_.sample();
   }
+  // The players stand still now: before verifying, every view must be complete (the
+  // server says so with ViewReady), however slowly the server streams.
+  for (double waited = 0; config_.verify && waited < kViewWaitS && !all_views_ready(); waited += 0.1) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
   // Freeze the players (no handler runs once the threads are joined) for the verification.
   io_.stop();
   for (auto& t : threads) t.join();
@@ -261,6 +267,10 @@ LoadStats LoadTest::run(std::ostream& progress) {
   return stats_;
 }
 
+bool LoadTest::all_views_ready() const {
+  return std::all_of(players_.begin(), players_.end(), [](const auto& p) { return p->view_ready(); });
+}
+
 // Every player's chunks must equal what a fresh client receives for the same view.
 void LoadTest::verify_all() {
   stats_.verified = true;
@@ -270,11 +280,16 @@ void LoadTest::verify_all() {
     fresh.connect(config_.host, config_.port, 5s);
     fresh.handshake("verifier", 10s);
     const auto at = p->view_position();
-    fresh.send(client::make_set_view(at[0], at[1], at[2], p->radius()));
-    for (bool first = true;; first = false) {
-      auto m = fresh.receive(first ? 15000ms : 700ms);
-      if (!m) break;
-      if (m->has_chunk_mesh() && fresh.apply(m->chunk_mesh())) ++stats_.verify_mismatches;
+    if (!p->view_ready()) {  // the server never completed this player's view
+      ++stats_.verify_mismatches;
+      continue;
+    }
+    fresh.send(client::make_set_view(at[0], at[1], at[2], p->radius(), 1));
+    try {
+      fresh.receive_view(1, std::chrono::seconds(static_cast<int>(kViewWaitS)));
+    } catch (const std::exception&) {  // a view that does not complete or apply
+      ++stats_.verify_mismatches;
+      continue;
     }
     const auto& mine = p->cache().chunks();
     for (const auto& [key, held] : fresh.chunks()) {

@@ -110,6 +110,7 @@ class LoadTest {
   void stop_attackers();
   void tick_progress(std::ostream& progress);
   void verify_all();
+  bool all_views_ready() const;  // any thread
   void collect_counters();
 
   LoadConfig config_;

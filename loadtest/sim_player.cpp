@@ -12,7 +12,6 @@ namespace {
 constexpr double kTickS = 0.05;
 constexpr double kPingEveryS = 10;
 // The first view is complete after this long without a full mesh.
-constexpr double kFirstViewQuietS = 1.0;
 // Waiting for a changed chunk whose mesh never came (e.g. it stayed empty) ends after this.
 constexpr double kDeltaGiveUpS = 10;
 
@@ -221,6 +220,13 @@ void SimPlayer::on_message(const wire::Envelope& m) {
       if (m.error().code() == wire::Error::SHUTTING_DOWN && test_.stopping()) break;
       fail("Error " + wire::Error::Code_Name(m.error().code()), false);
       break;
+    case wire::Envelope::kViewReady:
+      ready_view_.store(m.view_ready().view_id(), std::memory_order_release);
+      if (!first_view_done_) {  // the first view the server completed (the player may have moved)
+        first_view_done_ = true;
+        test_.record_first_view((test_.now_s() - view_sent_s_) * 1000);
+      }
+      break;
     default:
       break;  // Pong
   }
@@ -234,7 +240,6 @@ void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
     return;
   }
   const double now = test_.now_s();
-  if (m.base_version() == 0) last_mesh_s_ = now;  // full meshes: the view being streamed
   const ChunkKey k = client::key_of(m.coord());
   for (auto it = pending_.begin(); it != pending_.end();) {
     PendingEdit& p = it->second;
@@ -275,6 +280,8 @@ void SimPlayer::send_view() {
   v.mutable_set_view()->mutable_position()->set_y(y_);
   v.mutable_set_view()->mutable_position()->set_z(z_);
   v.mutable_set_view()->set_radius(radius_);
+  v.mutable_set_view()->set_view_id(views_sent_.load(std::memory_order_relaxed) + 1);
+  views_sent_.fetch_add(1, std::memory_order_release);
   view_position_ = {x_, y_, z_};
   send(v);
   if (view_sent_s_ < 0) view_sent_s_ = test_.now_s();
@@ -312,12 +319,8 @@ void SimPlayer::send_edit() {
   send(m);
 }
 
-void SimPlayer::tick() {
-  if (closed_) return;
-  const double now = test_.now_s();
-  const double dt = now - last_tick_s_;
-  last_tick_s_ = now;
-  // Walk: keep a heading, turn now and then, stay near the spawn area.
+// Keep a heading, turn now and then, stay near the spawn area; a new chunk is a new view.
+void SimPlayer::walk(double dt) {
   std::uniform_real_distribution<float> unit(0, 1);
   if (unit(rng_) < 0.02f) heading_ += (unit(rng_) - 0.5f) * 2.0f;
   const float limit = static_cast<float>(test_.half_width()) * 1.5f;
@@ -331,10 +334,16 @@ void SimPlayer::tick() {
       world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
                             static_cast<int>(std::floor(z_)));
   if (chunk != view_chunk_) send_view();
-  if (!first_view_done_ && last_mesh_s_ > 0 && now - last_mesh_s_ > kFirstViewQuietS) {
-    first_view_done_ = true;
-    test_.record_first_view((last_mesh_s_ - view_sent_s_) * 1000);
-  }
+}
+
+void SimPlayer::tick() {
+  if (closed_) return;
+  const double now = test_.now_s();
+  const double dt = now - last_tick_s_;
+  last_tick_s_ = now;
+  // Once the editing stops, players stand still so that every view can complete for the
+  // verification.
+  if (test_.editing()) walk(dt);
   if (test_.editing() && now >= next_edit_s_) {
     send_edit();
     next_edit_s_ = now + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);

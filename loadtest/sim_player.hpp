@@ -27,6 +27,10 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   std::array<float, 3> view_position() const { return view_position_; }
   const client::ChunkCache& cache() const { return cache_; }
   uint32_t radius() const { return radius_; }
+  // True once the server said the newest view is complete (ViewReady); any thread.
+  bool view_ready() const {
+    return ready_view_.load(std::memory_order_acquire) == views_sent_.load(std::memory_order_acquire);
+  }
 
  private:
   struct PendingEdit {
@@ -43,6 +47,7 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   void send(const wire::Envelope& m);
   void write_more();
   void tick();
+  void walk(double dt);
   void send_view();
   void send_edit();
   void fail(const std::string& cause, bool disconnect);
@@ -66,8 +71,10 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   std::array<float, 3> view_position_{};
   uint32_t radius_ = 0;
   double next_edit_s_ = 0, last_ping_s_ = 0, last_tick_s_ = 0;
-  double view_sent_s_ = -1, last_mesh_s_ = -1;
+  double view_sent_s_ = -1;
   bool first_view_done_ = false;
+  std::atomic<uint64_t> views_sent_{0};  // the newest SetView's view_id
+  std::atomic<uint64_t> ready_view_{0};  // view_id of the newest ViewReady
   uint64_t next_request_ = 1;
   std::map<uint64_t, PendingEdit> pending_;
   client::ChunkCache cache_;

@@ -16,6 +16,7 @@ packages=(
   libtbb-dev libprotobuf-dev protobuf-compiler libzstd-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev libmeshoptimizer-dev
   prometheus-cpp-dev libjemalloc-dev
+  python3-protobuf python3-zstandard
 )
 
 missing=()

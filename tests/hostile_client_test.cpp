@@ -11,8 +11,7 @@
 
 #include "client-cli/voxel_client.hpp"
 #include "proto/framing.hpp"
-#include "server/world/terrain_generator.hpp"
-#include "tests/server_process.hpp"
+#include "tests/session_test_util.hpp"
 
 namespace vox::net {
 namespace {
@@ -21,37 +20,13 @@ using namespace std::chrono_literals;
 using client::Client;
 namespace asio = boost::asio;
 
-#ifdef VOXEL_SANITIZED
-constexpr int kSlow = 6;
-#else
-constexpr int kSlow = 1;
-#endif
-
-std::unique_ptr<Client> player(const test::ServerProcess& server, const std::string& name) {
-  auto c = std::make_unique<Client>();
-  c->connect("127.0.0.1", server.port(), 5s);
-  c->handshake(name, 5s);
-  return c;
-}
-
-template <class Pred>
-std::optional<wire::Envelope> wait_for(Client& c, Pred pred, std::chrono::milliseconds limit) {
-  const auto deadline = client::Clock::now() + limit * kSlow;
-  while (client::Clock::now() < deadline) {
-    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
-    if (!m) return std::nullopt;
-    if (m->has_chunk_mesh()) (void)c.apply(m->chunk_mesh());
-    if (pred(*m)) return m;
-  }
-  return std::nullopt;
-}
+using test::kSlow;
+using test::player;
+using test::surface_y;
+using test::wait_for;
 
 int error_code_of(const std::optional<wire::Envelope>& m) { return m && m->has_error() ? m->error().code() : -1; }
 bool is_error(const wire::Envelope& m) { return m.has_error(); }
-
-float surface_y(float x, float z) {
-  return world::TerrainGenerator(1).height_at(static_cast<int>(x), static_cast<int>(z));
-}
 
 std::vector<uint8_t> frame(const wire::Envelope& m) {
   const std::string body = m.SerializeAsString();

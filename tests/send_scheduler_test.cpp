@@ -241,5 +241,123 @@ TEST(SendScheduler, VersionsBelowTheLimitStillFlow) {
   EXPECT_EQ(s.deferred_count(), 0u);
 }
 
+
+// ViewReady: once per view, only when every visible chunk was sent or found empty.
+TEST(SendScheduler, TheViewIsCompleteOnceEveryChunkIsSentOrEmptyAndOnlyOnce) {
+  FakeStore store;
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);  // 7 chunks
+  store.publish({0, 0, 0});
+  store.publish({1, 0, 0}, /*empty=*/true);
+  while (s.next(store.lookup())) {
+  }
+  EXPECT_FALSE(s.take_view_complete()) << "five chunks are not published yet";
+  for (ChunkCoord c : {ChunkCoord{-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}}) {
+    store.publish(c);
+    s.mark_stale(c);
+  }
+  while (s.next(store.lookup())) {
+  }
+  EXPECT_FALSE(s.take_view_complete()) << "(0,0,-1) is still missing";
+  store.publish({0, 0, -1}, true);
+  s.mark_stale({0, 0, -1});
+  EXPECT_FALSE(s.next(store.lookup()));
+  const auto complete = s.take_view_complete();
+  ASSERT_TRUE(complete);
+  EXPECT_EQ(complete->sent, 5u);
+  EXPECT_EQ(complete->empty, 2u);
+  EXPECT_FALSE(s.take_view_complete()) << "once per view";
+  store.publish({0, 0, 0});  // a change after the view is complete
+  s.mark_stale({0, 0, 0});
+  EXPECT_TRUE(s.next(store.lookup()));
+  EXPECT_FALSE(s.take_view_complete());
+  s.set_view({0, 0, 0}, 1);  // the same view again: complete again at once
+  EXPECT_FALSE(s.next(store.lookup()));
+  EXPECT_TRUE(s.take_view_complete());
+}
+
+TEST(SendScheduler, AMovedViewIsCompleteOnlyWhenItsNewChunksAreSent) {
+  FakeStore store;
+  for (int x = -1; x <= 2; ++x) store.publish({x, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 0);
+  EXPECT_TRUE(s.next(store.lookup()));
+  s.set_view({1, 0, 0}, 1);  // (1,0,0) and (2,0,0) published; (1,±1,0), (1,0,±1) not
+  while (s.next(store.lookup())) {
+  }
+  EXPECT_FALSE(s.take_view_complete());
+  s.set_view({1, 0, 0}, 0);  // shrunk to one chunk, already sent
+  const auto complete = s.take_view_complete();
+  ASSERT_TRUE(complete);
+  EXPECT_EQ(complete->sent, 1u);
+  EXPECT_EQ(complete->empty, 0u);
+}
+
+TEST(SendScheduler, AResyncedChunkGoesAgainInFullBeforeNewChunksEvenWhenEmpty) {
+  FakeStore store;
+  store.publish({0, 0, 0});
+  store.publish({1, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  ASSERT_TRUE(s.next(store.lookup()));  // (0,0,0)
+  ASSERT_TRUE(s.next(store.lookup()));  // (1,0,0)
+  store.publish({1, 0, 0});
+  s.mark_stale({1, 0, 0});
+  EXPECT_TRUE(s.resync({1, 0, 0}));
+  EXPECT_FALSE(s.resync({5, 0, 0})) << "not in the view";
+  store.publish({0, 1, 0});  // new to the client, nearer than nothing: still after the resync
+  s.mark_stale({0, 1, 0});
+  auto again = s.next(store.lookup());
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->coord, (ChunkCoord{1, 0, 0}));
+  EXPECT_FALSE(again->base) << "a resync is answered in full, never as a delta";
+  EXPECT_EQ(again->version, store.lookup()(again->coord));
+  auto fresh = s.next(store.lookup());
+  ASSERT_TRUE(fresh);
+  EXPECT_EQ(fresh->coord, (ChunkCoord{0, 1, 0}));
+  // The next change after the resync is a delta against the full copy.
+  store.publish({1, 0, 0});
+  s.mark_stale({1, 0, 0});
+  auto delta = s.next(store.lookup());
+  ASSERT_TRUE(delta);
+  ASSERT_TRUE(delta->base);
+  EXPECT_EQ(delta->base->version, again->version->version);
+  // An empty chunk is not sent to a new client, but is when it asks for it.
+  store.publish({0, -1, 0}, true);
+  s.mark_stale({0, -1, 0});
+  EXPECT_FALSE(s.next(store.lookup()));
+  EXPECT_TRUE(s.resync({0, -1, 0}));
+  auto empty = s.next(store.lookup());
+  ASSERT_TRUE(empty);
+  EXPECT_EQ(empty->coord, (ChunkCoord{0, -1, 0}));
+  EXPECT_TRUE(empty->version->mesh.empty());
+}
+
+TEST(SendScheduler, AResyncAskedTwiceBeforeItsCopyLeftIsSentOnce) {
+  FakeStore store;
+  store.publish({0, 0, 0});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 0);
+  ASSERT_TRUE(s.next(store.lookup()));
+  for (int i = 0; i < 10; ++i) EXPECT_TRUE(s.resync({0, 0, 0}));
+  EXPECT_EQ(s.stale_count(), 1u);
+  EXPECT_TRUE(s.next(store.lookup()));
+  EXPECT_FALSE(s.next(store.lookup()));
+}
+
+TEST(SendScheduler, AChunkResyncedAndThenUnloadedGetsNoChunkUnload) {
+  FakeStore store;
+  for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
+    store.publish(c);
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  while (s.next(store.lookup())) {
+  }
+  EXPECT_TRUE(s.resync({1, 0, 0}));  // dropped by the client, its copy not sent yet
+  const auto unloaded = s.set_view({-2, 0, 0}, 1);
+  EXPECT_EQ(std::count(unloaded.begin(), unloaded.end(), ChunkCoord{1, 0, 0}), 0);
+  EXPECT_EQ(std::count(unloaded.begin(), unloaded.end(), ChunkCoord{0, 0, 0}), 1);
+}
+
 }  // namespace
 }  // namespace vox::net

@@ -8,8 +8,7 @@
 
 #include "client-cli/voxel_client.hpp"
 #include "proto/framing.hpp"
-#include "server/world/terrain_generator.hpp"
-#include "tests/server_process.hpp"
+#include "tests/session_test_util.hpp"
 
 namespace vox::net {
 namespace {
@@ -18,24 +17,12 @@ using namespace std::chrono_literals;
 using client::Client;
 
 constexpr uint64_t kSeed = 1;
-// Sanitizer builds run the server several times slower: deadlines stretch, never shrink.
-#ifdef VOXEL_SANITIZED
-constexpr int kSlow = 6;
-#else
-constexpr int kSlow = 1;
-#endif
-
-std::unique_ptr<Client> connect_to(const test::ServerProcess& server) {
-  auto c = std::make_unique<Client>();
-  c->connect("127.0.0.1", server.port(), 5s);
-  return c;
-}
-
-std::unique_ptr<Client> player(const test::ServerProcess& server, const std::string& name) {
-  auto c = connect_to(server);
-  c->handshake(name, 5s);
-  return c;
-}
+using test::brush_at;
+using test::connect_to;
+using test::kSlow;
+using test::player;
+using test::surface_y;
+using test::wait_for;
 
 // Receives until `quiet` passes with nothing new (or `limit`); applies meshes. Returns the
 // ChunkMesh messages in arrival order. Any decode failure fails the test.
@@ -56,39 +43,6 @@ std::vector<wire::Envelope> drain(Client& c, std::chrono::milliseconds quiet = 7
     out.push_back(std::move(*m));
   }
   return out;
-}
-
-// The first message matching `pred` within the deadline (meshes on the way are applied).
-template <class Pred>
-std::optional<wire::Envelope> wait_for(Client& c, Pred pred, std::chrono::milliseconds limit = 10s) {
-  limit *= kSlow;
-  const auto deadline = client::Clock::now() + limit;
-  while (client::Clock::now() < deadline) {
-    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
-    if (!m) return std::nullopt;
-    if (m->has_chunk_mesh()) {
-      const auto error = c.apply(m->chunk_mesh());
-      EXPECT_FALSE(error) << *error;
-    }
-    if (pred(*m)) return m;
-  }
-  return std::nullopt;
-}
-
-float surface_y(float x, float z) { return world::TerrainGenerator(kSeed).height_at(static_cast<int>(x), static_cast<int>(z)); }
-
-wire::Envelope brush_at(uint64_t request, float x, float y, float z, float radius, bool remove = false) {
-  wire::Envelope m;
-  auto* e = m.mutable_edit();
-  e->set_request_id(request);
-  auto* b = e->mutable_brush();
-  b->mutable_center()->set_x(x);
-  b->mutable_center()->set_y(y);
-  b->mutable_center()->set_z(z);
-  b->set_radius(radius);
-  b->set_strength(1.0f);
-  b->set_remove(remove);
-  return m;
 }
 
 wire::Error::Code error_code(const std::optional<wire::Envelope>& m) {
@@ -118,8 +72,7 @@ TEST(Server, StreamsTheViewNearestFirst) {
   test::ServerProcess server;
   auto c = player(server, "viewer");
   const float y = surface_y(16, 16);
-  c->send(client::make_set_view(16, y, 16, 3));
-  const auto messages = drain(*c);
+  const auto messages = test::view_messages(*c, 16, y, 16, 3);
   const world::ChunkCoord centre = world::chunk_of_voxel(16, static_cast<int>(std::floor(y)), 16);
   int64_t last = -1;
   size_t meshes = 0;
@@ -142,10 +95,8 @@ TEST(Server, EditByOneClientReachesAnotherAsAMatchingDelta) {
   auto a = player(server, "a");
   auto b = player(server, "b");
   const float y = surface_y(16, 16);
-  a->send(client::make_set_view(16, y, 16, 2));
-  b->send(client::make_set_view(16, y, 16, 2));
-  drain(*a);
-  drain(*b);
+  test::view(*a, 16, y, 16, 2);
+  test::view(*b, 16, y, 16, 2);
   a->send(brush_at(42, 16.3f, y, 16.6f, 3));
   auto result = wait_for(*a, [](const wire::Envelope& m) { return m.has_edit_result(); });
   ASSERT_TRUE(result);
@@ -153,15 +104,17 @@ TEST(Server, EditByOneClientReachesAnotherAsAMatchingDelta) {
   EXPECT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
   ASSERT_GT(result->edit_result().changed_chunks_size(), 0);
   // B receives each changed chunk as a delta against what it held.
-  const auto messages = drain(*b);
-  size_t deltas = 0;
-  for (const auto& m : messages)
-    if (m.has_chunk_mesh() && m.chunk_mesh().base_version() != 0) ++deltas;
-  EXPECT_GE(deltas, static_cast<size_t>(result->edit_result().changed_chunks_size()));
+  std::set<std::tuple<int, int, int>> changed;
+  for (const auto& k : result->edit_result().changed_chunks()) changed.insert({k.x(), k.y(), k.z()});
+  while (!changed.empty()) {
+    auto m = wait_for(*b, [](const wire::Envelope& e) { return e.has_chunk_mesh(); }, 10s);
+    ASSERT_TRUE(m) << changed.size() << " changed chunks did not reach b";
+    EXPECT_NE(m->chunk_mesh().base_version(), 0u) << "b held the chunk: a delta";
+    changed.erase(client::key_of(m->chunk_mesh().coord()));
+  }
   // A fresh client receives the server's current meshes in full: B's state must match.
   auto c = player(server, "c");
-  c->send(client::make_set_view(16, y, 16, 2));
-  drain(*c);
+  test::view(*c, 16, y, 16, 2);
   for (const auto& k : result->edit_result().changed_chunks()) {
     const auto key = std::make_tuple(k.x(), k.y(), k.z());
     ASSERT_TRUE(b->chunks().count(key) && c->chunks().count(key));
@@ -174,8 +127,7 @@ TEST(Server, BurstOfEditsCoalescesToTheNewestVersion) {
   test::ServerProcess server;
   auto a = player(server, "burst");
   const float y = surface_y(40, 40);
-  a->send(client::make_set_view(40, y, 40, 1));
-  drain(*a);
+  test::view(*a, 40, y, 40, 1);
   for (uint64_t i = 1; i <= 60; ++i) a->send(brush_at(i, 40.0f + static_cast<float>(i % 5), y, 40.0f, 2.5f, i % 2 == 0));
   std::map<std::tuple<int, int, int>, uint64_t> last_version;
   size_t results = 0;
@@ -190,8 +142,7 @@ TEST(Server, BurstOfEditsCoalescesToTheNewestVersion) {
   }
   EXPECT_EQ(results, 60u);
   auto fresh = player(server, "fresh");
-  fresh->send(client::make_set_view(40, y, 40, 1));
-  drain(*fresh);
+  test::view(*fresh, 40, y, 40, 1);
   for (const auto& [key, held] : fresh->chunks()) {
     ASSERT_TRUE(a->chunks().count(key));
     EXPECT_EQ(a->chunks().at(key).version, held.version) << "the client must end with the newest version";
@@ -205,8 +156,7 @@ TEST(Server, ClientThatStopsReadingDoesNotDelayOthers) {
   const float y = surface_y(16, 16);
   slow->send(client::make_set_view(16, y, 16, 5));  // and never reads again
   auto fast = player(server, "fast");
-  fast->send(client::make_set_view(16, y, 16, 1));
-  drain(*fast);
+  test::view(*fast, 16, y, 16, 1);
   for (uint64_t i = 1; i <= 5; ++i) {
     slow->send(brush_at(100 + i, 16, y, 16, 3));  // the slow one keeps editing
     fast->send(brush_at(i, 20, y, 20, 2));
@@ -319,8 +269,7 @@ TEST(Server, RefusesClientsOverTheLimitAndSilentHandshakes) {
 TEST(Server, ShutsDownGracefullyOnSigterm) {
   test::ServerProcess server;
   auto c = player(server, "stayer");
-  c->send(client::make_set_view(0, surface_y(0, 0), 0, 1));
-  drain(*c, 300ms);
+  test::view(*c, 0, surface_y(0, 0), 0, 1);
   const int code = server.terminate();
   EXPECT_EQ(code, 0);
   EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); }, 5s)), wire::Error::SHUTTING_DOWN);

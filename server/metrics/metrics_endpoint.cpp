@@ -145,7 +145,10 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     auto paused = family("voxeld_reads_paused_total",
                          "Times a connection was read slower for its message rate", MetricType::Counter);
     add(paused, value_of(c_.reads_paused));
-    for (auto* f : {&edits, &coalesced, &paused}) out.push_back(std::move(*f));
+    auto resynced = family("voxeld_chunks_resynced_total",
+                           "Chunks clients asked for again in full (Resync)", MetricType::Counter);
+    add(resynced, value_of(c_.chunks_resynced));
+    for (auto* f : {&edits, &coalesced, &paused, &resynced}) out.push_back(std::move(*f));
   }
 
   void world(std::vector<MetricFamily>& out) const {

@@ -189,6 +189,9 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
     case wire::Envelope::kEdit:
       handle_edit(message.edit());
       break;
+    case wire::Envelope::kResync:
+      handle_resync(message.resync());
+      break;
     case wire::Envelope::kPing: {
       wire::Envelope pong;
       pong.mutable_pong()->set_nonce(message.ping().nonce());
@@ -284,6 +287,20 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
   return true;
 }
 
+// Once per applied view, when its every chunk has been sent or found empty.
+void ClientSession::append_view_ready(std::vector<uint8_t>& out) {
+  const auto complete = scheduler_.take_view_complete();
+  if (!complete) return;
+  wire::Envelope ready;
+  auto* r = ready.mutable_view_ready();
+  r->set_view_id(view_id_);
+  *r->mutable_center() = to_wire(view_center_);  // strand: its only writer
+  r->set_radius(static_cast<uint32_t>(view_radius_));
+  r->set_chunks_sent(complete->sent);
+  r->set_chunks_empty(complete->empty);
+  append_framed(ready, out);
+}
+
 void ClientSession::pump() {
   if (writing_ || !socket_.is_open()) return;
   write_buffer_.clear();
@@ -299,6 +316,9 @@ void ClientSession::pump() {
     while (write_buffer_.size() < config_.max_bytes_in_flight && append_next_mesh(write_buffer_)) {
       ++messages;
     }
+    const size_t before = write_buffer_.size();
+    append_view_ready(write_buffer_);  // after the view's last first mesh
+    if (write_buffer_.size() > before) ++messages;
   }
   if (write_buffer_.empty()) return;
   counters_.messages_sent.fetch_add(messages, std::memory_order_relaxed);

@@ -38,6 +38,7 @@ struct ServerConfig {
   // Queued results/errors before a client counts as not reading.
   size_t max_control_bytes = 1 << 20;
   size_t max_edits_in_flight = 256;  // a client's edits queued in the pipeline at once
+  size_t max_resync_chunks = 64;     // coordinates in one Resync
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect
@@ -97,7 +98,8 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void handle_hello(const wire::Hello& hello);
   void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
-  void apply_view(world::ChunkCoord center, int radius);
+  void apply_view(world::ChunkCoord center, int radius, uint64_t view_id);
+  void handle_resync(const wire::Resync& resync);
   void handle_edit(const wire::Edit& edit);
   void on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks);
   void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
@@ -106,6 +108,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void queue_control(const wire::Envelope& message);
   void pump();
   bool append_next_mesh(std::vector<uint8_t>& out);
+  void append_view_ready(std::vector<uint8_t>& out);
   void arm_idle_timer();
   void drop_slow(DroppedBy why, const char* what);
   void shutdown();
@@ -141,10 +144,12 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   struct PendingView {
     world::ChunkCoord center;
     int radius = 0;
+    uint64_t view_id = 0;
   };
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
 
   SendScheduler scheduler_;
+  uint64_t view_id_ = 0;  // of the view applied last (echoed in its ViewReady)
   mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)
   world::ChunkCoord view_center_{};
   int view_radius_ = -1;

@@ -20,6 +20,7 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
   for (auto it = visible_.begin(); it != visible_.end();) {
     if (distance2(it->first) > r2) {
       if (it->second.sent) unloaded.push_back(it->first);
+      if (!it->second.version) --unresolved_;
       it = visible_.erase(it);
     } else {
       ++it;
@@ -28,8 +29,11 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
   for (int dz = -radius; dz <= radius; ++dz)
     for (int dy = -radius; dy <= radius; ++dy)
       for (int dx = -radius; dx <= radius; ++dx) {
-        if (dx * dx + dy * dy + dz * dz <= r2) visible_.try_emplace(center.offset(dx, dy, dz));
+        if (dx * dx + dy * dy + dz * dz <= r2 && visible_.try_emplace(center.offset(dx, dy, dz)).second) {
+          ++unresolved_;
+        }
       }
+  view_announced_ = false;
   updates_.clear();  // re-ordered around the new centre
   fresh_.clear();
   waiting_.clear();
@@ -38,7 +42,7 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
     held.queued = true;
     held.deferred = false;
     held.waiting = false;
-    (held.version ? updates_ : fresh_).push_back({distance2(c), c});
+    (held.version || held.resync ? updates_ : fresh_).push_back({distance2(c), c});
   }
   std::make_heap(updates_.begin(), updates_.end(), std::greater<>());
   std::make_heap(fresh_.begin(), fresh_.end(), std::greater<>());
@@ -48,7 +52,7 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
 void SendScheduler::queue(ChunkCoord c, Held& held) {
   held.queued = true;
   held.waiting = false;  // marked: it has been published since
-  auto& heap = held.version ? updates_ : fresh_;
+  auto& heap = held.version || held.resync ? updates_ : fresh_;
   heap.push_back({distance2(c), c});
   std::push_heap(heap.begin(), heap.end(), std::greater<>());
 }
@@ -59,6 +63,27 @@ void SendScheduler::mark_stale(ChunkCoord c) {
   auto it = visible_.find(c);
   if (it == visible_.end() || it->second.queued) return;
   queue(c, it->second);
+}
+
+bool SendScheduler::resync(ChunkCoord c) {
+  if (distance2(c) > static_cast<int64_t>(radius_) * radius_) return false;
+  auto it = visible_.find(c);
+  if (it == visible_.end()) return false;
+  Held& held = it->second;
+  if (held.version) ++unresolved_;
+  held.version = nullptr;
+  held.sent = false;  // the client holds nothing of it now: no ChunkUnload is due either
+  held.resync = true;
+  if (!held.queued) queue(c, held);
+  return true;
+}
+
+std::optional<SendScheduler::ViewComplete> SendScheduler::take_view_complete() {
+  if (view_announced_ || unresolved_ > 0 || radius_ < 0) return std::nullopt;
+  view_announced_ = true;
+  ViewComplete counts;
+  for (const auto& entry : visible_) ++(entry.second.sent ? counts.sent : counts.empty);
+  return counts;
 }
 
 void SendScheduler::release_deferred() {
@@ -116,7 +141,8 @@ std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap,
       }
       continue;
     }
-    if (!held.version && current->mesh.empty()) {
+    if (!held.version) --unresolved_;
+    if (!held.version && current->mesh.empty() && !held.resync) {
       held.version = std::move(current);  // nothing to draw; sent only once it changes
       continue;
     }
@@ -135,6 +161,8 @@ void SendScheduler::clear() {
   waiting_.clear();
   deferred_.clear();
   radius_ = -1;
+  unresolved_ = 0;
+  view_announced_ = true;
 }
 
 }  // namespace vox::net

@@ -32,6 +32,16 @@ class SendScheduler {
 
   // A newer version of c may exist; ignored unless c is visible.
   void mark_stale(world::ChunkCoord c);
+  // The client dropped c (a delta did not apply): its newest version goes again in full,
+  // even without triangles, with the updates of held chunks. False when c is not visible.
+  bool resync(world::ChunkCoord c);
+
+  // Once per set_view, when every visible chunk has been sent or found empty: how many of
+  // each (then the view is complete; nothing until the next set_view).
+  struct ViewComplete {
+    uint32_t sent = 0, empty = 0;
+  };
+  std::optional<ViewComplete> take_view_complete();
 
   struct Send {
     world::ChunkCoord coord;
@@ -62,6 +72,7 @@ class SendScheduler {
     bool queued = false;               // in updates_ or fresh_
     bool deferred = false;             // in deferred_
     bool waiting = false;              // new to the client, not published yet (in waiting_)
+    bool resync = false;               // the client asked for it in full (sent even if empty)
   };
   using Entry = std::pair<int64_t, world::ChunkCoord>;  // distance², chunk
   void queue(world::ChunkCoord c, Held& held);
@@ -76,6 +87,8 @@ class SendScheduler {
   // when their turn came (entries of chunks no longer waiting are skipped lazily).
   std::vector<Entry> updates_, fresh_, waiting_;
   std::vector<world::ChunkCoord> deferred_;  // each visible chunk at most once
+  size_t unresolved_ = 0;       // visible chunks with no version recorded (held.version null)
+  bool view_announced_ = true;  // take_view_complete() answered for this view
 };
 
 }  // namespace vox::net

@@ -28,6 +28,7 @@ struct ServerCounters {
   Counter disconnects{0};
   Counter set_views_coalesced{0};
   Counter reads_paused{0};  // times a session stopped reading (message rate)
+  Counter chunks_resynced{0};  // chunks clients asked for again in full (Resync)
   std::array<Counter, kStatuses> edit_results{};  // by EditResult.Status
   std::array<Counter, kErrorCodes> errors_sent{};  // by Error.Code
   std::array<Counter, static_cast<size_t>(RefusedBy::kCount)> refused{};

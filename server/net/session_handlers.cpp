@@ -93,6 +93,7 @@ void ClientSession::send_welcome(uint64_t players) {
   w->set_edit_budget_burst(config_.edit_budget_rate > 0 ? config_.edit_budget_burst : 0);
   w->set_max_set_views_per_second(std::max(0.0, config_.set_view_rate));
   w->set_max_connections_per_address(static_cast<uint32_t>(config_.max_per_address));
+  w->set_max_resync_chunks(static_cast<uint32_t>(config_.max_resync_chunks));
   queue_control(welcome);
 }
 
@@ -124,16 +125,16 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
   // Over the SetView rate, the newest view waits for the next token; older ones are
   // coalesced into it.
   if (pending_view_) {
-    pending_view_ = {center, r};
+    pending_view_ = {center, r, view.view_id()};
     ServerCounters::bump(counters_.set_views_coalesced);
     return;
   }
   const auto wait = view_budget_.take(1, Clock::now());
   if (wait.count() == 0) {
-    apply_view(center, r);
+    apply_view(center, r, view.view_id());
     return;
   }
-  pending_view_ = {center, r};
+  pending_view_ = {center, r, view.view_id()};
   ServerCounters::bump(counters_.set_views_coalesced);
   view_timer_.expires_after(wait);
   view_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
@@ -141,11 +142,12 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
     const PendingView v = *self->pending_view_;
     self->pending_view_.reset();
     (void)self->view_budget_.take(1, Clock::now());
-    self->apply_view(v.center, v.radius);
+    self->apply_view(v.center, v.radius, v.view_id);
   });
 }
 
-void ClientSession::apply_view(ChunkCoord center, int r) {
+void ClientSession::apply_view(ChunkCoord center, int r, uint64_t view_id) {
+  view_id_ = view_id;
   {
     std::lock_guard lock(view_mutex_);
     view_center_ = center;
@@ -161,6 +163,23 @@ void ClientSession::apply_view(ChunkCoord center, int r) {
   // newly published meshes arrive through on_chunks_published.
   pipeline_.set_view(id_, center, r, std::hash<std::string>{}(address_) | 1);  // never 0
   update_memory();
+  pump();
+}
+
+// Full copies of chunks the client dropped; coordinates outside the view are ignored (the
+// client cannot hold them).
+void ClientSession::handle_resync(const wire::Resync& resync) {
+  if (static_cast<size_t>(resync.coords_size()) > config_.max_resync_chunks) {
+    send_error(wire::Error::BAD_VALUE,
+               "Resync carries " + std::to_string(resync.coords_size()) + " chunks, over the limit of " +
+                   std::to_string(config_.max_resync_chunks),
+               false);
+    return;
+  }
+  if (!scheduler_.has_view()) return;
+  size_t queued = 0;
+  for (const auto& c : resync.coords()) queued += scheduler_.resync(from_wire(c)) ? 1 : 0;
+  counters_.chunks_resynced.fetch_add(queued, std::memory_order_relaxed);
   pump();
 }
 
