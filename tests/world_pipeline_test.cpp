@@ -467,11 +467,13 @@ TEST(WorldPipeline, StaysWithinItsMemoryBudgetWhileAViewMovesFar) {
     for (;;) {
       const PipelineStats s = p.stats();
       peak = std::max(peak, s.accounted_bytes);
-      if (s.queued_load_chunks == 0 || std::chrono::steady_clock::now() > deadline) break;
+      const bool loaded = s.queued_load_chunks == 0 && s.meshes_waiting == 0 && s.chunks_generating == 0;
+      if (loaded || std::chrono::steady_clock::now() > deadline) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(5));  // sampling the figure
     }
     p.inspect([](const world::ChunkMap&) {});  // the last pass is published
     ASSERT_EQ(p.stats().queued_load_chunks, 0u) << "view " << i << " never finished loading";
+    ASSERT_EQ(p.stats().meshes_waiting, 0u) << "view " << i << " never finished meshing";
     peak = std::max(peak, p.stats().accounted_bytes);
   }
   EXPECT_LE(peak, budget + budget / 10);

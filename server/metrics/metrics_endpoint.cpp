@@ -155,6 +155,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     const pipeline::PipelineStats s = pipeline_.stats();
     gauge(out, "voxeld_load_chunks_queued", "Chunks queued for loading (every view's)", double(s.queued_load_chunks));
     gauge(out, "voxeld_load_owners", "Views and loads with queued chunks", double(s.load_owners));
+    gauge(out, "voxeld_chunks_generating", "Terrain chunks queued or ready in the background generator", double(s.chunks_generating));
+    gauge(out, "voxeld_meshes_waiting", "Loaded chunks waiting for their neighbours' terrain", double(s.meshes_waiting));
     gauge(out, "voxeld_edits_queued", "Edits waiting for the next batch", double(s.queued_edits));
     gauge(out, "voxeld_chunks_loaded", "Chunks in memory", double(s.loaded_chunks));
     gauge(out, "voxeld_chunks_modified", "Chunks changed by edits (never evicted)", double(s.modified_chunks));

@@ -53,6 +53,17 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
                  config_.load_work_per_address, config_.load_burst_per_address),
       state_(std::make_unique<WorldState>(config_.threads)) {
+  const int generate_threads = config_.generate_threads >= 0
+                                   ? config_.generate_threads
+                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  prefetcher_ = std::make_unique<TerrainPrefetcher>(generator_, generate_threads, config_.max_generating,
+                                                    MemoryBudget::kBytesPerChunk, [this] {
+    {
+      std::lock_guard lock(queue_mutex_);
+      generated_ready_ = true;
+    }
+    queue_cv_.notify_one();
+  });
   thread_ = std::thread([this] { run(); });
 }
 
@@ -176,10 +187,11 @@ void WorldPipeline::stop() {
   }
   queue_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  prefetcher_.reset();  // its threads notify queue_cv_: stopped before the members go
 }
 
 bool WorldPipeline::batch_ready() {
-  return scheduler_.has_ordered() ||
+  return scheduler_.has_ordered() || generated_ready_ ||
          (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
           scheduler_.has_ready_loads(Clock::now()));
 }
@@ -207,6 +219,7 @@ void WorldPipeline::run() {
       if (stopping_) break;
       take_view_updates();
       ordered = scheduler_.take_ordered();
+      generated_ready_ = false;  // this batch installs what is ready
     }
     const Clock::time_point now = Clock::now();
     {
@@ -254,6 +267,8 @@ void WorldPipeline::drain_after_stop() {
     }
   }
   for (auto& done : loads) done();
+  for (auto& [pass, done] : waiting_done_) done();
+  waiting_done_.clear();
 }
 
 // Applies one valid edit: loads what it and the meshes it dirties need, changes the

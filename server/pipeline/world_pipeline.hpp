@@ -24,6 +24,7 @@
 #include "pipeline/batch_scheduler.hpp"
 #include "pipeline/memory_budget.hpp"
 #include "pipeline/mesh_store.hpp"
+#include "pipeline/terrain_prefetcher.hpp"
 #include "world/edit.hpp"
 #include "world/terrain_generator.hpp"
 
@@ -62,6 +63,10 @@ struct PipelineConfig {
   double load_work_per_address = 1000;
   double load_burst_per_address = 8000;
   size_t max_memory = 0;  // bytes; 0: no budget (see MemoryBudget)
+  // Background threads (at a lower priority) that generate terrain for loads, so batches
+  // only install it; 0: each load pass generates its terrain itself. -1: one per core.
+  int generate_threads = -1;
+  size_t max_generating = 2048;  // chunks queued or ready in the background at once
 };
 
 struct EditResult {
@@ -79,6 +84,8 @@ struct PipelineStats {
            meshes_published = 0, chunks_generated = 0, chunks_evicted = 0, memory_blocked = 0;
   size_t loaded_chunks = 0, modified_chunks = 0, chunk_bytes = 0, mesh_count = 0, mesh_bytes = 0;
   size_t queued_edits = 0, queued_load_chunks = 0, load_owners = 0;
+  size_t chunks_generating = 0;  // terrain queued or ready in the background
+  size_t meshes_waiting = 0;     // loaded chunks waiting for their neighbours' terrain
   size_t cached_columns = 0;  // column heights left by earlier batches at the last batch's start (0)
   size_t other_bytes = 0;      // reported by set_other_bytes (sessions)
   size_t accounted_bytes = 0;  // chunks + meshes + other
@@ -157,6 +164,12 @@ class WorldPipeline {
   void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now, PipelineStats& batch);
   void process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan, Clock::time_point now,
                      PipelineStats& batch);
+  size_t install_generated(Clock::time_point now);
+  std::vector<world::ChunkCoord> take_meshable(Clock::time_point now, PipelineStats& delta);
+  void run_finished_loads();
+  // Forgets the owner's waiting meshes outside its new view (radius -1: all of them).
+  void drop_waiting(LoadOwner owner, world::ChunkCoord center, int radius);
+  bool needs_generating(world::ChunkCoord c) const;  // pipeline thread
   void commit_stats(const PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
@@ -193,10 +206,25 @@ class WorldPipeline {
   mutable std::mutex stats_mutex_;  // leaf lock
   PipelineStats stats_;
 
+  bool generated_ready_ = false;  // under queue_mutex_: the prefetcher has chunks for us
+
   std::unique_ptr<WorldState> state_;  // pipeline thread only
+  // Chunks a load pass planned to mesh whose terrain is still being generated, with the
+  // pass that planned them, and the load callbacks waiting for them (pipeline thread).
+  // Bounded by the owners' load budgets, which paid for them.
+  struct WaitingMesh {
+    world::ChunkCoord coord;
+    uint64_t pass;
+    LoadOwner owner;
+  };
+  std::vector<WaitingMesh> waiting_meshes_;
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> waiting_set_;
+  std::vector<std::pair<uint64_t, std::function<void()>>> waiting_done_;
+  uint64_t load_pass_ = 0;
   bool last_eviction_freed_ = false;    // pipeline thread only
   bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
   std::thread thread_;
+  std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
 };
 
 }  // namespace vox::pipeline

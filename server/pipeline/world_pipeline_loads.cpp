@@ -17,9 +17,16 @@ constexpr size_t kMeshWork = 1;
 
 }  // namespace
 
+// With the terrain and the meshes on their way at their worst case, so that load passes
+// taken while earlier ones wait for terrain do not overrun the memory budget.
 size_t WorldPipeline::accounted_bytes() const {
-  return state_->chunks.memory_bytes() + meshes_.memory_bytes() +
+  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + prefetcher_->memory_bytes() +
+         waiting_meshes_.size() * MemoryBudget::kBytesPerLoadWork +
          other_bytes_.load(std::memory_order_relaxed);
+}
+
+bool WorldPipeline::needs_generating(ChunkCoord c) const {
+  return !state_->info.count(c) && !prefetcher_->pending(c);
 }
 
 size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
@@ -29,8 +36,23 @@ size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
 }
 
 void WorldPipeline::take_view_updates() {
-  for (const auto& [owner, view] : view_updates_) state_->views.set(owner, view.first, view.second);
+  for (const auto& [owner, view] : view_updates_) {
+    state_->views.set(owner, view.first, view.second);
+    drop_waiting(owner, view.first, view.second);
+  }
   view_updates_.clear();
+}
+
+void WorldPipeline::drop_waiting(LoadOwner owner, ChunkCoord center, int radius) {
+  const int64_t r2 = static_cast<int64_t>(radius) * radius;
+  std::erase_if(waiting_meshes_, [&](const WaitingMesh& w) {
+    if (w.owner != owner) return false;
+    const int64_t dx = w.coord.x - center.x, dy = w.coord.y - center.y, dz = w.coord.z - center.z;
+    if (radius >= 0 && dx * dx + dy * dy + dz * dz <= r2) return false;
+    waiting_set_.erase(w.coord);
+    state_->unpin_neighbourhood(w.coord);
+    return true;
+  });
 }
 
 // The batch's load pass, planned on the world as its edits left it. Pipeline thread; the
@@ -47,7 +69,7 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
   return scheduler_.take_loads(
       load_work_allowed(scheduler_.has_ordered()),
       [&](ChunkCoord c) {
-        if (plan.to_mesh.count(c)) return size_t{0};
+        if (plan.to_mesh.count(c) || waiting_set_.count(c)) return size_t{0};
         if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
           it->second.last_used = now;  // meshed already: only marked as viewed
           return size_t{0};
@@ -57,7 +79,7 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
               const ChunkCoord n = c.offset(dx, dy, dz);
-              if (!st.info.count(n) && plan.to_generate.insert(n).second) work += kGenerateWork;
+              if (needs_generating(n) && plan.to_generate.insert(n).second) work += kGenerateWork;
             }
         plan.to_mesh.insert(c);
         return work;
@@ -65,23 +87,99 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
       config_.load_scan_limit, now);
 }
 
-// One load pass: generates the missing chunks the plan needs (parallel over columns),
-// meshes and publishes the planned chunks, then runs the finished requests' callbacks.
+// Installs the terrain the background has generated that a waiting mesh still needs
+// (unless a batch generated the chunk itself meanwhile: it is the same); terrain of views
+// that moved on or closed is dropped. Returns the number installed.
+size_t WorldPipeline::install_generated(Clock::time_point now) {
+  WorldState& st = *state_;
+  size_t installed = 0;
+  for (auto& [c, chunk] : prefetcher_->take_ready()) {
+    if (st.info.count(c) || !st.pins.count(c)) continue;
+    st.chunks.insert(c, std::move(chunk));
+    st.info[c] = {.last_used = now};
+    ++installed;
+  }
+  return installed;
+}
+
+// The waiting chunks whose neighbourhood is loaded now (removed from the waiting list);
+// the terrain the others still miss is asked of the background, and what it cannot take
+// is generated here.
+std::vector<ChunkCoord> WorldPipeline::take_meshable(Clock::time_point now, PipelineStats& delta) {
+  WorldState& st = *state_;
+  std::vector<ChunkCoord> meshable, missing;
+  std::unordered_set<ChunkCoord, world::ChunkCoordHash> asked;
+  std::erase_if(waiting_meshes_, [&](const WaitingMesh& w) {
+    bool complete = true;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const ChunkCoord n = w.coord.offset(dx, dy, dz);
+          if (auto it = st.info.find(n); it != st.info.end()) {
+            it->second.last_used = now;  // kept until the mesh is made
+            continue;
+          }
+          complete = false;
+          if (asked.insert(n).second && !prefetcher_->pending(n)) missing.push_back(n);
+        }
+    if (!complete) return false;
+    meshable.push_back(w.coord);
+    waiting_set_.erase(w.coord);
+    st.unpin_neighbourhood(w.coord);
+    return true;
+  });
+  if (!missing.empty()) {
+    const std::vector<ChunkCoord> refused = prefetcher_->request(missing);
+    if (!refused.empty()) {  // generated here: what waited only for them is meshable now
+      delta.chunks_generated += st.ensure_loaded(refused, generator_, now);
+      for (const ChunkCoord& c : take_meshable(now, delta)) meshable.push_back(c);
+    }
+  }
+  return meshable;
+}
+
+// Runs the load callbacks of passes whose every planned chunk is meshed.
+void WorldPipeline::run_finished_loads() {
+  uint64_t oldest = UINT64_MAX;
+  for (const WaitingMesh& w : waiting_meshes_) oldest = std::min(oldest, w.pass);
+  std::erase_if(waiting_done_, [&](auto& entry) {
+    if (entry.first >= oldest) return false;
+    entry.second();
+    return true;
+  });
+}
+
+// One load pass: installs the terrain generated in the background, queues what the
+// planned chunks still miss, meshes and publishes every waiting chunk whose neighbourhood
+// is complete, then runs the finished requests' callbacks.
 void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
                                   Clock::time_point now, PipelineStats& batch) {
-  if (loads.empty()) return;
-  WorldState& st = *state_;
   PipelineStats delta;
-  delta.chunks_generated += st.ensure_loaded(
-      std::vector<ChunkCoord>(plan.to_generate.begin(), plan.to_generate.end()), generator_, now);
-  std::vector<ChunkCoord> dirty(plan.to_mesh.begin(), plan.to_mesh.end());
-  for (const ChunkCoord& c : dirty) st.info.at(c).last_used = now;  // generated just above
-  const std::vector<ChunkCoord> published = remesh_and_publish(dirty);
-  delta.meshes_published += published.size();
-  commit_stats(delta, batch);
-  for (LoadSlice& slice : loads) {
-    if (slice.done) slice.done();
+  delta.chunks_generated += install_generated(now);
+  if (!loads.empty()) {
+    ++load_pass_;
+    for (LoadSlice& slice : loads) {
+      for (const ChunkCoord& c : slice.chunks) {  // the chunks the pass planned to mesh
+        if (!plan.to_mesh.count(c) || !waiting_set_.insert(c).second) continue;
+        waiting_meshes_.push_back({c, load_pass_, slice.owner});
+        state_->pin_neighbourhood(c);
+      }
+      if (slice.done) waiting_done_.emplace_back(load_pass_, std::move(slice.done));
+    }
   }
+  std::vector<ChunkCoord> published;
+  if (!waiting_meshes_.empty()) {
+    std::vector<ChunkCoord> dirty = take_meshable(now, delta);
+    published = remesh_and_publish(dirty);
+    delta.meshes_published += published.size();
+  }
+  commit_stats(delta, batch);
+  {
+    std::lock_guard lock(stats_mutex_);
+    stats_.chunks_generating = prefetcher_->pending_count();
+    stats_.meshes_waiting = waiting_meshes_.size();
+  }
+  run_finished_loads();
   notify_subscribers(published);
 }
 

@@ -50,6 +50,21 @@ size_t WorldState::ensure_loaded(const std::vector<ChunkCoord>& coords,
   return generated;
 }
 
+void WorldState::pin_neighbourhood(ChunkCoord c) {
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) ++pins[c.offset(dx, dy, dz)];
+}
+
+void WorldState::unpin_neighbourhood(ChunkCoord c) {
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        auto it = pins.find(c.offset(dx, dy, dz));
+        if (it != pins.end() && --it->second == 0) pins.erase(it);
+      }
+}
+
 size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::milliseconds idle,
                          std::chrono::milliseconds min_age, size_t target_bytes,
                          size_t max_scan) {
@@ -65,7 +80,9 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   for (size_t seen = 0; seen < buckets && scanned < max_scan; ++seen, b = (b + 1) % buckets) {
     for (auto it = info.begin(b); it != info.end(b); ++it, ++scanned) {
       const auto& [c, chunk_info] = *it;
-      if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c)) continue;
+      if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c) || pins.count(c)) {
+        continue;
+      }
       const MeshVersionPtr mesh = meshes.get(c);
       if (mesh && mesh.use_count() > 2) continue;  // someone besides the store (and us) holds it
       candidates.push_back({chunk_info.last_used, c});

@@ -51,6 +51,11 @@ struct WorldState {
   std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
   Clock::time_point last_eviction = Clock::now();
   ViewIndex views;  // every session's current view: chunks in one are never evicted
+  // Chunks a waiting mesh needs (the 3x3x3 around it), with how many need each: never
+  // evicted, or a mesh waiting for its last neighbour could lose the others meanwhile.
+  std::unordered_map<world::ChunkCoord, uint32_t, world::ChunkCoordHash> pins;
+  void pin_neighbourhood(world::ChunkCoord c);
+  void unpin_neighbourhood(world::ChunkCoord c);
 
   // Generates every chunk of `coords` that is missing, in parallel over columns so each
   // column's surface heights are computed once; marks present ones used. Returns the number
