@@ -1,0 +1,242 @@
+"""A voxeld session (PROTOCOL.md section 4): handshake, views, edits, held chunk meshes."""
+import itertools
+import socket
+import time
+
+from . import compression, mesh, proto
+from .framing import FrameReader, encode_frame
+
+PROTOCOL_VERSION = 1
+VEC3_FIELDS = ("center", "min", "max")
+
+
+class ServerError(Exception):
+    """The server answered with an Error message where the caller expected something else."""
+
+    def __init__(self, error, name):
+        super().__init__("%s: %s" % (name, error.message))
+        self.code, self.name, self.message = error.code, name, error.message
+
+
+class Chunk:
+    """What the client holds of one chunk: its newest version and decompressed encoding."""
+
+    def __init__(self, version, encoding, decoded):
+        self.version, self.encoding, self.mesh = version, encoding, decoded
+
+
+def coord_of(c):
+    return (c.x, c.y, c.z)
+
+
+def _detail(kind, env):
+    if kind == "chunk_mesh":
+        m = env.chunk_mesh
+        return coord_of(m.coord), m.version, m.base_version
+    if kind == "view_ready":
+        return env.view_ready.view_id
+    if kind == "edit_result":
+        return env.edit_result.request_id
+    if kind == "error":
+        return env.error.code
+    return None
+
+
+class Client:
+    """One connection. Incoming messages are handled in `pump`; everything the server sent
+    is recorded in the attributes below for callers (and tests) to inspect."""
+
+    def __init__(self, host, port, pb=None, table=None, decode=True, auto_resync=True):
+        self.pb = pb or proto.load()
+        self.table = table or mesh.load_table(proto.DEFAULT_TABLE)
+        self.decode, self.auto_resync = decode, auto_resync
+        self.sock = socket.create_connection((host, port), timeout=10)
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.reader = FrameReader(self.sock)
+        self.closed = False
+        self.welcome = None
+        self.chunks = {}          # coord -> Chunk
+        self.resyncing = set()    # coords dropped and asked for again
+        self.failures = []        # (coord, reason) of payloads that did not apply
+        self.received = []        # (coord, version, base_version, payload bytes, content bytes)
+        self.unloaded = []        # coords of every ChunkUnload
+        self.view_ready = {}      # view_id -> ViewReady
+        self.results = {}         # request_id -> EditResult
+        self.result_log = []      # request ids of every EditResult, in arrival order
+        self.pongs = set()
+        self.errors = []          # Error messages
+        self.log = []             # (kind, detail) of every message, in arrival order
+        self._ids = itertools.count(1)
+
+    # ---- sending ----------------------------------------------------------------------
+
+    def send(self, envelope):
+        self.send_raw(envelope.SerializeToString())
+
+    def send_raw(self, payload):
+        self.sock.sendall(encode_frame(payload))
+
+    def send_message(self, **body):
+        self.send(self.pb.Envelope(**body))
+
+    def hello(self, name="pyclient", version=PROTOCOL_VERSION, timeout=10):
+        """Sends Hello and returns the Welcome (raises ServerError on an Error)."""
+        self.send_message(hello=self.pb.Hello(protocol_version=version, player_name=name))
+        self.pump(lambda: self.welcome is not None or self.errors, timeout)
+        if self.welcome is None:
+            raise self.error_exception(self.errors[0])
+        return self.welcome
+
+    def set_view(self, position, radius, view_id=None):
+        view_id = next(self._ids) if view_id is None else view_id
+        self.send_message(set_view=self.pb.SetView(
+            position=self.vec3(position), radius=radius, view_id=view_id))
+        return view_id
+
+    def edit(self, kind, request_id=None, **fields):
+        """Sends an Edit of `kind` (brush, explosion, smooth, paint, stamp); returns its id.
+        Vector fields take (x, y, z); a stamp's `shape` may be "box" or "sphere"."""
+        request_id = next(self._ids) if request_id is None else request_id
+        msg = self.pb.Edit(request_id=request_id)
+        if kind is not None:
+            getattr(msg, kind).CopyFrom(self._edit_body(kind, fields))
+        self.send_message(edit=msg)
+        return request_id
+
+    def _edit_body(self, kind, fields):
+        cls = getattr(self.pb, kind.capitalize())
+        args = {}
+        for key, value in fields.items():
+            if key in VEC3_FIELDS:
+                value = self.vec3(value)
+            elif key == "shape" and isinstance(value, str):
+                value = getattr(self.pb.Stamp, value.upper())
+            args[key] = value
+        return cls(**args)
+
+    def ping(self, nonce):
+        self.send_message(ping=self.pb.Ping(nonce=nonce))
+
+    def resync(self, coords):
+        coords = list(coords)
+        for c in coords:
+            self.chunks.pop(c, None)
+            self.resyncing.add(c)
+        self.send_message(resync=self.pb.Resync(coords=[self.chunk_coord(c) for c in coords]))
+
+    def vec3(self, v):
+        return self.pb.Vec3(x=v[0], y=v[1], z=v[2])
+
+    def chunk_coord(self, c):
+        return self.pb.ChunkCoord(x=c[0], y=c[1], z=c[2])
+
+    # ---- waiting ----------------------------------------------------------------------
+
+    def pump(self, until, timeout):
+        """Handles incoming messages until `until()` is true; False when the connection
+        closed first. Raises socket.timeout after `timeout` seconds."""
+        deadline = time.monotonic() + timeout
+        while not until():
+            if self.closed:
+                return False
+            frame = self.reader.read(deadline)
+            if frame is None:
+                self.closed = True
+                continue
+            env = self.pb.Envelope()
+            env.ParseFromString(frame)
+            self.handle(env)
+        return True
+
+    def wait_view_ready(self, view_id, timeout=30):
+        if not self.pump(lambda: view_id in self.view_ready, timeout):
+            raise ConnectionError("closed before ViewReady %d" % view_id)
+        return self.view_ready[view_id]
+
+    def wait_result(self, request_id, timeout=10):
+        if not self.pump(lambda: request_id in self.results, timeout):
+            raise ConnectionError("closed before EditResult %d" % request_id)
+        return self.results[request_id]
+
+    def wait_pong(self, nonce, timeout=10):
+        if not self.pump(lambda: nonce in self.pongs, timeout):
+            raise ConnectionError("closed before Pong %d" % nonce)
+
+    def wait_error(self, timeout=10):
+        """The first Error received (pumping until one comes)."""
+        if not self.pump(lambda: self.errors, timeout):
+            raise ConnectionError("closed without an Error")
+        return self.errors[0]
+
+    def wait_closed(self, timeout=10):
+        self.pump(lambda: False, timeout)
+
+    def error_exception(self, error):
+        return ServerError(error, self.pb.Error.Code.Name(error.code))
+
+    # ---- receiving --------------------------------------------------------------------
+
+    def handle(self, env):
+        kind = env.WhichOneof("body")
+        self.log.append((kind, _detail(kind, env)))
+        if kind == "welcome":
+            self.welcome = env.welcome
+        elif kind == "chunk_mesh":
+            self.on_chunk_mesh(env.chunk_mesh)
+        elif kind == "chunk_unload":
+            for c in map(coord_of, env.chunk_unload.coords):
+                self.chunks.pop(c, None)
+                self.resyncing.discard(c)
+                self.unloaded.append(c)
+        elif kind == "view_ready":
+            self.view_ready[env.view_ready.view_id] = env.view_ready
+        elif kind == "edit_result":
+            self.results[env.edit_result.request_id] = env.edit_result
+            self.result_log.append(env.edit_result.request_id)
+        elif kind == "pong":
+            self.pongs.add(env.pong.nonce)
+        elif kind == "error":
+            self.errors.append(env.error)
+        # anything else (None: a body this client does not know) is ignored, section 4.1
+
+    def on_chunk_mesh(self, msg):
+        c = coord_of(msg.coord)
+        held = self.chunks.get(c)
+        if msg.base_version != 0 and c in self.resyncing:
+            return  # a delta for a chunk we hold no base of: wait for the full copy
+        try:
+            encoding = self._apply(msg, held)
+            decoded = mesh.decode(encoding, self.table) if self.decode else None
+            if not self.decode:
+                mesh.check_crc(encoding)
+        except (compression.CompressionError, mesh.MeshError) as e:
+            self._failed(c, str(e))
+            return
+        self.received.append((c, msg.version, msg.base_version, len(msg.payload), len(encoding)))
+        self.chunks[c] = Chunk(msg.version, encoding, decoded)
+        self.resyncing.discard(c)
+
+    def _apply(self, msg, held):
+        if held is not None and msg.version <= held.version:
+            raise mesh.MeshError("version %d is not newer than the held %d"
+                                 % (msg.version, held.version))
+        if msg.base_version == 0:
+            return compression.decompress_full(msg.payload)
+        if held is None or held.version != msg.base_version:
+            raise mesh.MeshError("delta against version %d, held %s"
+                                 % (msg.base_version, held and held.version))
+        return compression.decompress_delta(msg.payload, held.encoding)
+
+    def _failed(self, c, reason):
+        self.failures.append((c, reason))
+        self.chunks.pop(c, None)
+        if self.auto_resync:
+            self.resync([c])
+        else:
+            self.resyncing.add(c)
+
+    def close(self):
+        try:
+            self.sock.close()
+        finally:
+            self.closed = True

@@ -1,0 +1,295 @@
+"""Mesh encoding format 1 (PROTOCOL.md section 2): decoding and every check it lists."""
+import math
+import struct
+from array import array
+
+FORMAT = 1
+HEADER = 16
+FRACTION_ONE = 1024
+AXIS_X, AXIS_Y, AXIS_Z = 0, 1, 2
+
+
+class MeshError(ValueError):
+    """The encoding breaks a rule of section 2."""
+
+
+# ---- CRC-32C (Castagnoli, reflected 0x82F63B78) ----------------------------------------
+
+def _crc_table():
+    table = []
+    for n in range(256):
+        c = n
+        for _ in range(8):
+            c = (c >> 1) ^ 0x82F63B78 if c & 1 else c >> 1
+        table.append(c)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+
+
+def crc32c(data):
+    crc, table = 0xFFFFFFFF, _CRC_TABLE
+    for b in data:
+        crc = table[(crc ^ b) & 0xFF] ^ (crc >> 8)
+    return crc ^ 0xFFFFFFFF
+
+
+def check_crc(enc):
+    """Only the CRC-32C of section 2.1 (what a client that does not decode must check)."""
+    if len(enc) < HEADER + 4:
+        raise MeshError("encoding of %d bytes is too short" % len(enc))
+    if crc32c(enc[:-4]) != struct.unpack_from("<I", enc, len(enc) - 4)[0]:
+        raise MeshError("CRC-32C mismatch")
+
+
+# ---- the case table --------------------------------------------------------------------
+
+# Cell edge e -> (axis, lower sample minus cell), section 2.5.
+CELL_EDGES = [
+    (AXIS_X, (0, 0, 0)), (AXIS_Y, (1, 0, 0)), (AXIS_X, (0, 1, 0)), (AXIS_Y, (0, 0, 0)),
+    (AXIS_X, (0, 0, 1)), (AXIS_Y, (1, 0, 1)), (AXIS_X, (0, 1, 1)), (AXIS_Y, (0, 0, 1)),
+    (AXIS_Z, (0, 0, 0)), (AXIS_Z, (1, 0, 0)), (AXIS_Z, (1, 1, 0)), (AXIS_Z, (0, 1, 0)),
+]
+CORNERS = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+EDGE_CORNERS = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
+                (0, 4), (1, 5), (2, 6), (3, 7)]
+
+
+def load_table(path):
+    """Parses docs/marching_cubes_tables.txt: a list of 256 tuples of triangles (edge triples)."""
+    cases = {}
+    with open(path, encoding="ascii") as f:
+        for line in f:
+            fields = line.split("#", 1)[0].split()
+            if not fields:
+                continue
+            case, mask, edges = int(fields[0]), int(fields[1], 16), [int(e) for e in fields[2:]]
+            _check_case(case, mask, edges)
+            cases[case] = tuple(tuple(edges[i:i + 3]) for i in range(0, len(edges), 3))
+    if sorted(cases) != list(range(256)):
+        raise MeshError("table does not have exactly the cases 0..255")
+    return [cases[c] for c in range(256)]
+
+
+def _check_case(case, mask, edges):
+    cut = 0
+    for e, (a, b) in enumerate(EDGE_CORNERS):
+        if ((case >> a) ^ (case >> b)) & 1:
+            cut |= 1 << e
+    if cut != mask or len(edges) % 3 or any(not (mask >> e) & 1 for e in edges):
+        raise MeshError("table line %d is inconsistent" % case)
+
+
+# ---- decoding ---------------------------------------------------------------------------
+
+class Mesh:
+    """A decoded chunk mesh. Flat arrays: positions/normals are xyz per vertex (float32),
+    triangles three vertex indices each. Vertex i lies on the lattice edge of axis `axis[i]`
+    whose lower sample is `samples[3i:3i+3]`."""
+
+    def __init__(self, cells, rows):
+        self.cells = cells
+        self.rows = rows
+        self.positions = array("f")
+        self.normals = array("f")
+        self.axis = bytearray()
+        self.samples = bytearray()
+        self.materials = b""
+        self.triangles = array("I")
+        self.table_triangles = 0
+        self.dropped = ()
+
+    @property
+    def vertex_count(self):
+        return len(self.axis)
+
+    @property
+    def triangle_count(self):
+        return len(self.triangles) // 3
+
+
+class _Reader:
+    def __init__(self, data, offset):
+        self.data, self.offset = data, offset
+
+    def take(self, n):
+        chunk = self.data[self.offset:self.offset + n]
+        self.offset += n
+        return chunk
+
+
+def decode(enc, table):
+    """Decodes one encoding; raises MeshError on any violation of section 2."""
+    enc = bytes(enc)
+    cells, counts = _header(enc)
+    cx, cy, cz = cells
+    V, T, D = counts
+    R = (cy + 1) * (cz + 1)
+    bitmap_len = (R + 7) // 8
+    bitmap = int.from_bytes(enc[HEADER:HEADER + bitmap_len], "little")
+    if bitmap >> R:
+        raise MeshError("row bitmap has bits at or past R")
+    B = (cx + 1 + 7) // 8
+    expected = HEADER + bitmap_len + bitmap.bit_count() * B + 5 * V + 4 * D + 4
+    if len(enc) != expected:
+        raise MeshError("length %d, the header says %d" % (len(enc), expected))
+    reader = _Reader(enc, HEADER + bitmap_len)
+    mesh = Mesh(cells, _rows(reader, bitmap, R, cx, B))
+    groups = _groups(mesh.rows, cells)
+    cut = groups[-1][0] + groups[-1][1].bit_count()
+    if cut != V:
+        raise MeshError("V = %d but there are %d cut edges" % (V, cut))
+    planes = [reader.take(V) for _ in range(5)]
+    _positions(mesh, groups, planes[0], planes[1], cells)
+    _normals(mesh, planes[2], planes[3])
+    _materials(mesh, planes[4])
+    dropped = struct.unpack_from("<%dI" % D, enc, reader.offset)
+    _triangles(mesh, groups, table, dropped)
+    if mesh.triangle_count != T:
+        raise MeshError("T = %d but %d triangles remain" % (T, mesh.triangle_count))
+    return mesh
+
+
+def _header(enc):
+    check_crc(enc)  # first: a delta applied to a wrong base is reported as what it is
+    if enc[0] != FORMAT:
+        raise MeshError("format %d is not 1" % enc[0])
+    cells = tuple(enc[1:4])
+    if any(c < 1 or c > 32 for c in cells):
+        raise MeshError("cells %s out of 1..32" % (cells,))
+    return cells, struct.unpack_from("<III", enc, 4)
+
+
+def _rows(reader, bitmap, R, cx, B):
+    rows, row = [], 0
+    for r in range(R):
+        if (bitmap >> r) & 1:
+            diff = int.from_bytes(reader.take(B), "little")
+            if diff == 0 or diff >> (cx + 1):
+                raise MeshError("row difference %d is zero or has bits above cells_x" % r)
+            row ^= diff
+        rows.append(row)
+    return rows
+
+
+def _groups(rows, cells):
+    """Per (row, axis) group, in vertex order: (index of its first vertex, cut mask)."""
+    cx, cy, cz = cells
+    xmask = (1 << cx) - 1
+    groups, first = [], 0
+    for z in range(cz + 1):
+        for y in range(cy + 1):
+            r = z * (cy + 1) + y
+            row = rows[r]
+            masks = ((row ^ (row >> 1)) & xmask,
+                     row ^ rows[r + 1] if y < cy else 0,
+                     row ^ rows[r + cy + 1] if z < cz else 0)
+            for m in masks:
+                groups.append((first, m))
+                first += m.bit_count()
+    return groups
+
+
+def _bits(mask):
+    while mask:
+        low = mask & -mask
+        yield low.bit_length() - 1
+        mask ^= low
+
+
+def _positions(mesh, groups, low, high, cells):
+    cy = cells[1]
+    pos, axes, samples = mesh.positions, mesh.axis, mesh.samples
+    for g, (first, mask) in enumerate(groups):
+        r, axis = divmod(g, 3)
+        z, y = divmod(r, cy + 1)
+        i = first
+        for x in _bits(mask):
+            q = low[i] | high[i] << 8
+            if q > FRACTION_ONE:
+                raise MeshError("vertex %d has fraction %d > 1024" % (i, q))
+            p = [x, y, z]
+            samples.extend(p)
+            p[axis] += q / FRACTION_ONE
+            pos.extend(p)
+            axes.append(axis)
+            i += 1
+
+
+_OCT = [u * 2 / 255 - 1 for u in range(256)]
+
+
+def octahedral(u, v):
+    """Section 2.4's normal decoding: a unit vector from two bytes."""
+    px, py = _OCT[u], _OCT[v]
+    nz = 1 - abs(px) - abs(py)
+    if nz < 0:
+        nx = (1 - abs(py)) * (1 if px >= 0 else -1)
+        ny = (1 - abs(px)) * (1 if py >= 0 else -1)
+    else:
+        nx, ny = px, py
+    n = math.sqrt(nx * nx + ny * ny + nz * nz)
+    return nx / n, ny / n, nz / n
+
+
+def _normals(mesh, us, vs):
+    out = mesh.normals
+    for u, v in zip(us, vs):
+        out.extend(octahedral(u, v))
+
+
+def _materials(mesh, diffs):
+    out, m = bytearray(len(diffs)), 0
+    for i, d in enumerate(diffs):
+        m = (m + d) & 0xFF
+        if m == 0:
+            raise MeshError("vertex %d has material 0 (air)" % i)
+        out[i] = m
+    mesh.materials = bytes(out)
+
+
+# Cell corner bits from four 2-bit row slices a (y,z), b (y+1,z), c (y,z+1), d (y+1,z+1).
+_CASE_OF_SLICES = []
+for _k in range(256):
+    _a, _b, _c, _d = _k & 3, (_k >> 2) & 3, (_k >> 4) & 3, (_k >> 6) & 3
+    _CASE_OF_SLICES.append(_a | (_b & 1) << 3 | (_b >> 1) << 2 | _c << 4
+                           | (_d & 1) << 7 | (_d >> 1) << 6)
+
+
+def _mixed_cells(r00, r10, r01, r11, cx):
+    """Bit x set when cell x of this cell row has both solid and air corners."""
+    some = r00 | r10 | r01 | r11
+    every = r00 & r10 & r01 & r11
+    return ((some | (some >> 1)) & ~(every & (every >> 1))) & ((1 << cx) - 1)
+
+
+def _triangles(mesh, groups, table, dropped):
+    cx, cy, cz = mesh.cells
+    rows, out, ordinal, skip = mesh.rows, mesh.triangles, 0, set(dropped)
+    if any(b <= a for a, b in zip(dropped, dropped[1:])):
+        raise MeshError("dropped ordinals are not strictly increasing")
+    stride = cy + 1
+    for z in range(cz):
+        for y in range(cy):
+            r = z * stride + y
+            quad = (rows[r], rows[r + 1], rows[r + stride], rows[r + stride + 1])
+            for x in _bits(_mixed_cells(*quad, cx)):
+                key = ((quad[0] >> x) & 3) | ((quad[1] >> x) & 3) << 2 \
+                    | ((quad[2] >> x) & 3) << 4 | ((quad[3] >> x) & 3) << 6
+                for tri in table[_CASE_OF_SLICES[key]]:
+                    if ordinal not in skip:
+                        out.extend(_vertex(groups, x, y, z, stride, e) for e in tri)
+                    ordinal += 1
+    if dropped and dropped[-1] >= ordinal:
+        raise MeshError("dropped ordinal %d is not a table triangle" % dropped[-1])
+    mesh.table_triangles, mesh.dropped = ordinal, tuple(dropped)
+
+
+def _vertex(groups, x, y, z, stride, edge):
+    axis, (dx, dy, dz) = CELL_EDGES[edge]
+    first, mask = groups[3 * ((z + dz) * stride + y + dy) + axis]
+    sx = x + dx
+    if not (mask >> sx) & 1:
+        raise MeshError("table edge is not a cut edge")
+    return first + (mask & ((1 << sx) - 1)).bit_count()
