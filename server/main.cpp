@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
       "max-handshaking-per-address", po::value<size_t>(&net.max_handshaking_per_address)->default_value(4), "of those, before Hello (0: no cap)")(
       "max-memory", po::value<std::string>(&max_memory), "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)")(
       "load-budget", po::value<double>(&world.load_work_per_owner)->default_value(250), "terrain load work per second per player (4 per chunk generated, 1 per mesh; 0: unlimited)")(
-      "load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(4000), "load work a player may take at once (a first radius-4 view is about 2,700)")(
+      "load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(4000), "load work a player may take at once (a first radius-4 view is 2,925)")(
       "load-budget-per-address", po::value<double>(&world.load_work_per_address)->default_value(1000), "load work per second for all players from one address together, burst 8x that; kept after they leave until refilled (0: unlimited)")(
       "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000), "samples per second a player's edits may touch (0: unlimited)")(
       "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000), "samples a player's edits may touch at once")(

@@ -345,6 +345,23 @@ TEST(SendScheduler, AResyncAskedTwiceBeforeItsCopyLeftIsSentOnce) {
   EXPECT_FALSE(s.next(store.lookup()));
 }
 
+TEST(SendScheduler, TwoResyncsEachAnsweredAfterTheOtherGiveTwoCopies) {
+  FakeStore store;
+  for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
+    store.publish(c);
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  while (s.next(store.lookup())) {
+  }
+  ASSERT_TRUE(s.take_view_complete());
+  EXPECT_TRUE(s.resync({0, 0, 0}));
+  EXPECT_TRUE(s.next(store.lookup()));
+  EXPECT_TRUE(s.resync({0, 0, 0}));
+  EXPECT_TRUE(s.next(store.lookup()));
+  EXPECT_FALSE(s.next(store.lookup())) << "a third copy";
+  EXPECT_FALSE(s.take_view_complete());
+}
+
 TEST(SendScheduler, AChunkResyncedAndThenUnloadedGetsNoChunkUnload) {
   FakeStore store;
   for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})

@@ -262,9 +262,9 @@ class T4Resync(Case):
         self.assertEqual(c.errors, [])
 
 
-    @unittest.expectedFailure  # finding: two Resyncs of one chunk bring three copies
     def test_resync_twice_sends_at_most_two_copies(self):
-        """PROTOCOL.md 4.6: "a chunk asked for again before its copy left is sent once"."""
+        """PROTOCOL.md 4.3/4.6: each Resync is answered with one full copy, the same version
+        again if nothing changed; a client must take it (not resync it again)."""
         c = self.connect("resync3")
         h.load_view(c, ORIGIN_VIEW, 1, 1)
         seen = len(c.log)

@@ -217,7 +217,9 @@ class Client:
         self.resyncing.discard(c)
 
     def _apply(self, msg, held):
-        if held is not None and msg.version <= held.version:
+        # A full copy answering a Resync may repeat the held version (section 4.3).
+        if held is not None and (msg.version < held.version or
+                                 (msg.version == held.version and msg.base_version != 0)):
             raise mesh.MeshError("version %d is not newer than the held %d"
                                  % (msg.version, held.version))
         if msg.base_version == 0:

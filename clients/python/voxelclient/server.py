@@ -1,6 +1,5 @@
 """Starting and stopping a local voxeld for tests and benchmarks."""
-import queue
-import re
+import os
 import shutil
 import signal
 import subprocess
@@ -8,46 +7,40 @@ import tempfile
 import threading
 import time
 
-_LISTENING = re.compile(r"listening on ([0-9.]+):(\d+)")
-
-
 class Voxeld:
     """A voxeld on 127.0.0.1 with port 0, in a temporary working directory. The port is the
-    one the server prints in its "listening on HOST:PORT" log line."""
+    one it writes to its --port-file once it listens (README, "voxeld")."""
 
     def __init__(self, path, seed=1, extra_args=(), timeout=15):
         self.workdir = tempfile.mkdtemp(prefix="voxeld_")
-        args = [path, "--port", "0", "--bind", "127.0.0.1", "--seed", str(seed),
-                "--stats-interval", "0", *extra_args]
+        self.port_file = os.path.join(self.workdir, "port")
+        args = [path, "--port", "0", "--bind", "127.0.0.1", "--port-file", self.port_file,
+                "--seed", str(seed), "--stats-interval", "0", *extra_args]
         self.proc = subprocess.Popen(args, cwd=self.workdir, stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, text=True)
         self.lines = []
-        self._queue = queue.Queue()
         threading.Thread(target=self._drain, daemon=True).start()
-        self.host, self.port = self._wait_port(timeout)
+        self.host, self.port = "127.0.0.1", self._wait_port(timeout)
 
     def _drain(self):
         for line in self.proc.stdout:
             self.lines.append(line.rstrip("\n"))
-            self._queue.put(line)
-        self._queue.put(None)
 
     def _wait_port(self, timeout):
         deadline = time.monotonic() + timeout
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                self.stop()
-                raise TimeoutError("voxeld printed no 'listening on' line in %ss" % timeout)
-            try:
-                line = self._queue.get(timeout=remaining)
-            except queue.Empty:
-                continue
-            if line is None:
+        while time.monotonic() < deadline:
+            if self.proc.poll() is not None:
                 raise RuntimeError("voxeld exited: %s" % "\n".join(self.lines))
-            match = _LISTENING.search(line)
-            if match:
-                return match.group(1), int(match.group(2))
+            try:
+                with open(self.port_file) as f:
+                    text = f.read().strip()
+                if text:
+                    return int(text)
+            except (FileNotFoundError, ValueError):
+                pass
+            time.sleep(0.01)
+        self.stop()
+        raise TimeoutError("voxeld wrote no --port-file in %ss" % timeout)
 
     def stop(self, timeout=15):
         """SIGTERM, wait; returns the exit code (kills after `timeout`, then returns None)."""
