@@ -2,8 +2,8 @@
 
 #include <bit>
 #include <cassert>
+#include <cmath>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "world/chunk_coord.hpp"
@@ -18,19 +18,70 @@ struct Key {
   uint32_t x, y, z;
   bool operator==(const Key&) const = default;
 };
-struct KeyHash {
-  size_t operator()(const Key& k) const noexcept {
-    uint64_t h = k.x * 0x9E3779B97F4A7C15ull;
-    h ^= (h >> 32) ^ (k.y * 0xC2B2AE3D27D4EB4Full);
-    h ^= (h >> 29) ^ (k.z * 0x165667B19E3779F9ull);
-    return static_cast<size_t>(h ^ (h >> 31));
+inline uint32_t hash_of(const Key& k) {
+  uint64_t h = k.x * 0x9E3779B97F4A7C15ull;
+  h ^= (h >> 32) ^ (k.y * 0xC2B2AE3D27D4EB4Full);
+  h ^= (h >> 29) ^ (k.z * 0x165667B19E3779F9ull);
+  return static_cast<uint32_t>(h ^ (h >> 31));
+}
+
+// Face vertices of one part by world position, first one kept: an open-addressing table
+// in one array (linear probing, at most half full), built once from the collected
+// entries (std::unordered_map's node per entry made welding a tenth slower).
+class FaceTable {
+ public:
+  static constexpr uint32_t kNone = UINT32_MAX;
+  void add(const Key& k, uint32_t vertex) { pending_.push_back({k, vertex}); }
+  void build() {
+    size_t capacity = 16;
+    while (capacity < 2 * pending_.size()) capacity *= 2;
+    slots_.assign(capacity, Slot{{}, kNone});
+    mask_ = capacity - 1;
+    for (const Slot& e : pending_) {
+      size_t at = hash_of(e.key) & mask_;
+      while (slots_[at].vertex != kNone && !(slots_[at].key == e.key)) at = (at + 1) & mask_;
+      if (slots_[at].vertex == kNone) slots_[at] = e;  // the first vertex at a position stays
+    }
+    pending_ = {};
   }
+  uint32_t find(const Key& k) const {
+    if (slots_.empty()) return kNone;
+    for (size_t at = hash_of(k) & mask_;; at = (at + 1) & mask_) {
+      if (slots_[at].vertex == kNone || slots_[at].key == k) return slots_[at].vertex;
+    }
+  }
+
+ private:
+  struct Slot {
+    Key key;
+    uint32_t vertex;
+  };
+  std::vector<Slot> pending_, slots_;
+  size_t mask_ = 0;
 };
+
+Vec3f add(const Vec3f& a, const Vec3f& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 Key key_of(const Vec3f& w) {
   return {std::bit_cast<uint32_t>(w.x), std::bit_cast<uint32_t>(w.y), std::bit_cast<uint32_t>(w.z)};
 }
-bool on_face(const Vec3f& l) {
-  return l.x == 0.0f || l.y == 0.0f || l.z == 0.0f || l.x == kFace || l.y == kFace || l.z == kFace;
+
+// Where a vertex sits on its chunk's faces: bit a of `on` when its local coordinate a is 0
+// or 32, of `upper` when it is 32. Two vertices of one chunk can coincide only at a sample
+// (different edges meet only there).
+struct FacePlace {
+  unsigned on = 0, upper = 0;
+  bool at_sample = false;
+};
+inline FacePlace face_place(const Vec3f& l) {
+  FacePlace f;
+  if (l.x != 0.0f && l.y != 0.0f && l.z != 0.0f && l.x != kFace && l.y != kFace && l.z != kFace) return f;
+  const float c[3] = {l.x, l.y, l.z};
+  for (unsigned a = 0; a < 3; ++a) {
+    f.on |= (c[a] == 0.0f || c[a] == kFace) ? 1u << a : 0u;
+    f.upper |= c[a] == kFace ? 1u << a : 0u;
+  }
+  f.at_sample = l.x == std::trunc(l.x) && l.y == std::trunc(l.y) && l.z == std::trunc(l.z);
+  return f;
 }
 
 struct Grid {
@@ -44,15 +95,19 @@ struct Grid {
   size_t index(const std::array<int, 3>& g) const {
     return static_cast<size_t>(g[0]) + static_cast<size_t>(dims[0]) * (g[1] + static_cast<size_t>(dims[1]) * g[2]);
   }
-  Vec3f world(size_t i, const Vec3f& l) const {
+  Vec3f origin_of(size_t i) const {
     const auto g = pos(i);
-    return {origin.x + kFace * static_cast<float>(g[0]) + l.x, origin.y + kFace * static_cast<float>(g[1]) + l.y,
-            origin.z + kFace * static_cast<float>(g[2]) + l.z};
+    return {origin.x + kFace * static_cast<float>(g[0]), origin.y + kFace * static_cast<float>(g[1]),
+            origin.z + kFace * static_cast<float>(g[2])};
   }
 };
 
-// Per vertex of a part: its number among the part's kept vertices, or kForeignBit | its
-// entry in `foreign` (kept by another vertex).
+// Per vertex of a part: its number among the part's kept vertices, kForeignBit | its
+// entry in `foreign` (kept by another vertex), or kUnused (no triangle of the part uses it).
+// Between passes 1 and 2: 0 for a used vertex the part keeps, kAsk for a used face
+// vertex whose owner must be looked for.
+constexpr uint32_t kUnused = UINT32_MAX;
+constexpr uint32_t kAsk = UINT32_MAX - 1;
 constexpr uint32_t kForeignBit = 1u << 31;
 struct Foreign {
   uint32_t part, vertex;  // the copy that is kept
@@ -62,53 +117,63 @@ struct PartPlan {
   std::vector<uint32_t> local;
   std::vector<uint32_t> kept;  // vertex numbers of the kept vertices, in order
   std::vector<Foreign> foreign;
-  std::unordered_map<Key, uint32_t, KeyHash> face;  // face vertices by world position: the first one
+  FaceTable face;  // used face vertices others may ask for: the first at each position
 };
 
-// Pass 1, one part: its face vertices by position.
-void find_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan) {
-  plan.local.resize(p.vertex_count());
+// Pass 1, one part: which vertices its triangles use; the used face vertices another
+// part may ask for, by world position. A part is asked only by the holders after it in
+// owner_of's order, so a vertex at 32 on every face axis it is on (the last holder) is
+// left out unless it sits at a sample, where the part itself asks for its first copy. A
+// vertex inside the chunk, or at its home away from a sample, is kept without asking.
+void find_used_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan) {
+  plan.local.assign(p.vertex_count(), kUnused);
+  for (uint32_t index : p.indices) plan.local[index] = 0;
+  const Vec3f o = grid.origin_of(i);
   for (uint32_t v = 0; v < p.vertex_count(); ++v) {
-    if (on_face(p.positions[v])) plan.face.try_emplace(key_of(grid.world(i, p.positions[v])), v);
+    if (plan.local[v] == kUnused) continue;
+    const FacePlace f = face_place(p.positions[v]);
+    if (f.on == 0) continue;
+    if (f.upper != f.on || f.at_sample) plan.face.add(key_of(add(o, p.positions[v])), v);
+    if (f.upper != 0 || f.at_sample) plan.local[v] = kAsk;
   }
+  plan.face.build();
 }
 
-// The copy of face vertex `l` (local to part i) that is kept: that of the first part
-// holding a copy, trying first the chunk where its face coordinates are 0, then
-// the chunks below it on those axes. Every part holding it tries the same chunks in the
-// same order, so all agree; a missing or empty neighbour just does not hold it.
-Foreign owner_of(const Grid& grid, std::span<const PartPlan> plans, size_t i, const Vec3f& l, const Key& key) {
-  const auto g = grid.pos(i);
-  const float c[3] = {l.x, l.y, l.z};
+// The copy of used face vertex v of part i that is kept: that of the first part holding a
+// used copy, trying first the chunk where its face coordinates are 0 (its home), then the
+// chunks below it on those axes. Every holder tries the same chunks in the same order, so
+// all agree; a missing or empty neighbour just does not hold it.
+Foreign owner_of(const Grid& grid, std::span<const PartPlan> plans, size_t i, const std::array<int, 3>& g, uint32_t v,
+                 const FacePlace& f, const Key& key) {
   std::array<int, 3> home{};
-  unsigned on = 0;
-  for (int a = 0; a < 3; ++a) {
-    home[a] = g[a] + (c[a] == kFace ? 1 : 0);
-    on |= (c[a] == 0.0f || c[a] == kFace) ? 1u << a : 0u;
-  }
+  for (int a = 0; a < 3; ++a) home[a] = g[a] + static_cast<int>((f.upper >> a) & 1);
   for (unsigned e = 0; e < 8; ++e) {
-    if ((e & ~on) != 0) continue;
+    if ((e & ~f.on) != 0) continue;
     std::array<int, 3> h = home;
     bool inside = true;
     for (int a = 0; a < 3; ++a) {
-      h[a] -= (e >> a) & 1;
+      h[a] -= static_cast<int>((e >> a) & 1);
       inside &= h[a] >= 0 && h[a] < grid.dims[a];
     }
     if (!inside) continue;
     const size_t j = grid.index(h);
-    const auto it = plans[j].face.find(key);
-    if (it != plans[j].face.end()) return {static_cast<uint32_t>(j), it->second};
+    const uint32_t u = plans[j].face.find(key);
+    if (j == i) return {static_cast<uint32_t>(i), u != FaceTable::kNone ? u : v};
+    if (u != FaceTable::kNone) return {static_cast<uint32_t>(j), u};
   }
-  assert(false && "a face vertex is held by its own part");
-  return {static_cast<uint32_t>(i), 0};
+  assert(false && "a used face vertex is held by its own part");
+  return {static_cast<uint32_t>(i), v};
 }
 
-// Pass 2, one part: which vertices it keeps; the others point at the kept copy.
+// Pass 2, one part: which used vertices it keeps; the others point at the kept copy.
 void plan_part(const Grid& grid, std::span<const PartPlan> plans, size_t i, const ChunkMesh& p, PartPlan& plan) {
+  const Vec3f o = grid.origin_of(i);
+  const std::array<int, 3> g = grid.pos(i);
   for (uint32_t v = 0; v < p.vertex_count(); ++v) {
-    const Vec3f l = p.positions[v];
-    if (on_face(l)) {
-      const Foreign owner = owner_of(grid, plans, i, l, key_of(grid.world(i, l)));
+    if (plan.local[v] == kUnused) continue;
+    if (plan.local[v] == kAsk) {
+      const Vec3f l = p.positions[v];
+      const Foreign owner = owner_of(grid, plans, i, g, v, face_place(l), key_of(add(o, l)));
       if (owner.part != i || owner.vertex != v) {
         plan.local[v] = kForeignBit | static_cast<uint32_t>(plan.foreign.size());
         plan.foreign.push_back(owner);
@@ -120,25 +185,32 @@ void plan_part(const Grid& grid, std::span<const PartPlan> plans, size_t i, cons
   }
 }
 
-// Pass 3, one part: its kept vertices in world space, its triangles with welded indices.
-void write_part(const Grid& grid, std::span<const PartPlan> plans, std::span<const size_t> vertex_base, size_t i,
-                const ChunkMesh& p, PartPlan& plan, ChunkMesh& out, size_t index_base) {
+// Pass 3, one part: the welded index of each copy it points at (read before any part
+// rewrites its numbers in pass 4).
+void resolve_foreign(std::span<const PartPlan> plans, std::span<const size_t> vertex_base, PartPlan& plan) {
   for (Foreign& f : plan.foreign) {
     assert(plans[f.part].local[f.vertex] < kForeignBit);
     f.global = static_cast<uint32_t>(vertex_base[f.part] + plans[f.part].local[f.vertex]);
   }
-  const size_t base = vertex_base[i];
+}
+
+// Pass 4, one part: its kept vertices in world space, its triangles with welded indices.
+void write_part(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan, size_t vertex_base, ChunkMesh& out,
+                size_t index_base) {
+  const Vec3f o = grid.origin_of(i);
   for (size_t k = 0; k < plan.kept.size(); ++k) {
     const uint32_t v = plan.kept[k];
-    out.positions[base + k] = grid.world(i, p.positions[v]);
-    out.normals[base + k] = p.normals[v];
-    out.materials[base + k] = p.materials[v];
+    out.positions[vertex_base + k] = add(o, p.positions[v]);
+    out.normals[vertex_base + k] = p.normals[v];
+    out.materials[vertex_base + k] = p.materials[v];
+  }
+  std::vector<uint32_t>& global = plan.local;  // rewritten in place to welded indices
+  for (uint32_t& l : global) {
+    if (l == kUnused) continue;
+    l = (l & kForeignBit) != 0 ? plan.foreign[l & ~kForeignBit].global : static_cast<uint32_t>(vertex_base + l);
   }
   uint32_t* dst = out.indices.data() + index_base;
-  for (uint32_t index : p.indices) {
-    const uint32_t l = plan.local[index];
-    *dst++ = (l & kForeignBit) != 0 ? plan.foreign[l & ~kForeignBit].global : static_cast<uint32_t>(base + l);
-  }
+  for (uint32_t index : p.indices) *dst++ = global[index];
 }
 
 }  // namespace
@@ -148,7 +220,7 @@ ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> g
   const Grid grid{grid_dims, origin};
   std::vector<PartPlan> plans(n);
   tbb::task_arena arena(arena_concurrency(threads));
-  parallel_for_index(arena, n, [&](size_t i) { find_face_vertices(grid, i, parts[i], plans[i]); });
+  parallel_for_index(arena, n, [&](size_t i) { find_used_face_vertices(grid, i, parts[i], plans[i]); });
   parallel_for_index(arena, n, [&](size_t i) { plan_part(grid, plans, i, parts[i], plans[i]); });
 
   std::vector<size_t> vertex_base(n + 1, 0), index_base(n + 1, 0);
@@ -161,8 +233,9 @@ ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> g
   out.normals.resize(vertex_base[n]);
   out.materials.resize(vertex_base[n]);
   out.indices.resize(index_base[n]);
+  parallel_for_index(arena, n, [&](size_t i) { resolve_foreign(plans, vertex_base, plans[i]); });
   parallel_for_index(arena, n, [&](size_t i) {
-    write_part(grid, plans, vertex_base, i, parts[i], plans[i], out, index_base[i]);
+    write_part(grid, i, parts[i], plans[i], vertex_base[i], out, index_base[i]);
   });
   return out;
 }
