@@ -23,7 +23,7 @@ namespace vox::proto {
 using Bytes = std::vector<uint8_t>;
 
 inline constexpr uint8_t kMeshFormat = 1;
-inline constexpr int kFractionSteps = 1024;  // edge fraction step: 1/1024 voxel
+inline constexpr int kFractionSteps = mesh::kFractionSteps;  // edge fraction step: 1/1024 voxel
 
 struct DecodeLimits {
   size_t max_encoding_bytes = size_t{4} << 20;  // an encoding (decompressed) over this is refused

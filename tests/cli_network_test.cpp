@@ -177,9 +177,17 @@ TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
   }
   EXPECT_LT(lo[0], 16.0f + 64);
   EXPECT_GT(hi[0], 16.0f - 64);
-  // Indices in range.
+  // Indices in range, three different ones, within one cell: the view's sphere leaves
+  // chunks of the box missing, and faces on their faces once pointed at vertex 0.
   const uint32_t* idx = reinterpret_cast<const uint32_t*>(b.data() + bin_at + 8 + vertices * 36);
-  for (size_t i = 0; i < triangles * 3; ++i) ASSERT_LT(idx[i], vertices);
+  for (size_t t = 0; t < triangles * 3; t += 3) {
+    for (int k = 0; k < 3; ++k) ASSERT_LT(idx[t + k], vertices);
+    ASSERT_TRUE(idx[t] != idx[t + 1] && idx[t + 1] != idx[t + 2] && idx[t] != idx[t + 2]) << "triangle " << t / 3;
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) {
+        ASSERT_LE(std::fabs(pos[3 * idx[t + k] + a] - pos[3 * idx[t + (k + 1) % 3] + a]), 1.0f) << "triangle " << t / 3;
+      }
+  }
 
   for (const char* ext : {".obj", ".ply"}) {
     EXPECT_EQ(run({"export", "--at", at, "--radius", "1", "--out", path(std::string("region") + ext)}), 0)

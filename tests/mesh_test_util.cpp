@@ -7,6 +7,7 @@
 #include <numeric>
 #include <unordered_map>
 
+#include "server/mesh/marching_cubes.hpp"
 #include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::test {
@@ -17,6 +18,13 @@ using mesh::Vec3f;
 float dist2(const Vec3f& a, const Vec3f& b) {
   const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   return dx * dx + dy * dy + dz * dz;
+}
+
+// Exact: the coordinates are multiples of 1/1024 and at most a voxel apart.
+bool zero_area(const Triangle& t) {
+  const double u[3] = {double{t[1].x} - t[0].x, double{t[1].y} - t[0].y, double{t[1].z} - t[0].z};
+  const double w[3] = {double{t[2].x} - t[0].x, double{t[2].y} - t[0].y, double{t[2].z} - t[0].z};
+  return u[1] * w[2] == u[2] * w[1] && u[2] * w[0] == u[0] * w[2] && u[0] * w[1] == u[1] * w[0];
 }
 
 float centroid_x(const Triangle& t) { return (t[0].x + t[1].x + t[2].x) / 3.0f; }
@@ -53,7 +61,8 @@ std::vector<Triangle> reference_marching_cubes(const std::function<world::Densit
           const auto& ca = mesh::kCubeCorner[a];
           const auto& cb = mesh::kCubeCorner[b];
           if (ca[0] + ca[1] + ca[2] > cb[0] + cb[1] + cb[2]) std::swap(a, b);  // a: lower end
-          const float t = static_cast<float>(d[a]) / static_cast<float>(d[a] - d[b]);
+          const float exact = static_cast<float>(d[a]) / static_cast<float>(d[a] - d[b]);
+          const float t = std::round(exact * mesh::kFractionSteps) / mesh::kFractionSteps;  // the wire's step
           float p[3] = {static_cast<float>(x + mesh::kCubeCorner[a][0]), static_cast<float>(y + mesh::kCubeCorner[a][1]),
                         static_cast<float>(z + mesh::kCubeCorner[a][2])};
           for (int k = 0; k < 3; ++k) {
@@ -63,7 +72,7 @@ std::vector<Triangle> reference_marching_cubes(const std::function<world::Densit
         }
         for (const int8_t* tri = mesh::triTable[cube].data(); *tri >= 0; tri += 3) {
           const Triangle t{vertex[tri[0]], vertex[tri[1]], vertex[tri[2]]};
-          if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+          if (zero_area(t)) continue;
           out.push_back(t);
         }
       }

@@ -15,8 +15,8 @@ namespace vox::test {
 using Triangle = std::array<mesh::Vec3f, 3>;
 
 // Reference marching cubes over the cells [lo, hi) (world voxel coordinates), reading
-// samples through `density`. Zero-area triangles (two equal corners) are dropped, as the
-// mesher does.
+// samples through `density`. Edge fractions are rounded to 1/1024 and triangles of zero
+// area at those positions dropped, as the mesher does.
 std::vector<Triangle> reference_marching_cubes(const std::function<world::Density(int, int, int)>& density,
                                                std::array<int, 3> lo, std::array<int, 3> hi);
 

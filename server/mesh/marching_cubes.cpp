@@ -43,6 +43,17 @@ inline uint64_t classify_row(const Density* row) {
 #endif
 }
 
+// Exact for a triangle of one cell: its coordinates are multiples of 1/kFractionSteps at
+// most one voxel apart, so the scaled differences are integers of at most kFractionSteps
+// (products under 2^21). Zero area needs a vertex on a sample: two vertices meet only
+// there, and three on one line lie on a cell edge's line, two of them at its ends.
+inline bool has_zero_area(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
+  auto scaled = [](float v, float from) { return static_cast<int32_t>((v - from) * kFractionSteps); };
+  const int32_t ux = scaled(b.x, a.x), uy = scaled(b.y, a.y), uz = scaled(b.z, a.z);
+  const int32_t wx = scaled(c.x, a.x), wy = scaled(c.y, a.y), wz = scaled(c.z, a.z);
+  return uy * wz == uz * wy && uz * wx == ux * wz && ux * wy == uy * wx;
+}
+
 inline Vec3f gradient(const Density* d, int i) {
   return {static_cast<float>(d[i + kStride[0]] - d[i - kStride[0]]),
           static_cast<float>(d[i + kStride[1]] - d[i - kStride[1]]),
@@ -70,7 +81,7 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   Vec3f* pos = out.positions.data();
   Vec3f* nrm = out.normals.data();
   uint8_t* mat = out.materials.data();
-  bool on_corner = false;  // some vertex sits exactly on a sample: check for flat triangles
+  bool on_corner = false;  // some vertex sits on a sample (fraction 0 or 1): check for flat triangles
   for (int z = 0; z <= nz; ++z) {
     for (int y = 0; y <= ny; ++y) {
       const int r = detail::row_of(y, z);
@@ -79,11 +90,13 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
           const int x = std::countr_zero(bits);
           const int i0 = PaddedBlock::index(x, y, z), i1 = i0 + kStride[a];
           const int d0 = dens[i0], d1 = dens[i1];
-          on_corner |= (d0 == 0) | (d1 == 0);
           const float t = static_cast<float>(d0) / static_cast<float>(d0 - d1);
+          const int q = static_cast<int>(t * kFractionSteps + 0.5f);  // the wire's step: a client decodes this mesh
+          const float tq = static_cast<float>(q) * (1.0f / kFractionSteps);
+          on_corner |= (q == 0) | (q == kFractionSteps);
           // Selects instead of indexing a member by axis, which would force p through memory.
-          *pos++ = {static_cast<float>(x) + (a == 0 ? t : 0.0f), static_cast<float>(y) + (a == 1 ? t : 0.0f),
-                    static_cast<float>(z) + (a == 2 ? t : 0.0f)};
+          *pos++ = {static_cast<float>(x) + (a == 0 ? tq : 0.0f), static_cast<float>(y) + (a == 1 ? tq : 0.0f),
+                    static_cast<float>(z) + (a == 2 ? tq : 0.0f)};
           const Vec3f g0 = gradient(dens, i0), g1 = gradient(dens, i1);
           Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)), -(g0.z + t * (g1.z - g0.z))};
           const float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
@@ -105,7 +118,7 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   out.indices.resize(max_triangles(s, in.cells) * 3);
   const Vec3f* vpos = out.positions.data();
   const size_t triangles = emit_triangles(s, in.cells, out.indices.data(), [&](uint32_t a, uint32_t b, uint32_t c) {
-    return !on_corner || !(vpos[a] == vpos[b] || vpos[b] == vpos[c] || vpos[a] == vpos[c]);
+    return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
   });
   out.indices.resize(triangles * 3);
 }

@@ -11,6 +11,9 @@
 namespace vox::mesh {
 
 inline constexpr int kRowsPerAxis = world::kChunkSize + 1;
+// Vertex positions are rounded to 1/kFractionSteps of an edge, the step of the wire
+// encoding (docs/PROTOCOL.md §2.4), so that the server's meshes equal the decoded ones.
+inline constexpr int kFractionSteps = 1024;
 inline constexpr int kRows = kRowsPerAxis * kRowsPerAxis;
 
 // Per (y, z) row of samples: bit x set when sample (x, y, z) is solid; per axis, the cut
@@ -21,9 +24,10 @@ struct MeshScratch {
   std::array<std::array<uint32_t, kRows>, 3> first_vertex;
 };
 
-// Meshes cells [0, in.cells) of the block into `out` (cleared first). Vertices on the
-// block's faces depend only on the samples of that face, so neighbouring chunks produce
-// bit-identical vertices there (in world space). Afterwards scratch.solid holds the
+// Meshes cells [0, in.cells) of the block into `out` (cleared first). A vertex's fraction
+// along its edge is rounded to 1/kFractionSteps; triangles of zero area at those positions
+// are dropped. Vertices on the block's faces depend only on the samples of that face, so
+// neighbouring chunks produce bit-identical vertices there (in world space). Afterwards scratch.solid holds the
 // samples' solid bits (rows 0..cells), which the mesh codec transmits.
 void mesh_chunk(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out);
 
