@@ -190,10 +190,12 @@ void WorldPipeline::stop() {
   prefetcher_.reset();  // its threads notify queue_cv_: stopped before the members go
 }
 
+// Pipeline thread, under queue_mutex_. Loads whose pass the memory budget cuts to nothing
+// while terrain is on its way wait for it (generated_ready_), not in a busy loop.
 bool WorldPipeline::batch_ready() {
   return scheduler_.has_ordered() || generated_ready_ ||
          (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
-          scheduler_.has_ready_loads(Clock::now()));
+          scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0);
 }
 
 // A batch: every queued edit and inspection first; then, on the world as the edits left

@@ -182,6 +182,7 @@ class WorldPipeline {
   void drain_after_stop();
   void manage_memory(Clock::time_point now);
   size_t accounted_bytes() const;  // pipeline thread
+  size_t resident_bytes() const;   // the same without what is on its way
 
   const PipelineConfig config_;
   const PipelineObserver observer_;

@@ -20,9 +20,12 @@ constexpr size_t kMeshWork = 1;
 // With the terrain and the meshes on their way at their worst case, so that load passes
 // taken while earlier ones wait for terrain do not overrun the memory budget.
 size_t WorldPipeline::accounted_bytes() const {
-  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + prefetcher_->memory_bytes() +
-         waiting_meshes_.size() * MemoryBudget::kBytesPerLoadWork +
-         other_bytes_.load(std::memory_order_relaxed);
+  return resident_bytes() + prefetcher_->memory_bytes() +
+         waiting_meshes_.size() * MemoryBudget::kBytesPerLoadWork;
+}
+
+size_t WorldPipeline::resident_bytes() const {
+  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + other_bytes_.load(std::memory_order_relaxed);
 }
 
 bool WorldPipeline::needs_generating(ChunkCoord c) const {
@@ -207,7 +210,9 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
     stats_.loaded_chunks = st.chunks.size();
     stats_.chunk_bytes = st.chunks.memory_bytes();
   }
-  const size_t total = accounted_bytes();
+  // Blocked: no room even once the terrain on its way has landed (while it is on its way,
+  // load passes only wait for it: see batch_ready).
+  const size_t total = resident_bytes();
   const bool blocked = budget_.load_work(total, 1) == 0;
   if (blocked != loads_blocked_.load(std::memory_order_relaxed)) {
     if (blocked) {
