@@ -4,7 +4,8 @@
 # Starts build/bin/voxeld on a free port (--max-memory 1G, metrics on, the per-address caps
 # and budgets at their defaults), runs voxel-loadtest --spread-addresses (every player and
 # hostile client from its own loopback address) with --json, then prints the honest players' edit->delta p50/p99, errors,
-# disconnects, refusals, voxeld's max RSS and the server's own edit->publish histogram sum/count.
+# disconnects, refusals, voxeld's max RSS, the first full view p99 and the server's own
+# edit->publish and edit->delta-written p99 (bench/scripts/metrics_quantile.py).
 # Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -46,3 +47,7 @@ print(f"{sys.argv[3]}: exit {sys.argv[4]}, players {j['players_connected']}/{j['
       f"refused {j.get('refused_by_status', {})}, max RSS {rss.get('max_kib', 0)/1024:.0f} MiB, "
       f"server edit->publish mean {pub_mean:.1f} ms")
 PY
+q="$root/bench/scripts/metrics_quantile.py"
+echo "$name: first full view p99 $(/usr/bin/python3 -c "import json,sys;print(round(json.load(open(sys.argv[1]))['first_view_ms']['p99']))" "$out/$name.json") ms," \
+  "server edit->publish p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_edit_publish_seconds) ms," \
+  "edit->delta written p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_edit_delta_written_seconds) ms"

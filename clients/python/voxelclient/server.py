@@ -14,7 +14,7 @@ class Voxeld:
     def __init__(self, path, seed=1, extra_args=(), timeout=15):
         self.workdir = tempfile.mkdtemp(prefix="voxeld_")
         self.port_file = os.path.join(self.workdir, "port")
-        args = [path, "--port", "0", "--bind", "127.0.0.1", "--port-file", self.port_file,
+        args = [os.path.abspath(path), "--port", "0", "--bind", "127.0.0.1", "--port-file", self.port_file,
                 "--seed", str(seed), "--stats-interval", "0", *extra_args]
         self.proc = subprocess.Popen(args, cwd=self.workdir, stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, text=True)
