@@ -42,6 +42,17 @@ struct FakeStore {
   }
 };
 
+// A radius-1 view at the origin, every chunk of it published and sent.
+SendScheduler fully_sent_radius_one_view(FakeStore& store) {
+  for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
+    store.publish(c);
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 1);
+  while (s.next(store.lookup())) {
+  }
+  return s;
+}
+
 int64_t d2(ChunkCoord a, ChunkCoord b) {
   const int64_t x = a.x - b.x, y = a.y - b.y, z = a.z - b.z;
   return x * x + y * y + z * z;
@@ -347,12 +358,7 @@ TEST(SendScheduler, AResyncAskedTwiceBeforeItsCopyLeftIsSentOnce) {
 
 TEST(SendScheduler, TwoResyncsEachAnsweredAfterTheOtherGiveTwoCopies) {
   FakeStore store;
-  for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
-    store.publish(c);
-  SendScheduler s;
-  s.set_view({0, 0, 0}, 1);
-  while (s.next(store.lookup())) {
-  }
+  SendScheduler s = fully_sent_radius_one_view(store);
   ASSERT_TRUE(s.take_view_complete());
   EXPECT_TRUE(s.resync({0, 0, 0}));
   EXPECT_TRUE(s.next(store.lookup()));
@@ -364,12 +370,7 @@ TEST(SendScheduler, TwoResyncsEachAnsweredAfterTheOtherGiveTwoCopies) {
 
 TEST(SendScheduler, AChunkResyncedAndThenUnloadedGetsNoChunkUnload) {
   FakeStore store;
-  for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
-    store.publish(c);
-  SendScheduler s;
-  s.set_view({0, 0, 0}, 1);
-  while (s.next(store.lookup())) {
-  }
+  SendScheduler s = fully_sent_radius_one_view(store);
   EXPECT_TRUE(s.resync({1, 0, 0}));  // dropped by the client, its copy not sent yet
   const auto unloaded = s.set_view({-2, 0, 0}, 1);
   EXPECT_EQ(std::count(unloaded.begin(), unloaded.end(), ChunkCoord{1, 0, 0}), 0);

@@ -97,8 +97,7 @@ TEST(Server, EditByOneClientReachesAnotherAsAMatchingDelta) {
   const float y = surface_y(16, 16);
   test::view(*a, 16, y, 16, 2);
   test::view(*b, 16, y, 16, 2);
-  a->send(brush_at(42, 16.3f, y, 16.6f, 3));
-  auto result = wait_for(*a, [](const wire::Envelope& m) { return m.has_edit_result(); });
+  auto result = test::edit_and_wait(*a, brush_at(42, 16.3f, y, 16.6f, 3));
   ASSERT_TRUE(result);
   EXPECT_EQ(result->edit_result().request_id(), 42u);
   EXPECT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);

@@ -102,4 +102,11 @@ inline wire::Envelope brush_at(uint64_t request, float x, float y, float z, floa
   return m;
 }
 
+// Sends an edit and waits for its EditResult (meshes on the way are applied).
+inline std::optional<wire::Envelope> edit_and_wait(client::Client& c, const wire::Envelope& edit,
+                                                   std::chrono::milliseconds limit = 10s) {
+  c.send(edit);
+  return wait_for(c, [](const wire::Envelope& m) { return m.has_edit_result(); }, limit);
+}
+
 }  // namespace vox::test

@@ -84,8 +84,7 @@ TEST(ViewSync, ResyncSendsAFullCopyAfterTheClientsBaseWentBad) {
   const float y = surface_y(16, 16);
   test::view(*a, 16, y, 16, 2);
   test::view(*editor, 16, y, 16, 2);
-  editor->send(brush_at(1, 16.5f, y, 16.5f, 3));
-  auto result = wait_for(*editor, [](const wire::Envelope& m) { return m.has_edit_result(); });
+  auto result = test::edit_and_wait(*editor, brush_at(1, 16.5f, y, 16.5f, 3));
   ASSERT_TRUE(result);
   ASSERT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
   ASSERT_GT(result->edit_result().changed_chunks_size(), 0);
@@ -118,8 +117,7 @@ TEST(ViewSync, ResyncSendsAFullCopyAfterTheClientsBaseWentBad) {
   EXPECT_EQ(a->chunks().at(key).version, fresh->chunks().at(key).version);
   EXPECT_EQ(a->chunks().at(key).encoding, fresh->chunks().at(key).encoding);
   // The next change is a delta against the resynced copy, and it applies.
-  editor->send(brush_at(2, 16.5f, y, 16.5f, 3, true));
-  ASSERT_TRUE(wait_for(*editor, [](const wire::Envelope& m) { return m.has_edit_result(); }));
+  ASSERT_TRUE(test::edit_and_wait(*editor, brush_at(2, 16.5f, y, 16.5f, 3, true)));
   auto next = wait_for(*a, [&](const wire::Envelope& m) {
     return m.has_chunk_mesh() && client::key_of(m.chunk_mesh().coord()) == key;
   });
