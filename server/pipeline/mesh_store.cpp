@@ -10,6 +10,13 @@ size_t MeshVersion::memory_bytes() const {
          encoding.capacity() + full_frame.capacity();
 }
 
+MeshVersion::~MeshVersion() {
+  if (!delta_account_) return;
+  size_t bytes = 0;
+  for (const auto& [from, delta] : deltas_) bytes += delta->capacity();
+  delta_account_->fetch_sub(bytes, std::memory_order_relaxed);
+}
+
 std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVersion& base) const {
   {
     std::lock_guard lock(deltas_mutex_);
@@ -25,8 +32,12 @@ std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVe
     if (from == base.version) return existing;  // another thread made it meanwhile
   }
   constexpr size_t kKeptDeltas = 8;  // the most recent bases; older clients get a fresh one made
-  if (deltas_.size() >= kKeptDeltas) deltas_.erase(deltas_.begin());
+  if (deltas_.size() >= kKeptDeltas) {
+    if (delta_account_) delta_account_->fetch_sub(deltas_.front().second->capacity(), std::memory_order_relaxed);
+    deltas_.erase(deltas_.begin());
+  }
   deltas_.emplace_back(base.version, delta);
+  if (delta_account_) delta_account_->fetch_add(delta->capacity(), std::memory_order_relaxed);
   return delta;
 }
 
@@ -39,6 +50,7 @@ MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {
 
 void MeshStore::publish(MeshVersionPtr mesh) {
   const size_t added = mesh->memory_bytes();
+  mesh->delta_account_ = delta_bytes_;  // before any reader can see it: no delta exists yet
   if (mesh->version > newest_.load(std::memory_order_relaxed)) newest_.store(mesh->version, std::memory_order_release);
   MeshVersionPtr old;  // released after the lock, so a last reference is freed outside it
   {

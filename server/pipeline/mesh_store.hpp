@@ -26,7 +26,9 @@ struct MeshVersion {
   // When the oldest edit this version shows was submitted to the pipeline; the epoch when
   // no edit made it (a load). Sessions measure edit -> delta written from it.
   std::chrono::steady_clock::time_point edited_at{};
-  size_t memory_bytes() const;
+  size_t memory_bytes() const;  // without the delta cache (the store accounts it apart)
+  MeshVersion() = default;
+  ~MeshVersion();  // gives the delta cache's bytes back to the store's account
 
   // The delta payload that turns `base` (an older version of this chunk) into this one:
   // computed on first request, then shared by every client holding the same base.
@@ -34,8 +36,12 @@ struct MeshVersion {
   std::shared_ptr<const std::vector<uint8_t>> delta_from(const MeshVersion& base) const;
 
  private:
+  friend class MeshStore;
   mutable std::mutex deltas_mutex_;  // leaf lock; compression runs outside it
   mutable std::vector<std::pair<uint64_t, std::shared_ptr<const std::vector<uint8_t>>>> deltas_;
+  // The store's count of delta bytes (set when published; shared, as a version may
+  // outlive the store in a session's hands).
+  mutable std::shared_ptr<std::atomic<size_t>> delta_account_;
 };
 using MeshVersionPtr = std::shared_ptr<const MeshVersion>;
 
@@ -45,7 +51,11 @@ class MeshStore {
   void publish(MeshVersionPtr mesh);             // pipeline thread
   void erase(world::ChunkCoord c);               // pipeline thread
   size_t size() const { return count_.load(std::memory_order_relaxed); }
-  size_t memory_bytes() const { return bytes_.load(std::memory_order_relaxed); }
+  // Published meshes with their encodings and cached deltas (also of versions already
+  // replaced that sessions still hold).
+  size_t memory_bytes() const {
+    return bytes_.load(std::memory_order_relaxed) + delta_bytes_->load(std::memory_order_relaxed);
+  }
   // The highest version published so far (any thread). Versions only grow, so every
   // version published after this call returns is greater.
   uint64_t newest_version() const { return newest_.load(std::memory_order_acquire); }
@@ -61,6 +71,7 @@ class MeshStore {
   mutable std::array<Shard, kShards> shards_;
   std::atomic<size_t> count_{0}, bytes_{0};
   std::atomic<uint64_t> newest_{0};
+  std::shared_ptr<std::atomic<size_t>> delta_bytes_ = std::make_shared<std::atomic<size_t>>(0);
 };
 
 }  // namespace vox::pipeline
