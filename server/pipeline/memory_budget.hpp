@@ -36,6 +36,9 @@ class MemoryBudget {
     const size_t headroom = (max_ + max_ / 10 - total) / kBytesPerLoadWork;
     return headroom < full ? headroom : full;
   }
+  // Bytes a mesh still to be made is counted at (a rough surface chunk's mesh, encoding
+  // and full frame together; most take less).
+  static constexpr size_t kBytesPerMesh = 96 * 1024;
   // Worst-case bytes of a chunk an edit generates (samples of a non-uniform chunk).
   static constexpr size_t kBytesPerChunk = 96 * 1024 + 64;
   // An edit may generate the `chunks` it needs only below the budget, and only when their

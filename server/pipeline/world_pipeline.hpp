@@ -223,6 +223,7 @@ class WorldPipeline {
   std::vector<std::pair<uint64_t, std::function<void()>>> waiting_done_;
   uint64_t load_pass_ = 0;
   bool last_eviction_freed_ = false;    // pipeline thread only
+  size_t resident_at_eviction_ = 0;    // resident_bytes() after the last eviction; pipeline thread
   bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
   std::thread thread_;
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended

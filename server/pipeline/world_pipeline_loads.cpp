@@ -21,7 +21,7 @@ constexpr size_t kMeshWork = 1;
 // taken while earlier ones wait for terrain do not overrun the memory budget.
 size_t WorldPipeline::accounted_bytes() const {
   return resident_bytes() + prefetcher_->memory_bytes() +
-         waiting_meshes_.size() * MemoryBudget::kBytesPerLoadWork;
+         waiting_meshes_.size() * MemoryBudget::kBytesPerMesh;
 }
 
 size_t WorldPipeline::resident_bytes() const {
@@ -191,10 +191,13 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
 void WorldPipeline::manage_memory(Clock::time_point now) {
   WorldState& st = *state_;
   const bool periodic = now - st.last_eviction > config_.evict_after / 4;
-  // Under pressure, evict after every batch while eviction frees something; when it freed
-  // nothing (everything is in use), retry only now and then: the scan is not free.
+  // Under pressure, evict after every batch while eviction frees something or the world
+  // grew since (terrain installed, meshes made); when it freed nothing and nothing came
+  // (everything is in use), retry only now and then: the scan is not free.
+  const size_t resident = resident_bytes();
   const bool pressure = budget_.should_evict(accounted_bytes()) &&
-                        (last_eviction_freed_ || now - st.last_eviction > kPressureRetry);
+                        (last_eviction_freed_ || resident > resident_at_eviction_ ||
+                         now - st.last_eviction > kPressureRetry);
   if (periodic || pressure) {
     st.last_eviction = now;
     // The periodic pass drops only idle chunks; under pressure, down to the target.
@@ -205,6 +208,7 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
                  std::min(config_.evict_min_age, config_.evict_after), target,
                  periodic ? SIZE_MAX : kPressureScan);
     last_eviction_freed_ = dropped > 0;
+    resident_at_eviction_ = resident_bytes();
     std::lock_guard lock(stats_mutex_);
     stats_.chunks_evicted += dropped;
     stats_.loaded_chunks = st.chunks.size();
