@@ -101,6 +101,7 @@ void SimPlayer::connect() {
 
 void SimPlayer::close() {
   closed_ = true;
+  gone_.store(true, std::memory_order_release);
   timer_.cancel();
   boost::system::error_code ignored;
   socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);

@@ -28,8 +28,10 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   const client::ChunkCache& cache() const { return cache_; }
   uint32_t radius() const { return radius_; }
   // True once the server said the newest view is complete (ViewReady); any thread.
+  // A player whose connection closed has no view to wait for.
   bool view_ready() const {
-    return ready_view_.load(std::memory_order_acquire) == views_sent_.load(std::memory_order_acquire);
+    return gone_.load(std::memory_order_acquire) ||
+           ready_view_.load(std::memory_order_acquire) == views_sent_.load(std::memory_order_acquire);
   }
 
  private:
@@ -75,6 +77,7 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   bool first_view_done_ = false;
   std::atomic<uint64_t> views_sent_{0};  // the newest SetView's view_id
   std::atomic<uint64_t> ready_view_{0};  // view_id of the newest ViewReady
+  std::atomic<bool> gone_{false};        // the connection closed
   uint64_t next_request_ = 1;
   std::map<uint64_t, PendingEdit> pending_;
   client::ChunkCache cache_;

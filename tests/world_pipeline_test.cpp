@@ -435,6 +435,37 @@ TEST(WorldPipeline, AViewSetDuringABatchProtectsItsChunksFromThatBatchsEviction)
       }
 }
 
+// Two views share chunks on fresh terrain; the one that planned them moves away before
+// their terrain lands. The other found them waiting (nothing for it to load) and must
+// still get them: they were dropped with the first view, and its view never completed.
+TEST(WorldPipeline, AChunkTwoViewsWaitForIsMeshedWhenTheViewThatPlannedItLeaves) {
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .load_work_per_owner = 0, .generate_threads = 1});
+    auto next_pass = [&p] {  // the second batch from now starts after a load pass was taken
+      p.inspect([](const world::ChunkMap&) {});
+      p.inspect([](const world::ChunkMap&) {});
+    };
+    const world::TerrainGenerator gen(kSeed);
+    const int32_t x = 300 + attempt * 50;
+    const int32_t y = world::floor_div(static_cast<int>(gen.height_at(x * 32, x * 32)), kChunkSize);
+    const world::ChunkCoord centre{x, y, x};
+    p.set_view(1, centre, 2);
+    next_pass();  // view 1 planned its chunks; their terrain is on its way
+    p.set_view(2, centre.offset(1, 0, 0), 2);
+    next_pass();  // view 2 found most of them waiting
+    p.set_view(1, {-x, y, -x}, 0);  // and view 1 leaves before they are meshed
+    const std::vector<world::ChunkCoord> wanted = ball_nearest_first(centre.offset(1, 0, 0), 2);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20 * kSlow);
+    size_t missing = wanted.size();
+    while (missing > 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      missing = std::count_if(wanted.begin(), wanted.end(), [&](world::ChunkCoord c) { return !p.meshes().get(c); });
+    }
+    ASSERT_EQ(missing, 0u) << "attempt " << attempt << ": chunks of view 2 never meshed";
+    EXPECT_EQ(p.stats().meshes_waiting, 0u);
+  }
+}
+
 TEST(WorldPipeline, ViewFloodThenDropLeavesNoQueuedWork) {
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
   for (int i = 0; i < 200; ++i) p.set_view(1, {i * 1000, 0, -i * 1000}, 12);

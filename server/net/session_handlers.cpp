@@ -176,6 +176,9 @@ void ClientSession::handle_resync(const wire::Resync& resync) {
                false);
     return;
   }
+  // Each chunk costs a message of the client's message rate (the frame itself paid one):
+  // a Resync of 64 full copies must not cost what one Ping does.
+  if (resync.coords_size() > 1) message_budget_.charge(resync.coords_size() - 1, Clock::now());
   if (!scheduler_.has_view()) return;
   size_t queued = 0;
   for (const auto& c : resync.coords()) queued += scheduler_.resync(from_wire(c)) ? 1 : 0;

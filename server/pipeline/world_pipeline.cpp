@@ -325,7 +325,8 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     const world::Chunk* chunk = st.chunks.find(c);
     may_expand += !chunk || chunk->is_uniform() ? 1 : 0;
   }
-  if (!budget_.may_generate(accounted_bytes(), missing + may_expand)) {
+  // What is resident: terrain on its way for loads (reserved) does not hold edits back.
+  if (!budget_.may_generate(resident_bytes(), missing + may_expand)) {
     if (evicted_for_edits_) return world::RefusalReason::kServerBusy;
     evicted_for_edits_ = true;
     const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
@@ -334,7 +335,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     st.evict(meshes_, now, config_.evict_after, std::max<std::chrono::milliseconds>(
                  std::min(config_.evict_min_age, config_.evict_after), std::chrono::milliseconds(1)),
              target > need ? target - need : 0, kPressureScan);
-    if (!budget_.may_generate(accounted_bytes(), missing + may_expand))
+    if (!budget_.may_generate(resident_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
   result.chunks_generated = st.ensure_loaded(wanted, generator_, now);

@@ -167,8 +167,8 @@ class WorldPipeline {
   size_t install_generated(Clock::time_point now);
   std::vector<world::ChunkCoord> take_meshable(Clock::time_point now, PipelineStats& delta);
   void run_finished_loads();
-  // Forgets the owner's waiting meshes outside its new view (radius -1: all of them).
-  void drop_waiting(LoadOwner owner, world::ChunkCoord center, int radius);
+  // Forgets waiting chunks of views that no view holds any more (one-off loads keep theirs).
+  void drop_unviewed_waiting();
   bool needs_generating(world::ChunkCoord c) const;  // pipeline thread
   void commit_stats(const PipelineStats& delta, PipelineStats& batch);
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
@@ -190,7 +190,9 @@ class WorldPipeline {
   const MemoryBudget budget_;
   MeshStore meshes_;
 
-  mutable std::mutex queue_mutex_;  // leaf lock, guards scheduler_ and stopping_
+  // Guards scheduler_, stopping_, view_updates_ and generated_ready_. Held while taking
+  // loads, it may nest the prefetcher's (leaf) mutex, never the other way round.
+  mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
   BatchScheduler scheduler_;
   bool stopping_ = false;

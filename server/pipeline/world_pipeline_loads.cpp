@@ -39,19 +39,17 @@ size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
 }
 
 void WorldPipeline::take_view_updates() {
-  for (const auto& [owner, view] : view_updates_) {
-    state_->views.set(owner, view.first, view.second);
-    drop_waiting(owner, view.first, view.second);
-  }
+  if (view_updates_.empty()) return;
+  for (const auto& [owner, view] : view_updates_) state_->views.set(owner, view.first, view.second);
   view_updates_.clear();
+  drop_unviewed_waiting();
 }
 
-void WorldPipeline::drop_waiting(LoadOwner owner, ChunkCoord center, int radius) {
-  const int64_t r2 = static_cast<int64_t>(radius) * radius;
+// A waiting chunk is kept while any view holds it, whoever planned it: a second view that
+// wanted it found it waiting and will not ask again (its cost was 0).
+void WorldPipeline::drop_unviewed_waiting() {
   std::erase_if(waiting_meshes_, [&](const WaitingMesh& w) {
-    if (w.owner != owner) return false;
-    const int64_t dx = w.coord.x - center.x, dy = w.coord.y - center.y, dz = w.coord.z - center.z;
-    if (radius >= 0 && dx * dx + dy * dy + dz * dz <= r2) return false;
+    if ((w.owner & BatchScheduler::kUnlimitedOwners) || state_->views.viewed(w.coord)) return false;
     waiting_set_.erase(w.coord);
     state_->unpin_neighbourhood(w.coord);
     return true;
@@ -158,7 +156,6 @@ void WorldPipeline::run_finished_loads() {
 void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
                                   Clock::time_point now, PipelineStats& batch) {
   PipelineStats delta;
-  delta.chunks_generated += install_generated(now);
   if (!loads.empty()) {
     ++load_pass_;
     for (LoadSlice& slice : loads) {
@@ -170,6 +167,8 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
       if (slice.done) waiting_done_.emplace_back(load_pass_, std::move(slice.done));
     }
   }
+  // After the new waiting chunks pinned their neighbourhoods: terrain ready for them is kept.
+  delta.chunks_generated += install_generated(now);
   std::vector<ChunkCoord> published;
   if (!waiting_meshes_.empty()) {
     std::vector<ChunkCoord> dirty = take_meshable(now, delta);
@@ -195,7 +194,7 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
   // grew since (terrain installed, meshes made); when it freed nothing and nothing came
   // (everything is in use), retry only now and then: the scan is not free.
   const size_t resident = resident_bytes();
-  const bool pressure = budget_.should_evict(accounted_bytes()) &&
+  const bool pressure = budget_.should_evict(resident) &&
                         (last_eviction_freed_ || resident > resident_at_eviction_ ||
                          now - st.last_eviction > kPressureRetry);
   if (periodic || pressure) {
