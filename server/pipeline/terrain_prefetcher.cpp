@@ -69,11 +69,6 @@ bool TerrainPrefetcher::pending(ChunkCoord c) const {
   return pending_.count(c) > 0;
 }
 
-bool TerrainPrefetcher::has_ready() const {
-  std::lock_guard lock(mutex_);
-  return !ready_.empty();
-}
-
 size_t TerrainPrefetcher::pending_count() const {
   std::lock_guard lock(mutex_);
   return pending_.size();

@@ -42,7 +42,6 @@ class TerrainPrefetcher {
   std::vector<std::pair<world::ChunkCoord, world::Chunk>> take_ready();
   // Any thread.
   bool pending(world::ChunkCoord c) const;  // queued, being generated or ready
-  bool has_ready() const;
   size_t pending_count() const;
   size_t memory_bytes() const;  // the ready chunks', and reserve_bytes per chunk on its way
 
