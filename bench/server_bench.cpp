@@ -8,7 +8,7 @@
 #include <random>
 #include <set>
 
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/server_process.hpp"
 

@@ -9,7 +9,7 @@
 #include "client-cli/commands.hpp"
 #include "client-cli/mesh_file.hpp"
 #include "client-cli/region_fetch.hpp"
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "server/mesh/mesh_welder.hpp"
 
 namespace vox::cli {

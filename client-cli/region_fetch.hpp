@@ -6,7 +6,7 @@
 #include <memory>
 #include <string>
 
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 
 namespace vox::cli {
 

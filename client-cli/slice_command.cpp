@@ -11,7 +11,7 @@
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
 #include "client-cli/region_fetch.hpp"
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 
 namespace vox::cli {
 namespace {

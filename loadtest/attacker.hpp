@@ -29,7 +29,7 @@
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/attack_stats.hpp"
 #include "proto/framing.hpp"
-#include "server/net/asio.hpp"
+#include "client/asio.hpp"
 #include "voxel.pb.h"
 
 namespace vox::loadtest {

@@ -14,7 +14,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "client-cli/chunk_cache.hpp"
+#include "client/chunk_cache.hpp"
 
 namespace vox::loadtest {
 

@@ -6,7 +6,7 @@
 #include <ostream>
 #include <thread>
 
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "loadtest/attacker.hpp"
 #include "loadtest/sim_player.hpp"
 
@@ -60,19 +60,20 @@ std::array<float, 3> LoadTest::random_player_position(std::mt19937& rng) const {
 }
 
 bool LoadTest::set_world_seed(uint64_t seed) {
-  if (const auto* t = terrain_.load(std::memory_order_acquire)) return t->seed() == seed;
+  if (ground_.load(std::memory_order_acquire)) return world_seed_ == seed;
   std::lock_guard lock(mutex_);
-  if (!terrain_owner_) {
-    terrain_owner_ = std::make_unique<world::TerrainGenerator>(seed);
-    terrain_.store(terrain_owner_.get(), std::memory_order_release);
+  if (!ground_owner_) {
+    world_seed_ = seed;
+    ground_owner_ = std::make_unique<GroundHeight>(config_.ground ? config_.ground(seed) : nullptr);
+    ground_.store(ground_owner_.get(), std::memory_order_release);
   }
-  return terrain_owner_->seed() == seed;
+  return world_seed_ == seed;
 }
 
 float LoadTest::terrain_height(float x, float z) const {
-  const auto* t = terrain_.load(std::memory_order_acquire);
-  if (!t) return 0;
-  return t->height_at(static_cast<int>(std::floor(x)), static_cast<int>(std::floor(z))) + 0.5f;
+  const auto* g = ground_.load(std::memory_order_acquire);
+  if (!g || !*g) return 0;
+  return (*g)(static_cast<int>(std::floor(x)), static_cast<int>(std::floor(z))) + 0.5f;
 }
 
 void LoadTest::record_connected() {

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <iosfwd>
 #include <memory>
 #include <mutex>
@@ -14,16 +15,21 @@
 #include <string>
 #include <vector>
 
-#include "client-cli/chunk_cache.hpp"
+#include "client/asio.hpp"
+#include "client/chunk_cache.hpp"
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/attack_stats.hpp"
 #include "loadtest/decode_memo.hpp"
 #include "loadtest/load_stats.hpp"
 #include "loadtest/rss_sampler.hpp"
-#include "server/net/asio.hpp"
-#include "server/world/terrain_generator.hpp"
 
 namespace vox::loadtest {
+
+// The ground the players walk on: the surface height at voxel column (x, z). The load
+// tester is a client and knows no terrain; whoever runs it supplies the ground for the
+// seed the server's Welcome names (voxel-loadtest's main uses the server's generator).
+using GroundHeight = std::function<float(int x, int z)>;
+using GroundForSeed = std::function<GroundHeight(uint64_t seed)>;
 
 struct LoadConfig {
   std::string host = "127.0.0.1";
@@ -52,6 +58,8 @@ struct LoadConfig {
   // per-address caps and budgets see them as the distinct machines they stand for.
   // Needs a server on 127.0.0.1.
   bool spread_addresses = false;
+  // The terrain's heights for a seed; empty: players walk at height 0.
+  GroundForSeed ground;
 };
 
 // The loopback address a spread player or attacker connects from (see spread_addresses).
@@ -84,8 +92,8 @@ class LoadTest {
   // Any player's position (attackers aim at the players); the origin before they exist.
   std::array<float, 3> random_player_position(std::mt19937& rng) const;
   float terrain_height(float x, float z) const;
-  // The world seed from a Welcome: the first builds the terrain the players walk on; a
-  // different one later is an error (returns false).
+  // The world seed from a Welcome: the first sets the ground the players walk on (from
+  // LoadConfig::ground); a different one later is an error (returns false).
   bool set_world_seed(uint64_t seed);
   DecodeMemo* decode_memo() { return config_.decode_all ? nullptr : &memo_; }
 
@@ -124,10 +132,11 @@ class LoadTest {
   std::atomic<bool> editing_{false}, stopping_{false};
   DecodeMemo memo_;
 
-  mutable std::mutex mutex_;  // guards stats_ (but the counters below) and terrain_ creation
+  mutable std::mutex mutex_;  // guards stats_ (but the counters below) and ground_ creation
   LoadStats stats_;
-  std::unique_ptr<world::TerrainGenerator> terrain_owner_;
-  std::atomic<const world::TerrainGenerator*> terrain_{nullptr};
+  std::unique_ptr<GroundHeight> ground_owner_;
+  uint64_t world_seed_ = 0;                         // written before ground_ is published
+  std::atomic<const GroundHeight*> ground_{nullptr};
   std::atomic<uint64_t> messages_{0}, bytes_{0}, chunks_{0}, decode_failures_{0};
   std::vector<std::atomic<uint64_t>> bytes_per_second_;  // sized for the whole run up front
   uint64_t last_progress_edits_ = 0;

@@ -9,11 +9,20 @@
 #include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
 #include "loadtest/sweep.hpp"
+#include "server/world/terrain_generator.hpp"
 
 namespace {
+// The simulated players walk on the server's own terrain: the one place the load tester
+// knows the world beyond the protocol (the library does not; docs/ARCHITECTURE.md).
+vox::loadtest::GroundHeight ground_for_seed(uint64_t seed) {
+  auto terrain = std::make_shared<const vox::world::TerrainGenerator>(seed);
+  return [terrain](int x, int z) { return static_cast<float>(terrain->height_at(x, z)); };
+}
+
 int run(int argc, char** argv) {
   namespace po = boost::program_options;
   vox::loadtest::LoadConfig config;
+  config.ground = ground_for_seed;
   std::string server, json, svg, sweep, attack;
   double sweep_limit_ms = 100;
   po::options_description opts("voxel-loadtest options");

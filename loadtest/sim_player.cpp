@@ -168,8 +168,9 @@ void SimPlayer::read_more() {
 }
 
 bool SimPlayer::in_view(const ChunkKey& k) const {
-  const int64_t dx = std::get<0>(k) - view_chunk_.x, dy = std::get<1>(k) - view_chunk_.y,
-                dz = std::get<2>(k) - view_chunk_.z;
+  const int64_t dx = std::get<0>(k) - std::get<0>(view_chunk_),
+                dy = std::get<1>(k) - std::get<1>(view_chunk_),
+                dz = std::get<2>(k) - std::get<2>(view_chunk_);
   return dx * dx + dy * dy + dz * dz <= static_cast<int64_t>(radius_) * radius_;
 }
 
@@ -274,7 +275,7 @@ std::optional<std::string> SimPlayer::apply_mesh(const wire::ChunkMesh& m) {
 
 void SimPlayer::send_view() {
   view_chunk_ =
-      world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
+      client::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
                             static_cast<int>(std::floor(z_)));
   wire::Envelope v;
   v.mutable_set_view()->mutable_position()->set_x(x_);
@@ -331,8 +332,8 @@ void SimPlayer::walk(double dt) {
   z_ += std::sin(heading_) * step;
   y_ = test_.terrain_height(x_, z_);
   publish_position();
-  const world::ChunkCoord chunk =
-      world::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
+  const client::ChunkKey chunk =
+      client::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
                             static_cast<int>(std::floor(z_)));
   if (chunk != view_chunk_) send_view();
 }

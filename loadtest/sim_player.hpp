@@ -10,7 +10,7 @@
 #include <random>
 #include <set>
 
-#include "client-cli/chunk_cache.hpp"
+#include "client/chunk_cache.hpp"
 #include "loadtest/load_test.hpp"
 #include "proto/framing.hpp"
 
@@ -69,7 +69,7 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
 
   float x_ = 0, y_ = 0, z_ = 0, heading_ = 0;
   std::array<std::atomic<float>, 3> published_{};  // x_, y_, z_ for other players
-  world::ChunkCoord view_chunk_{};
+  client::ChunkKey view_chunk_{};
   std::array<float, 3> view_position_{};
   uint32_t radius_ = 0;
   double next_edit_s_ = 0, last_ping_s_ = 0, last_tick_s_ = 0;

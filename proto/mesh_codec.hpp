@@ -14,8 +14,8 @@
 #include <span>
 #include <vector>
 
-#include "mesh/chunk_mesh.hpp"
-#include "mesh/marching_cubes.hpp"
+#include "server/mesh/chunk_mesh.hpp"
+#include "server/mesh/marching_cubes.hpp"
 #include "proto/result.hpp"
 
 namespace vox::proto {

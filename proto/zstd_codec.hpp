@@ -9,7 +9,7 @@
 #include <span>
 #include <vector>
 
-#include "mesh/chunk_mesh.hpp"
+#include "server/mesh/chunk_mesh.hpp"
 #include "proto/result.hpp"
 
 struct ZSTD_CCtx_s;

@@ -11,8 +11,8 @@
 #include <thread>
 #include <unistd.h>
 
-#include "metrics/metrics_endpoint.hpp"
-#include "net/server.hpp"
+#include "server/metrics/metrics_endpoint.hpp"
+#include "server/net/server.hpp"
 
 namespace po = boost::program_options;
 namespace asio = boost::asio;

@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "client-cli/commands.hpp"
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/server_process.hpp"
 

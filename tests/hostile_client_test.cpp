@@ -9,7 +9,7 @@
 #include <map>
 #include <sstream>
 
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "proto/framing.hpp"
 #include "tests/session_test_util.hpp"
 

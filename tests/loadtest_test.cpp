@@ -13,7 +13,7 @@
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/rss_sampler.hpp"
 #include "loadtest/sweep.hpp"
-#include "server/net/asio.hpp"
+#include "client/asio.hpp"
 #include "tests/server_process.hpp"
 
 namespace {

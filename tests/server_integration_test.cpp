@@ -6,7 +6,7 @@
 #include <limits>
 #include <set>
 
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "proto/framing.hpp"
 #include "tests/session_test_util.hpp"
 

@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/server_process.hpp"
 

@@ -7,12 +7,12 @@
 //      are shared inside the chunk without any per-cell cache;
 //   3. vertices: interpolate each cut edge once, normal from central differences;
 //   4. triangles: only cells whose 8 corners differ, found with row bit masks.
-#include "mesh/marching_cubes.hpp"
+#include "server/mesh/marching_cubes.hpp"
 
 #include <bit>
 #include <cmath>
 
-#include "mesh/marching_cubes_tables.hpp"
+#include "server/mesh/marching_cubes_tables.hpp"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>

@@ -5,8 +5,8 @@
 #include <array>
 #include <cstdint>
 
-#include "mesh/chunk_mesh.hpp"
-#include "mesh/padded_block.hpp"
+#include "server/mesh/chunk_mesh.hpp"
+#include "server/mesh/padded_block.hpp"
 
 namespace vox::mesh {
 
@@ -53,4 +53,4 @@ size_t emit_triangles(const MeshScratch& scratch, const std::array<int, 3>& cell
 
 }  // namespace vox::mesh
 
-#include "mesh/marching_cubes_emit.inl"
+#include "server/mesh/marching_cubes_emit.inl"

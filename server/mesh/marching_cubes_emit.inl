@@ -4,7 +4,7 @@
 
 #include <bit>
 
-#include "mesh/marching_cubes_tables.hpp"
+#include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::mesh {
 namespace detail {

@@ -10,7 +10,7 @@
 // counter-clockwise seen from the air side; each polygon becomes a triangle fan from the
 // apex whose thinnest triangle (with vertices at the edge midpoints) is the widest, so no
 // fan triangle is degenerate.
-#include "mesh/marching_cubes_tables.hpp"
+#include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::mesh {
 namespace {

@@ -1,4 +1,4 @@
-#include "mesh/mesh_welder.hpp"
+#include "server/mesh/mesh_welder.hpp"
 
 #include <bit>
 #include <cassert>
@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "world/chunk_coord.hpp"
-#include "world/parallel.hpp"
+#include "server/world/chunk_coord.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::mesh {
 namespace {

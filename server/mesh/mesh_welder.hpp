@@ -13,7 +13,7 @@
 #include <array>
 #include <span>
 
-#include "mesh/chunk_mesh.hpp"
+#include "server/mesh/chunk_mesh.hpp"
 
 namespace vox::mesh {
 

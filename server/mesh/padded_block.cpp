@@ -1,4 +1,4 @@
-#include "mesh/padded_block.hpp"
+#include "server/mesh/padded_block.hpp"
 
 #include <cstring>
 

@@ -6,8 +6,8 @@
 #include <array>
 #include <span>
 
-#include "world/chunk.hpp"
-#include "world/chunk_map.hpp"
+#include "server/world/chunk.hpp"
+#include "server/world/chunk_map.hpp"
 
 namespace vox::mesh {
 

@@ -1,12 +1,12 @@
-#include "mesh/region_mesher.hpp"
+#include "server/mesh/region_mesher.hpp"
 
 #include <tbb/enumerable_thread_specific.h>
 
 #include <memory>
 
-#include "mesh/marching_cubes.hpp"
-#include "mesh/mesh_welder.hpp"
-#include "world/parallel.hpp"
+#include "server/mesh/marching_cubes.hpp"
+#include "server/mesh/mesh_welder.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::mesh {
 namespace {

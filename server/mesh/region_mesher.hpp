@@ -4,8 +4,8 @@
 
 #include <vector>
 
-#include "mesh/chunk_mesh.hpp"
-#include "world/chunk_map.hpp"
+#include "server/mesh/chunk_mesh.hpp"
+#include "server/world/chunk_map.hpp"
 
 namespace vox::mesh {
 

@@ -1,4 +1,4 @@
-#include "mesh/volume_mesher.hpp"
+#include "server/mesh/volume_mesher.hpp"
 
 #include <tbb/enumerable_thread_specific.h>
 
@@ -7,9 +7,9 @@
 #include <cstring>
 #include <memory>
 
-#include "mesh/marching_cubes.hpp"
-#include "mesh/mesh_welder.hpp"
-#include "world/parallel.hpp"
+#include "server/mesh/marching_cubes.hpp"
+#include "server/mesh/mesh_welder.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::mesh {
 namespace {

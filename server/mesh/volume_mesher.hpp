@@ -7,8 +7,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "mesh/chunk_mesh.hpp"
-#include "world/sample.hpp"
+#include "server/mesh/chunk_mesh.hpp"
+#include "server/world/sample.hpp"
 
 namespace vox::mesh {
 

@@ -1,4 +1,4 @@
-#include "metrics/metrics_endpoint.hpp"
+#include "server/metrics/metrics_endpoint.hpp"
 
 #include <prometheus/collectable.h>
 #include <prometheus/exposer.h>

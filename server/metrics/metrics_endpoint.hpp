@@ -8,8 +8,8 @@
 #include <memory>
 #include <string>
 
-#include "net/server_counters.hpp"
-#include "pipeline/world_pipeline.hpp"
+#include "server/net/server_counters.hpp"
+#include "server/pipeline/world_pipeline.hpp"
 
 namespace prometheus {
 class Exposer;

@@ -1,4 +1,4 @@
-#include "net/admission_control.hpp"
+#include "server/net/admission_control.hpp"
 
 namespace vox::net {
 

@@ -1,10 +1,10 @@
 // The session's lifecycle, read chain (frames, rate, timeouts) and write chain; the
 // message handlers are in session_handlers.cpp.
-#include "net/client_session.hpp"
+#include "server/net/client_session.hpp"
 
 #include <spdlog/spdlog.h>
 
-#include "net/wire_convert.hpp"
+#include "server/net/wire_convert.hpp"
 #include "proto/mesh_codec.hpp"
 
 namespace vox::net {

@@ -10,14 +10,14 @@
 #include <optional>
 #include <vector>
 
-#include "net/admission_control.hpp"
-#include "net/asio.hpp"
-#include "net/log_hygiene.hpp"
-#include "net/result_order.hpp"
-#include "net/send_scheduler.hpp"
-#include "net/server_counters.hpp"
-#include "pipeline/token_bucket.hpp"
-#include "pipeline/world_pipeline.hpp"
+#include "server/net/admission_control.hpp"
+#include "server/net/asio.hpp"
+#include "server/net/log_hygiene.hpp"
+#include "server/net/result_order.hpp"
+#include "server/net/send_scheduler.hpp"
+#include "server/net/server_counters.hpp"
+#include "server/pipeline/token_bucket.hpp"
+#include "server/pipeline/world_pipeline.hpp"
 #include "proto/framing.hpp"
 #include "voxel.pb.h"
 

@@ -1,4 +1,4 @@
-#include "net/log_hygiene.hpp"
+#include "server/net/log_hygiene.hpp"
 
 namespace vox::net {
 

@@ -1,4 +1,4 @@
-#include "net/send_scheduler.hpp"
+#include "server/net/send_scheduler.hpp"
 
 #include <algorithm>
 #include <functional>

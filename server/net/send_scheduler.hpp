@@ -13,7 +13,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "pipeline/mesh_store.hpp"
+#include "server/pipeline/mesh_store.hpp"
 
 namespace vox::net {
 

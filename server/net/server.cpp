@@ -1,4 +1,4 @@
-#include "net/server.hpp"
+#include "server/net/server.hpp"
 
 #include <spdlog/spdlog.h>
 

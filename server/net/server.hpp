@@ -7,11 +7,11 @@
 #include <mutex>
 #include <unordered_map>
 
-#include "net/admission_control.hpp"
-#include "net/asio.hpp"
-#include "net/client_session.hpp"
-#include "net/log_hygiene.hpp"
-#include "net/server_counters.hpp"
+#include "server/net/admission_control.hpp"
+#include "server/net/asio.hpp"
+#include "server/net/client_session.hpp"
+#include "server/net/log_hygiene.hpp"
+#include "server/net/server_counters.hpp"
 
 namespace vox::net {
 

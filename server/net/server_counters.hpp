@@ -6,7 +6,7 @@
 #include <atomic>
 #include <cstdint>
 
-#include "net/latency_histogram.hpp"
+#include "server/net/latency_histogram.hpp"
 
 namespace vox::net {
 

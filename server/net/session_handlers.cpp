@@ -5,8 +5,8 @@
 
 #include <cmath>
 
-#include "net/client_session.hpp"
-#include "net/wire_convert.hpp"
+#include "server/net/client_session.hpp"
+#include "server/net/wire_convert.hpp"
 #include "proto/mesh_codec.hpp"
 
 namespace vox::net {

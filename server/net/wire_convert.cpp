@@ -1,4 +1,4 @@
-#include "net/wire_convert.hpp"
+#include "server/net/wire_convert.hpp"
 
 #include <google/protobuf/reflection.h>
 

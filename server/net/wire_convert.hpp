@@ -8,9 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "pipeline/world_pipeline.hpp"
+#include "server/pipeline/world_pipeline.hpp"
 #include "voxel.pb.h"
-#include "world/edit.hpp"
+#include "server/world/edit.hpp"
 
 namespace vox::net {
 

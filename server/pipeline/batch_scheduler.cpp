@@ -1,4 +1,4 @@
-#include "pipeline/batch_scheduler.hpp"
+#include "server/pipeline/batch_scheduler.hpp"
 
 #include <algorithm>
 

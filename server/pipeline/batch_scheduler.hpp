@@ -24,9 +24,9 @@
 #include <variant>
 #include <vector>
 
-#include "pipeline/token_bucket.hpp"
-#include "world/chunk_coord.hpp"
-#include "world/edit.hpp"
+#include "server/pipeline/token_bucket.hpp"
+#include "server/world/chunk_coord.hpp"
+#include "server/world/edit.hpp"
 
 namespace vox::pipeline {
 

@@ -1,4 +1,4 @@
-#include "pipeline/mesh_store.hpp"
+#include "server/pipeline/mesh_store.hpp"
 
 #include "proto/zstd_codec.hpp"
 

@@ -12,8 +12,8 @@
 #include <unordered_map>
 #include <vector>
 
-#include "mesh/chunk_mesh.hpp"
-#include "world/chunk_coord.hpp"
+#include "server/mesh/chunk_mesh.hpp"
+#include "server/world/chunk_coord.hpp"
 
 namespace vox::pipeline {
 

@@ -1,4 +1,4 @@
-#include "pipeline/terrain_prefetcher.hpp"
+#include "server/pipeline/terrain_prefetcher.hpp"
 
 #include <sys/resource.h>
 #include <sys/syscall.h>

@@ -19,7 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include "world/terrain_generator.hpp"
+#include "server/world/terrain_generator.hpp"
 
 namespace vox::pipeline {
 

@@ -1,4 +1,4 @@
-#include "pipeline/view_index.hpp"
+#include "server/pipeline/view_index.hpp"
 
 #include <algorithm>
 

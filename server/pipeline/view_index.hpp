@@ -7,7 +7,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "world/chunk_coord.hpp"
+#include "server/world/chunk_coord.hpp"
 
 namespace vox::pipeline {
 

@@ -1,13 +1,13 @@
-#include "pipeline/world_pipeline.hpp"
+#include "server/pipeline/world_pipeline.hpp"
 
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
 #include <unordered_set>
 
-#include "pipeline/world_state.hpp"
-#include "world/edit_apply.hpp"
-#include "world/parallel.hpp"
+#include "server/pipeline/world_state.hpp"
+#include "server/world/edit_apply.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::pipeline {
 

@@ -20,13 +20,13 @@
 #include <unordered_set>
 #include <vector>
 
-#include "mesh/region_mesher.hpp"
-#include "pipeline/batch_scheduler.hpp"
-#include "pipeline/memory_budget.hpp"
-#include "pipeline/mesh_store.hpp"
-#include "pipeline/terrain_prefetcher.hpp"
-#include "world/edit.hpp"
-#include "world/terrain_generator.hpp"
+#include "server/mesh/region_mesher.hpp"
+#include "server/pipeline/batch_scheduler.hpp"
+#include "server/pipeline/memory_budget.hpp"
+#include "server/pipeline/mesh_store.hpp"
+#include "server/pipeline/terrain_prefetcher.hpp"
+#include "server/world/edit.hpp"
+#include "server/world/terrain_generator.hpp"
 
 namespace vox::pipeline {
 

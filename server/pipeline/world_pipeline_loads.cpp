@@ -2,8 +2,8 @@
 // its edits. Pipeline thread (see world_pipeline.hpp).
 #include <spdlog/spdlog.h>
 
-#include "pipeline/world_pipeline.hpp"
-#include "pipeline/world_state.hpp"
+#include "server/pipeline/world_pipeline.hpp"
+#include "server/pipeline/world_state.hpp"
 
 namespace vox::pipeline {
 

@@ -1,8 +1,8 @@
-#include "pipeline/world_state.hpp"
+#include "server/pipeline/world_state.hpp"
 
 #include <algorithm>
 
-#include "world/parallel.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::pipeline {
 

@@ -1,4 +1,4 @@
-#include "world/chunk.hpp"
+#include "server/world/chunk.hpp"
 
 #include <algorithm>
 #include <cstring>

@@ -6,8 +6,8 @@
 #include <cstddef>
 #include <memory>
 
-#include "world/chunk_coord.hpp"
-#include "world/sample.hpp"
+#include "server/world/chunk_coord.hpp"
+#include "server/world/sample.hpp"
 
 namespace vox::world {
 

@@ -1,4 +1,4 @@
-#include "world/chunk_map.hpp"
+#include "server/world/chunk_map.hpp"
 
 namespace vox::world {
 

@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <unordered_map>
 
-#include "world/chunk.hpp"
+#include "server/world/chunk.hpp"
 
 namespace vox::world {
 

@@ -1,4 +1,4 @@
-#include "world/edit.hpp"
+#include "server/world/edit.hpp"
 
 #include <cmath>
 #include <sstream>

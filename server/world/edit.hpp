@@ -8,7 +8,7 @@
 #include <string>
 #include <variant>
 
-#include "world/sample.hpp"
+#include "server/world/sample.hpp"
 
 namespace vox::world {
 

@@ -1,4 +1,4 @@
-#include "world/edit_apply.hpp"
+#include "server/world/edit_apply.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -7,9 +7,9 @@
 #include <array>
 #include <vector>
 
-#include "world/chunk.hpp"
-#include "world/chunk_map.hpp"
-#include "world/edit.hpp"
+#include "server/world/chunk.hpp"
+#include "server/world/chunk_map.hpp"
+#include "server/world/edit.hpp"
 
 namespace vox::world {
 

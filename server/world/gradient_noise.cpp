@@ -1,7 +1,7 @@
 // Gradient noise after K. Perlin, "Improving Noise" (SIGGRAPH 2002): fade 6t^5-15t^4+10t^3
 // and gradients from a fixed set of directions. The permutation table is replaced by an
 // integer hash of (seed, lattice point), so any seed works without tables.
-#include "world/gradient_noise.hpp"
+#include "server/world/gradient_noise.hpp"
 
 #include <cmath>
 

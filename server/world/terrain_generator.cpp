@@ -1,4 +1,4 @@
-#include "world/terrain_generator.hpp"
+#include "server/world/terrain_generator.hpp"
 
 #include <algorithm>
 #include <array>

@@ -7,8 +7,8 @@
 #include <array>
 #include <cstdint>
 
-#include "world/chunk.hpp"
-#include "world/gradient_noise.hpp"
+#include "server/world/chunk.hpp"
+#include "server/world/gradient_noise.hpp"
 
 namespace vox::world {
 

@@ -22,6 +22,9 @@ struct HeldChunk {
 
 using ChunkKey = std::tuple<int, int, int>;
 inline ChunkKey key_of(const wire::ChunkCoord& c) { return {c.x(), c.y(), c.z()}; }
+// The chunk holding voxel (x, y, z): floor(v / 32) on each axis (docs/PROTOCOL.md); in
+// C++20 >> of a negative int is arithmetic, so it floors.
+inline ChunkKey chunk_of_voxel(int x, int y, int z) { return {x >> 5, y >> 5, z >> 5}; }
 struct ChunkKeyHash {
   size_t operator()(const ChunkKey& k) const {
     const auto [x, y, z] = k;

@@ -1,4 +1,4 @@
-#include "client-cli/voxel_client.hpp"
+#include "client/voxel_client.hpp"
 
 #include <stdexcept>
 

@@ -1,4 +1,4 @@
-#include "client-cli/chunk_cache.hpp"
+#include "client/chunk_cache.hpp"
 
 namespace vox::client {
 
