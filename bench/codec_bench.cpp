@@ -82,17 +82,23 @@ size_t meshopt_size(const mesh::ChunkMesh& m, int level) {
   std::vector<BaselineVertex> vertices(m.vertex_count());
   for (size_t v = 0; v < vertices.size(); ++v) {
     const auto n = proto::encode_normal(m.normals[v]);
-    vertices[v] = {quantise(m.positions[v].x), quantise(m.positions[v].y), quantise(m.positions[v].z), n[0], n[1],
-                   m.materials[v], {0, 0, 0}};
+    vertices[v] = {quantise(m.positions[v].x),
+                   quantise(m.positions[v].y),
+                   quantise(m.positions[v].z),
+                   n[0],
+                   n[1],
+                   m.materials[v],
+                   {0, 0, 0}};
   }
   std::vector<unsigned> indices(m.indices.begin(), m.indices.end());
   meshopt_optimizeVertexCache(indices.data(), indices.data(), indices.size(), vertices.size());
-  meshopt_optimizeVertexFetch(vertices.data(), indices.data(), indices.size(), vertices.data(), vertices.size(),
-                              sizeof(BaselineVertex));
+  meshopt_optimizeVertexFetch(vertices.data(), indices.data(), indices.size(), vertices.data(),
+                              vertices.size(), sizeof(BaselineVertex));
   std::vector<uint8_t> ib(meshopt_encodeIndexBufferBound(indices.size(), vertices.size()));
   ib.resize(meshopt_encodeIndexBuffer(ib.data(), ib.size(), indices.data(), indices.size()));
   std::vector<uint8_t> vb(meshopt_encodeVertexBufferBound(vertices.size(), sizeof(BaselineVertex)));
-  vb.resize(meshopt_encodeVertexBuffer(vb.data(), vb.size(), vertices.data(), vertices.size(), sizeof(BaselineVertex)));
+  vb.resize(meshopt_encodeVertexBuffer(vb.data(), vb.size(), vertices.data(), vertices.size(),
+                                       sizeof(BaselineVertex)));
   ib.insert(ib.end(), vb.begin(), vb.end());
   return zstd_size(ib.data(), ib.size(), level);
 }
@@ -117,11 +123,14 @@ void BM_SizeComparison(benchmark::State& state) {
       append(m.indices.data(), m.indices.size() * 4);
       raw += flat.size();
       raw_zstd += zstd_size(flat.data(), flat.size(), level);
-      std::vector<uint8_t> q;  // 8-byte vertices (3 x u16 position, 2 x u8 normal), material, u16 indices
+      std::vector<uint8_t>
+          q;  // 8-byte vertices (3 x u16 position, 2 x u8 normal), material, u16 indices
       for (size_t v = 0; v < m.vertex_count(); ++v) {
-        const uint16_t p[3] = {quantise(m.positions[v].x), quantise(m.positions[v].y), quantise(m.positions[v].z)};
+        const uint16_t p[3] = {quantise(m.positions[v].x), quantise(m.positions[v].y),
+                               quantise(m.positions[v].z)};
         const auto n = proto::encode_normal(m.normals[v]);
-        q.insert(q.end(), reinterpret_cast<const uint8_t*>(p), reinterpret_cast<const uint8_t*>(p) + 6);
+        q.insert(q.end(), reinterpret_cast<const uint8_t*>(p),
+                 reinterpret_cast<const uint8_t*>(p) + 6);
         q.push_back(n[0]);
         q.push_back(n[1]);
       }
@@ -156,7 +165,9 @@ void per_chunk_median(benchmark::State& state, size_t n, Fn&& fn) {
     for (int r = 0; r < 5; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
       fn(i);
-      best[i] = std::min(best[i], std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+      best[i] = std::min(
+          best[i],
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
     }
   std::sort(best.begin(), best.end());
   state.counters["median_us"] = best[n / 2];
@@ -227,14 +238,17 @@ void BM_DeltaAfterBrushRadius2(benchmark::State& state) {
       const float x = static_cast<float>(-8 * 32 + static_cast<int>(rng() % (16 * 32)));
       const float z = static_cast<float>(-8 * 32 + static_cast<int>(rng() % (16 * 32)));
       const float y = gen.height_at(static_cast<int>(x), static_cast<int>(z));
-      const int lx = world::floor_mod(static_cast<int>(x), 32), ly = world::floor_mod(static_cast<int>(y), 32),
+      const int lx = world::floor_mod(static_cast<int>(x), 32),
+                ly = world::floor_mod(static_cast<int>(y), 32),
                 lz = world::floor_mod(static_cast<int>(z), 32);
       if (lx < 3 || lx > 28 || ly < 3 || ly > 28 || lz < 3 || lz > 28) continue;
-      const world::ChunkCoord c = world::chunk_of_voxel(static_cast<int>(x), static_cast<int>(y), static_cast<int>(z));
+      const world::ChunkCoord c =
+          world::chunk_of_voxel(static_cast<int>(x), static_cast<int>(y), static_cast<int>(z));
       world::ChunkMap& map = world_map();
       const Sample before = mesh_chunk_at(map, c);
       world::Chunk saved = *map.find(c);
-      const world::Edit edit = world::Brush{{x + 0.3f, y, z + 0.6f}, 2, 0.8f, (k % 2) == 1, std::nullopt};
+      const world::Edit edit =
+          world::Brush{{x + 0.3f, y, z + 0.6f}, 2, 0.8f, (k % 2) == 1, std::nullopt};
       world::apply_edit(edit, c, *map.find(c), nullptr);
       const Sample after = mesh_chunk_at(map, c);
       map.insert(c, std::move(saved));
@@ -251,10 +265,18 @@ void BM_DeltaAfterBrushRadius2(benchmark::State& state) {
   state.counters["edits"] = static_cast<double>(ratios.size());
   state.counters["median_delta_share"] = ratios[ratios.size() / 2];
   state.counters["p90_delta_share"] = ratios[ratios.size() * 9 / 10];
-  state.counters["mean_delta_bytes"] = static_cast<double>(delta_bytes) / static_cast<double>(ratios.size());
-  state.counters["mean_full_bytes"] = static_cast<double>(full_bytes) / static_cast<double>(ratios.size());
+  state.counters["mean_delta_bytes"] =
+      static_cast<double>(delta_bytes) / static_cast<double>(ratios.size());
+  state.counters["mean_full_bytes"] =
+      static_cast<double>(full_bytes) / static_cast<double>(ratios.size());
 }
-BENCHMARK(BM_DeltaAfterBrushRadius2)->Arg(3)->Arg(5)->Arg(7)->Arg(9)->Iterations(1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DeltaAfterBrushRadius2)
+    ->Arg(3)
+    ->Arg(5)
+    ->Arg(7)
+    ->Arg(9)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
@@ -274,7 +296,14 @@ void BM_ZstdCompressLevel(benchmark::State& state) {
   }
   state.counters["B_per_tri"] = static_cast<double>(bytes) / static_cast<double>(tris);
 }
-BENCHMARK(BM_ZstdCompressLevel)->Arg(-5)->Arg(-1)->Arg(1)->Arg(3)->Arg(6)->Arg(9)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ZstdCompressLevel)
+    ->Arg(-5)
+    ->Arg(-1)
+    ->Arg(1)
+    ->Arg(3)
+    ->Arg(6)
+    ->Arg(9)
+    ->Unit(benchmark::kMicrosecond);
 
 void BM_ZstdDecompress(benchmark::State& state) {
   const auto& all = samples();
@@ -305,13 +334,13 @@ BENCHMARK(BM_DecodeOnly)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 
-
 namespace {
 // Decoding one chunk over and over (everything in cache): the codec's own cost.
 void BM_DecodeOnlyWarm(benchmark::State& state) {
   const auto& all = samples();
   const auto& s = *std::max_element(all.begin(), all.end(), [&](const Sample& a, const Sample& b) {
-    return std::abs(static_cast<long>(a.mesh.triangle_count()) - 1544) > std::abs(static_cast<long>(b.mesh.triangle_count()) - 1544);
+    return std::abs(static_cast<long>(a.mesh.triangle_count()) - 1544) >
+           std::abs(static_cast<long>(b.mesh.triangle_count()) - 1544);
   });
   proto::CodecScratch scratch;
   mesh::ChunkMesh m;

@@ -62,7 +62,9 @@ void BM_MeshTerrainChunk(benchmark::State& state) {
     for (int r = 0; r < 5; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
       mesh::mesh_chunk(*block, scratch, m);
-      best = std::min(best, std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+      best = std::min(
+          best,
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
     }
     per_chunk.push_back(best);
   }
@@ -98,7 +100,9 @@ const mesh::QuantizedVolume& terrain_volume() {
     v.density.resize(static_cast<size_t>(257) * 129 * 257);
     for (int z = 0; z < 257; ++z)
       for (int y = 0; y < 129; ++y)
-        for (int x = 0; x < 257; ++x) v.density[x + 257 * (y + 129 * static_cast<size_t>(z))] = gen.sample_at(x - 128, y - 64, z - 128).density;
+        for (int x = 0; x < 257; ++x)
+          v.density[x + 257 * (y + 129 * static_cast<size_t>(z))] =
+              gen.sample_at(x - 128, y - 64, z - 128).density;
     return v;
   }();
   return volume;
@@ -120,7 +124,8 @@ void BM_QuantizeVolume257x129x257(benchmark::State& state) {
   mesh::Volume v;
   v.dims = {257, 129, 257};
   v.values.resize(static_cast<size_t>(257) * 129 * 257);
-  for (size_t i = 0; i < v.values.size(); ++i) v.values[i] = std::sin(static_cast<float>(i) * 0.001f);
+  for (size_t i = 0; i < v.values.size(); ++i)
+    v.values[i] = std::sin(static_cast<float>(i) * 0.001f);
   for (auto _ : state) benchmark::DoNotOptimize(mesh::quantize_volume(v, {}).density.data());
   state.SetItemsProcessed(state.iterations() * static_cast<int64_t>(v.values.size()));
 }
@@ -133,8 +138,8 @@ void BM_MeshDenseWorstCase(benchmark::State& state) {
   for (int z = -1; z <= 33; ++z)
     for (int y = -1; y <= 33; ++y)
       for (int x = -1; x <= 33; ++x)
-        block.density[mesh::PaddedBlock::index(x, y, z)] =
-            world::quantize_density(noise.noise3(x * 0.93f + 0.31f, y * 0.87f + 0.17f, z * 0.91f + 0.53f));
+        block.density[mesh::PaddedBlock::index(x, y, z)] = world::quantize_density(
+            noise.noise3(x * 0.93f + 0.31f, y * 0.87f + 0.17f, z * 0.91f + 0.53f));
   mesh::MeshScratch scratch;
   mesh::ChunkMesh m;
   for (auto _ : state) {

@@ -60,7 +60,10 @@ BENCHMARK(BM_BrushRadius4Latency)->Iterations(2000)->Unit(benchmark::kMicrosecon
 void BM_ExplosionRadius16Latency(benchmark::State& state) {
   edit_latency(state, [](world::Vec3 at) { return world::Explosion{at, 16, 2}; });
 }
-BENCHMARK(BM_ExplosionRadius16Latency)->Iterations(300)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_ExplosionRadius16Latency)
+    ->Iterations(300)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
 
 // Open loop: brushes of radius 3 at random positions submitted at a fixed rate for 3 s;
 // reports the rate achieved with every mesh published, and the largest queue seen.
@@ -78,8 +81,9 @@ void BM_SustainedBrushes(benchmark::State& state) {
     while (Clock::now() - t0 < duration) {
       const double elapsed = std::chrono::duration<double>(Clock::now() - t0).count();
       while (static_cast<double>(sent) < elapsed * rate) {
-        p.submit(world::Brush{surface_point(gen, rng), 3, 0.6f, (sent % 2) == 1, std::nullopt},
-                 [&done](const pipeline::EditResult&) { done.fetch_add(1, std::memory_order_relaxed); });
+        p.submit(
+            world::Brush{surface_point(gen, rng), 3, 0.6f, (sent % 2) == 1, std::nullopt},
+            [&done](const pipeline::EditResult&) { done.fetch_add(1, std::memory_order_relaxed); });
         ++sent;
       }
       max_queue = std::max(max_queue, p.stats().queued_edits);
@@ -88,7 +92,8 @@ void BM_SustainedBrushes(benchmark::State& state) {
     const size_t done_in_time = done.load();
     const double seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     while (done.load() < sent) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    const double drain_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count() - seconds * 1000;
+    const double drain_ms =
+        std::chrono::duration<double, std::milli>(Clock::now() - t0).count() - seconds * 1000;
     const auto stats = p.stats();
     state.counters["completed_per_s"] = static_cast<double>(done_in_time) / seconds;
     state.counters["max_queue"] = static_cast<double>(max_queue);
@@ -97,7 +102,12 @@ void BM_SustainedBrushes(benchmark::State& state) {
     state.counters["meshes_published"] = static_cast<double>(stats.meshes_published);
   }
 }
-BENCHMARK(BM_SustainedBrushes)->Arg(5000)->Arg(10000)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SustainedBrushes)
+    ->Arg(5000)
+    ->Arg(10000)
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // Closed loop: 30,000 brushes submitted at once; edits per second until all published.
 void BM_BrushThroughput(benchmark::State& state) {
@@ -107,12 +117,15 @@ void BM_BrushThroughput(benchmark::State& state) {
     const world::TerrainGenerator gen(kSeed);
     std::mt19937 rng(9);
     std::vector<world::Edit> edits;
-    for (int i = 0; i < 30000; ++i) edits.push_back(world::Brush{surface_point(gen, rng), 3, 0.6f, (i % 2) == 1, std::nullopt});
+    for (int i = 0; i < 30000; ++i)
+      edits.push_back(world::Brush{surface_point(gen, rng), 3, 0.6f, (i % 2) == 1, std::nullopt});
     std::atomic<size_t> done{0};
     const auto t0 = Clock::now();
-    for (auto& e : edits) p.submit(std::move(e), [&done](const pipeline::EditResult&) { done.fetch_add(1); });
+    for (auto& e : edits)
+      p.submit(std::move(e), [&done](const pipeline::EditResult&) { done.fetch_add(1); });
     while (done.load() < 30000) std::this_thread::sleep_for(std::chrono::microseconds(100));
-    state.counters["edits_per_s"] = 30000 / std::chrono::duration<double>(Clock::now() - t0).count();
+    state.counters["edits_per_s"] =
+        30000 / std::chrono::duration<double>(Clock::now() - t0).count();
   }
 }
 BENCHMARK(BM_BrushThroughput)->Iterations(1)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -31,8 +31,8 @@ wire::Envelope brush(uint64_t id, float x, float y, float z, float r, bool remov
   return m;
 }
 
-void drain(client::Client& c, std::chrono::milliseconds quiet, Clock::time_point* last = nullptr, size_t* meshes = nullptr,
-           size_t* bytes = nullptr) {
+void drain(client::Client& c, std::chrono::milliseconds quiet, Clock::time_point* last = nullptr,
+           size_t* meshes = nullptr, size_t* bytes = nullptr) {
   while (auto m = c.receive(quiet)) {
     if (m->has_chunk_mesh()) {
       if (c.apply(m->chunk_mesh())) std::abort();
@@ -50,7 +50,8 @@ void BM_BrushRadius4EditToDecodedDeltas(benchmark::State& state) {
   c.handshake("bench", 5s);
   const world::TerrainGenerator gen(1);
   const int radius = 4;
-  const world::ChunkCoord centre = world::chunk_of_voxel(0, static_cast<int>(std::floor(gen.height_at(0, 0))), 0);
+  const world::ChunkCoord centre =
+      world::chunk_of_voxel(0, static_cast<int>(std::floor(gen.height_at(0, 0))), 0);
   c.send(client::make_set_view(0, gen.height_at(0, 0), 0, radius));
   drain(c, 1000ms);
   std::mt19937 rng(3);
@@ -61,7 +62,8 @@ void BM_BrushRadius4EditToDecodedDeltas(benchmark::State& state) {
     const float x = xz(rng), z = xz(rng);
     ++id;
     const auto t0 = Clock::now();
-    c.send(brush(id, x, gen.height_at(static_cast<int>(x), static_cast<int>(z)), z, 4, id % 2 == 0));
+    c.send(
+        brush(id, x, gen.height_at(static_cast<int>(x), static_cast<int>(z)), z, 4, id % 2 == 0));
     std::set<std::tuple<int, int, int>> waiting;
     bool have_result = false;
     while (!have_result || !waiting.empty()) {
@@ -71,7 +73,8 @@ void BM_BrushRadius4EditToDecodedDeltas(benchmark::State& state) {
         have_result = true;
         for (const auto& k : m->edit_result().changed_chunks()) {
           const int dx = k.x() - centre.x, dy = k.y() - centre.y, dz = k.z() - centre.z;
-          if (dx * dx + dy * dy + dz * dz <= radius * radius) waiting.insert({k.x(), k.y(), k.z()});  // in view
+          if (dx * dx + dy * dy + dz * dz <= radius * radius)
+            waiting.insert({k.x(), k.y(), k.z()});  // in view
         }
       } else if (m->has_chunk_mesh()) {
         if (c.apply(m->chunk_mesh())) std::abort();
@@ -86,7 +89,10 @@ void BM_BrushRadius4EditToDecodedDeltas(benchmark::State& state) {
   state.counters["p99_us"] = us[us.size() * 99 / 100];
   state.counters["max_us"] = us.back();
 }
-BENCHMARK(BM_BrushRadius4EditToDecodedDeltas)->Iterations(500)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_BrushRadius4EditToDecodedDeltas)
+    ->Iterations(500)
+    ->Unit(benchmark::kMicrosecond)
+    ->UseRealTime();
 
 void BM_FreshClientViewRadius8(benchmark::State& state) {
   for (auto _ : state) {
@@ -103,7 +109,8 @@ void BM_FreshClientViewRadius8(benchmark::State& state) {
     state.SetIterationTime(std::chrono::duration<double>(last - t0).count());
     state.counters["chunks_sent"] = static_cast<double>(meshes);
     state.counters["payload_KiB"] = static_cast<double>(bytes) / 1024;
-    state.counters["bytes_per_chunk"] = static_cast<double>(bytes) / static_cast<double>(std::max<size_t>(meshes, 1));
+    state.counters["bytes_per_chunk"] =
+        static_cast<double>(bytes) / static_cast<double>(std::max<size_t>(meshes, 1));
   }
 }
 BENCHMARK(BM_FreshClientViewRadius8)->Iterations(3)->Unit(benchmark::kMillisecond)->UseManualTime();

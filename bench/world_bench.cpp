@@ -37,7 +37,13 @@ void BM_GenerateChunk(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 // y = 4: open sky; -1 and 0: surface; -2: caves; -8: deep rock.
-BENCHMARK(BM_GenerateChunk)->Arg(4)->Arg(0)->Arg(-1)->Arg(-2)->Arg(-8)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_GenerateChunk)
+    ->Arg(4)
+    ->Arg(0)
+    ->Arg(-1)
+    ->Arg(-2)
+    ->Arg(-8)
+    ->Unit(benchmark::kMicrosecond);
 
 void BM_ChunkMemory(benchmark::State& state) {
   const TerrainGenerator gen(1);
@@ -53,7 +59,11 @@ void BM_ChunkMemory(benchmark::State& state) {
   state.counters["chunks"] = static_cast<double>(map.size());
   state.counters["uniform"] = static_cast<double>(uniform);
   state.counters["bytes_uniform_chunk"] = static_cast<double>(Chunk().memory_bytes());
-  state.counters["bytes_full_chunk"] = static_cast<double>([] { Chunk c; c.set(0, 0, 0, {1, 1}); return c.memory_bytes(); }());
+  state.counters["bytes_full_chunk"] = static_cast<double>([] {
+    Chunk c;
+    c.set(0, 0, 0, {1, 1});
+    return c.memory_bytes();
+  }());
   state.counters["map_bytes"] = static_cast<double>(map.memory_bytes());
 }
 BENCHMARK(BM_ChunkMemory)->Unit(benchmark::kMillisecond)->Iterations(1);

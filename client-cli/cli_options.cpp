@@ -8,8 +8,8 @@
 namespace vox::cli {
 
 int parse_options(const std::vector<std::string>& args, const po::options_description& opts,
-                  const po::positional_options_description* positional, const char* synopsis, po::variables_map& vm,
-                  std::ostream& out, std::ostream& err) {
+                  const po::positional_options_description* positional, const char* synopsis,
+                  po::variables_map& vm, std::ostream& out, std::ostream& err) {
   try {
     po::command_line_parser parser(args);
     parser.options(opts);
@@ -42,26 +42,34 @@ std::array<float, N> parse_floats(const std::string& text, const char* what) {
     }
     p = next;
     if (i + 1 < N) {
-      if (p == end || *p != ',') throw std::invalid_argument(std::string(what) + ": expected ',' in '" + text + "'");
+      if (p == end || *p != ',')
+        throw std::invalid_argument(std::string(what) + ": expected ',' in '" + text + "'");
       ++p;
     }
   }
-  if (p != end) throw std::invalid_argument(std::string(what) + ": trailing characters in '" + text + "'");
+  if (p != end)
+    throw std::invalid_argument(std::string(what) + ": trailing characters in '" + text + "'");
   return v;
 }
 }  // namespace
 
-std::array<float, 3> parse_vec3(const std::string& text, const char* what) { return parse_floats<3>(text, what); }
-std::array<float, 2> parse_vec2(const std::string& text, const char* what) { return parse_floats<2>(text, what); }
+std::array<float, 3> parse_vec3(const std::string& text, const char* what) {
+  return parse_floats<3>(text, what);
+}
+std::array<float, 2> parse_vec2(const std::string& text, const char* what) {
+  return parse_floats<2>(text, what);
+}
 
 std::chrono::milliseconds timeout_of(double seconds) {
-  if (!(seconds > 0) || seconds > 86400) throw std::invalid_argument("--timeout must be in (0, 86400] seconds");
+  if (!(seconds > 0) || seconds > 86400)
+    throw std::invalid_argument("--timeout must be in (0, 86400] seconds");
   return std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000));
 }
 
 std::pair<std::string, uint16_t> parse_server(const std::string& text) {
   const auto colon = text.rfind(':');
-  if (colon == std::string::npos || colon == 0) throw std::invalid_argument("--server must be HOST:PORT, got '" + text + "'");
+  if (colon == std::string::npos || colon == 0)
+    throw std::invalid_argument("--server must be HOST:PORT, got '" + text + "'");
   unsigned port = 0;
   const char* p = text.data() + colon + 1;
   auto [end, ec] = std::from_chars(p, text.data() + text.size(), port);

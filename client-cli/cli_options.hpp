@@ -16,8 +16,8 @@ namespace po = boost::program_options;
 // Parses args into vm. Returns -1 to go on, else the exit code to return (0 after
 // --help, 2 for bad usage with a one-line message on err).
 int parse_options(const std::vector<std::string>& args, const po::options_description& opts,
-                  const po::positional_options_description* positional, const char* synopsis, po::variables_map& vm,
-                  std::ostream& out, std::ostream& err);
+                  const po::positional_options_description* positional, const char* synopsis,
+                  po::variables_map& vm, std::ostream& out, std::ostream& err);
 
 // "X,Y,Z" of finite numbers; throws std::invalid_argument naming `what` otherwise.
 std::array<float, 3> parse_vec3(const std::string& text, const char* what);

@@ -31,14 +31,18 @@ constexpr const char* kUsage =
     "Run 'voxel-cli COMMAND --help' for a command's options.\n";
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+double ms_since(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
 
 }  // namespace
 
 int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli mesh options");
-  opts.add_options()("help,h", "show this help")("input", po::value<std::string>()->required(), "volume file")(
-      "out,o", po::value<std::string>()->required(), "output mesh: .obj, .ply or .txt (seed 002 format)")(
+  opts.add_options()("help,h", "show this help")("input", po::value<std::string>()->required(),
+                                                 "volume file")(
+      "out,o", po::value<std::string>()->required(),
+      "output mesh: .obj, .ply or .txt (seed 002 format)")(
       "dims", po::value<std::string>(), "X,Y,Z: INPUT is raw float32 little-endian, x fastest")(
       "iso", po::value<float>()->default_value(0.0f), "surface level")(
       "invert", po::bool_switch(), "solid where the value is below --iso (Bourke's convention)")(
@@ -46,9 +50,10 @@ int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::o
   po::positional_options_description positional;
   positional.add("input", 1);
   po::variables_map vm;
-  const int rc = parse_options(args, opts, &positional,
-                       "usage: voxel-cli mesh INPUT --out OUTPUT [--dims X,Y,Z] [--iso V] [--invert] [--threads N]", vm,
-                       out, err);
+  const int rc = parse_options(
+      args, opts, &positional,
+      "usage: voxel-cli mesh INPUT --out OUTPUT [--dims X,Y,Z] [--iso V] [--invert] [--threads N]",
+      vm, out, err);
   if (rc >= 0) return rc;
 
   const std::string input = vm["input"].as<std::string>(), output = vm["out"].as<std::string>();
@@ -74,21 +79,24 @@ int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::o
     const mesh::ChunkMesh result = mesh::mesh_volume(quantized, options.threads);
     const double ms = ms_since(t0);
     write_mesh(output, result);
-    out << "meshed " << volume.dims[0] << "x" << volume.dims[1] << "x" << volume.dims[2] << " samples: "
-        << result.vertex_count() << " vertices, " << result.triangle_count() << " triangles in " << ms << " ms -> "
-        << output << "\n";
+    out << "meshed " << volume.dims[0] << "x" << volume.dims[1] << "x" << volume.dims[2]
+        << " samples: " << result.vertex_count() << " vertices, " << result.triangle_count()
+        << " triangles in " << ms << " ms -> " << output << "\n";
     return 0;
   });
 }
 
 int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli demo options");
-  opts.add_options()("help,h", "show this help")("out,o", po::value<std::string>()->default_value("demo.obj"),
-                                                 "output mesh: .obj, .ply or .txt")(
-      "seed", po::value<uint64_t>()->default_value(1), "world seed")(
-      "radius", po::value<int>()->default_value(4), "half-width of the area in chunks (1..16)");
+  opts.add_options()("help,h", "show this help")(
+      "out,o", po::value<std::string>()->default_value("demo.obj"),
+      "output mesh: .obj, .ply or .txt")("seed", po::value<uint64_t>()->default_value(1),
+                                         "world seed")("radius", po::value<int>()->default_value(4),
+                                                       "half-width of the area in chunks (1..16)");
   po::variables_map vm;
-  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli demo [--out FILE] [--seed N] [--radius R]", vm, out, err);
+  const int rc =
+      parse_options(args, opts, nullptr,
+                    "usage: voxel-cli demo [--out FILE] [--seed N] [--radius R]", vm, out, err);
   if (rc >= 0) return rc;
   const int radius = vm["radius"].as<int>();
   if (radius < 1 || radius > 16) {
@@ -103,7 +111,8 @@ int demo_command(const std::vector<std::string>& args, std::ostream& out, std::o
     const auto t0 = Clock::now();
     std::vector<world::Chunk> chunks(box.count());
     tbb::task_arena arena(arena_concurrency(0));
-    parallel_for_index(arena, chunks.size(), [&](size_t i) { chunks[i] = generator.generate(box.at(i)); });
+    parallel_for_index(arena, chunks.size(),
+                       [&](size_t i) { chunks[i] = generator.generate(box.at(i)); });
     world::ChunkMap map;
     for (size_t i = 0; i < chunks.size(); ++i) map.insert(box.at(i), std::move(chunks[i]));
     const double gen_ms = ms_since(t0);
@@ -111,9 +120,9 @@ int demo_command(const std::vector<std::string>& args, std::ostream& out, std::o
     const mesh::ChunkMesh result = mesh::mesh_region(map, box);
     const double mesh_ms = ms_since(t1);
     write_mesh(output, result);
-    out << "demo world seed " << generator.seed() << ": " << box.count() << " chunks generated in " << gen_ms
-        << " ms, meshed in " << mesh_ms << " ms: " << result.vertex_count() << " vertices, "
-        << result.triangle_count() << " triangles -> " << output << "\n";
+    out << "demo world seed " << generator.seed() << ": " << box.count() << " chunks generated in "
+        << gen_ms << " ms, meshed in " << mesh_ms << " ms: " << result.vertex_count()
+        << " vertices, " << result.triangle_count() << " triangles -> " << output << "\n";
     return 0;
   });
 }

@@ -14,7 +14,8 @@ int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::o
 int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int info_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 // kind: brush, explode, smooth, paint or stamp.
-int edit_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int edit_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out,
+                 std::ostream& err);
 int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

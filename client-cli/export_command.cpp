@@ -18,22 +18,24 @@ using namespace std::chrono_literals;
 
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli export options");
-  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(), "X,Y,Z: centre")(
+  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(),
+                                                 "X,Y,Z: centre")(
       "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
       "out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb")(
       "timeout", po::value<double>()->default_value(120), "seconds to wait for the whole view")(
       "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   po::variables_map vm;
-  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE", vm, out,
-                               err);
+  const int rc =
+      parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE",
+                    vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const std::string output = vm["out"].as<std::string>();
     mesh_format_for(output);
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
-    const auto region = fetch_region(vm["server"].as<std::string>(), "voxel-cli-export", at,
-                                     vm["radius"].as<uint32_t>(),
-                                     timeout_of(vm["timeout"].as<double>()));
+    const auto region =
+        fetch_region(vm["server"].as<std::string>(), "voxel-cli-export", at,
+                     vm["radius"].as<uint32_t>(), timeout_of(vm["timeout"].as<double>()));
     const client::Client& c = *region;
     // Decode every chunk into a dense grid over their bounding box, then weld.
     std::array<int, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};
@@ -48,15 +50,18 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
     std::vector<mesh::ChunkMesh> parts(static_cast<size_t>(grid[0]) * grid[1] * grid[2]);
     for (const auto& [key, held] : c.chunks()) {
       const size_t i = static_cast<size_t>(std::get<0>(key) - lo[0]) +
-                       static_cast<size_t>(grid[0]) * (static_cast<size_t>(std::get<1>(key) - lo[1]) +
-                                                       static_cast<size_t>(grid[1]) * (std::get<2>(key) - lo[2]));
+                       static_cast<size_t>(grid[0]) *
+                           (static_cast<size_t>(std::get<1>(key) - lo[1]) +
+                            static_cast<size_t>(grid[1]) * (std::get<2>(key) - lo[2]));
       auto decoded = proto::decode_mesh(held.encoding);
       if (!decoded) throw std::runtime_error("bad mesh from the server: " + decoded.error());
       parts[i] = std::move(*decoded);
     }
     const float k = 32.0f;
     const mesh::ChunkMesh welded = mesh::weld_chunk_grid(
-        parts, grid, mesh::Vec3f{k * static_cast<float>(lo[0]), k * static_cast<float>(lo[1]), k * static_cast<float>(lo[2])});
+        parts, grid,
+        mesh::Vec3f{k * static_cast<float>(lo[0]), k * static_cast<float>(lo[1]),
+                    k * static_cast<float>(lo[2])});
     write_mesh(output, welded);
     out << "exported " << c.chunks().size() << " chunks: " << welded.vertex_count() << " vertices, "
         << welded.triangle_count() << " triangles -> " << output << "\n";

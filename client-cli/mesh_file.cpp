@@ -14,12 +14,14 @@ namespace {
 
 std::string extension_of(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
 }
 
 void write_obj(std::FILE* f, const mesh::ChunkMesh& m) {
-  std::fprintf(f, "# voxeld mesh: %zu vertices, %zu triangles\n", m.vertex_count(), m.triangle_count());
+  std::fprintf(f, "# voxeld mesh: %zu vertices, %zu triangles\n", m.vertex_count(),
+               m.triangle_count());
   for (const auto& p : m.positions) std::fprintf(f, "v %.6g %.6g %.6g\n", p.x, p.y, p.z);
   for (const auto& n : m.normals) std::fprintf(f, "vn %.5f %.5f %.5f\n", n.x, n.y, n.z);
   for (size_t t = 0; t < m.indices.size(); t += 3) {
@@ -30,7 +32,8 @@ void write_obj(std::FILE* f, const mesh::ChunkMesh& m) {
 
 template <class T>
 void put(std::FILE* f, T v) {
-  static_assert(std::endian::native == std::endian::little, "PLY writer assumes a little-endian host");
+  static_assert(std::endian::native == std::endian::little,
+                "PLY writer assumes a little-endian host");
   std::fwrite(&v, sizeof v, 1, f);
 }
 
@@ -55,7 +58,8 @@ void write_ply(std::FILE* f, const mesh::ChunkMesh& m) {
 
 // Binary glTF 2.0: one mesh, one primitive (POSITION, NORMAL, COLOR_0, uint32 indices).
 void write_glb(std::FILE* f, const mesh::ChunkMesh& m) {
-  if (m.empty()) throw MeshFileError("no triangles to write: glTF accessors need at least one element");
+  if (m.empty())
+    throw MeshFileError("no triangles to write: glTF accessors need at least one element");
   const size_t v = m.vertex_count(), i = m.indices.size();
   std::vector<uint8_t> bin;
   auto append = [&bin](const void* p, size_t n) {
@@ -65,7 +69,8 @@ void write_glb(std::FILE* f, const mesh::ChunkMesh& m) {
   append(m.normals.data(), v * 12);
   for (size_t k = 0; k < v; ++k) append(material_colour(m.materials[k]).data(), 12);
   append(m.indices.data(), i * 4);
-  float lo[3] = {m.positions[0].x, m.positions[0].y, m.positions[0].z}, hi[3] = {lo[0], lo[1], lo[2]};
+  float lo[3] = {m.positions[0].x, m.positions[0].y, m.positions[0].z},
+        hi[3] = {lo[0], lo[1], lo[2]};
   for (const auto& p : m.positions) {
     const float c[3] = {p.x, p.y, p.z};
     for (int a = 0; a < 3; ++a) {
@@ -74,28 +79,31 @@ void write_glb(std::FILE* f, const mesh::ChunkMesh& m) {
     }
   }
   char json[2048];
-  std::snprintf(json, sizeof json,
-                "{\"asset\":{\"version\":\"2.0\",\"generator\":\"voxeld voxel-cli\"},\"scene\":0,"
-                "\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
-                "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"NORMAL\":1,\"COLOR_0\":2},"
-                "\"indices\":3,\"mode\":4}]}],"
-                "\"buffers\":[{\"byteLength\":%zu}],"
-                "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":%zu,\"target\":34962},"
-                "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":34962},"
-                "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":34962},"
-                "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":34963}],"
-                "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\","
-                "\"min\":[%.9g,%.9g,%.9g],\"max\":[%.9g,%.9g,%.9g]},"
-                "{\"bufferView\":1,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"},"
-                "{\"bufferView\":2,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"},"
-                "{\"bufferView\":3,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}]}",
-                bin.size(), v * 12, v * 12, v * 12, v * 24, v * 12, v * 36, i * 4, v, lo[0], lo[1], lo[2], hi[0],
-                hi[1], hi[2], v, v, i);
+  std::snprintf(
+      json, sizeof json,
+      "{\"asset\":{\"version\":\"2.0\",\"generator\":\"voxeld voxel-cli\"},\"scene\":0,"
+      "\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],"
+      "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0,\"NORMAL\":1,\"COLOR_0\":2},"
+      "\"indices\":3,\"mode\":4}]}],"
+      "\"buffers\":[{\"byteLength\":%zu}],"
+      "\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":%zu,\"target\":34962},"
+      "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":34962},"
+      "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":34962},"
+      "{\"buffer\":0,\"byteOffset\":%zu,\"byteLength\":%zu,\"target\":34963}],"
+      "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\","
+      "\"min\":[%.9g,%.9g,%.9g],\"max\":[%.9g,%.9g,%.9g]},"
+      "{\"bufferView\":1,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"},"
+      "{\"bufferView\":2,\"componentType\":5126,\"count\":%zu,\"type\":\"VEC3\"},"
+      "{\"bufferView\":3,\"componentType\":5125,\"count\":%zu,\"type\":\"SCALAR\"}]}",
+      bin.size(), v * 12, v * 12, v * 12, v * 24, v * 12, v * 36, i * 4, v, lo[0], lo[1], lo[2],
+      hi[0], hi[1], hi[2], v, v, i);
   std::string js(json);
   while (js.size() % 4 != 0) js.push_back(' ');
   while (bin.size() % 4 != 0) bin.push_back(0);
-  const uint32_t total = 12 + 8 + static_cast<uint32_t>(js.size()) + 8 + static_cast<uint32_t>(bin.size());
-  for (uint32_t word : {0x46546C67u, 2u, total, static_cast<uint32_t>(js.size()), 0x4E4F534Au}) put(f, word);
+  const uint32_t total =
+      12 + 8 + static_cast<uint32_t>(js.size()) + 8 + static_cast<uint32_t>(bin.size());
+  for (uint32_t word : {0x46546C67u, 2u, total, static_cast<uint32_t>(js.size()), 0x4E4F534Au})
+    put(f, word);
   std::fwrite(js.data(), 1, js.size(), f);
   for (uint32_t word : {static_cast<uint32_t>(bin.size()), 0x004E4942u}) put(f, word);
   std::fwrite(bin.data(), 1, bin.size(), f);
@@ -118,18 +126,24 @@ MeshFormat mesh_format_for(const std::string& path) {
   if (ext == ".ply") return MeshFormat::kPly;
   if (ext == ".glb") return MeshFormat::kGlb;
   if (ext == ".txt") return MeshFormat::kSeedText;
-  throw MeshFileError(path + ": unknown output format '" + ext + "' (use .obj, .ply, .glb or .txt)");
+  throw MeshFileError(path + ": unknown output format '" + ext +
+                      "' (use .obj, .ply, .glb or .txt)");
 }
 
 std::array<float, 3> material_colour(uint8_t material) {
   switch (material) {
-    case 1: return {0.28f, 0.55f, 0.18f};  // grass
-    case 2: return {0.45f, 0.31f, 0.18f};  // dirt
-    case 3: return {0.50f, 0.50f, 0.52f};  // stone
-    case 4: return {0.86f, 0.79f, 0.55f};  // sand
-    default: {  // any other material: a stable colour from its id
+    case 1:
+      return {0.28f, 0.55f, 0.18f};  // grass
+    case 2:
+      return {0.45f, 0.31f, 0.18f};  // dirt
+    case 3:
+      return {0.50f, 0.50f, 0.52f};  // stone
+    case 4:
+      return {0.86f, 0.79f, 0.55f};  // sand
+    default: {                       // any other material: a stable colour from its id
       const uint32_t h = material * 2654435761u;
-      return {0.3f + 0.6f * static_cast<float>(h & 0xFF) / 255.0f, 0.3f + 0.6f * static_cast<float>((h >> 8) & 0xFF) / 255.0f,
+      return {0.3f + 0.6f * static_cast<float>(h & 0xFF) / 255.0f,
+              0.3f + 0.6f * static_cast<float>((h >> 8) & 0xFF) / 255.0f,
               0.3f + 0.6f * static_cast<float>((h >> 16) & 0xFF) / 255.0f};
     }
   }
@@ -142,8 +156,12 @@ void write_mesh(const std::string& path, const mesh::ChunkMesh& mesh) {
   if (f == nullptr) throw MeshFileError(path + ": cannot create: " + std::strerror(errno));
   std::setvbuf(f, nullptr, _IOFBF, 1 << 20);
   switch (format) {
-    case MeshFormat::kObj: write_obj(f, mesh); break;
-    case MeshFormat::kPly: write_ply(f, mesh); break;
+    case MeshFormat::kObj:
+      write_obj(f, mesh);
+      break;
+    case MeshFormat::kPly:
+      write_ply(f, mesh);
+      break;
     case MeshFormat::kGlb:
       try {
         write_glb(f, mesh);
@@ -153,7 +171,9 @@ void write_mesh(const std::string& path, const mesh::ChunkMesh& mesh) {
         throw;
       }
       break;
-    case MeshFormat::kSeedText: write_seed_text(f, mesh); break;
+    case MeshFormat::kSeedText:
+      write_seed_text(f, mesh);
+      break;
   }
   const bool failed = std::ferror(f) != 0;
   if (std::fclose(f) != 0 || failed) {

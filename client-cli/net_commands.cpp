@@ -36,12 +36,14 @@ void set_vec3(wire::Vec3* v, const std::array<float, 3>& a) {
 
 po::options_description edit_options(const std::string& kind) {
   po::options_description o("voxel-cli " + kind + " options");
-  o.add_options()("help,h", "show this help")("server", po::value<std::string>()->default_value(kDefaultServer),
-                                              "HOST:PORT of voxeld");
+  o.add_options()("help,h", "show this help")(
+      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   if (kind == "stamp") {
     o.add_options()("shape", po::value<std::string>()->default_value("box"), "box or sphere")(
-        "min", po::value<std::string>(), "X,Y,Z: box corner")("max", po::value<std::string>(), "X,Y,Z: box corner")(
-        "at", po::value<std::string>(), "X,Y,Z: sphere centre")("radius", po::value<float>(), "sphere radius")(
+        "min", po::value<std::string>(), "X,Y,Z: box corner")("max", po::value<std::string>(),
+                                                              "X,Y,Z: box corner")(
+        "at", po::value<std::string>(), "X,Y,Z: sphere centre")("radius", po::value<float>(),
+                                                                "sphere radius")(
         "air", po::bool_switch(), "carve the shape to air instead of filling it")(
         "material", po::value<uint32_t>()->default_value(3), "1..255");
     return o;
@@ -49,11 +51,14 @@ po::options_description edit_options(const std::string& kind) {
   o.add_options()("at", po::value<std::string>()->required(), "X,Y,Z: centre in world voxels")(
       "radius", po::value<float>()->required(), "radius in voxels");
   if (kind == "brush") {
-    o.add_options()("strength", po::value<float>()->default_value(0.5f), "density added per sample at the centre")(
-        "remove", po::bool_switch(), "take material away")("material", po::value<uint32_t>()->default_value(0),
-                                                          "material where it adds (0: keep / dirt)");
+    o.add_options()("strength", po::value<float>()->default_value(0.5f),
+                    "density added per sample at the centre")("remove", po::bool_switch(),
+                                                              "take material away")(
+        "material", po::value<uint32_t>()->default_value(0),
+        "material where it adds (0: keep / dirt)");
   } else if (kind == "explode") {
-    o.add_options()("power", po::value<float>()->default_value(1.0f), "density removed at the centre");
+    o.add_options()("power", po::value<float>()->default_value(1.0f),
+                    "density removed at the centre");
   } else if (kind == "smooth") {
     o.add_options()("strength", po::value<float>()->default_value(0.5f), "0 < strength <= 1");
   } else if (kind == "paint") {
@@ -63,7 +68,8 @@ po::options_description edit_options(const std::string& kind) {
 }
 
 // The Edit message for an edit command's options (values are checked by the server).
-wire::Envelope edit_from_options(const std::string& kind, const po::variables_map& vm, uint64_t request) {
+wire::Envelope edit_from_options(const std::string& kind, const po::variables_map& vm,
+                                 uint64_t request) {
   wire::Envelope m;
   wire::Edit* e = m.mutable_edit();
   e->set_request_id(request);
@@ -93,12 +99,14 @@ wire::Envelope edit_from_options(const std::string& kind, const po::variables_ma
     auto* s = e->mutable_stamp();
     const std::string shape = vm["shape"].as<std::string>();
     if (shape == "sphere") {
-      if (!vm.count("at") || !vm.count("radius")) throw std::invalid_argument("a sphere stamp needs --at and --radius");
+      if (!vm.count("at") || !vm.count("radius"))
+        throw std::invalid_argument("a sphere stamp needs --at and --radius");
       s->set_shape(wire::Stamp::SPHERE);
       set_vec3(s->mutable_center(), parse_vec3(vm["at"].as<std::string>(), "--at"));
       s->set_radius(vm["radius"].as<float>());
     } else if (shape == "box") {
-      if (!vm.count("min") || !vm.count("max")) throw std::invalid_argument("a box stamp needs --min and --max");
+      if (!vm.count("min") || !vm.count("max"))
+        throw std::invalid_argument("a box stamp needs --min and --max");
       s->set_shape(wire::Stamp::BOX);
       set_vec3(s->mutable_min(), parse_vec3(vm["min"].as<std::string>(), "--min"));
       set_vec3(s->mutable_max(), parse_vec3(vm["max"].as<std::string>(), "--max"));
@@ -115,11 +123,13 @@ wire::Envelope edit_from_options(const std::string& kind, const po::variables_ma
 std::optional<wire::EditResult> wait_result(client::Client& c, uint64_t request) {
   const auto deadline = Clock::now() + kReplyTimeout;
   while (Clock::now() < deadline) {
-    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    auto m =
+        c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
     if (!m) return std::nullopt;
     if (m->has_edit_result() && m->edit_result().request_id() == request) return m->edit_result();
-    if (m->has_error()) throw std::runtime_error("server error " + wire::Error::Code_Name(m->error().code()) + ": " +
-                                                 m->error().message());
+    if (m->has_error())
+      throw std::runtime_error("server error " + wire::Error::Code_Name(m->error().code()) + ": " +
+                               m->error().message());
   }
   return std::nullopt;
 }
@@ -130,8 +140,10 @@ std::string describe(const wire::EditResult& r) {
     s << "refused: " << wire::EditResult::Status_Name(r.status()) << ": " << r.reason();
     return s.str();
   }
-  s << "accepted: " << r.changed_chunks_size() << " chunk" << (r.changed_chunks_size() == 1 ? "" : "s") << " changed";
-  for (const auto& c : r.changed_chunks()) s << " (" << c.x() << "," << c.y() << "," << c.z() << ")";
+  s << "accepted: " << r.changed_chunks_size() << " chunk"
+    << (r.changed_chunks_size() == 1 ? "" : "s") << " changed";
+  for (const auto& c : r.changed_chunks())
+    s << " (" << c.x() << "," << c.y() << "," << c.z() << ")";
   return s.str();
 }
 
@@ -142,10 +154,11 @@ extern "C" void on_sigint(int) { g_interrupted = true; }
 
 int info_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli info options");
-  opts.add_options()("help,h", "show this help")("server", po::value<std::string>()->default_value(kDefaultServer),
-                                                 "HOST:PORT of voxeld");
+  opts.add_options()("help,h", "show this help")(
+      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   po::variables_map vm;
-  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli info [--server HOST:PORT]", vm, out, err);
+  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli info [--server HOST:PORT]",
+                               vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const auto [host, port] = parse_server(vm["server"].as<std::string>());
@@ -153,7 +166,8 @@ int info_command(const std::vector<std::string>& args, std::ostream& out, std::o
     c.connect(host, port, kConnectTimeout);
     const wire::Welcome w = c.handshake("voxel-cli", kReplyTimeout);
     out << "server:          " << w.server_version() << "\n"
-        << "protocol:        " << w.protocol_version() << " (mesh format " << w.mesh_format() << ")\n"
+        << "protocol:        " << w.protocol_version() << " (mesh format " << w.mesh_format()
+        << ")\n"
         << "world seed:      " << w.world_seed() << "\n"
         << "chunk size:      " << w.chunk_size() << "\n"
         << "players:         " << w.players() << "\n"
@@ -165,7 +179,8 @@ int info_command(const std::vector<std::string>& args, std::ostream& out, std::o
   });
 }
 
-int edit_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+int edit_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out,
+                 std::ostream& err) {
   const po::options_description opts = edit_options(kind);
   po::variables_map vm;
   const std::string synopsis = "usage: voxel-cli " + kind + " [options]";
@@ -177,7 +192,9 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
     const auto t0 = Clock::now();
     c->send(edit);
     const auto result = wait_result(*c, 1);
-    if (!result) throw std::runtime_error("no EditResult within " + std::to_string(kReplyTimeout.count()) + " s");
+    if (!result)
+      throw std::runtime_error("no EditResult within " + std::to_string(kReplyTimeout.count()) +
+                               " s");
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     if (result->status() != wire::EditResult::ACCEPTED) {
       err << "voxel-cli: " << describe(*result) << "\n";
@@ -190,13 +207,15 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
 
 int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli script options");
-  opts.add_options()("help,h", "show this help")("file", po::value<std::string>()->required(), "edits, one per line")(
+  opts.add_options()("help,h", "show this help")("file", po::value<std::string>()->required(),
+                                                 "edits, one per line")(
       "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld")(
       "window", po::value<int>()->default_value(32), "edits in flight at once (1..1024)");
   po::positional_options_description positional;
   positional.add("file", 1);
   po::variables_map vm;
-  const int rc = parse_options(args, opts, &positional, "usage: voxel-cli script FILE [--server HOST:PORT]", vm, out, err);
+  const int rc = parse_options(args, opts, &positional,
+                               "usage: voxel-cli script FILE [--server HOST:PORT]", vm, out, err);
   if (rc >= 0) return rc;
   const int window = vm["window"].as<int>();
   if (window < 1 || window > 1024) {
@@ -217,7 +236,8 @@ int script_command(const std::vector<std::string>& args, std::ostream& out, std:
     for (std::string w; words >> w;) tokens.push_back(w);
     if (tokens.empty() || tokens[0][0] == '#') continue;
     const std::string kind = tokens[0];
-    if (kind != "brush" && kind != "explode" && kind != "smooth" && kind != "paint" && kind != "stamp") {
+    if (kind != "brush" && kind != "explode" && kind != "smooth" && kind != "paint" &&
+        kind != "stamp") {
       err << "voxel-cli: line " << number << ": unknown edit '" << kind << "'\n";
       return 2;
     }
@@ -239,33 +259,40 @@ int script_command(const std::vector<std::string>& args, std::ostream& out, std:
     const auto t0 = Clock::now();
     size_t sent = 0, done = 0, refused = 0;
     while (done < edits.size()) {
-      while (sent < edits.size() && sent - done < static_cast<size_t>(window)) c->send(edits[sent++]);
+      while (sent < edits.size() && sent - done < static_cast<size_t>(window))
+        c->send(edits[sent++]);
       auto m = c->receive(kReplyTimeout);
-      if (!m) throw std::runtime_error(c->closed() ? "the server closed the connection" : "no reply in time");
+      if (!m)
+        throw std::runtime_error(c->closed() ? "the server closed the connection"
+                                             : "no reply in time");
       if (m->has_error()) throw std::runtime_error("server error: " + m->error().message());
       if (!m->has_edit_result()) continue;
       ++done;
       if (m->edit_result().status() != wire::EditResult::ACCEPTED) {
         ++refused;
-        err << "voxel-cli: edit " << m->edit_result().request_id() << " " << describe(m->edit_result()) << "\n";
+        err << "voxel-cli: edit " << m->edit_result().request_id() << " "
+            << describe(m->edit_result()) << "\n";
       }
     }
     const double s = std::chrono::duration<double>(Clock::now() - t0).count();
-    out << edits.size() << " edits (" << refused << " refused) in " << std::fixed << std::setprecision(3) << s << " s: "
-        << std::setprecision(0) << static_cast<double>(edits.size()) / std::max(s, 1e-9) << " edits/s\n";
+    out << edits.size() << " edits (" << refused << " refused) in " << std::fixed
+        << std::setprecision(3) << s << " s: " << std::setprecision(0)
+        << static_cast<double>(edits.size()) / std::max(s, 1e-9) << " edits/s\n";
     return refused == 0 ? 0 : 1;
   });
 }
 
 int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli watch options");
-  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(), "X,Y,Z: view centre")(
+  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(),
+                                                 "X,Y,Z: view centre")(
       "radius", po::value<uint32_t>()->default_value(2), "view radius in chunks")(
       "for", po::value<double>(), "stop after this many seconds (default: until Ctrl-C)")(
       "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   po::variables_map vm;
-  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli watch --at X,Y,Z --radius N [--for SECONDS]", vm,
-                               out, err);
+  const int rc =
+      parse_options(args, opts, nullptr,
+                    "usage: voxel-cli watch --at X,Y,Z --radius N [--for SECONDS]", vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
@@ -297,8 +324,9 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
       }
       if (m->has_view_ready()) {
         const auto& r = m->view_ready();
-        out << "view ready: " << r.chunks_sent() << " chunks with a surface, " << r.chunks_empty() << " empty, after "
-            << std::fixed << std::setprecision(2) << std::chrono::duration<double>(Clock::now() - t0).count() << " s\n";
+        out << "view ready: " << r.chunks_sent() << " chunks with a surface, " << r.chunks_empty()
+            << " empty, after " << std::fixed << std::setprecision(2)
+            << std::chrono::duration<double>(Clock::now() - t0).count() << " s\n";
       }
       if (!m->has_chunk_mesh()) continue;
       const auto& k = m->chunk_mesh().coord();
@@ -307,17 +335,21 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
       ++updates;
       (delta ? deltas : fulls) += 1;
       bytes += m->chunk_mesh().payload().size();
-      out << "chunk (" << k.x() << "," << k.y() << "," << k.z() << ") v" << m->chunk_mesh().version() << " "
-          << (delta ? "delta from v" + std::to_string(m->chunk_mesh().base_version()) : std::string("full")) << " "
-          << m->chunk_mesh().payload().size() << " bytes" << (error ? " DECODE FAILED: " + *error : "") << "\n";
+      out << "chunk (" << k.x() << "," << k.y() << "," << k.z() << ") v"
+          << m->chunk_mesh().version() << " "
+          << (delta ? "delta from v" + std::to_string(m->chunk_mesh().base_version())
+                    : std::string("full"))
+          << " " << m->chunk_mesh().payload().size() << " bytes"
+          << (error ? " DECODE FAILED: " + *error : "") << "\n";
       if (error) {  // the documented recovery: ask for a full copy
         ++failures;
         c->send(client::make_resync({&k, 1}));
       }
     }
     std::signal(SIGINT, previous);
-    out << "watched " << std::fixed << std::setprecision(1) << std::chrono::duration<double>(Clock::now() - t0).count()
-        << " s: " << updates << " updates (" << fulls << " full, " << deltas << " delta), " << bytes << " bytes, "
+    out << "watched " << std::fixed << std::setprecision(1)
+        << std::chrono::duration<double>(Clock::now() - t0).count() << " s: " << updates
+        << " updates (" << fulls << " full, " << deltas << " delta), " << bytes << " bytes, "
         << c->chunks().size() << " chunks held\n";
     return failures == 0 ? 0 : 1;
   });

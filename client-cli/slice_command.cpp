@@ -22,20 +22,26 @@ struct HeightMap {
   int x0 = 0, z0 = 0, size = 0;  // samples (x0 + i, z0 + j), i, j in [0, size)
   std::vector<float> height;     // -inf where no surface
   float& at(int i, int j) { return height[static_cast<size_t>(i) + static_cast<size_t>(size) * j]; }
-  float at(int i, int j) const { return height[static_cast<size_t>(i) + static_cast<size_t>(size) * j]; }
+  float at(int i, int j) const {
+    return height[static_cast<size_t>(i) + static_cast<size_t>(size) * j];
+  }
 };
 
 // The highest surface point over each grid point, from every triangle's top-down footprint.
 void rasterise(const mesh::ChunkMesh& m, float ox, float oy, float oz, HeightMap& map) {
   for (size_t t = 0; t < m.indices.size(); t += 3) {
-    const mesh::Vec3f a = m.positions[m.indices[t]], b = m.positions[m.indices[t + 1]], c = m.positions[m.indices[t + 2]];
-    const float ax = a.x + ox, az = a.z + oz, bx = b.x + ox, bz = b.z + oz, cx = c.x + ox, cz = c.z + oz;
+    const mesh::Vec3f a = m.positions[m.indices[t]], b = m.positions[m.indices[t + 1]],
+                      c = m.positions[m.indices[t + 2]];
+    const float ax = a.x + ox, az = a.z + oz, bx = b.x + ox, bz = b.z + oz, cx = c.x + ox,
+                cz = c.z + oz;
     const float det = (bz - cz) * (ax - cx) + (cx - bx) * (az - cz);
     if (std::fabs(det) < 1e-12f) continue;  // seen edge-on from above
     const int i0 = std::max(0, static_cast<int>(std::ceil(std::min({ax, bx, cx}))) - map.x0);
-    const int i1 = std::min(map.size - 1, static_cast<int>(std::floor(std::max({ax, bx, cx}))) - map.x0);
+    const int i1 =
+        std::min(map.size - 1, static_cast<int>(std::floor(std::max({ax, bx, cx}))) - map.x0);
     const int j0 = std::max(0, static_cast<int>(std::ceil(std::min({az, bz, cz}))) - map.z0);
-    const int j1 = std::min(map.size - 1, static_cast<int>(std::floor(std::max({az, bz, cz}))) - map.z0);
+    const int j1 =
+        std::min(map.size - 1, static_cast<int>(std::floor(std::max({az, bz, cz}))) - map.z0);
     for (int j = j0; j <= j1; ++j)
       for (int i = i0; i <= i1; ++i) {
         const float px = static_cast<float>(map.x0 + i), pz = static_cast<float>(map.z0 + j);
@@ -67,35 +73,67 @@ void contour(const HeightMap& map, float level, float floor_value, std::string& 
   for (int j = 0; j + 1 < map.size; ++j)
     for (int i = 0; i + 1 < map.size; ++i) {
       // Corners: 0 (i,j) 1 (i+1,j) 2 (i+1,j+1) 3 (i,j+1); bit set when above the level.
-      const bool c0 = value(i, j) > 0, c1 = value(i + 1, j) > 0, c2 = value(i + 1, j + 1) > 0, c3 = value(i, j + 1) > 0;
+      const bool c0 = value(i, j) > 0, c1 = value(i + 1, j) > 0, c2 = value(i + 1, j + 1) > 0,
+                 c3 = value(i, j + 1) > 0;
       const int cell = c0 | c1 << 1 | c2 << 2 | c3 << 3;
       if (cell == 0 || cell == 15) continue;
       // Edges: 0 bottom (0-1), 1 right (1-2), 2 top (3-2), 3 left (0-3).
-      const std::pair<float, float> e[4] = {crossing(i, j, i + 1, j), crossing(i + 1, j, i + 1, j + 1),
-                                            crossing(i, j + 1, i + 1, j + 1), crossing(i, j, i, j + 1)};
+      const std::pair<float, float> e[4] = {
+          crossing(i, j, i + 1, j), crossing(i + 1, j, i + 1, j + 1),
+          crossing(i, j + 1, i + 1, j + 1), crossing(i, j, i, j + 1)};
       int segments[2][2];
       int n = 0;
-      const bool centre_above = (value(i, j) + value(i + 1, j) + value(i + 1, j + 1) + value(i, j + 1)) > 0;
+      const bool centre_above =
+          (value(i, j) + value(i + 1, j) + value(i + 1, j + 1) + value(i, j + 1)) > 0;
       switch (cell) {
-        case 1: case 14: segments[n][0] = 3, segments[n++][1] = 0; break;
-        case 2: case 13: segments[n][0] = 0, segments[n++][1] = 1; break;
-        case 3: case 12: segments[n][0] = 3, segments[n++][1] = 1; break;
-        case 4: case 11: segments[n][0] = 1, segments[n++][1] = 2; break;
-        case 6: case 9: segments[n][0] = 0, segments[n++][1] = 2; break;
-        case 7: case 8: segments[n][0] = 3, segments[n++][1] = 2; break;
+        case 1:
+        case 14:
+          segments[n][0] = 3, segments[n++][1] = 0;
+          break;
+        case 2:
+        case 13:
+          segments[n][0] = 0, segments[n++][1] = 1;
+          break;
+        case 3:
+        case 12:
+          segments[n][0] = 3, segments[n++][1] = 1;
+          break;
+        case 4:
+        case 11:
+          segments[n][0] = 1, segments[n++][1] = 2;
+          break;
+        case 6:
+        case 9:
+          segments[n][0] = 0, segments[n++][1] = 2;
+          break;
+        case 7:
+        case 8:
+          segments[n][0] = 3, segments[n++][1] = 2;
+          break;
         case 5:  // saddle: corners 0 and 2 above
-          if (centre_above) { segments[n][0] = 3, segments[n++][1] = 2; segments[n][0] = 0, segments[n++][1] = 1; }
-          else { segments[n][0] = 3, segments[n++][1] = 0; segments[n][0] = 1, segments[n++][1] = 2; }
+          if (centre_above) {
+            segments[n][0] = 3, segments[n++][1] = 2;
+            segments[n][0] = 0, segments[n++][1] = 1;
+          } else {
+            segments[n][0] = 3, segments[n++][1] = 0;
+            segments[n][0] = 1, segments[n++][1] = 2;
+          }
           break;
         case 10:  // saddle: corners 1 and 3 above
-          if (centre_above) { segments[n][0] = 3, segments[n++][1] = 0; segments[n][0] = 1, segments[n++][1] = 2; }
-          else { segments[n][0] = 0, segments[n++][1] = 1; segments[n][0] = 3, segments[n++][1] = 2; }
+          if (centre_above) {
+            segments[n][0] = 3, segments[n++][1] = 0;
+            segments[n][0] = 1, segments[n++][1] = 2;
+          } else {
+            segments[n][0] = 0, segments[n++][1] = 1;
+            segments[n][0] = 3, segments[n++][1] = 2;
+          }
           break;
       }
       for (int s = 0; s < n; ++s) {
         const auto& p = e[segments[s][0]];
         const auto& q = e[segments[s][1]];
-        std::snprintf(buf, sizeof buf, "M%.3f %.3f L%.3f %.3f ", p.first, p.second, q.first, q.second);
+        std::snprintf(buf, sizeof buf, "M%.3f %.3f L%.3f %.3f ", p.first, p.second, q.first,
+                      q.second);
         path += buf;
       }
     }
@@ -105,7 +143,8 @@ void contour(const HeightMap& map, float level, float floor_value, std::string& 
 
 int slice_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli slice options");
-  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(), "X,Z: map centre")(
+  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(),
+                                                 "X,Z: map centre")(
       "y", po::value<float>()->required(), "height of the view centre (world voxels)")(
       "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
       "levels", po::value<int>()->default_value(8), "number of contour heights (1..64)")(
@@ -113,8 +152,9 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
       "timeout", po::value<double>()->default_value(120), "seconds to wait for the whole view")(
       "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
   po::variables_map vm;
-  const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli slice --y H --at X,Z --radius N --out map.svg", vm,
-                               out, err);
+  const int rc =
+      parse_options(args, opts, nullptr,
+                    "usage: voxel-cli slice --y H --at X,Z --radius N --out map.svg", vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const auto xz = parse_vec2(vm["at"].as<std::string>(), "--at");
@@ -124,8 +164,9 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     if (levels < 1 || levels > 64) throw std::invalid_argument("--levels must be 1..64");
     const std::string output = vm["out"].as<std::string>();
     const auto radius = vm["radius"].as<uint32_t>();
-    const auto region = fetch_region(vm["server"].as<std::string>(), "voxel-cli-slice", {xz[0], y, xz[1]}, radius,
-                                     timeout_of(vm["timeout"].as<double>()));
+    const auto region =
+        fetch_region(vm["server"].as<std::string>(), "voxel-cli-slice", {xz[0], y, xz[1]}, radius,
+                     timeout_of(vm["timeout"].as<double>()));
     const client::Client& c = *region;
     HeightMap map;
     map.size = static_cast<int>(2 * radius + 1) * 32 + 1;
@@ -135,7 +176,8 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     for (const auto& [key, held] : c.chunks()) {
       auto m = proto::decode_mesh(held.encoding);
       if (!m) throw std::runtime_error("bad mesh from the server: " + m.error());
-      rasterise(*m, 32.0f * static_cast<float>(std::get<0>(key)), 32.0f * static_cast<float>(std::get<1>(key)),
+      rasterise(*m, 32.0f * static_cast<float>(std::get<0>(key)),
+                32.0f * static_cast<float>(std::get<1>(key)),
                 32.0f * static_cast<float>(std::get<2>(key)), map);
     }
     float lo = INFINITY, hi = -INFINITY;
@@ -145,18 +187,22 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     const std::string tmp = output + ".tmp";
     {
       std::ofstream svg(tmp);
-      svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"0 0 " << map.size - 1 << " " << map.size - 1
-          << "\" width=\"" << 4 * (map.size - 1) << "\" height=\"" << 4 * (map.size - 1) << "\">\n"
-          << "<!-- voxeld contour map: x " << map.x0 << ".." << map.x0 + map.size - 1 << ", z " << map.z0 << ".."
-          << map.z0 + map.size - 1 << ", heights " << lo << ".." << hi << " -->\n"
+      svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"0 0 " << map.size - 1 << " "
+          << map.size - 1 << "\" width=\"" << 4 * (map.size - 1) << "\" height=\""
+          << 4 * (map.size - 1) << "\">\n"
+          << "<!-- voxeld contour map: x " << map.x0 << ".." << map.x0 + map.size - 1 << ", z "
+          << map.z0 << ".." << map.z0 + map.size - 1 << ", heights " << lo << ".." << hi << " -->\n"
           << "<rect width=\"100%\" height=\"100%\" fill=\"#101418\"/>\n";
       for (int k = 0; k < levels; ++k) {
-        const float level = lo + (hi - lo) * (static_cast<float>(k) + 0.5f) / static_cast<float>(levels);
+        const float level =
+            lo + (hi - lo) * (static_cast<float>(k) + 0.5f) / static_cast<float>(levels);
         std::string path;
         contour(map, level, lo - 1.0f, path);
-        const float t = (static_cast<float>(k) + 0.5f) / static_cast<float>(levels);  // blue (low) to red (high)
+        const float t = (static_cast<float>(k) + 0.5f) /
+                        static_cast<float>(levels);  // blue (low) to red (high)
         char colour[16];
-        std::snprintf(colour, sizeof colour, "#%02x%02x%02x", static_cast<int>(40 + 215 * t), static_cast<int>(120 + 80 * (1 - std::fabs(2 * t - 1))),
+        std::snprintf(colour, sizeof colour, "#%02x%02x%02x", static_cast<int>(40 + 215 * t),
+                      static_cast<int>(120 + 80 * (1 - std::fabs(2 * t - 1))),
                       static_cast<int>(255 - 215 * t));
         svg << "<path data-height=\"" << level << "\" stroke=\"" << colour
             << "\" stroke-width=\"0.4\" fill=\"none\" d=\"" << path << "\"/>\n";
@@ -165,8 +211,8 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
       if (!svg) throw std::runtime_error("cannot write " + output);
     }
     std::rename(tmp.c_str(), output.c_str());
-    out << "sliced " << c.chunks().size() << " chunks at " << levels << " heights from " << lo << " to " << hi << " -> "
-        << output << "\n";
+    out << "sliced " << c.chunks().size() << " chunks at " << levels << " heights from " << lo
+        << " to " << hi << " -> " << output << "\n";
     return 0;
   });
 }

@@ -4,6 +4,8 @@
 // includes nothing from server/.)
 #pragma once
 
+// <utility> must come first (see above).
+// clang-format off
 #include <utility>
-
 #include <boost/asio.hpp>
+// clang-format on

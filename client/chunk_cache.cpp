@@ -18,7 +18,8 @@ std::optional<std::string> ChunkCache::expand(const wire::ChunkMesh& m, proto::Z
     }
     base = it->second.encoding;
   }
-  if (auto error = zstd.decompress_into(payload, base, proto::DecodeLimits{}.max_encoding_bytes, out)) {
+  if (auto error =
+          zstd.decompress_into(payload, base, proto::DecodeLimits{}.max_encoding_bytes, out)) {
     chunks_.erase(key);
     return error->message;
   }

@@ -18,17 +18,21 @@ void Client::connect(const std::string& host, uint16_t port, std::chrono::millis
   const auto endpoints = resolver.resolve(host, std::to_string(port), ec);
   if (ec) throw std::runtime_error("cannot resolve " + host + ": " + ec.message());
   bool done = false;
-  asio::async_connect(socket_, endpoints, [&](boost::system::error_code e, const asio::ip::tcp::endpoint&) {
-    ec = e;
-    done = true;
-  });
+  asio::async_connect(socket_, endpoints,
+                      [&](boost::system::error_code e, const asio::ip::tcp::endpoint&) {
+                        ec = e;
+                        done = true;
+                      });
   io_.restart();
   io_.run_for(timeout);
   if (!done) {
     socket_.close(ec);
-    throw std::runtime_error("cannot connect to " + host + ":" + std::to_string(port) + ": timed out");
+    throw std::runtime_error("cannot connect to " + host + ":" + std::to_string(port) +
+                             ": timed out");
   }
-  if (ec) throw std::runtime_error("cannot connect to " + host + ":" + std::to_string(port) + ": " + ec.message());
+  if (ec)
+    throw std::runtime_error("cannot connect to " + host + ":" + std::to_string(port) + ": " +
+                             ec.message());
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);
 }
 
@@ -36,12 +40,14 @@ wire::Welcome Client::handshake(const std::string& name, std::chrono::millisecon
   send(make_hello(name));
   const auto deadline = Clock::now() + timeout;
   while (Clock::now() < deadline) {
-    auto m = receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    auto m =
+        receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
     if (!m) break;
     if (m->has_welcome()) return m->welcome();
     if (m->has_error()) throw std::runtime_error("server refused: " + m->error().message());
   }
-  throw std::runtime_error(closed_ ? "server closed the connection during the handshake" : "no Welcome in time");
+  throw std::runtime_error(closed_ ? "server closed the connection during the handshake"
+                                   : "no Welcome in time");
 }
 
 void Client::send(const wire::Envelope& message) {
@@ -90,19 +96,23 @@ std::optional<wire::Envelope> Client::receive(std::chrono::milliseconds timeout)
   }
 }
 
-std::optional<std::string> Client::apply(const wire::ChunkMesh& m) { return cache_.apply(m, zstd_, scratch_, decoded_); }
+std::optional<std::string> Client::apply(const wire::ChunkMesh& m) {
+  return cache_.apply(m, zstd_, scratch_, decoded_);
+}
 
 void Client::forget(const wire::ChunkUnload& u) { cache_.forget(u); }
 
 wire::ViewReady Client::receive_view(uint64_t view_id, std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   while (Clock::now() < deadline) {
-    auto m = receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
+    auto m =
+        receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
     if (!m) break;
     if (m->has_error()) throw std::runtime_error("server error: " + m->error().message());
     if (m->has_chunk_unload()) forget(m->chunk_unload());
     if (m->has_chunk_mesh()) {
-      if (auto error = apply(m->chunk_mesh())) throw std::runtime_error("bad mesh from the server: " + *error);
+      if (auto error = apply(m->chunk_mesh()))
+        throw std::runtime_error("bad mesh from the server: " + *error);
     }
     if (m->has_view_ready() && m->view_ready().view_id() == view_id) return m->view_ready();
   }

@@ -11,11 +11,11 @@
 #include <span>
 #include <string>
 
+#include "client/asio.hpp"
 #include "client/chunk_cache.hpp"
 #include "proto/framing.hpp"
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
-#include "client/asio.hpp"
 #include "voxel.pb.h"
 
 namespace vox::client {

@@ -123,12 +123,15 @@ void write_attack_json(const AttackStats& s, std::ostream& out) {
     if (k.clients == 0) continue;
     out << (first ? "" : ",") << "\"" << attack_kind_name(kind) << "\":{\"clients\":" << k.clients
         << ",\"sockets\":" << k.connections;
-    const std::pair<const char*, uint64_t> counters[] = {
-        {"connects", k.connects},           {"connect_failures", k.connect_failures},
-        {"welcomed", k.welcomed},           {"disconnects", k.disconnects},
-        {"messages_sent", k.messages_sent}, {"sends_dropped", k.sends_dropped},
-        {"messages_received", k.messages_received}, {"bytes_received", k.bytes_received},
-        {"edits_sent", k.edits_sent}};
+    const std::pair<const char*, uint64_t> counters[] = {{"connects", k.connects},
+                                                         {"connect_failures", k.connect_failures},
+                                                         {"welcomed", k.welcomed},
+                                                         {"disconnects", k.disconnects},
+                                                         {"messages_sent", k.messages_sent},
+                                                         {"sends_dropped", k.sends_dropped},
+                                                         {"messages_received", k.messages_received},
+                                                         {"bytes_received", k.bytes_received},
+                                                         {"edits_sent", k.edits_sent}};
     for (const auto& [key, value] : counters) out << ",\"" << key << "\":" << value;
     out << ",";
     json_counts(out, "errors_by_code", k.errors);

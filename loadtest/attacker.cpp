@@ -89,7 +89,9 @@ void Attacker::connect() {
   if (test_.config().spread_addresses) {
     // One address per hostile client: a squatter's sockets share theirs.
     const int client = kind_ == AttackKind::squat ? index_ / kSquatGroupSize : index_;
-    socket_.bind({asio::ip::make_address(spread_source_address(1 + static_cast<int>(kind_), client)), 0}, ec);
+    socket_.bind(
+        {asio::ip::make_address(spread_source_address(1 + static_cast<int>(kind_), client)), 0},
+        ec);
     if (ec) {
       tally_.count(kind_, AttackTally::kConnectFailures);
       lost(false, kReconnectPauseS);

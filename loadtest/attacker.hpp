@@ -26,10 +26,10 @@
 #include <span>
 #include <vector>
 
+#include "client/asio.hpp"
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/attack_stats.hpp"
 #include "proto/framing.hpp"
-#include "client/asio.hpp"
 #include "voxel.pb.h"
 
 namespace vox::loadtest {

@@ -16,7 +16,7 @@ namespace asio = boost::asio;
 using namespace std::chrono_literals;
 
 namespace {
-constexpr double kDrainS = 3.0;  // after the editing stops: results and meshes of the last edits
+constexpr double kDrainS = 3.0;    // after the editing stops: results and meshes of the last edits
 constexpr double kViewWaitS = 60;  // --verify: longest wait for a view to complete
 
 // The pid whose RSS to sample: --server-pid, else the owner of the listening socket when
@@ -251,7 +251,8 @@ LoadStats LoadTest::run(std::ostream& progress) {
   }
   // The players stand still now: before verifying, every view must be complete (the
   // server says so with ViewReady), however slowly the server streams.
-  for (double waited = 0; config_.verify && waited < kViewWaitS && !all_views_ready(); waited += 0.1) {
+  for (double waited = 0; config_.verify && waited < kViewWaitS && !all_views_ready();
+       waited += 0.1) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   // Freeze the players (no handler runs once the threads are joined) for the verification.
@@ -269,7 +270,8 @@ LoadStats LoadTest::run(std::ostream& progress) {
 }
 
 bool LoadTest::all_views_ready() const {
-  return std::all_of(players_.begin(), players_.end(), [](const auto& p) { return p->view_ready(); });
+  return std::all_of(players_.begin(), players_.end(),
+                     [](const auto& p) { return p->view_ready(); });
 }
 
 // Every player's chunks must equal what a fresh client receives for the same view.

@@ -135,7 +135,7 @@ class LoadTest {
   mutable std::mutex mutex_;  // guards stats_ (but the counters below) and ground_ creation
   LoadStats stats_;
   std::unique_ptr<GroundHeight> ground_owner_;
-  uint64_t world_seed_ = 0;                         // written before ground_ is published
+  uint64_t world_seed_ = 0;  // written before ground_ is published
   std::atomic<const GroundHeight*> ground_{nullptr};
   std::atomic<uint64_t> messages_{0}, bytes_{0}, chunks_{0}, decode_failures_{0};
   std::vector<std::atomic<uint64_t>> bytes_per_second_;  // sized for the whole run up front

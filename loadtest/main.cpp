@@ -115,7 +115,8 @@ int run(int argc, char** argv) {
       std::cerr << "voxel-loadtest: --sweep: " << counts.error() << "\n";
       return 2;
     }
-    const auto result = vox::loadtest::run_sweep(config, *counts, sweep_limit_ms, std::cerr, std::cout);
+    const auto result =
+        vox::loadtest::run_sweep(config, *counts, sweep_limit_ms, std::cerr, std::cout);
     if (!svg.empty()) {
       std::ofstream out(svg);
       vox::loadtest::write_sweep_svg(result.points, sweep_limit_ms, out);

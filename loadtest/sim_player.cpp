@@ -276,7 +276,7 @@ std::optional<std::string> SimPlayer::apply_mesh(const wire::ChunkMesh& m) {
 void SimPlayer::send_view() {
   view_chunk_ =
       client::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
-                            static_cast<int>(std::floor(z_)));
+                             static_cast<int>(std::floor(z_)));
   wire::Envelope v;
   v.mutable_set_view()->mutable_position()->set_x(x_);
   v.mutable_set_view()->mutable_position()->set_y(y_);
@@ -334,7 +334,7 @@ void SimPlayer::walk(double dt) {
   publish_position();
   const client::ChunkKey chunk =
       client::chunk_of_voxel(static_cast<int>(std::floor(x_)), static_cast<int>(std::floor(y_)),
-                            static_cast<int>(std::floor(z_)));
+                             static_cast<int>(std::floor(z_)));
   if (chunk != view_chunk_) send_view();
 }
 

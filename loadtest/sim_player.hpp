@@ -30,8 +30,8 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   // True once the server said the newest view is complete (ViewReady); any thread.
   // A player whose connection closed has no view to wait for.
   bool view_ready() const {
-    return gone_.load(std::memory_order_acquire) ||
-           ready_view_.load(std::memory_order_acquire) == views_sent_.load(std::memory_order_acquire);
+    return gone_.load(std::memory_order_acquire) || ready_view_.load(std::memory_order_acquire) ==
+                                                        views_sent_.load(std::memory_order_acquire);
   }
 
  private:

@@ -12,10 +12,12 @@ proto::Result<std::vector<int>> parse_sweep_counts(std::string_view text) {
   size_t start = 0;
   for (;;) {
     const size_t comma = text.find(',', start);
-    const std::string_view item = text.substr(start, comma == std::string_view::npos ? text.npos : comma - start);
+    const std::string_view item =
+        text.substr(start, comma == std::string_view::npos ? text.npos : comma - start);
     int n = 0;
     const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
-    if (item.empty() || ec != std::errc() || end != item.data() + item.size() || n < 1 || n > 10000) {
+    if (item.empty() || ec != std::errc() || end != item.data() + item.size() || n < 1 ||
+        n > 10000) {
       std::string message = "not a player count 1..10000 (want N1,N2,...): '";
       message.append(item).append("'");
       return proto::Error{message};
@@ -43,7 +45,8 @@ SweepResult run_sweep(LoadConfig config, const std::vector<int>& counts, double 
     out << "players " << n << ": edit->delta p99 " << p99 << " ms, errors " << errors << "\n";
     if (p99 <= limit_ms && errors == 0) result.best = std::max(result.best, n);
   }
-  out << "largest player count with p99 <= " << limit_ms << " ms and no errors: " << result.best << "\n";
+  out << "largest player count with p99 <= " << limit_ms << " ms and no errors: " << result.best
+      << "\n";
   return result;
 }
 

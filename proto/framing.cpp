@@ -9,8 +9,8 @@ void append_frame(std::span<const uint8_t> body, std::vector<uint8_t>& out) {
 }
 
 uint32_t read_frame_length(const uint8_t* h) {
-  return static_cast<uint32_t>(h[0]) | static_cast<uint32_t>(h[1]) << 8 | static_cast<uint32_t>(h[2]) << 16 |
-         static_cast<uint32_t>(h[3]) << 24;
+  return static_cast<uint32_t>(h[0]) | static_cast<uint32_t>(h[1]) << 8 |
+         static_cast<uint32_t>(h[2]) << 16 | static_cast<uint32_t>(h[3]) << 24;
 }
 
 void FrameDecoder::feed(std::span<const uint8_t> bytes) {
@@ -26,7 +26,8 @@ std::optional<std::vector<uint8_t>> FrameDecoder::next() {
   if (!error_.empty() || buffered() < kFrameHeaderBytes) return std::nullopt;
   const uint32_t n = read_frame_length(buffer_.data() + start_);
   if (n > max_) {
-    error_ = "frame of " + std::to_string(n) + " bytes is over the limit of " + std::to_string(max_);
+    error_ =
+        "frame of " + std::to_string(n) + " bytes is over the limit of " + std::to_string(max_);
     buffer_.clear();
     start_ = 0;
     return std::nullopt;

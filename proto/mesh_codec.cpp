@@ -27,8 +27,8 @@ void put_u32(uint8_t* p, uint32_t v) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
 }
 uint32_t get_u32(const uint8_t* p) {
-  return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 | static_cast<uint32_t>(p[2]) << 16 |
-         static_cast<uint32_t>(p[3]) << 24;
+  return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 |
+         static_cast<uint32_t>(p[2]) << 16 | static_cast<uint32_t>(p[3]) << 24;
 }
 
 float sign_not_zero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
@@ -40,9 +40,11 @@ void for_each_vertex(const mesh::MeshScratch& t, const std::array<int, 3>& cells
   for (int z = 0; z <= cells[2]; ++z) {
     for (int y = 0; y <= cells[1]; ++y) {
       const int r = row_of(y, z);
-      if ((t.cut[0][r] | t.cut[1][r] | t.cut[2][r]) == 0) continue;  // most rows: far from the surface
+      if ((t.cut[0][r] | t.cut[1][r] | t.cut[2][r]) == 0)
+        continue;  // most rows: far from the surface
       for (int a = 0; a < 3; ++a)
-        for (uint64_t bits = t.cut[a][r]; bits != 0; bits &= bits - 1) fn(v++, a, std::countr_zero(bits), y, z);
+        for (uint64_t bits = t.cut[a][r]; bits != 0; bits &= bits - 1)
+          fn(v++, a, std::countr_zero(bits), y, z);
     }
   }
 }
@@ -54,12 +56,15 @@ std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n) {
   const float inv = l1 > 0 ? 1.0f / l1 : 0.0f;
   float px = n.x * inv, py = n.y * inv;
   if (n.z < 0.0f) {
-    const float ox = (1.0f - std::fabs(py)) * sign_not_zero(px), oy = (1.0f - std::fabs(px)) * sign_not_zero(py);
+    const float ox = (1.0f - std::fabs(py)) * sign_not_zero(px),
+                oy = (1.0f - std::fabs(px)) * sign_not_zero(py);
     px = ox;
     py = oy;
   }
   // Round to nearest (the value is >= 0, so adding 0.5 and truncating rounds).
-  auto q = [](float p) { return static_cast<uint8_t>(std::clamp(p * 0.5f + 0.5f, 0.0f, 1.0f) * 255.0f + 0.5f); };
+  auto q = [](float p) {
+    return static_cast<uint8_t>(std::clamp(p * 0.5f + 0.5f, 0.0f, 1.0f) * 255.0f + 0.5f);
+  };
   return {q(px), q(py)};
 }
 
@@ -76,10 +81,12 @@ inline float inverse_sqrt(float x) {
 
 namespace {
 inline mesh::Vec3f decode_normal_inline(uint8_t u, uint8_t v) {
-  const float px = static_cast<float>(u) * (2.0f / 255.0f) - 1.0f, py = static_cast<float>(v) * (2.0f / 255.0f) - 1.0f;
+  const float px = static_cast<float>(u) * (2.0f / 255.0f) - 1.0f,
+              py = static_cast<float>(v) * (2.0f / 255.0f) - 1.0f;
   const float z = 1.0f - std::fabs(px) - std::fabs(py);
   // Lower hemisphere (z < 0): unfold. Written as selects so that it compiles branch-free.
-  const float fx = (1.0f - std::fabs(py)) * std::copysign(1.0f, px), fy = (1.0f - std::fabs(px)) * std::copysign(1.0f, py);
+  const float fx = (1.0f - std::fabs(py)) * std::copysign(1.0f, px),
+              fy = (1.0f - std::fabs(px)) * std::copysign(1.0f, py);
   const float x = z < 0.0f ? fx : px, y = z < 0.0f ? fy : py;
   const float inv = inverse_sqrt(x * x + y * y + z * z);
   return {x * inv, y * inv, z * inv};
@@ -88,8 +95,8 @@ inline mesh::Vec3f decode_normal_inline(uint8_t u, uint8_t v) {
 
 mesh::Vec3f decode_normal(uint8_t u, uint8_t v) { return decode_normal_inline(u, v); }
 
-void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std::array<int, 3>& cells,
-                 CodecScratch& scratch, Bytes& out) {
+void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
+                 const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out) {
   const auto vertices = static_cast<uint32_t>(m.vertex_count());
   const auto triangles = static_cast<uint32_t>(m.triangle_count());
 
@@ -101,10 +108,12 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
     uint32_t ordinal = 0;
     // Walks the table-derived triangles against the mesh's; writes nothing (keep is false).
     mesh::emit_triangles(t, cells, nullptr, [&](uint32_t a, uint32_t b, uint32_t c) {
-      const bool kept = next < triangles && m.indices[3 * next] == a && m.indices[3 * next + 1] == b &&
-                        m.indices[3 * next + 2] == c;
-      if (kept) ++next;
-      else dropped.push_back(ordinal);
+      const bool kept = next < triangles && m.indices[3 * next] == a &&
+                        m.indices[3 * next + 1] == b && m.indices[3 * next + 2] == c;
+      if (kept)
+        ++next;
+      else
+        dropped.push_back(ordinal);
       ++ordinal;
       return false;
     });
@@ -127,8 +136,8 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
       nonzero += diff[r] != 0 ? 1 : 0;
     }
   }
-  const size_t size = kHeaderBytes + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} + 4 * size_t{dropped} +
-                      kChecksumBytes;
+  const size_t size = kHeaderBytes + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} +
+                      4 * size_t{dropped} + kChecksumBytes;
   out.resize(size);
   uint8_t* p = out.data();
   p[0] = kMeshFormat;
@@ -138,7 +147,8 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
   put_u32(p + 12, dropped);
   p += kHeaderBytes;
   std::memset(p, 0, (rows + 7) / 8);
-  for (r = 0; r < rows; ++r) p[r / 8] = static_cast<uint8_t>(p[r / 8] | (diff[r] != 0 ? 1u << (r % 8) : 0u));
+  for (r = 0; r < rows; ++r)
+    p[r / 8] = static_cast<uint8_t>(p[r / 8] | (diff[r] != 0 ? 1u << (r % 8) : 0u));
   p += (rows + 7) / 8;
   for (r = 0; r < rows; ++r) {
     if (diff[r] == 0) continue;
@@ -157,7 +167,8 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
     const mesh::Vec3f pos = m.positions[v];
     const int lower[3] = {x, y, z};
     const float frac = (&pos.x)[a] - static_cast<float>(lower[a]);
-    const auto q = static_cast<uint16_t>(std::clamp(frac * kFractionSteps + 0.5f, 0.0f, float{kFractionSteps}));
+    const auto q = static_cast<uint16_t>(
+        std::clamp(frac * kFractionSteps + 0.5f, 0.0f, float{kFractionSteps}));
     frac_lo[v] = static_cast<uint8_t>(q);
     frac_hi[v] = static_cast<uint8_t>(q >> 8);
     const auto n = encode_normal(m.normals[v]);
@@ -174,34 +185,39 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t, const std
   put_u32(p, crc32c(out.data(), size - kChecksumBytes));
 }
 
-std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits, CodecScratch& scratch,
-                                 mesh::ChunkMesh& m) {
+std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits,
+                                 CodecScratch& scratch, mesh::ChunkMesh& m) {
   m.clear();
   if (in.size() > limits.max_encoding_bytes) return Error{"mesh encoding larger than the limit"};
-  if (in.size() < kHeaderBytes + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
+  if (in.size() < kHeaderBytes + kChecksumBytes)
+    return Error{"mesh encoding truncated (no header)"};
   if (in[0] != kMeshFormat) return Error{"unknown mesh format " + std::to_string(in[0])};
   const std::array<int, 3> cells{in[1], in[2], in[3]};
   for (int c : cells) {
     if (c < 1 || c > 32) return Error{"cells per axis must be 1..32"};
   }
-  const uint32_t vertices = get_u32(in.data() + 4), triangles = get_u32(in.data() + 8), dropped = get_u32(in.data() + 12);
+  const uint32_t vertices = get_u32(in.data() + 4), triangles = get_u32(in.data() + 8),
+                 dropped = get_u32(in.data() + 12);
   if (vertices > kMaxVertices || triangles > kMaxTriangles || dropped > kMaxTriangles) {
     return Error{"mesh encoding declares impossible counts"};
   }
-  if (crc32c(in.data(), in.size() - kChecksumBytes) != get_u32(in.data() + in.size() - kChecksumBytes)) {
+  if (crc32c(in.data(), in.size() - kChecksumBytes) !=
+      get_u32(in.data() + in.size() - kChecksumBytes)) {
     return Error{"mesh encoding checksum mismatch (corrupt, or a delta against the wrong base)"};
   }
   const size_t rb = row_bytes(cells[0]);
   const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
   const size_t bitmap = (rows + 7) / 8;
-  if (in.size() < kHeaderBytes + bitmap + kChecksumBytes) return Error{"mesh encoding truncated (row bitmap)"};
+  if (in.size() < kHeaderBytes + bitmap + kChecksumBytes)
+    return Error{"mesh encoding truncated (row bitmap)"};
   const uint8_t* flags = in.data() + kHeaderBytes;
   size_t nonzero = 0;
   for (size_t r = 0; r < rows; ++r) nonzero += (flags[r / 8] >> (r % 8)) & 1;
   for (size_t r = rows; r < bitmap * 8; ++r) {
     if ((flags[r / 8] >> (r % 8)) & 1) return Error{"row bitmap flags rows beyond the chunk"};
   }
-  const size_t expected = kHeaderBytes + bitmap + nonzero * rb + 5 * size_t{vertices} + 4 * size_t{dropped} + kChecksumBytes;
+  const size_t expected = kHeaderBytes + bitmap + nonzero * rb + 5 * size_t{vertices} +
+                          4 * size_t{dropped} + kChecksumBytes;
   if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
 
   mesh::MeshScratch& t = scratch.topology;
@@ -221,7 +237,8 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
       t.solid[row_of(y, z)] = previous;
     }
   }
-  if (mesh::index_cut_edges(t, cells) != vertices) return Error{"vertex count does not match the solid rows"};
+  if (mesh::index_cut_edges(t, cells) != vertices)
+    return Error{"vertex count does not match the solid rows"};
 
   const uint8_t* frac_lo = p;
   const uint8_t* frac_hi = frac_lo + vertices;
@@ -244,8 +261,9 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
     bad_fraction |= q > kFractionSteps;
     const float f = static_cast<float>(q) * (1.0f / kFractionSteps);
     // Selects instead of indexing a member by axis, which would force pos through memory.
-    out_pos[i] = {static_cast<float>(x) + (a == 0 ? f : 0.0f), static_cast<float>(y) + (a == 1 ? f : 0.0f),
-                      static_cast<float>(z) + (a == 2 ? f : 0.0f)};
+    out_pos[i] = {static_cast<float>(x) + (a == 0 ? f : 0.0f),
+                  static_cast<float>(y) + (a == 1 ? f : 0.0f),
+                  static_cast<float>(z) + (a == 2 ? f : 0.0f)};
   });
   if (bad_fraction) return Error{"edge fraction over 1024"};
   // Normals and materials do not depend on the edge: plain loops.
@@ -267,16 +285,17 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   const size_t declared = size_t{triangles} + dropped;
   m.indices.resize(declared * 3);
   uint32_t ordinal = 0, next_drop = 0;
-  const size_t written = mesh::emit_triangles(t, cells, m.indices.data(), [&](uint32_t, uint32_t, uint32_t) {
-    if (ordinal >= declared) {
-      ++ordinal;
-      return false;
-    }
-    const bool drop_it = next_drop < dropped && get_u32(drop + 4 * next_drop) == ordinal;
-    next_drop += drop_it ? 1 : 0;
-    ++ordinal;
-    return !drop_it;
-  });
+  const size_t written =
+      mesh::emit_triangles(t, cells, m.indices.data(), [&](uint32_t, uint32_t, uint32_t) {
+        if (ordinal >= declared) {
+          ++ordinal;
+          return false;
+        }
+        const bool drop_it = next_drop < dropped && get_u32(drop + 4 * next_drop) == ordinal;
+        next_drop += drop_it ? 1 : 0;
+        ++ordinal;
+        return !drop_it;
+      });
   if (ordinal != declared) return Error{"triangle count does not match the solid rows"};
   if (next_drop != dropped) return Error{"dropped triangle beyond the last triangle"};
   if (written != triangles) return Error{"triangle count does not match the solid rows"};
@@ -284,7 +303,8 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   return std::nullopt;
 }
 
-Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits, CodecScratch& scratch) {
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits,
+                                    CodecScratch& scratch) {
   mesh::ChunkMesh m;
   if (auto error = decode_mesh(in, limits, scratch, m)) return *error;
   return m;

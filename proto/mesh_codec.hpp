@@ -4,8 +4,9 @@
 // give the cut edges, the vertex order and, through the published tables, the triangles)
 // plus, per vertex, the fraction along its edge, a normal and a material. The encoding
 // sends exactly that: solid-bit rows xor-ed with the previous row (only the rows where
-// that is not zero), then per-vertex byte planes. Indices are not sent, so inserting vertices never rewrites later indices, and
-// a local edit changes a local run of bytes in each section (good for zstd deltas).
+// that is not zero), then per-vertex byte planes. Indices are not sent, so inserting vertices never
+// rewrites later indices, and a local edit changes a local run of bytes in each section (good for
+// zstd deltas).
 #pragma once
 
 #include <array>
@@ -14,9 +15,9 @@
 #include <span>
 #include <vector>
 
+#include "proto/result.hpp"
 #include "server/mesh/chunk_mesh.hpp"
 #include "server/mesh/marching_cubes.hpp"
-#include "proto/result.hpp"
 
 namespace vox::proto {
 
@@ -39,17 +40,18 @@ struct CodecScratch {
 // `topology` is the mesher's scratch right after mesh_chunk() produced `mesh` (its solid
 // rows, cut edges and vertex numbering for `cells`). Appends the encoding to `out`
 // (cleared first).
-void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology, const std::array<int, 3>& cells,
-                 CodecScratch& scratch, Bytes& out);
+void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology,
+                 const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out);
 
 // Rebuilds the mesh into `out` (its buffers reused); never trusts the bytes: any
 // inconsistency is an error (and `out` holds no meaningful mesh).
-std::optional<Error> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits, CodecScratch& scratch,
-                                 mesh::ChunkMesh& out);
+std::optional<Error> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits,
+                                 CodecScratch& scratch, mesh::ChunkMesh& out);
 // The same, returning a new mesh.
 Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits,
                                     CodecScratch& scratch);
-Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits = {});
+Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding,
+                                    const DecodeLimits& limits = {});
 
 // Octahedral normal in two bytes (docs/PROTOCOL.md): encode and decode.
 std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n);

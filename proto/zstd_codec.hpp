@@ -9,8 +9,8 @@
 #include <span>
 #include <vector>
 
-#include "server/mesh/chunk_mesh.hpp"
 #include "proto/result.hpp"
+#include "server/mesh/chunk_mesh.hpp"
 
 struct ZSTD_CCtx_s;
 struct ZSTD_DCtx_s;
@@ -33,13 +33,15 @@ class ZstdCodec {
   ZstdCodec& operator=(const ZstdCodec&) = delete;
 
   // `base` empty: a full message. Otherwise a delta against `base`.
-  void compress(std::span<const uint8_t> data, std::span<const uint8_t> base, std::vector<uint8_t>& out);
+  void compress(std::span<const uint8_t> data, std::span<const uint8_t> base,
+                std::vector<uint8_t>& out);
   // Refuses frames without a declared content size or declaring more than max_bytes, and
   // any frame that does not decode to exactly its declared size.
-  Result<std::vector<uint8_t>> decompress(std::span<const uint8_t> frame, std::span<const uint8_t> base,
-                                          size_t max_bytes);
+  Result<std::vector<uint8_t>> decompress(std::span<const uint8_t> frame,
+                                          std::span<const uint8_t> base, size_t max_bytes);
   // The same into a caller-owned buffer (its capacity reused; nothing is zero-filled).
-  std::optional<Error> decompress_into(std::span<const uint8_t> frame, std::span<const uint8_t> base, size_t max_bytes,
+  std::optional<Error> decompress_into(std::span<const uint8_t> frame,
+                                       std::span<const uint8_t> base, size_t max_bytes,
                                        mesh::Buffer<uint8_t>& out);
 
  private:

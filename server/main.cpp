@@ -1,7 +1,7 @@
 // voxeld: flags, logging, signals; the server itself lives in the voxel_net library.
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
-#include <utility>
 #include <boost/asio.hpp>
 #include <boost/program_options.hpp>
 #include <cmath>
@@ -9,7 +9,7 @@
 #include <iostream>
 #include <optional>
 #include <thread>
-#include <unistd.h>
+#include <utility>
 
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
@@ -30,10 +30,14 @@ std::optional<size_t> parse_bytes(const std::string& text) {
   }
   const std::string unit = text.substr(used);
   int shift = 0;
-  if (unit == "K" || unit == "KiB") shift = 10;
-  else if (unit == "M" || unit == "MiB") shift = 20;
-  else if (unit == "G" || unit == "GiB") shift = 30;
-  else if (!unit.empty()) return std::nullopt;
+  if (unit == "K" || unit == "KiB")
+    shift = 10;
+  else if (unit == "M" || unit == "MiB")
+    shift = 20;
+  else if (unit == "G" || unit == "GiB")
+    shift = 30;
+  else if (!unit.empty())
+    return std::nullopt;
   if (value > (SIZE_MAX >> shift)) return std::nullopt;
   return static_cast<size_t>(value) << shift;
 }
@@ -48,7 +52,8 @@ void write_port_file(const std::string& path, uint16_t port) {
 // Half the machine's memory, at most 4 GiB: a dedicated server's share.
 size_t default_max_memory() {
   const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
-  const size_t half = pages > 0 && page > 0 ? static_cast<size_t>(pages) * page / 2 : size_t{1} << 30;
+  const size_t half =
+      pages > 0 && page > 0 ? static_cast<size_t>(pages) * page / 2 : size_t{1} << 30;
   return std::min(half, size_t{4} << 30);
 }
 
@@ -60,37 +65,65 @@ int main(int argc, char** argv) {
   std::string port_file, log_level, max_memory, metrics_port_file;
   int metrics_port = -1;
   int io_threads = 1, stats_seconds = 10;
-  long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000, evict_after_s = 120;
+  long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000,
+       evict_after_s = 120;
   po::options_description opts("voxeld options");
   opts.add_options()("help,h", "show this help")(
       "port", po::value<uint16_t>(&net.port)->default_value(7777), "TCP port (0: pick a free one)")(
-      "bind", po::value<std::string>(&net.bind)->default_value("127.0.0.1"), "address to listen on")(
-      "port-file", po::value<std::string>(&port_file), "write the bound port to this file")(
-      "metrics-port", po::value<int>(&metrics_port), "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)")(
-      "metrics-port-file", po::value<std::string>(&metrics_port_file), "write the metrics port to this file")(
+      "bind", po::value<std::string>(&net.bind)->default_value("127.0.0.1"),
+      "address to listen on")("port-file", po::value<std::string>(&port_file),
+                              "write the bound port to this file")(
+      "metrics-port", po::value<int>(&metrics_port),
+      "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)")(
+      "metrics-port-file", po::value<std::string>(&metrics_port_file),
+      "write the metrics port to this file")(
       "seed", po::value<uint64_t>(&world.seed)->default_value(1), "world seed")(
-      "threads", po::value<int>(&world.threads)->default_value(0), "world pipeline threads (0: all cores)")(
+      "threads", po::value<int>(&world.threads)->default_value(0),
+      "world pipeline threads (0: all cores)")(
       "io-threads", po::value<int>(&io_threads)->default_value(1), "network threads")(
-      "max-clients", po::value<size_t>(&net.max_clients)->default_value(256), "players beyond this are refused (SERVER_FULL)")(
-      "max-handshaking", po::value<size_t>(&net.max_handshaking)->default_value(64), "connections before Hello (not players) at once")(
-      "max-per-address", po::value<size_t>(&net.max_per_address)->default_value(16), "connections from one address (0: no cap)")(
-      "max-handshaking-per-address", po::value<size_t>(&net.max_handshaking_per_address)->default_value(4), "of those, before Hello (0: no cap)")(
-      "max-memory", po::value<std::string>(&max_memory), "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)")(
-      "load-budget", po::value<double>(&world.load_work_per_owner)->default_value(250), "terrain load work per second per player (4 per chunk generated, 1 per mesh; 0: unlimited)")(
-      "load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(4000), "load work a player may take at once (a first radius-4 view is 2,925)")(
-      "load-budget-per-address", po::value<double>(&world.load_work_per_address)->default_value(1000), "load work per second for all players from one address together, burst 8x that; kept after they leave until refilled (0: unlimited)")(
-      "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000), "samples per second a player's edits may touch (0: unlimited)")(
-      "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000), "samples a player's edits may touch at once")(
-      "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(2), "SetViews per second per player; more are coalesced (0: unlimited)")(
-      "message-rate", po::value<double>(&net.message_rate)->default_value(200), "messages per second per connection before it is read slower (0: unlimited)")(
-      "frame-timeout-ms", po::value<long>(&frame_ms)->default_value(10000), "a started frame must complete within this")(
-      "evict-after", po::value<long>(&evict_after_s)->default_value(120), "seconds before an unused unmodified chunk is evicted")(
-      "max-view-radius", po::value<uint32_t>(&net.max_view_radius)->default_value(12), "largest view radius in chunks")(
-      "idle-timeout-ms", po::value<long>(&idle_ms)->default_value(60000), "disconnect clients silent this long")(
-      "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000), "time allowed for Hello")(
-      "write-timeout-ms", po::value<long>(&write_ms)->default_value(10000), "disconnect clients that stop reading")(
-      "stats-interval", po::value<int>(&stats_seconds)->default_value(10), "seconds between stats lines (0: none)")(
-      "log-level", po::value<std::string>(&log_level)->default_value("info"), "trace, debug, info, warn, error");
+      "max-clients", po::value<size_t>(&net.max_clients)->default_value(256),
+      "players beyond this are refused (SERVER_FULL)")(
+      "max-handshaking", po::value<size_t>(&net.max_handshaking)->default_value(64),
+      "connections before Hello (not players) at once")(
+      "max-per-address", po::value<size_t>(&net.max_per_address)->default_value(16),
+      "connections from one address (0: no cap)")(
+      "max-handshaking-per-address",
+      po::value<size_t>(&net.max_handshaking_per_address)->default_value(4),
+      "of those, before Hello (0: no cap)")(
+      "max-memory", po::value<std::string>(&max_memory),
+      "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)")(
+      "load-budget", po::value<double>(&world.load_work_per_owner)->default_value(250),
+      "terrain load work per second per player (4 per chunk generated, 1 per mesh; 0: unlimited)")(
+      "load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(4000),
+      "load work a player may take at once (a first radius-4 view is 2,925)")(
+      "load-budget-per-address",
+      po::value<double>(&world.load_work_per_address)->default_value(1000),
+      "load work per second for all players from one address together, burst 8x that; kept after "
+      "they leave until refilled (0: unlimited)")(
+      "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000),
+      "samples per second a player's edits may touch (0: unlimited)")(
+      "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000),
+      "samples a player's edits may touch at once")(
+      "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(2),
+      "SetViews per second per player; more are coalesced (0: unlimited)")(
+      "message-rate", po::value<double>(&net.message_rate)->default_value(200),
+      "messages per second per connection before it is read slower (0: unlimited)")(
+      "frame-timeout-ms", po::value<long>(&frame_ms)->default_value(10000),
+      "a started frame must complete within this")(
+      "evict-after", po::value<long>(&evict_after_s)->default_value(120),
+      "seconds before an unused unmodified chunk is evicted")(
+      "max-view-radius", po::value<uint32_t>(&net.max_view_radius)->default_value(12),
+      "largest view radius in chunks")("idle-timeout-ms",
+                                       po::value<long>(&idle_ms)->default_value(60000),
+                                       "disconnect clients silent this long")(
+      "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000),
+      "time allowed for Hello")("write-timeout-ms",
+                                po::value<long>(&write_ms)->default_value(10000),
+                                "disconnect clients that stop reading")(
+      "stats-interval", po::value<int>(&stats_seconds)->default_value(10),
+      "seconds between stats lines (0: none)")(
+      "log-level", po::value<std::string>(&log_level)->default_value("info"),
+      "trace, debug, info, warn, error");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, opts), vm);
@@ -104,10 +137,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
-  if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 || write_ms <= 0 ||
-      frame_ms <= 0 || evict_after_s < 1 || metrics_port > 65535 || (vm.count("metrics-port") && metrics_port < 0) ||
-      net.max_view_radius > 32 || net.max_clients < 1 || net.max_handshaking < 1) {
-    std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, --max-clients >= 1, "
+  if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 ||
+      write_ms <= 0 || frame_ms <= 0 || evict_after_s < 1 || metrics_port > 65535 ||
+      (vm.count("metrics-port") && metrics_port < 0) || net.max_view_radius > 32 ||
+      net.max_clients < 1 || net.max_handshaking < 1) {
+    std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, "
+                 "--max-clients >= 1, "
                  "--max-handshaking >= 1, timeouts > 0\n";
     return 2;
   }
@@ -119,8 +154,9 @@ int main(int argc, char** argv) {
   world.load_burst_per_address = 8 * world.load_work_per_address;
   // spdlog reads an unknown name as "off": a typo would silence the server.
   if (spdlog::level::from_str(log_level) == spdlog::level::off && log_level != "off") {
-    std::cerr << "voxeld: --log-level must be trace, debug, info, warn, error, critical or off (got '"
-              << log_level << "')\n";
+    std::cerr
+        << "voxeld: --log-level must be trace, debug, info, warn, error, critical or off (got '"
+        << log_level << "')\n";
     return 2;
   }
   // The largest edit (a box of side 2 * max radius) must fit in the budget's burst.
@@ -144,14 +180,18 @@ int main(int argc, char** argv) {
   net.write_timeout = std::chrono::milliseconds(write_ms);
   net.frame_timeout = std::chrono::milliseconds(frame_ms);
   world.evict_after = std::chrono::seconds(evict_after_s);
-  if (net.max_per_address == 0) spdlog::warn("--max-per-address 0: one address may fill the server");
+  if (net.max_per_address == 0)
+    spdlog::warn("--max-per-address 0: one address may fill the server");
 #ifdef VOXEL_JEMALLOC
   constexpr const char* kAllocator = "jemalloc";
 #else
   constexpr const char* kAllocator = "the system allocator";
 #endif
-  spdlog::info("memory budget {} MiB (--max-memory, {}); per player: {:.0f} edit samples/s (burst {:.0f}), {} SetViews/s",
-               world.max_memory >> 20, kAllocator, net.edit_budget_rate, net.edit_budget_burst, net.set_view_rate);
+  spdlog::info(
+      "memory budget {} MiB (--max-memory, {}); per player: {:.0f} edit samples/s (burst {:.0f}), "
+      "{} SetViews/s",
+      world.max_memory >> 20, kAllocator, net.edit_budget_rate, net.edit_budget_burst,
+      net.set_view_rate);
 
   try {
     vox::net::ServerCounters counters;
@@ -164,8 +204,8 @@ int main(int argc, char** argv) {
     server.start();
     std::unique_ptr<vox::metrics::MetricsEndpoint> metrics;
     if (metrics_port >= 0) {
-      metrics = std::make_unique<vox::metrics::MetricsEndpoint>(net.bind, static_cast<uint16_t>(metrics_port),
-                                                                counters, pipeline);
+      metrics = std::make_unique<vox::metrics::MetricsEndpoint>(
+          net.bind, static_cast<uint16_t>(metrics_port), counters, pipeline);
       spdlog::info("metrics on http://{}:{}/metrics", net.bind, metrics->port());
       if (!metrics_port_file.empty()) write_port_file(metrics_port_file, metrics->port());
     }

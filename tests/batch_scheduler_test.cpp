@@ -42,7 +42,8 @@ std::vector<ChunkCoord> row(int owner_tag, int n) {
 
 TEST(BatchScheduler, EveryQueuedEditIsInTheNextBatchWhateverTheLoadBacklog) {
   BatchScheduler s(32);
-  for (LoadOwner o = 1; o <= 20; ++o) s.request(o, row(static_cast<int>(o), 7153));  // 20 radius-12 views
+  for (LoadOwner o = 1; o <= 20; ++o)
+    s.request(o, row(static_cast<int>(o), 7153));  // 20 radius-12 views
   std::vector<int> log;
   for (int i = 0; i < 5000; ++i) s.add(edit_tagged(i, log));
   const Taken b = next(s, 64, unit_cost);
@@ -129,7 +130,8 @@ TEST(BatchScheduler, ChunksWithNothingToDoCostNoTurnAndNoBudget) {
   auto cost = [](ChunkCoord c) { return c.z % 10 == 0 ? size_t{5} : size_t{0}; };
   const Taken b = next(s, 20, cost);
   ASSERT_EQ(b.loads.size(), 1u);
-  EXPECT_EQ(b.loads[0].chunks, (std::vector<ChunkCoord>{{1, 0, 0}, {1, 0, 10}, {1, 0, 20}, {1, 0, 30}}));
+  EXPECT_EQ(b.loads[0].chunks,
+            (std::vector<ChunkCoord>{{1, 0, 0}, {1, 0, 10}, {1, 0, 20}, {1, 0, 30}}));
 }
 
 TEST(BatchScheduler, DoneRunsWithTheLastSliceOrIsHandedBackWhenReplaced) {
@@ -166,8 +168,8 @@ TEST(BatchScheduler, AnOwnerOverItsLoadBudgetWaitsWhileOthersGoOn) {
   using namespace std::chrono_literals;
   BatchScheduler s(32, /*owner_rate=*/100, /*owner_burst=*/64);
   const auto t0 = BatchScheduler::Clock::now();
-  s.request(1, row(1, 7153));  // a flooder's view
-  s.request(2, row(2, 200));   // a player's
+  s.request(1, row(1, 7153));                                    // a flooder's view
+  s.request(2, row(2, 200));                                     // a player's
   s.request(BatchScheduler::kUnlimitedOwners | 1, row(3, 200));  // a one-off load: never budgeted
   std::map<LoadOwner, size_t> by_owner;
   for (int batch = 0; batch < 10; ++batch) {
@@ -177,7 +179,8 @@ TEST(BatchScheduler, AnOwnerOverItsLoadBudgetWaitsWhileOthersGoOn) {
   }
   EXPECT_LE(by_owner[1], 64u + 32u) << "the burst (and at most one group of debt)";
   EXPECT_LE(by_owner[2], 64u + 32u);
-  EXPECT_EQ(by_owner[BatchScheduler::kUnlimitedOwners | 1], 200u) << "one-off loads are not budgeted";
+  EXPECT_EQ(by_owner[BatchScheduler::kUnlimitedOwners | 1], 200u)
+      << "one-off loads are not budgeted";
   EXPECT_FALSE(s.has_ready_loads(t0));
   EXPECT_TRUE(s.has_ready_loads(t0 + 2s)) << "the budget refills";
   const auto later = s.take_loads(1000, unit_cost, SIZE_MAX, t0 + 2s);
@@ -188,13 +191,15 @@ TEST(BatchScheduler, AnOwnerOverItsLoadBudgetWaitsWhileOthersGoOn) {
 // flooders generated 62,000 chunks in 70 s instead of what their budgets allow.
 TEST(BatchScheduler, ReconnectingFromTheSameAddressDoesNotRefillTheLoadBudget) {
   using namespace std::chrono_literals;
-  BatchScheduler s(32, /*owner_rate=*/100, /*owner_burst=*/64, /*group_rate=*/100, /*group_burst=*/96);
+  BatchScheduler s(32, /*owner_rate=*/100, /*owner_burst=*/64, /*group_rate=*/100,
+                   /*group_burst=*/96);
   const auto t0 = BatchScheduler::Clock::now();
   constexpr uint64_t kAddress = 42, kOther = 43;
   size_t taken = 0;
   for (LoadOwner session = 1; session <= 5; ++session) {  // connect, load, disconnect
     s.request(session, row(1, 1000), {}, kAddress);
-    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0)) taken += slice.chunks.size();
+    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0))
+      taken += slice.chunks.size();
     s.drop(session, t0);
   }
   EXPECT_LE(taken, 96u + 32u) << "the address's burst (and at most one group of debt)";
@@ -206,12 +211,15 @@ TEST(BatchScheduler, ReconnectingFromTheSameAddressDoesNotRefillTheLoadBudget) {
 }
 
 TEST(BatchScheduler, SessionsFromOneAddressShareItsBudgetAndKeepTheirOwn) {
-  BatchScheduler s(8, /*owner_rate=*/100, /*owner_burst=*/16, /*group_rate=*/100, /*group_burst=*/40);
+  BatchScheduler s(8, /*owner_rate=*/100, /*owner_burst=*/16, /*group_rate=*/100,
+                   /*group_burst=*/40);
   const auto t0 = BatchScheduler::Clock::now();
-  for (LoadOwner session = 1; session <= 4; ++session) s.request(session, row(static_cast<int>(session), 100), {}, 7);
+  for (LoadOwner session = 1; session <= 4; ++session)
+    s.request(session, row(static_cast<int>(session), 100), {}, 7);
   std::map<LoadOwner, size_t> by_owner;
   for (int pass = 0; pass < 20; ++pass) {
-    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0)) by_owner[slice.owner] += slice.chunks.size();
+    for (const auto& slice : s.take_loads(1000, unit_cost, SIZE_MAX, t0))
+      by_owner[slice.owner] += slice.chunks.size();
   }
   size_t total = 0;
   for (const auto& [owner, n] : by_owner) {
@@ -226,7 +234,13 @@ TEST(BatchScheduler, APassConsidersAtMostTheScanLimit) {
   BatchScheduler s(32);
   for (LoadOwner o = 1; o <= 10; ++o) s.request(o, row(static_cast<int>(o), 7153));
   size_t considered = 0;
-  const auto loads = s.take_loads(1000, [&](ChunkCoord) { ++considered; return size_t{0}; }, 5000);
+  const auto loads = s.take_loads(
+      1000,
+      [&](ChunkCoord) {
+        ++considered;
+        return size_t{0};
+      },
+      5000);
   EXPECT_EQ(considered, 5000u) << "fully meshed views are not scanned whole under the lock";
   EXPECT_TRUE(loads.empty());
   EXPECT_EQ(s.queued_load_chunks(), 10 * 7153u - 5000);

@@ -19,21 +19,27 @@ namespace fs = std::filesystem;
 class CliMesh : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("voxel_cli_test_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           ("voxel_cli_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
 
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  void write(const std::string& name, const std::string& text) const { std::ofstream(path(name), std::ios::binary) << text; }
+  void write(const std::string& name, const std::string& text) const {
+    std::ofstream(path(name), std::ios::binary) << text;
+  }
   int run(std::vector<std::string> args) {
     out_.str("");
     err_.str("");
     return run_cli(args, out_, err_);
   }
   // Nothing but the inputs is left in the directory (no partial or temporary output).
-  size_t files_in_dir() const { return static_cast<size_t>(std::distance(fs::directory_iterator(dir_), fs::directory_iterator())); }
+  size_t files_in_dir() const {
+    return static_cast<size_t>(
+        std::distance(fs::directory_iterator(dir_), fs::directory_iterator()));
+  }
 
   // A sphere of radius 3 in a 9^3 text volume, values in [-1, 1] like the seed's files.
   std::string sphere_text(bool bourke_convention) const {
@@ -42,7 +48,8 @@ class CliMesh : public ::testing::Test {
     for (int z = 0; z < 9; ++z)
       for (int y = 0; y < 9; ++y)
         for (int x = 0; x < 9; ++x) {
-          const float d = 3.0f - std::sqrt(float((x - 4.2) * (x - 4.2) + (y - 3.9) * (y - 3.9) + (z - 4.1) * (z - 4.1)));
+          const float d = 3.0f - std::sqrt(float((x - 4.2) * (x - 4.2) + (y - 3.9) * (y - 3.9) +
+                                                 (z - 4.1) * (z - 4.1)));
           const float v = std::clamp(d / 3.0f, -1.0f, 1.0f);
           s << (bourke_convention ? -v : v) << ' ';
         }
@@ -92,9 +99,13 @@ TEST_F(CliMesh, RawFloatVolumeWithDimsAndPlyOutput) {
   std::vector<float> values(16 * 16 * 16);
   for (int z = 0; z < 16; ++z)
     for (int y = 0; y < 16; ++y)
-      for (int x = 0; x < 16; ++x) values[x + 16 * (y + 16 * z)] = 7.5f - static_cast<float>(y) + 0.1f * x;  // a slope
-  std::ofstream(path("vol.raw"), std::ios::binary).write(reinterpret_cast<const char*>(values.data()), values.size() * 4);
-  ASSERT_EQ(run({"mesh", path("vol.raw"), "--dims", "16,16,16", "--out", path("out.ply"), "--threads", "2"}), 0)
+      for (int x = 0; x < 16; ++x)
+        values[x + 16 * (y + 16 * z)] = 7.5f - static_cast<float>(y) + 0.1f * x;  // a slope
+  std::ofstream(path("vol.raw"), std::ios::binary)
+      .write(reinterpret_cast<const char*>(values.data()), values.size() * 4);
+  ASSERT_EQ(run({"mesh", path("vol.raw"), "--dims", "16,16,16", "--out", path("out.ply"),
+                 "--threads", "2"}),
+            0)
       << err_.str();
   std::ifstream in(path("out.ply"), std::ios::binary);
   std::string magic;
@@ -115,7 +126,10 @@ TEST_F(CliMesh, BadInputGivesOneLineErrorAndNoOutputFile) {
       {"short file", "3 3 3\n1 2 3", {}, "expected 27 values, the file has room for at most 3"},
       {"short by one", "2 2 2\n1 2 3 4 5 6 7   ", {}, "expected 8 values, found 7"},
       // A header is not trusted before the file is: this one asked for 8.6 GB.
-      {"huge header", "1290 1290 1290\n0", {}, "expected 2146689000 values, the file has room for at most 1"},
+      {"huge header",
+       "1290 1290 1290\n0",
+       {},
+       "expected 2146689000 values, the file has room for at most 1"},
       {"non-number", "2 2 2\n1 2 3 x 5 6 7 8", {}, "value 3 is not a number"},
       {"nan", "2 2 2\n1 2 3 nan 5 6 7 8", {}, "value 3 is not finite"},
       {"bad header", "2 two 2\n", {}, "ydim is not an integer"},
@@ -158,8 +172,8 @@ TEST_F(CliMesh, UsageErrorsExitTwo) {
 }
 
 TEST_F(CliMesh, ExecutableReportsErrorsThroughExitCode) {
-  const std::string cmd = std::string(VOXEL_CLI_PATH) + " mesh " + path("nothing.txt") + " --out " + path("o.obj") +
-                          " 2>" + path("err.log");
+  const std::string cmd = std::string(VOXEL_CLI_PATH) + " mesh " + path("nothing.txt") + " --out " +
+                          path("o.obj") + " 2>" + path("err.log");
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 1);
@@ -206,7 +220,8 @@ MeshFileContents read_obj(const std::string& file) {
   for (std::string line; std::getline(in, line);) {
     double x, y, z;
     uint32_t a, b, c, na, nb, nc;
-    if (std::sscanf(line.c_str(), "v %lf %lf %lf", &x, &y, &z) == 3) m.positions.push_back(snapped(x, y, z));
+    if (std::sscanf(line.c_str(), "v %lf %lf %lf", &x, &y, &z) == 3)
+      m.positions.push_back(snapped(x, y, z));
     if (std::sscanf(line.c_str(), "f %u//%u %u//%u %u//%u", &a, &na, &b, &nb, &c, &nc) == 6) {
       m.triangles.push_back({a - 1, b - 1, c - 1});
     }
@@ -266,8 +281,9 @@ TEST_F(CliMesh, EveryWrittenVertexIsUsedWhenSamplesLieOnTheIsoLevel) {
   write("ints.txt", integer_volume_text());
   for (const std::string ext : {".obj", ".ply", ".txt"}) {
     SCOPED_TRACE(ext);
-    ASSERT_EQ(run({"mesh", path("ints.txt"), "--out", path("out" + ext), "--threads", "2"}), 0) << err_.str();
-    const MeshFileContents m = ext == ".obj" ? read_obj(path("out.obj"))
+    ASSERT_EQ(run({"mesh", path("ints.txt"), "--out", path("out" + ext), "--threads", "2"}), 0)
+        << err_.str();
+    const MeshFileContents m = ext == ".obj"   ? read_obj(path("out.obj"))
                                : ext == ".ply" ? read_ply(path("out.ply"))
                                                : read_txt(path("out.txt"));
     ASSERT_GT(m.triangles.size(), 1000u);
@@ -279,13 +295,18 @@ TEST_F(CliMesh, EveryWrittenVertexIsUsedWhenSamplesLieOnTheIsoLevel) {
         continue;
       }
       const auto &a = m.positions[t[0]], &b = m.positions[t[1]], &c = m.positions[t[2]];
-      const int64_t u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-      zero_area += (u[1] * w[2] == u[2] * w[1] && u[2] * w[0] == u[0] * w[2] && u[0] * w[1] == u[1] * w[0]) ? 1 : 0;
+      const int64_t u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+                    w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+      zero_area +=
+          (u[1] * w[2] == u[2] * w[1] && u[2] * w[0] == u[0] * w[2] && u[0] * w[1] == u[1] * w[0])
+              ? 1
+              : 0;
       for (uint32_t v : t) used[v] = true;
     }
     EXPECT_EQ(out_of_range, 0u);
     EXPECT_EQ(zero_area, 0u) << "of " << m.triangles.size() << " triangles";
-    EXPECT_EQ(std::count(used.begin(), used.end(), false), 0) << "unused of " << m.positions.size() << " vertices";
+    EXPECT_EQ(std::count(used.begin(), used.end(), false), 0)
+        << "unused of " << m.positions.size() << " vertices";
   }
 }
 

@@ -27,8 +27,9 @@ class CliNetwork : public ::testing::Test {
     server_ = nullptr;
   }
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("voxel_cli_net_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = fs::temp_directory_path() /
+           ("voxel_cli_net_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::create_directories(dir_);
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -71,26 +72,30 @@ TEST_F(CliNetwork, UnreachableServerIsAOneLineErrorAndExitOne) {
 
 TEST_F(CliNetwork, EveryEditCommandIsAcceptedOrRefusedWithItsReason) {
   const std::string at = surface_at(40, 40);
-  ASSERT_EQ(run({"brush", "--at", at, "--radius", "3", "--strength", "1", "--material", "4"}), 0) << err_.str();
+  ASSERT_EQ(run({"brush", "--at", at, "--radius", "3", "--strength", "1", "--material", "4"}), 0)
+      << err_.str();
   EXPECT_NE(out_.str().find("accepted"), std::string::npos);
   EXPECT_NE(out_.str().find(" ms"), std::string::npos);
   EXPECT_EQ(run({"explode", "--at", at, "--radius", "5", "--power", "2"}), 0) << err_.str();
   EXPECT_EQ(run({"smooth", "--at", at, "--radius", "4", "--strength", "0.5"}), 0) << err_.str();
   EXPECT_EQ(run({"paint", "--at", at, "--radius", "4", "--material", "7"}), 0) << err_.str();
-  EXPECT_EQ(run({"stamp", "--shape", "sphere", "--at", at, "--radius", "3", "--material", "5"}), 0) << err_.str();
+  EXPECT_EQ(run({"stamp", "--shape", "sphere", "--at", at, "--radius", "3", "--material", "5"}), 0)
+      << err_.str();
   EXPECT_EQ(run({"stamp", "--min", "30,0,30", "--max", "34,4,34", "--air"}), 0) << err_.str();
   EXPECT_EQ(run({"explode", "--at", at, "--radius", "99"}), 1);
   EXPECT_NE(err_.str().find("refused: BAD_RADIUS"), std::string::npos) << err_.str();
   EXPECT_EQ(run({"paint", "--at", at, "--radius", "2", "--material", "0"}), 1);
   EXPECT_NE(err_.str().find("BAD_MATERIAL"), std::string::npos) << err_.str();
-  EXPECT_EQ(run({"brush", "--at", "nan,0,0", "--radius", "2"}), 2) << "NaN is caught before sending";
+  EXPECT_EQ(run({"brush", "--at", "nan,0,0", "--radius", "2"}), 2)
+      << "NaN is caught before sending";
   EXPECT_EQ(run({"brush", "--radius", "2"}), 2) << "--at is required";
   EXPECT_EQ(run({"brush", "--help"}, false), 0);
 }
 
 TEST_F(CliNetwork, ScriptRunsEditsAndRefusesBadLinesBeforeSending) {
-  std::ofstream(path("ok.txt")) << "# a scene\nbrush --at 1,0,1 --radius 3\n\nexplode --at 20,0,20 --radius 4 --power 2\n"
-                                   "stamp --shape sphere --at 10,5,10 --radius 3 --material 5\n";
+  std::ofstream(path("ok.txt"))
+      << "# a scene\nbrush --at 1,0,1 --radius 3\n\nexplode --at 20,0,20 --radius 4 --power 2\n"
+         "stamp --shape sphere --at 10,5,10 --radius 3 --material 5\n";
   ASSERT_EQ(run({"script", path("ok.txt")}), 0) << err_.str();
   EXPECT_NE(out_.str().find("3 edits (0 refused)"), std::string::npos) << out_.str();
   EXPECT_NE(out_.str().find("edits/s"), std::string::npos);
@@ -103,7 +108,8 @@ TEST_F(CliNetwork, ScriptRunsEditsAndRefusesBadLinesBeforeSending) {
 }
 
 TEST_F(CliNetwork, WatchPrintsUpdatesAndASummary) {
-  ASSERT_EQ(run({"watch", "--at", surface_at(0, 0), "--radius", "1", "--for", "1.5"}), 0) << err_.str();
+  ASSERT_EQ(run({"watch", "--at", surface_at(0, 0), "--radius", "1", "--for", "1.5"}), 0)
+      << err_.str();
   EXPECT_NE(out_.str().find("full"), std::string::npos) << out_.str();
   EXPECT_NE(out_.str().find("watched"), std::string::npos);
 }
@@ -124,10 +130,12 @@ TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
   c.send(client::make_set_view(16, p, 16, 1, 1));
   c.receive_view(1, 60s);
   size_t triangles = 0;
-  for (const auto& [key, held] : c.chunks()) triangles += proto::decode_mesh(held.encoding)->triangle_count();
+  for (const auto& [key, held] : c.chunks())
+    triangles += proto::decode_mesh(held.encoding)->triangle_count();
   std::smatch match;
   const std::string text = out_.str();
-  ASSERT_TRUE(std::regex_search(text, match, std::regex("(\\d+) chunks: (\\d+) vertices, (\\d+) triangles")));
+  ASSERT_TRUE(std::regex_search(text, match,
+                                std::regex("(\\d+) chunks: (\\d+) vertices, (\\d+) triangles")));
   EXPECT_EQ(std::stoul(match[1]), c.chunks().size());
   EXPECT_EQ(std::stoul(match[3]), triangles);
   const size_t vertices = std::stoul(match[2]);
@@ -147,16 +155,22 @@ TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
   const uint32_t bin_len = u32(b, bin_at);
   EXPECT_EQ(u32(b, bin_at + 4), 0x004E4942u);  // "BIN\0"
   EXPECT_EQ(bin_at + 8 + bin_len, b.size());
-  ASSERT_TRUE(std::regex_search(json, match, std::regex("\"buffers\":\\[\\{\"byteLength\":(\\d+)")));
+  ASSERT_TRUE(
+      std::regex_search(json, match, std::regex("\"buffers\":\\[\\{\"byteLength\":(\\d+)")));
   const size_t buffer_len = std::stoul(match[1]);
   EXPECT_LE(buffer_len, bin_len);
   const std::regex view("\\{\"buffer\":0,\"byteOffset\":(\\d+),\"byteLength\":(\\d+)");
   size_t views = 0;
-  for (auto it = std::sregex_iterator(json.begin(), json.end(), view); it != std::sregex_iterator(); ++it, ++views) {
-    EXPECT_LE(std::stoul((*it)[1]) + std::stoul((*it)[2]), buffer_len) << "buffer view outside the buffer";
+  for (auto it = std::sregex_iterator(json.begin(), json.end(), view); it != std::sregex_iterator();
+       ++it, ++views) {
+    EXPECT_LE(std::stoul((*it)[1]) + std::stoul((*it)[2]), buffer_len)
+        << "buffer view outside the buffer";
   }
   EXPECT_EQ(views, 4u);
-  ASSERT_TRUE(std::regex_search(json, match, std::regex("\"count\":(\\d+),\"type\":\"VEC3\",\"min\":\\[([^\\]]+)\\],\"max\":\\[([^\\]]+)\\]")));
+  ASSERT_TRUE(std::regex_search(
+      json, match,
+      std::regex(
+          "\"count\":(\\d+),\"type\":\"VEC3\",\"min\":\\[([^\\]]+)\\],\"max\":\\[([^\\]]+)\\]")));
   EXPECT_EQ(std::stoul(match[1]), vertices);
   // Accessor bounds: the region's chunks, and the positions inside them.
   std::vector<float> lo, hi;
@@ -182,15 +196,18 @@ TEST_F(CliNetwork, ExportMatchesTheServersMeshesAndWritesAValidGlb) {
   const uint32_t* idx = reinterpret_cast<const uint32_t*>(b.data() + bin_at + 8 + vertices * 36);
   for (size_t t = 0; t < triangles * 3; t += 3) {
     for (int k = 0; k < 3; ++k) ASSERT_LT(idx[t + k], vertices);
-    ASSERT_TRUE(idx[t] != idx[t + 1] && idx[t + 1] != idx[t + 2] && idx[t] != idx[t + 2]) << "triangle " << t / 3;
+    ASSERT_TRUE(idx[t] != idx[t + 1] && idx[t + 1] != idx[t + 2] && idx[t] != idx[t + 2])
+        << "triangle " << t / 3;
     for (int k = 0; k < 3; ++k)
       for (int a = 0; a < 3; ++a) {
-        ASSERT_LE(std::fabs(pos[3 * idx[t + k] + a] - pos[3 * idx[t + (k + 1) % 3] + a]), 1.0f) << "triangle " << t / 3;
+        ASSERT_LE(std::fabs(pos[3 * idx[t + k] + a] - pos[3 * idx[t + (k + 1) % 3] + a]), 1.0f)
+            << "triangle " << t / 3;
       }
   }
 
   for (const char* ext : {".obj", ".ply"}) {
-    EXPECT_EQ(run({"export", "--at", at, "--radius", "1", "--out", path(std::string("region") + ext)}), 0)
+    EXPECT_EQ(
+        run({"export", "--at", at, "--radius", "1", "--out", path(std::string("region") + ext)}), 0)
         << err_.str();
   }
   EXPECT_EQ(run({"export", "--at", at, "--out", path("region.stl")}), 1) << "unknown extension";
@@ -204,8 +221,8 @@ namespace {
 
 TEST_F(CliNetwork, SliceWritesSvgWhoseContoursCloseOrEndAtTheBorder) {
   const float y = world::TerrainGenerator(1).height_at(300, 300);
-  ASSERT_EQ(run({"slice", "--y", std::to_string(y), "--at", "300,300", "--radius", "1", "--levels", "6", "--out",
-                 path("map.svg")}),
+  ASSERT_EQ(run({"slice", "--y", std::to_string(y), "--at", "300,300", "--radius", "1", "--levels",
+                 "6", "--out", path("map.svg")}),
             0)
       << err_.str();
   std::ifstream in(path("map.svg"));
@@ -217,7 +234,8 @@ TEST_F(CliNetwork, SliceWritesSvgWhoseContoursCloseOrEndAtTheBorder) {
   const float size = std::stof(match[1]);
   // Parsed by hand: std::regex recurses per character and overflows the stack on long paths.
   size_t paths = 0, segments = 0;
-  for (size_t at = svg.find("<path "); at != std::string::npos; at = svg.find("<path ", at + 1), ++paths) {
+  for (size_t at = svg.find("<path "); at != std::string::npos;
+       at = svg.find("<path ", at + 1), ++paths) {
     EXPECT_NE(svg.find("stroke=\"#", at), std::string::npos);
     const size_t d = svg.find(" d=\"", at) + 4;
     const size_t end = svg.find('"', d);
@@ -234,7 +252,8 @@ TEST_F(CliNetwork, SliceWritesSvgWhoseContoursCloseOrEndAtTheBorder) {
       std::istringstream xy(point);
       float x = 0, z = 0;
       xy >> x >> z;
-      EXPECT_TRUE(x == 0 || z == 0 || x == size || z == size) << "contour ends inside the map at " << point;
+      EXPECT_TRUE(x == 0 || z == 0 || x == size || z == size)
+          << "contour ends inside the map at " << point;
     }
   }
   EXPECT_EQ(paths, 6u);

@@ -36,7 +36,8 @@ TEST(ClosedSurface, SphereIsClosedManifoldWithAnalyticAreaAndVolume) {
   EXPECT_NEAR(t.volume, 4.0 / 3.0 * pi * r * r * r, 0.02 * 4.0 / 3.0 * pi * r * r * r);
   for (size_t v = 0; v < m.vertex_count(); ++v) {
     const Vec3f p = m.positions[v], n = m.normals[v];
-    EXPECT_GT(n.x * (p.x - cx) + n.y * (p.y - cy) + n.z * (p.z - cz), 0.0f) << "normal must point to air";
+    EXPECT_GT(n.x * (p.x - cx) + n.y * (p.y - cy) + n.z * (p.z - cz), 0.0f)
+        << "normal must point to air";
   }
 }
 
@@ -45,7 +46,9 @@ TEST(ClosedSurface, MetaballsGiveClosedManifoldWithEulerTwoPerComponent) {
   struct Ball {
     float x, y, z, s;
   };
-  const Ball balls[] = {{27.3f, 30.2f, 31.1f, 49.0f}, {36.6f, 33.1f, 30.4f, 36.0f}, {32.2f, 27.7f, 38.9f, 30.0f},
+  const Ball balls[] = {{27.3f, 30.2f, 31.1f, 49.0f},
+                        {36.6f, 33.1f, 30.4f, 36.0f},
+                        {32.2f, 27.7f, 38.9f, 30.0f},
                         {52.4f, 50.6f, 49.3f, 16.0f}};  // the last one stands apart
   const float g = 2.0f;
   const ChunkBox box{{0, 0, 0}, {1, 1, 1}};

@@ -1,9 +1,10 @@
+#include "server/world/edit.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 
-#include "server/world/edit.hpp"
 #include "server/world/edit_apply.hpp"
 
 namespace vox::world {
@@ -15,7 +16,8 @@ RefusalReason reason_of(const Edit& e) {
 }
 
 TEST(EditValidation, RefusesEachBadValueWithItsReason) {
-  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN(),
+              inf = std::numeric_limits<float>::infinity();
   EXPECT_EQ(reason_of(Brush{{0, 0, 0}, 4, 0.5f}), RefusalReason::kNone);
   EXPECT_EQ(reason_of(Brush{{nan, 0, 0}, 4, 0.5f}), RefusalReason::kNotFinite);
   EXPECT_EQ(reason_of(Brush{{0, 0, 0}, inf, 0.5f}), RefusalReason::kNotFinite);
@@ -60,10 +62,10 @@ std::vector<ChunkCoord> dirty_for(int lo, int hi) {
 }
 
 TEST(EditDirtyTracking, OnlyChunksWhoseMeshesReadTheChangedSamples) {
-  EXPECT_EQ(dirty_for(10, 20).size(), 1u);           // interior: the chunk itself
-  EXPECT_EQ(dirty_for(2, 30).size(), 1u);            // samples 2..30 are read by no neighbour
-  EXPECT_EQ(dirty_for(1, 20).size(), 8u);            // sample 1 is in the -1 neighbours' gradient apron
-  EXPECT_EQ(dirty_for(10, 31).size(), 8u);           // sample 31 is in the +1 neighbours' apron
+  EXPECT_EQ(dirty_for(10, 20).size(), 1u);  // interior: the chunk itself
+  EXPECT_EQ(dirty_for(2, 30).size(), 1u);   // samples 2..30 are read by no neighbour
+  EXPECT_EQ(dirty_for(1, 20).size(), 8u);   // sample 1 is in the -1 neighbours' gradient apron
+  EXPECT_EQ(dirty_for(10, 31).size(), 8u);  // sample 31 is in the +1 neighbours' apron
   EXPECT_EQ(dirty_for(0, 31).size(), 27u);
   ChangedBox face;  // a change touching only the -x face region
   face.add(0, 10, 10);
@@ -86,7 +88,8 @@ Chunk half_solid() {  // solid below y = 16
 TEST(EditApply, EachEditTypeChangesWhatItShould) {
   {
     Chunk c = half_solid();
-    const auto changed = apply_edit(Brush{{16, 20, 16}, 3, 1.5f, false, Material{7}}, {0, 0, 0}, c, nullptr);
+    const auto changed =
+        apply_edit(Brush{{16, 20, 16}, 3, 1.5f, false, Material{7}}, {0, 0, 0}, c, nullptr);
     EXPECT_TRUE(changed.changed);
     EXPECT_TRUE(is_solid(c.at(16, 20, 16).density));
     EXPECT_EQ(c.at(16, 20, 16).material, 7);

@@ -1,6 +1,6 @@
-#include <gtest/gtest.h>
-
 #include "proto/framing.hpp"
+
+#include <gtest/gtest.h>
 
 namespace vox::proto {
 namespace {

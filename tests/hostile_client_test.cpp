@@ -25,7 +25,9 @@ using test::player;
 using test::surface_y;
 using test::wait_for;
 
-int error_code_of(const std::optional<wire::Envelope>& m) { return m && m->has_error() ? m->error().code() : -1; }
+int error_code_of(const std::optional<wire::Envelope>& m) {
+  return m && m->has_error() ? m->error().code() : -1;
+}
 bool is_error(const wire::Envelope& m) { return m.has_error(); }
 
 std::vector<uint8_t> frame(const wire::Envelope& m) {
@@ -88,8 +90,8 @@ std::string read_file(const std::filesystem::path& path) {
 // Regression: 256 post-Hello squatters locked every real player out (SERVER_FULL), and
 // 300 silent connections locked them out for 5 s per wave.
 TEST(HostileClients, SquattersFromOneAddressDoNotKeepARealPlayerOut) {
-  test::ServerProcess server({"--max-clients", "8", "--max-per-address", "6", "--max-handshaking", "16",
-                              "--max-handshaking-per-address", "3"});
+  test::ServerProcess server({"--max-clients", "8", "--max-per-address", "6", "--max-handshaking",
+                              "16", "--max-handshaking-per-address", "3"});
   std::vector<std::unique_ptr<RawSocket>> squatters;
   wire::Envelope hello = client::make_hello("squatter");
   for (int i = 0; i < 40; ++i) {
@@ -99,12 +101,14 @@ TEST(HostileClients, SquattersFromOneAddressDoNotKeepARealPlayerOut) {
   {
     // 20 silent connections from 127.0.0.3 are cut at 3: they hold no more handshake slots.
     std::vector<std::unique_ptr<RawSocket>> silent;
-    for (int i = 0; i < 20; ++i) silent.push_back(std::make_unique<RawSocket>("127.0.0.3", server.port()));
+    for (int i = 0; i < 20; ++i)
+      silent.push_back(std::make_unique<RawSocket>("127.0.0.3", server.port()));
     auto real = player(server, "first");  // gets in while they wait
   }
   auto real = player(server, "real");  // from 127.0.0.1: its own cap, a free player slot
   real->send(client::make_set_view(0, surface_y(0, 0), 0, 1));
-  EXPECT_TRUE(wait_for(*real, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s));
+  EXPECT_TRUE(wait_for(
+      *real, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s));
   EXPECT_TRUE(server.running());
 }
 
@@ -169,12 +173,14 @@ TEST(HostileClients, PlayerNamesAreEscapedInTheLog) {
 }
 
 TEST(HostileClients, EditsOverTheBudgetAreRateLimitedWithARetryAfterAndResultsStayInOrder) {
-  test::ServerProcess server({"--edit-budget", "100000", "--edit-burst", "400000", "--load-budget", "0"});
+  test::ServerProcess server(
+      {"--edit-budget", "100000", "--edit-burst", "400000", "--load-budget", "0"});
   auto c = player(server, "heavy");
   const float y = surface_y(0, 0);
   // Its view covers every chunk the edits need (so no terrain generation is charged).
   c->send(client::make_set_view(0, y, 0, 6));
-  while (wait_for(*c, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 1500ms)) {
+  while (wait_for(
+      *c, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 1500ms)) {
   }
   for (uint64_t i = 1; i <= 6; ++i) {
     wire::Envelope m;
@@ -189,11 +195,13 @@ TEST(HostileClients, EditsOverTheBudgetAreRateLimitedWithARetryAfterAndResultsSt
   }
   std::vector<wire::EditResult> results;
   while (results.size() < 6) {
-    auto r = wait_for(*c, [](const wire::Envelope& m) { return m.has_edit_result(); }, 30s);
+    auto r = wait_for(
+        *c, [](const wire::Envelope& m) { return m.has_edit_result(); }, 30s);
     ASSERT_TRUE(r);
     results.push_back(r->edit_result());
   }
-  for (size_t i = 0; i < results.size(); ++i) EXPECT_EQ(results[i].request_id(), i + 1) << "in order";
+  for (size_t i = 0; i < results.size(); ++i)
+    EXPECT_EQ(results[i].request_id(), i + 1) << "in order";
   EXPECT_EQ(results[0].status(), wire::EditResult::ACCEPTED);
   EXPECT_EQ(results[1].status(), wire::EditResult::RATE_LIMITED);
   EXPECT_GT(results[1].retry_after_ms(), 1000u);  // 150k samples missing at 100k/s
@@ -207,7 +215,8 @@ TEST(HostileClients, EditsWhereNothingIsLoadedAreChargedForTheTerrainTheyGenerat
   auto c = player(server, "far");
   auto send_and_wait = [&c](wire::Envelope m) {
     c->send(m);
-    auto r = wait_for(*c, [](const wire::Envelope& e) { return e.has_edit_result(); }, 30s);
+    auto r = wait_for(
+        *c, [](const wire::Envelope& e) { return e.has_edit_result(); }, 30s);
     EXPECT_TRUE(r);
     return r ? r->edit_result() : wire::EditResult();
   };
@@ -240,10 +249,12 @@ TEST(HostileClients, EditsWhereNothingIsLoadedAreChargedForTheTerrainTheyGenerat
 // Regression: an edit behind a flood of radius-12 views waited tens of seconds, and the
 // flood's loads stayed queued after its client left (5 GB).
 TEST(HostileClients, ViewFloodThenDisconnectLeavesNoQueuedWorkAndEditsStayFast) {
-  test::ServerProcess server({"--metrics-port", "0", "--set-view-rate", "0", "--message-rate", "0"});
+  test::ServerProcess server(
+      {"--metrics-port", "0", "--set-view-rate", "0", "--message-rate", "0"});
   auto flooder = player(server, "flooder");
   for (int i = 0; i < 40; ++i) {
-    flooder->send(client::make_set_view(static_cast<float>(i) * 20000, 0, -static_cast<float>(i) * 20000, 12));
+    flooder->send(client::make_set_view(static_cast<float>(i) * 20000, 0,
+                                        -static_cast<float>(i) * 20000, 12));
   }
   auto honest = player(server, "honest");
   const float y = surface_y(0, 0);
@@ -255,7 +266,8 @@ TEST(HostileClients, ViewFloodThenDisconnectLeavesNoQueuedWorkAndEditsStayFast) 
   b->set_strength(1);
   const auto sent = client::Clock::now();
   honest->send(edit);
-  auto result = wait_for(*honest, [](const wire::Envelope& m) { return m.has_edit_result(); }, 5s);
+  auto result = wait_for(
+      *honest, [](const wire::Envelope& m) { return m.has_edit_result(); }, 5s);
   ASSERT_TRUE(result);
   EXPECT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
   EXPECT_LT(client::Clock::now() - sent, 2s * kSlow) << "the edit waited behind the flood's loads";
@@ -275,17 +287,21 @@ TEST(HostileClients, MetricsEndpointServesPrometheusTextWithTheNamedSeries) {
   test::ServerProcess server({"--metrics-port", "0"});
   auto c = player(server, "watcher");
   c->send(client::make_set_view(0, surface_y(0, 0), 0, 1));
-  EXPECT_TRUE(wait_for(*c, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s));
+  EXPECT_TRUE(wait_for(
+      *c, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s));
   const auto m = scrape(server.metrics_port());
   for (const char* name :
-       {"voxeld_players", "voxeld_connections{state=\"handshaking\"}", "voxeld_connections{state=\"player\"}",
-        "voxeld_edits_total{status=\"accepted\"}", "voxeld_edits_total{status=\"rate_limited\"}",
-        "voxeld_edit_publish_seconds_count", "voxeld_batch_duration_seconds_count",
-        "voxeld_remesh_duration_seconds_sum", "voxeld_load_chunks_queued", "voxeld_chunks_loaded",
-        "voxeld_meshes_loaded", "voxeld_memory_accounted_bytes{part=\"chunks\"}", "voxeld_resident_memory_bytes",
-        "voxeld_sent_bytes_total", "voxeld_sent_messages_total", "voxeld_disconnects_total{reason=\"slow_reader\"}",
+       {"voxeld_players", "voxeld_connections{state=\"handshaking\"}",
+        "voxeld_connections{state=\"player\"}", "voxeld_edits_total{status=\"accepted\"}",
+        "voxeld_edits_total{status=\"rate_limited\"}", "voxeld_edit_publish_seconds_count",
+        "voxeld_batch_duration_seconds_count", "voxeld_remesh_duration_seconds_sum",
+        "voxeld_load_chunks_queued", "voxeld_chunks_loaded", "voxeld_meshes_loaded",
+        "voxeld_memory_accounted_bytes{part=\"chunks\"}", "voxeld_resident_memory_bytes",
+        "voxeld_sent_bytes_total", "voxeld_sent_messages_total",
+        "voxeld_disconnects_total{reason=\"slow_reader\"}",
         "voxeld_disconnects_total{reason=\"idle_timeout\"}",
-        "voxeld_connections_refused_total{reason=\"address_full\"}", "voxeld_memory_budget_bytes"}) {
+        "voxeld_connections_refused_total{reason=\"address_full\"}",
+        "voxeld_memory_budget_bytes"}) {
     EXPECT_TRUE(m.count(name)) << name;
   }
   EXPECT_EQ(m.at("voxeld_players"), 1);

@@ -10,10 +10,10 @@
 #include <fstream>
 #include <regex>
 
+#include "client/asio.hpp"
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/rss_sampler.hpp"
 #include "loadtest/sweep.hpp"
-#include "client/asio.hpp"
 #include "tests/server_process.hpp"
 
 namespace {
@@ -33,11 +33,13 @@ struct TesterRun {
 };
 TesterRun run_tester(const vox::test::ServerProcess& server, const std::string& args) {
   static int counter = 0;
-  const std::string json = (std::filesystem::temp_directory_path() /
-                            ("loadtest_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ".json"))
-                               .string();
-  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
-                          " " + args + " --json " + json + " > /dev/null 2>&1";
+  const std::string json =
+      (std::filesystem::temp_directory_path() /
+       ("loadtest_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ".json"))
+          .string();
+  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) +
+                          " --server 127.0.0.1:" + std::to_string(server.port()) + " " + args +
+                          " --json " + json + " > /dev/null 2>&1";
   const int status = std::system(cmd.c_str());
   TesterRun run;
   if (WIFEXITED(status)) run.exit_code = WEXITSTATUS(status);
@@ -52,23 +54,29 @@ TEST(LoadTest, TwentyPlayersFiveSecondsWithoutErrorsAndVerified) {
   // stretches a view's loading past such spells under the sanitizers, so it is off here
   // (the load budget has its own tests).
   vox::test::ServerProcess server({"--load-budget", "0"});
-  const TesterRun run = run_tester(
-      server, "--players " + std::to_string(kPlayers) + " --duration 5 --ramp 1 --edit-rate 1 --view-radius 3 --verify");
+  const TesterRun run =
+      run_tester(server, "--players " + std::to_string(kPlayers) +
+                             " --duration 5 --ramp 1 --edit-rate 1 --view-radius 3 --verify");
   EXPECT_EQ(run.exit_code, 0);
   const std::string& text = run.json;
-  for (const std::string& key : {"\"players\":" + std::to_string(kPlayers), std::string("\"errors\":0"),
-                                 std::string("\"disconnects\":0"), std::string("\"decode_failures\":0"),
-                                 std::string("\"verified\":true"), std::string("\"verify_mismatches\":0"),
-                                 "\"players_connected\":" + std::to_string(kPlayers)}) {
+  for (const std::string& key :
+       {"\"players\":" + std::to_string(kPlayers), std::string("\"errors\":0"),
+        std::string("\"disconnects\":0"), std::string("\"decode_failures\":0"),
+        std::string("\"verified\":true"), std::string("\"verify_mismatches\":0"),
+        "\"players_connected\":" + std::to_string(kPlayers)}) {
     EXPECT_NE(text.find(key), std::string::npos) << key << " in " << text;
   }
-  for (const char* key : {"duration_s", "edits_sent", "edit_to_result_ms", "edit_to_delta_ms", "bytes_per_player_per_s"}) {
+  for (const char* key : {"duration_s", "edits_sent", "edit_to_result_ms", "edit_to_delta_ms",
+                          "bytes_per_player_per_s"}) {
     EXPECT_NE(text.find(key), std::string::npos) << key;
   }
   std::smatch m;
   ASSERT_TRUE(std::regex_search(text, m, std::regex("\"edits_sent\":(\\d+)")));
   EXPECT_GT(std::stoul(m[1]), static_cast<unsigned long>(kPlayers));
-  ASSERT_TRUE(std::regex_search(text, m, std::regex("\"edit_to_delta_ms\":\\{\"p50\":([0-9.]+),\"p95\":([0-9.]+),\"p99\":([0-9.]+),\"max\":([0-9.]+),\"count\":(\\d+)")));
+  ASSERT_TRUE(
+      std::regex_search(text, m,
+                        std::regex("\"edit_to_delta_ms\":\\{\"p50\":([0-9.]+),\"p95\":([0-9.]+),"
+                                   "\"p99\":([0-9.]+),\"max\":([0-9.]+),\"count\":(\\d+)")));
   EXPECT_GT(std::stoul(m[5]), 0u) << "some edits' deltas were measured";
 }
 
@@ -107,10 +115,27 @@ TEST(AttackMix, AcceptsAnyOrderZeroAndTheLimit) {
 }
 
 TEST(AttackMix, RefusesEveryMalformedMix) {
-  for (const char* bad :
-       {"", ",", "flood", "flood:", ":3", "flood:-1", "flood:+1", "flood:1001", "flood:99999",
-        "flood:1x", "flood: 1", " flood:1", "flood:0x10", "flood:1:2", "flood:3,", ",flood:3",
-        "flood:3,,heavy:1", "flood:3,flood:1", "bogus:1", "FLOOD:1", "flood:3;heavy:1"}) {
+  for (const char* bad : {"",
+                          ",",
+                          "flood",
+                          "flood:",
+                          ":3",
+                          "flood:-1",
+                          "flood:+1",
+                          "flood:1001",
+                          "flood:99999",
+                          "flood:1x",
+                          "flood: 1",
+                          " flood:1",
+                          "flood:0x10",
+                          "flood:1:2",
+                          "flood:3,",
+                          ",flood:3",
+                          "flood:3,,heavy:1",
+                          "flood:3,flood:1",
+                          "bogus:1",
+                          "FLOOD:1",
+                          "flood:3;heavy:1"}) {
     const auto mix = parse_attack_mix(bad);
     EXPECT_FALSE(mix) << "'" << bad << "' was accepted";
     if (!mix) {
@@ -122,9 +147,10 @@ TEST(AttackMix, RefusesEveryMalformedMix) {
 }
 
 TEST(RssSampler, ParsesVmRssAndRefusesWhatIsNotIt) {
-  EXPECT_EQ(vox::loadtest::parse_vm_rss_kib("Name:\tvoxeld\nVmPeak:\t  900 kB\nVmRSS:\t   12345 kB\n"
-                                            "RssAnon:\t 100 kB\n"),
-            12345u);
+  EXPECT_EQ(
+      vox::loadtest::parse_vm_rss_kib("Name:\tvoxeld\nVmPeak:\t  900 kB\nVmRSS:\t   12345 kB\n"
+                                      "RssAnon:\t 100 kB\n"),
+      12345u);
   EXPECT_FALSE(vox::loadtest::parse_vm_rss_kib("Name:\tkthreadd\nState:\tS\n"));
   EXPECT_FALSE(vox::loadtest::parse_vm_rss_kib("VmRSS:\t  12x kB\n"));
   EXPECT_FALSE(vox::loadtest::parse_vm_rss_kib(""));
@@ -132,10 +158,14 @@ TEST(RssSampler, ParsesVmRssAndRefusesWhatIsNotIt) {
 
 TEST(RssSampler, FindsOnlyTheListeningSocketOfThePort) {
   const std::string table =
-      "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout inode\n"
-      "   0: 0100007F:1E61 0100007F:9C40 01 00000000:00000000 00:00000000 00000000  1000        0 111 1 0\n"
-      "   1: 0100007F:1E62 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000        0 222 1 0\n"
-      "   2: 0100007F:1E61 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000        0 333 1 0\n";
+      "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout "
+      "inode\n"
+      "   0: 0100007F:1E61 0100007F:9C40 01 00000000:00000000 00:00000000 00000000  1000        0 "
+      "111 1 0\n"
+      "   1: 0100007F:1E62 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000        0 "
+      "222 1 0\n"
+      "   2: 0100007F:1E61 00000000:0000 0A 00000000:00000000 00:00000000 00000000  1000        0 "
+      "333 1 0\n";
   EXPECT_EQ(vox::loadtest::find_listening_inode(table, 0x1E61), 333u);
   EXPECT_EQ(vox::loadtest::find_listening_inode(table, 0x1E62), 222u);
   EXPECT_FALSE(vox::loadtest::find_listening_inode(table, 0x1E63));
@@ -153,7 +183,8 @@ TEST(RssSampler, FindsThisProcessListeningOnLoopback) {
 }
 
 TEST(AttackLoadTest, BadMixIsAUsageErrorWithExitCode2) {
-  const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --attack flood:2,bogus:1 > /dev/null 2>&1";
+  const std::string cmd =
+      std::string(VOXEL_LOADTEST_PATH) + " --attack flood:2,bogus:1 > /dev/null 2>&1";
   const int status = std::system(cmd.c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 2);
@@ -163,8 +194,8 @@ TEST(Sweep, CountsAreWholeNumbersInRangeAndNothingElse) {
   const auto ok = vox::loadtest::parse_sweep_counts("300,400,500");
   ASSERT_TRUE(ok);
   EXPECT_EQ(*ok, (std::vector<int>{300, 400, 500}));
-  for (const char* bad : {"", "abc", "300,", ",300", "300,,400", "0", "10001", "-5", "3.5", "300 ", "1e3",
-                          "99999999999999999999"}) {
+  for (const char* bad : {"", "abc", "300,", ",300", "300,,400", "0", "10001", "-5", "3.5", "300 ",
+                          "1e3", "99999999999999999999"}) {
     EXPECT_FALSE(vox::loadtest::parse_sweep_counts(bad)) << "'" << bad << "'";
   }
   std::string many;
@@ -177,7 +208,8 @@ TEST(Sweep, CountsAreWholeNumbersInRangeAndNothingElse) {
 
 // `--sweep abc` aborted the tester (exit 134, an uncaught std::stoi exception).
 TEST(Sweep, ABadCountIsAUsageErrorWithExitCode2NotAnAbort) {
-  for (const char* args : {" --sweep abc", " --sweep 300,abc", " --sweep 0", " --sweep 100 --sweep-limit-ms 0"}) {
+  for (const char* args :
+       {" --sweep abc", " --sweep 300,abc", " --sweep 0", " --sweep 100 --sweep-limit-ms 0"}) {
     const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + args + " > /dev/null 2>&1";
     const int status = std::system(cmd.c_str());
     ASSERT_TRUE(WIFEXITED(status)) << args;
@@ -187,9 +219,11 @@ TEST(Sweep, ABadCountIsAUsageErrorWithExitCode2NotAnAbort) {
 
 TEST(Sweep, RunsEachCountAndExitsZeroOnlyWhenOneMetTheLimit) {
   vox::test::ServerProcess server({"--load-budget", "0"});
-  const std::string base = std::string(VOXEL_LOADTEST_PATH) + " --server 127.0.0.1:" + std::to_string(server.port()) +
+  const std::string base = std::string(VOXEL_LOADTEST_PATH) +
+                           " --server 127.0.0.1:" + std::to_string(server.port()) +
                            " --duration 1 --ramp 0.2 --view-radius 2 --sweep 2,3";
-  const std::string out = (std::filesystem::temp_directory_path() / ("sweep_" + std::to_string(::getpid()))).string();
+  const std::string out =
+      (std::filesystem::temp_directory_path() / ("sweep_" + std::to_string(::getpid()))).string();
   int status = std::system((base + " > " + out + " 2>/dev/null").c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
@@ -199,7 +233,8 @@ TEST(Sweep, RunsEachCountAndExitsZeroOnlyWhenOneMetTheLimit) {
   EXPECT_NE(text.find("players 2: "), std::string::npos) << text;
   EXPECT_NE(text.find("players 3: "), std::string::npos) << text;
   EXPECT_NE(text.find("largest player count"), std::string::npos) << text;
-  status = std::system((base + " --sweep-limit-ms 0.000001 > /dev/null 2>&1").c_str());  // no count can meet it
+  status = std::system(
+      (base + " --sweep-limit-ms 0.000001 > /dev/null 2>&1").c_str());  // no count can meet it
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 1);
 }
@@ -224,11 +259,13 @@ std::vector<std::string> generous_server_args() {
 TEST(AttackLoadTest, SpreadAddressesMakeEachPlayerItsOwnAddress) {
   vox::test::ServerProcess server({"--max-per-address", "1", "--max-handshaking-per-address", "1"});
   const int players = 6;
-  const TesterRun run = run_tester(
-      server, "--players " + std::to_string(players) + " --duration 2 --ramp 0.5 --view-radius 2 --spread-addresses");
+  const TesterRun run =
+      run_tester(server, "--players " + std::to_string(players) +
+                             " --duration 2 --ramp 0.5 --view-radius 2 --spread-addresses");
   EXPECT_EQ(run.exit_code, 0);
   const std::string& text = run.json;
-  for (const std::string& key : {"\"players_connected\":" + std::to_string(players), std::string("\"errors\":0")}) {
+  for (const std::string& key :
+       {"\"players_connected\":" + std::to_string(players), std::string("\"errors\":0")}) {
     EXPECT_NE(text.find(key), std::string::npos) << key << " in " << text;
   }
 }
@@ -239,25 +276,29 @@ TEST(AttackLoadTest, SpreadAddressesMakeEachPlayerItsOwnAddress) {
 TEST(AttackLoadTest, PlayersBesideEveryKindOfAttackerExitZeroWithSeparateFigures) {
   vox::test::ServerProcess server(generous_server_args());
   const int players = kPlayers / 2;
-  const TesterRun run = run_tester(server, "--players " + std::to_string(players) +
-                                               " --duration 4 --ramp 1 --edit-rate 1 --view-radius 3" +
-                                               " --attack flood:1,heavy:1,squat:1,slow:1,empty:1");
+  const TesterRun run =
+      run_tester(server, "--players " + std::to_string(players) +
+                             " --duration 4 --ramp 1 --edit-rate 1 --view-radius 3" +
+                             " --attack flood:1,heavy:1,squat:1,slow:1,empty:1");
   EXPECT_EQ(run.exit_code, 0);
   EXPECT_TRUE(server.running());
   const std::string& text = run.json;
   // The honest figures stay at the top level; the attackers' own "disconnects" are inside
   // "attackers", so the honest ones are matched with their neighbours.
-  for (const std::string& key : {"\"players_connected\":" + std::to_string(players),
-                                 std::string("\"decode_failures\":0,\"errors\":0,\"disconnects\":0,"),
-                                 std::string("\"edit_to_delta_ms\""), std::string("\"refused_by_status\""),
-                                 std::string("\"attackers\":{\"mix\":\"flood:1,heavy:1,squat:1,slow:1,empty:1\""),
-                                 std::string("\"server_rss\":{\"pid\":")}) {
+  for (const std::string& key :
+       {"\"players_connected\":" + std::to_string(players),
+        std::string("\"decode_failures\":0,\"errors\":0,\"disconnects\":0,"),
+        std::string("\"edit_to_delta_ms\""), std::string("\"refused_by_status\""),
+        std::string("\"attackers\":{\"mix\":\"flood:1,heavy:1,squat:1,slow:1,empty:1\""),
+        std::string("\"server_rss\":{\"pid\":")}) {
     EXPECT_NE(text.find(key), std::string::npos) << key << " in " << text;
   }
   // Every kind connected at least once and sent something.
   for (const char* kind : {"flood", "heavy", "squat", "slow", "empty"}) {
     std::smatch m;
-    const std::regex re(std::string("\"") + kind + "\":\\{\"clients\":1,\"sockets\":\\d+,\"connects\":(\\d+),.*?\"messages_sent\":(\\d+)");
+    const std::regex re(
+        std::string("\"") + kind +
+        "\":\\{\"clients\":1,\"sockets\":\\d+,\"connects\":(\\d+),.*?\"messages_sent\":(\\d+)");
     ASSERT_TRUE(std::regex_search(text, m, re)) << kind << " in " << text;
     EXPECT_GT(std::stoul(m[1]), 0u) << kind;
     EXPECT_GT(std::stoul(m[2]), 0u) << kind;

@@ -1,3 +1,5 @@
+#include "server/mesh/marching_cubes_tables.hpp"
+
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -7,7 +9,6 @@
 #include <string>
 
 #include "server/mesh/marching_cubes.hpp"
-#include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::mesh {
 namespace {
@@ -52,7 +53,8 @@ ChunkMesh mesh_one_cell(unsigned cube, std::mt19937& rng, std::array<int, 8>& co
   PaddedBlock block;
   block.cells = {1, 1, 1};
   std::uniform_int_distribution<int> magnitude(1, 32767);
-  for (int c = 0; c < 8; ++c) corner_density[c] = ((cube >> c) & 1) ? magnitude(rng) : -magnitude(rng);
+  for (int c = 0; c < 8; ++c)
+    corner_density[c] = ((cube >> c) & 1) ? magnitude(rng) : -magnitude(rng);
   // Fill the whole block from the nearest corner so central differences see the same field.
   for (int z = -1; z <= 33; ++z)
     for (int y = -1; y <= 33; ++y)
@@ -60,8 +62,10 @@ ChunkMesh mesh_one_cell(unsigned cube, std::mt19937& rng, std::array<int, 8>& co
         const int cx = x <= 0 ? 0 : 1, cy = y <= 0 ? 0 : 1, cz = z <= 0 ? 0 : 1;
         int corner = 0;
         for (int k = 0; k < 8; ++k)
-          if (kCubeCorner[k][0] == cx && kCubeCorner[k][1] == cy && kCubeCorner[k][2] == cz) corner = k;
-        block.density[PaddedBlock::index(x, y, z)] = static_cast<world::Density>(corner_density[corner]);
+          if (kCubeCorner[k][0] == cx && kCubeCorner[k][1] == cy && kCubeCorner[k][2] == cz)
+            corner = k;
+        block.density[PaddedBlock::index(x, y, z)] =
+            static_cast<world::Density>(corner_density[corner]);
         block.material[PaddedBlock::index(x, y, z)] = static_cast<world::Material>(corner + 1);
       }
   MeshScratch scratch;
@@ -80,7 +84,8 @@ TEST(MarchingCubes, EveryConfigurationPutsVerticesOnItsCutEdges) {
       EXPECT_EQ(m.vertex_count(), 0u);
       continue;
     }
-    EXPECT_EQ(m.vertex_count(), static_cast<size_t>(std::popcount(static_cast<unsigned>(edgeTable[cube]))));
+    EXPECT_EQ(m.vertex_count(),
+              static_cast<size_t>(std::popcount(static_cast<unsigned>(edgeTable[cube]))));
     EXPECT_EQ(m.triangle_count(), static_cast<size_t>(triangles_in(static_cast<int>(cube))));
     for (size_t v = 0; v < m.vertex_count(); ++v) {
       const Vec3f p = m.positions[v];
@@ -92,13 +97,16 @@ TEST(MarchingCubes, EveryConfigurationPutsVerticesOnItsCutEdges) {
         bool on_line = true;
         const float pc[3] = {p.x, p.y, p.z};
         for (int k = 0; k < 3; ++k) {
-          if (a[k] == b[k]) on_line &= pc[k] == static_cast<float>(a[k]);
-          else on_line &= pc[k] >= 0.0f && pc[k] <= 1.0f;
+          if (a[k] == b[k])
+            on_line &= pc[k] == static_cast<float>(a[k]);
+          else
+            on_line &= pc[k] >= 0.0f && pc[k] <= 1.0f;
         }
         if (on_line && ((edgeTable[cube] >> e) & 1)) {
           on_cut_edge = true;
           const int solid_end = d[kEdgeCorners[e][0]] > 0 ? kEdgeCorners[e][0] : kEdgeCorners[e][1];
-          EXPECT_EQ(m.materials[v], solid_end + 1) << "case " << cube << ": material of the solid end";
+          EXPECT_EQ(m.materials[v], solid_end + 1)
+              << "case " << cube << ": material of the solid end";
         }
       }
       EXPECT_TRUE(on_cut_edge) << "case " << cube << " vertex " << v;
@@ -127,9 +135,11 @@ TEST(MarchingCubes, EveryConfigurationWindsTrianglesTowardAir) {
       }
       const float u[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
       const float w[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
-      const float nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+      const float nrm[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                            u[0] * w[1] - u[1] * w[0]};
       float toward_air = 0;
-      for (int k = 0; k < 3; ++k) toward_air += nrm[0] * dir[k][0] + nrm[1] * dir[k][1] + nrm[2] * dir[k][2];
+      for (int k = 0; k < 3; ++k)
+        toward_air += nrm[0] * dir[k][0] + nrm[1] * dir[k][1] + nrm[2] * dir[k][2];
       EXPECT_GE(toward_air, 0.0f) << "case " << cube << " triangle " << t;
       case_total += toward_air;
     }

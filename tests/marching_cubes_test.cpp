@@ -1,3 +1,5 @@
+#include "server/mesh/marching_cubes.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -5,7 +7,6 @@
 #include <cmath>
 #include <random>
 
-#include "server/mesh/marching_cubes.hpp"
 #include "server/mesh/region_mesher.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/alloc_counter.hpp"
@@ -29,7 +30,8 @@ ChunkBox load_terrain_region(ChunkMap& map, uint64_t seed, std::mt19937& rng) {
   const ChunkBox box{{cx, cy, cz}, {cx + 2, cy + 2, cz + 2}};
   for (int z = -1; z <= 3; ++z)
     for (int y = -1; y <= 3; ++y)
-      for (int x = -1; x <= 3; ++x) map.insert({cx + x, cy + y, cz + z}, gen.generate({cx + x, cy + y, cz + z}));
+      for (int x = -1; x <= 3; ++x)
+        map.insert({cx + x, cy + y, cz + z}, gen.generate({cx + x, cy + y, cz + z}));
   return box;
 }
 
@@ -42,14 +44,19 @@ void apply_random_changes(ChunkMap& map, const ChunkBox& box, std::mt19937& rng)
     for (int a = 0; a < 3; ++a) {
       const float span = 3.0f * kChunkSize;
       c[a] = lo[a] * kChunkSize + unit(rng) * span;
-      if (k % 3 == 0) c[a] = static_cast<float>(lo[a] * kChunkSize + kChunkSize * (1 + static_cast<int>(rng() % 2)));
+      if (k % 3 == 0)
+        c[a] =
+            static_cast<float>(lo[a] * kChunkSize + kChunkSize * (1 + static_cast<int>(rng() % 2)));
     }
     const float radius = 2.0f + unit(rng) * 6.0f;
     const float sign = (k % 2 == 0) ? 1.0f : -1.0f;
     for (int z = static_cast<int>(c[2] - radius) - 1; z <= static_cast<int>(c[2] + radius) + 1; ++z)
-      for (int y = static_cast<int>(c[1] - radius) - 1; y <= static_cast<int>(c[1] + radius) + 1; ++y)
-        for (int x = static_cast<int>(c[0] - radius) - 1; x <= static_cast<int>(c[0] + radius) + 1; ++x) {
-          const float d = std::sqrt((x - c[0]) * (x - c[0]) + (y - c[1]) * (y - c[1]) + (z - c[2]) * (z - c[2]));
+      for (int y = static_cast<int>(c[1] - radius) - 1; y <= static_cast<int>(c[1] + radius) + 1;
+           ++y)
+        for (int x = static_cast<int>(c[0] - radius) - 1; x <= static_cast<int>(c[0] + radius) + 1;
+             ++x) {
+          const float d = std::sqrt((x - c[0]) * (x - c[0]) + (y - c[1]) * (y - c[1]) +
+                                    (z - c[2]) * (z - c[2]));
           if (d > radius) continue;
           world::Chunk* chunk = map.find(world::chunk_of_voxel(x, y, z));
           if (chunk == nullptr) continue;
@@ -100,7 +107,8 @@ TEST(MarchingCubes, ChunkedSurfaceEqualsReferenceAfterRandomDensityChanges) {
 
 // The vertices of the edges lying in a face. A vertex at a sample is left out: an edge
 // crossing the face whose fraction rounds to 0 or 1 lands there too, in one chunk only.
-std::vector<std::array<uint32_t, 3>> face_vertices(const ChunkMesh& m, ChunkCoord c, int axis, float local) {
+std::vector<std::array<uint32_t, 3>> face_vertices(const ChunkMesh& m, ChunkCoord c, int axis,
+                                                   float local) {
   std::vector<std::array<uint32_t, 3>> out;
   for (const Vec3f& p : m.positions) {
     if ((&p.x)[axis] != local) continue;
@@ -149,8 +157,8 @@ TEST(MarchingCubes, NeighbourChunksShareBitIdenticalFaceVertices) {
       const float u = (&edge[0].x)[a], v = (&edge[1].x)[a];
       on_outer_face |= (u == lo[a] && v == lo[a]) || (u == hi[a] && v == hi[a]);
     }
-    EXPECT_TRUE(on_outer_face) << "open edge inside the region (a crack) at " << edge[0].x << "," << edge[0].y << ","
-                               << edge[0].z;
+    EXPECT_TRUE(on_outer_face) << "open edge inside the region (a crack) at " << edge[0].x << ","
+                               << edge[0].y << "," << edge[0].z;
   }
 }
 

@@ -1,10 +1,11 @@
+#include "proto/mesh_codec.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
 #include "proto/crc32c.hpp"
-#include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
 #include "server/mesh/marching_cubes.hpp"
 #include "server/world/edit_apply.hpp"
@@ -85,8 +86,10 @@ TEST(MeshCodec, RoundTripsWorstCaseAndExactZeros) {
     for (int y = -1; y <= 33; ++y)
       for (int x = -1; x <= 33; ++x) {
         const int i = mesh::PaddedBlock::index(x, y, z);
-        block.density[i] = world::quantize_density(noise.noise3(x * 0.93f + 0.31f, y * 0.87f + 0.17f, z * 0.91f + 0.53f));
-        if (rng() % 7 == 0) block.density[i] = 0;  // samples exactly on the surface: dropped triangles
+        block.density[i] = world::quantize_density(
+            noise.noise3(x * 0.93f + 0.31f, y * 0.87f + 0.17f, z * 0.91f + 0.53f));
+        if (rng() % 7 == 0)
+          block.density[i] = 0;  // samples exactly on the surface: dropped triangles
         block.material[i] = static_cast<world::Material>(1 + rng() % 200);
       }
   const Encoded e = mesh_and_encode(block);
@@ -97,7 +100,8 @@ TEST(MeshCodec, RoundTripsWorstCaseAndExactZeros) {
     mesh::mesh_chunk(block, t, m);
     return mesh::max_triangles(t, block.cells);
   }();
-  ASSERT_LT(e.mesh.triangle_count(), table_triangles) << "the case should include dropped triangles";
+  ASSERT_LT(e.mesh.triangle_count(), table_triangles)
+      << "the case should include dropped triangles";
   auto decoded = decode_mesh(e.encoding);
   ASSERT_TRUE(decoded) << decoded.error();
   expect_same_mesh(e.mesh, *decoded);
@@ -107,13 +111,15 @@ TEST(MeshCodec, RoundTripsWorstCaseAndExactZeros) {
 // are integers and the cross product is exact in 64-bit integers.
 bool has_zero_area(const mesh::Vec3f& a, const mesh::Vec3f& b, const mesh::Vec3f& c) {
   auto fixed = [](const mesh::Vec3f& p) {
-    return std::array<int64_t, 3>{std::llround(p.x * kFractionSteps), std::llround(p.y * kFractionSteps),
+    return std::array<int64_t, 3>{std::llround(p.x * kFractionSteps),
+                                  std::llround(p.y * kFractionSteps),
                                   std::llround(p.z * kFractionSteps)};
   };
   const auto pa = fixed(a), pb = fixed(b), pc = fixed(c);
   const int64_t u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
   const int64_t w[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
-  return u[1] * w[2] - u[2] * w[1] == 0 && u[2] * w[0] - u[0] * w[2] == 0 && u[0] * w[1] - u[1] * w[0] == 0;
+  return u[1] * w[2] - u[2] * w[1] == 0 && u[2] * w[0] - u[0] * w[2] == 0 &&
+         u[0] * w[1] - u[1] * w[0] == 0;
 }
 
 // Issue 12 item 5: a vertex whose fraction rounds to 0 or 1024 lands on a sample, where
@@ -147,7 +153,8 @@ TEST(MeshCodec, NoDecodedTriangleHasZeroAreaAfterQuantisation) {
   }
   EXPECT_GT(triangles, 300000u);
   EXPECT_EQ(zero_area, 0u) << "of " << triangles << " decoded triangles";
-  EXPECT_EQ(positions_differ, 0u) << "chunks whose decoded positions differ from the server's own mesh";
+  EXPECT_EQ(positions_differ, 0u)
+      << "chunks whose decoded positions differ from the server's own mesh";
 }
 
 TEST(MeshCodec, DecodedNeighboursShareBitIdenticalFaceVertices) {
@@ -170,8 +177,11 @@ TEST(MeshCodec, DecodedNeighboursShareBitIdenticalFaceVertices) {
 TEST(MeshCodec, DeltaRebuildsTheNewEncodingForEveryEditType) {
   const world::TerrainGenerator gen(7);
   const std::vector<world::Edit> edits = {
-      world::Brush{{16, 0, 16}, 2, 1.0f, false, world::Material{5}}, world::Brush{{16, 0, 16}, 3, 0.8f, true, std::nullopt},
-      world::Explosion{{10, 0, 20}, 5, 2}, world::Smooth{{16, 0, 16}, 4, 1.0f}, world::Paint{{16, 0, 16}, 4, 9},
+      world::Brush{{16, 0, 16}, 2, 1.0f, false, world::Material{5}},
+      world::Brush{{16, 0, 16}, 3, 0.8f, true, std::nullopt},
+      world::Explosion{{10, 0, 20}, 5, 2},
+      world::Smooth{{16, 0, 16}, 4, 1.0f},
+      world::Paint{{16, 0, 16}, 4, 9},
       world::Stamp{world::Stamp::Shape::kSphere, {}, {}, {20, 0, 12}, 3, true, 4}};
   ZstdCodec zstd;
   for (size_t k = 0; k < edits.size(); ++k) {
@@ -181,15 +191,20 @@ TEST(MeshCodec, DeltaRebuildsTheNewEncodingForEveryEditType) {
         for (int x = -1; x <= 1; ++x) map.insert({x, y, z}, gen.generate({x, y, z}));
     world::Edit edit = edits[k];
     // Put the edit on the surface of chunk column (0, 0).
-    std::visit([&](auto& e) {
-      if constexpr (requires { e.center; }) e.center.y = gen.height_at(static_cast<int>(e.center.x), static_cast<int>(e.center.z));
-    }, edit);
-    const ChunkCoord c = world::chunk_of_voxel(16, static_cast<int>(std::floor(gen.height_at(16, 16))), 16);
+    std::visit(
+        [&](auto& e) {
+          if constexpr (requires { e.center; })
+            e.center.y = gen.height_at(static_cast<int>(e.center.x), static_cast<int>(e.center.z));
+        },
+        edit);
+    const ChunkCoord c =
+        world::chunk_of_voxel(16, static_cast<int>(std::floor(gen.height_at(16, 16))), 16);
     const Encoded before = mesh_and_encode(map, c);
     for (const ChunkCoord t : world::chunks_overlapping(world::touched_box(edit))) {
       if (world::Chunk* chunk = map.find(t)) {
         std::optional<world::SampleSnapshot> snap;
-        if (auto* s = std::get_if<world::Smooth>(&edit)) snap = world::take_snapshot(map, world::smooth_read_box(*s));
+        if (auto* s = std::get_if<world::Smooth>(&edit))
+          snap = world::take_snapshot(map, world::smooth_read_box(*s));
         world::apply_edit(edit, t, *chunk, snap ? &*snap : nullptr);
       }
     }
@@ -277,7 +292,8 @@ TEST(MeshCodec, SurvivesMutatedAndRandomInput) {
       for (auto& b : buf) b = static_cast<uint8_t>(rng());
     } else {
       const int flips = 1 + static_cast<int>(rng() % 8);
-      for (int f = 0; f < flips && !buf.empty(); ++f) buf[rng() % buf.size()] ^= static_cast<uint8_t>(1 + rng() % 255);
+      for (int f = 0; f < flips && !buf.empty(); ++f)
+        buf[rng() % buf.size()] ^= static_cast<uint8_t>(1 + rng() % 255);
       if (rng() % 4 == 0 && !buf.empty()) buf.resize(rng() % buf.size());
     }
     if (compressed) {
@@ -331,9 +347,10 @@ TEST(MeshCodec, WorkedExampleOfTheProtocolDocument) {
         block.material[i] = corner ? 3 : 0;
       }
   const Encoded e = mesh_and_encode(block);
-  const Bytes documented = {0x01, 0x01, 0x01, 0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x00,
-                            0x00, 0x00, 0x00, 0x03, 0x01, 0x01, 0x00, 0x00, 0x00, 0x02, 0x02, 0x02, 0xbf,
-                            0x9f, 0x9f, 0x9f, 0xbf, 0x9f, 0x03, 0x00, 0x00, 0xe4, 0x27, 0x39, 0xaa};
+  const Bytes documented = {0x01, 0x01, 0x01, 0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x00,
+                            0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x03, 0x01, 0x01, 0x00,
+                            0x00, 0x00, 0x02, 0x02, 0x02, 0xbf, 0x9f, 0x9f, 0x9f, 0xbf,
+                            0x9f, 0x03, 0x00, 0x00, 0xe4, 0x27, 0x39, 0xaa};
   EXPECT_EQ(e.encoding, documented);
   auto m = decode_mesh(documented);
   ASSERT_TRUE(m) << m.error();

@@ -4,7 +4,6 @@
 
 #include <vector>
 
-
 namespace vox::pipeline {
 namespace {
 
@@ -13,7 +12,8 @@ std::shared_ptr<MeshVersion> version_with(uint64_t version, size_t encoding_byte
   v->coord = {1, 2, 3};
   v->version = version;
   v->encoding.assign(encoding_bytes, fill);
-  for (size_t i = 0; i < encoding_bytes; i += 7) v->encoding[i] = static_cast<uint8_t>(i * 31 + version);
+  for (size_t i = 0; i < encoding_bytes; i += 7)
+    v->encoding[i] = static_cast<uint8_t>(i * 31 + version);
   return v;
 }
 
@@ -40,7 +40,8 @@ TEST(MeshStore, CachedDeltasCountInItsMemoryUntilTheirVersionIsGone) {
 TEST(MeshStore, AVersionKeepsAtMostEightDeltasInItsAccount) {
   MeshStore store;
   std::vector<std::shared_ptr<MeshVersion>> bases;
-  for (uint64_t v = 1; v <= 12; ++v) bases.push_back(version_with(v, 3000, static_cast<uint8_t>(v)));
+  for (uint64_t v = 1; v <= 12; ++v)
+    bases.push_back(version_with(v, 3000, static_cast<uint8_t>(v)));
   std::shared_ptr<MeshVersion> newest = version_with(13, 3000, 13);
   store.publish(newest);
   const size_t published = store.memory_bytes();

@@ -41,8 +41,9 @@ struct UnionFind {
 
 }  // namespace
 
-std::vector<Triangle> reference_marching_cubes(const std::function<world::Density(int, int, int)>& density,
-                                               std::array<int, 3> lo, std::array<int, 3> hi) {
+std::vector<Triangle> reference_marching_cubes(
+    const std::function<world::Density(int, int, int)>& density, std::array<int, 3> lo,
+    std::array<int, 3> hi) {
   std::vector<Triangle> out;
   for (int z = lo[2]; z < hi[2]; ++z) {
     for (int y = lo[1]; y < hi[1]; ++y) {
@@ -50,7 +51,8 @@ std::vector<Triangle> reference_marching_cubes(const std::function<world::Densit
         int d[8];
         unsigned cube = 0;
         for (int c = 0; c < 8; ++c) {
-          d[c] = density(x + mesh::kCubeCorner[c][0], y + mesh::kCubeCorner[c][1], z + mesh::kCubeCorner[c][2]);
+          d[c] = density(x + mesh::kCubeCorner[c][0], y + mesh::kCubeCorner[c][1],
+                         z + mesh::kCubeCorner[c][2]);
           if (d[c] > 0) cube |= 1u << c;
         }
         if (mesh::edgeTable[cube] == 0) continue;
@@ -62,8 +64,10 @@ std::vector<Triangle> reference_marching_cubes(const std::function<world::Densit
           const auto& cb = mesh::kCubeCorner[b];
           if (ca[0] + ca[1] + ca[2] > cb[0] + cb[1] + cb[2]) std::swap(a, b);  // a: lower end
           const float exact = static_cast<float>(d[a]) / static_cast<float>(d[a] - d[b]);
-          const float t = std::round(exact * mesh::kFractionSteps) / mesh::kFractionSteps;  // the wire's step
-          float p[3] = {static_cast<float>(x + mesh::kCubeCorner[a][0]), static_cast<float>(y + mesh::kCubeCorner[a][1]),
+          const float t =
+              std::round(exact * mesh::kFractionSteps) / mesh::kFractionSteps;  // the wire's step
+          float p[3] = {static_cast<float>(x + mesh::kCubeCorner[a][0]),
+                        static_cast<float>(y + mesh::kCubeCorner[a][1]),
                         static_cast<float>(z + mesh::kCubeCorner[a][2])};
           for (int k = 0; k < 3; ++k) {
             if (mesh::kCubeCorner[a][k] != mesh::kCubeCorner[b][k]) p[k] += t;
@@ -81,11 +85,13 @@ std::vector<Triangle> reference_marching_cubes(const std::function<world::Densit
   return out;
 }
 
-std::vector<Triangle> world_triangles(const std::vector<mesh::ChunkMesh>& meshes, const mesh::ChunkBox& box) {
+std::vector<Triangle> world_triangles(const std::vector<mesh::ChunkMesh>& meshes,
+                                      const mesh::ChunkBox& box) {
   std::vector<Triangle> out;
   for (size_t i = 0; i < meshes.size(); ++i) {
     const world::ChunkCoord c = box.at(i);
-    const Vec3f o{static_cast<float>(c.x * world::kChunkSize), static_cast<float>(c.y * world::kChunkSize),
+    const Vec3f o{static_cast<float>(c.x * world::kChunkSize),
+                  static_cast<float>(c.y * world::kChunkSize),
                   static_cast<float>(c.z * world::kChunkSize)};
     const auto& m = meshes[i];
     for (size_t k = 0; k < m.indices.size(); k += 3) {
@@ -103,14 +109,17 @@ std::vector<Triangle> world_triangles(const std::vector<mesh::ChunkMesh>& meshes
 std::vector<Triangle> world_triangles(const mesh::ChunkMesh& m) {
   std::vector<Triangle> out;
   for (size_t k = 0; k < m.indices.size(); k += 3) {
-    out.push_back({m.positions[m.indices[k]], m.positions[m.indices[k + 1]], m.positions[m.indices[k + 2]]});
+    out.push_back(
+        {m.positions[m.indices[k]], m.positions[m.indices[k + 1]], m.positions[m.indices[k + 2]]});
   }
   return out;
 }
 
-size_t unmatched_triangles(const std::vector<Triangle>& a, const std::vector<Triangle>& b, float tolerance) {
+size_t unmatched_triangles(const std::vector<Triangle>& a, const std::vector<Triangle>& b,
+                           float tolerance) {
   std::vector<Triangle> sorted = b;
-  std::sort(sorted.begin(), sorted.end(), [](const Triangle& l, const Triangle& r) { return centroid_x(l) < centroid_x(r); });
+  std::sort(sorted.begin(), sorted.end(),
+            [](const Triangle& l, const Triangle& r) { return centroid_x(l) < centroid_x(r); });
   std::vector<bool> used(sorted.size(), false);
   const float tol2 = tolerance * tolerance;
   size_t unmatched = 0;
@@ -141,33 +150,40 @@ Topology analyse(const mesh::ChunkMesh& m) {
     bool operator==(const Key&) const = default;
   };
   struct KeyHash {
-    size_t operator()(const Key& k) const { return (k.x * 73856093u) ^ (k.y * 19349663u) ^ (k.z * 83492791u); }
+    size_t operator()(const Key& k) const {
+      return (k.x * 73856093u) ^ (k.y * 19349663u) ^ (k.z * 83492791u);
+    }
   };
   std::unordered_map<Key, uint32_t, KeyHash> ids;
   std::vector<uint32_t> id_of(m.vertex_count());
   std::vector<Vec3f> position_of_id;
   for (size_t v = 0; v < m.vertex_count(); ++v) {
     const Vec3f p = m.positions[v];
-    const Key k{std::bit_cast<uint32_t>(p.x), std::bit_cast<uint32_t>(p.y), std::bit_cast<uint32_t>(p.z)};
+    const Key k{std::bit_cast<uint32_t>(p.x), std::bit_cast<uint32_t>(p.y),
+                std::bit_cast<uint32_t>(p.z)};
     auto [it, inserted] = ids.try_emplace(k, static_cast<uint32_t>(ids.size()));
     if (inserted) position_of_id.push_back(p);
     id_of[v] = it->second;
   }
   Topology topo;
-  std::map<std::pair<uint32_t, uint32_t>, std::pair<int, int>> edges;  // (lo, hi) -> (lo->hi uses, hi->lo uses)
+  std::map<std::pair<uint32_t, uint32_t>, std::pair<int, int>>
+      edges;  // (lo, hi) -> (lo->hi uses, hi->lo uses)
   UnionFind uf(ids.size());
   std::vector<bool> used(ids.size(), false);
   for (size_t k = 0; k < m.indices.size(); k += 3) {
     const uint32_t v[3] = {id_of[m.indices[k]], id_of[m.indices[k + 1]], id_of[m.indices[k + 2]]};
     if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) continue;
     ++topo.faces;
-    const Vec3f a = m.positions[m.indices[k]], b = m.positions[m.indices[k + 1]], c = m.positions[m.indices[k + 2]];
-    const double ux = b.x - a.x, uy = b.y - a.y, uz = b.z - a.z, wx = c.x - a.x, wy = c.y - a.y, wz = c.z - a.z;
+    const Vec3f a = m.positions[m.indices[k]], b = m.positions[m.indices[k + 1]],
+                c = m.positions[m.indices[k + 2]];
+    const double ux = b.x - a.x, uy = b.y - a.y, uz = b.z - a.z, wx = c.x - a.x, wy = c.y - a.y,
+                 wz = c.z - a.z;
     const double nx = uy * wz - uz * wy, ny = uz * wx - ux * wz, nz = ux * wy - uy * wx;
     topo.area += 0.5 * std::sqrt(nx * nx + ny * ny + nz * nz);
     topo.volume += (a.x * (static_cast<double>(b.y) * c.z - static_cast<double>(b.z) * c.y) -
                     a.y * (static_cast<double>(b.x) * c.z - static_cast<double>(b.z) * c.x) +
-                    a.z * (static_cast<double>(b.x) * c.y - static_cast<double>(b.y) * c.x)) / 6.0;
+                    a.z * (static_cast<double>(b.x) * c.y - static_cast<double>(b.y) * c.x)) /
+                   6.0;
     for (int e = 0; e < 3; ++e) {
       const uint32_t from = v[e], to = v[(e + 1) % 3];
       auto& uses = edges[{std::min(from, to), std::max(from, to)}];
@@ -195,7 +211,8 @@ Topology analyse(const mesh::ChunkMesh& m) {
 }
 
 void fill_from_field(world::ChunkMap& map, const mesh::ChunkBox& box,
-                     const std::function<float(float, float, float)>& field, world::Material material) {
+                     const std::function<float(float, float, float)>& field,
+                     world::Material material) {
   for (int cz = box.lo.z - 1; cz <= box.hi.z + 1; ++cz) {
     for (int cy = box.lo.y - 1; cy <= box.hi.y + 1; ++cy) {
       for (int cx = box.lo.x - 1; cx <= box.hi.x + 1; ++cx) {

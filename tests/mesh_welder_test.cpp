@@ -1,5 +1,7 @@
 // weld_chunk_grid on grids with holes and borders, as `voxel-cli export` builds them: the
 // chunks of a view (a sphere) that have triangles, in a dense grid over their bounding box.
+#include "server/mesh/mesh_welder.hpp"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +10,6 @@
 
 #include "proto/mesh_codec.hpp"
 #include "server/mesh/marching_cubes.hpp"
-#include "server/mesh/mesh_welder.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace vox::mesh {
@@ -27,7 +28,8 @@ struct ChunkGrid {
   }
   Vec3f world(size_t i, const Vec3f& l) const {
     const auto g = pos(i);
-    return {origin.x + 32.0f * g[0] + l.x, origin.y + 32.0f * g[1] + l.y, origin.z + 32.0f * g[2] + l.z};
+    return {origin.x + 32.0f * g[0] + l.x, origin.y + 32.0f * g[1] + l.y,
+            origin.z + 32.0f * g[2] + l.z};
   }
 };
 
@@ -67,7 +69,8 @@ ChunkGrid view_of_terrain(uint64_t seed, int radius, bool sphere = true) {
 // Exactly, in 1/1024 steps (world coordinates here are multiples of 1/1024 under 2^13).
 bool has_zero_area(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
   auto fixed = [](const Vec3f& p) {
-    return std::array<int64_t, 3>{std::llround(p.x * 1024.0), std::llround(p.y * 1024.0), std::llround(p.z * 1024.0)};
+    return std::array<int64_t, 3>{std::llround(p.x * 1024.0), std::llround(p.y * 1024.0),
+                                  std::llround(p.z * 1024.0)};
   };
   const auto pa = fixed(a), pb = fixed(b), pc = fixed(c);
   const int64_t u[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
@@ -76,7 +79,8 @@ bool has_zero_area(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
 }
 
 bool on_face(const Vec3f& l) {
-  return l.x == 0 || l.y == 0 || l.z == 0 || l.x == kChunkSize || l.y == kChunkSize || l.z == kChunkSize;
+  return l.x == 0 || l.y == 0 || l.z == 0 || l.x == kChunkSize || l.y == kChunkSize ||
+         l.z == kChunkSize;
 }
 
 // What welding should give: one vertex per used vertex inside a chunk, one per world
@@ -102,7 +106,8 @@ size_t expected_vertex_count(const ChunkGrid& grid) {
 }
 
 struct WeldFaults {
-  size_t out_of_range = 0, repeated = 0, zero_area = 0, outside_own_chunk = 0, moved = 0, unused_vertices = 0;
+  size_t out_of_range = 0, repeated = 0, zero_area = 0, outside_own_chunk = 0, moved = 0,
+         unused_vertices = 0;
 };
 
 // The welded triangles come part by part, in order; each must be its part's triangle at
@@ -116,12 +121,14 @@ WeldFaults check_weld(const ChunkGrid& grid, const ChunkMesh& welded) {
     const Vec3f lo = grid.world(i, {0, 0, 0}), hi = grid.world(i, {32, 32, 32});
     for (size_t k = 0; k < p.indices.size(); k += 3, t += 3) {
       const uint32_t w[3] = {welded.indices[t], welded.indices[t + 1], welded.indices[t + 2]};
-      if (w[0] >= welded.vertex_count() || w[1] >= welded.vertex_count() || w[2] >= welded.vertex_count()) {
+      if (w[0] >= welded.vertex_count() || w[1] >= welded.vertex_count() ||
+          w[2] >= welded.vertex_count()) {
         ++f.out_of_range;
         continue;
       }
       f.repeated += (w[0] == w[1] || w[1] == w[2] || w[0] == w[2]) ? 1 : 0;
-      const Vec3f a = welded.positions[w[0]], b = welded.positions[w[1]], c = welded.positions[w[2]];
+      const Vec3f a = welded.positions[w[0]], b = welded.positions[w[1]],
+                  c = welded.positions[w[2]];
       f.zero_area += has_zero_area(a, b, c) ? 1 : 0;
       bool outside = false, moved = false;
       for (int j = 0; j < 3; ++j) {
@@ -175,7 +182,8 @@ TEST(MeshWelder, WeldsAGridWithRandomHoles) {
   for (uint64_t seed : {3ull, 7ull}) {
     const ChunkGrid whole = view_of_terrain(seed, 2, false);
     for (unsigned one_in : {2u, 3u, 5u}) {
-      SCOPED_TRACE("seed " + std::to_string(seed) + ", one chunk in " + std::to_string(one_in) + " missing");
+      SCOPED_TRACE("seed " + std::to_string(seed) + ", one chunk in " + std::to_string(one_in) +
+                   " missing");
       ChunkGrid grid = whole;
       for (ChunkMesh& p : grid.parts) {
         if (rng() % one_in == 0) p = ChunkMesh{};

@@ -44,7 +44,8 @@ struct FakeStore {
 
 // A radius-1 view at the origin, every chunk of it published and sent.
 SendScheduler fully_sent_radius_one_view(FakeStore& store) {
-  for (ChunkCoord c : {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
+  for (ChunkCoord c :
+       {ChunkCoord{0, 0, 0}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}})
     store.publish(c);
   SendScheduler s;
   s.set_view({0, 0, 0}, 1);
@@ -251,7 +252,6 @@ TEST(SendScheduler, VersionsBelowTheLimitStillFlow) {
   s.set_view({0, 0, 0}, 1);  // a new view re-checks everything; nothing stays deferred
   EXPECT_EQ(s.deferred_count(), 0u);
 }
-
 
 // ViewReady: once per view, only when every visible chunk was sent or found empty.
 TEST(SendScheduler, TheViewIsCompleteOnceEveryChunkIsSentOrEmptyAndOnlyOnce) {

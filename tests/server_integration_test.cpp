@@ -34,7 +34,8 @@ std::vector<wire::Envelope> drain(Client& c, std::chrono::milliseconds quiet = 7
   const auto deadline = client::Clock::now() + limit;
   while (client::Clock::now() < deadline) {
     // The first message may take a while (terrain is generated on demand).
-    auto m = c.receive(out.empty() ? std::min<std::chrono::milliseconds>(limit, 15s * kSlow) : quiet);
+    auto m =
+        c.receive(out.empty() ? std::min<std::chrono::milliseconds>(limit, 15s * kSlow) : quiet);
     if (!m) break;
     if (m->has_chunk_mesh()) {
       const auto error = c.apply(m->chunk_mesh());
@@ -81,7 +82,8 @@ TEST(Server, StreamsTheViewNearestFirst) {
     ++meshes;
     EXPECT_EQ(m.chunk_mesh().base_version(), 0u) << "a fresh client gets full meshes";
     const auto& k = m.chunk_mesh().coord();
-    const int64_t d = (k.x() - centre.x) * (k.x() - centre.x) + (k.y() - centre.y) * (k.y() - centre.y) +
+    const int64_t d = (k.x() - centre.x) * (k.x() - centre.x) +
+                      (k.y() - centre.y) * (k.y() - centre.y) +
                       (k.z() - centre.z) * (k.z() - centre.z);
     EXPECT_LE(d, 9);
     EXPECT_GE(d, last) << "meshes must arrive nearest first";
@@ -104,9 +106,11 @@ TEST(Server, EditByOneClientReachesAnotherAsAMatchingDelta) {
   ASSERT_GT(result->edit_result().changed_chunks_size(), 0);
   // B receives each changed chunk as a delta against what it held.
   std::set<std::tuple<int, int, int>> changed;
-  for (const auto& k : result->edit_result().changed_chunks()) changed.insert({k.x(), k.y(), k.z()});
+  for (const auto& k : result->edit_result().changed_chunks())
+    changed.insert({k.x(), k.y(), k.z()});
   while (!changed.empty()) {
-    auto m = wait_for(*b, [](const wire::Envelope& e) { return e.has_chunk_mesh(); }, 10s);
+    auto m = wait_for(
+        *b, [](const wire::Envelope& e) { return e.has_chunk_mesh(); }, 10s);
     ASSERT_TRUE(m) << changed.size() << " changed chunks did not reach b";
     EXPECT_NE(m->chunk_mesh().base_version(), 0u) << "b held the chunk: a delta";
     changed.erase(client::key_of(m->chunk_mesh().coord()));
@@ -127,7 +131,8 @@ TEST(Server, BurstOfEditsCoalescesToTheNewestVersion) {
   auto a = player(server, "burst");
   const float y = surface_y(40, 40);
   test::view(*a, 40, y, 40, 1);
-  for (uint64_t i = 1; i <= 60; ++i) a->send(brush_at(i, 40.0f + static_cast<float>(i % 5), y, 40.0f, 2.5f, i % 2 == 0));
+  for (uint64_t i = 1; i <= 60; ++i)
+    a->send(brush_at(i, 40.0f + static_cast<float>(i % 5), y, 40.0f, 2.5f, i % 2 == 0));
   std::map<std::tuple<int, int, int>, uint64_t> last_version;
   size_t results = 0;
   const auto messages = drain(*a, 1000ms);
@@ -144,7 +149,8 @@ TEST(Server, BurstOfEditsCoalescesToTheNewestVersion) {
   test::view(*fresh, 40, y, 40, 1);
   for (const auto& [key, held] : fresh->chunks()) {
     ASSERT_TRUE(a->chunks().count(key));
-    EXPECT_EQ(a->chunks().at(key).version, held.version) << "the client must end with the newest version";
+    EXPECT_EQ(a->chunks().at(key).version, held.version)
+        << "the client must end with the newest version";
     EXPECT_EQ(a->chunks().at(key).encoding, held.encoding);
   }
 }
@@ -159,7 +165,12 @@ TEST(Server, ClientThatStopsReadingDoesNotDelayOthers) {
   for (uint64_t i = 1; i <= 5; ++i) {
     slow->send(brush_at(100 + i, 16, y, 16, 3));  // the slow one keeps editing
     fast->send(brush_at(i, 20, y, 20, 2));
-    auto result = wait_for(*fast, [i](const wire::Envelope& m) { return m.has_edit_result() && m.edit_result().request_id() == i; }, 5s);
+    auto result = wait_for(
+        *fast,
+        [i](const wire::Envelope& m) {
+          return m.has_edit_result() && m.edit_result().request_id() == i;
+        },
+        5s);
     ASSERT_TRUE(result) << "edit " << i << " of the fast client was delayed"
                         << (fast->closed() ? " (its connection was closed)" : "")
                         << (server.running() ? "" : " (voxeld is not running)");
@@ -172,7 +183,8 @@ TEST(Server, BadInputGetsSpecificErrors) {
     auto c = connect_to(server);
     const uint8_t header[4] = {0xFF, 0xFF, 0xFF, 0x7F};
     c->send_raw(header);
-    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::FRAME_TOO_LARGE);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+              wire::Error::FRAME_TOO_LARGE);
     EXPECT_FALSE(c->receive(3s));
     EXPECT_TRUE(c->closed());
   }
@@ -182,26 +194,33 @@ TEST(Server, BadInputGetsSpecificErrors) {
     const uint8_t junk[] = {0xFF, 0xFF, 0xFF, 0xFF, 0x0F, 0x01};
     proto::append_frame(junk, frame);
     c->send_raw(frame);
-    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::MALFORMED);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+              wire::Error::MALFORMED);
   }
   {  // a message before Hello: NOT_HELLO
     auto c = connect_to(server);
     c->send(client::make_set_view(0, 0, 0, 1));
-    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::NOT_HELLO);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+              wire::Error::NOT_HELLO);
   }
   {  // wrong protocol version: BAD_VERSION
     auto c = connect_to(server);
     c->send(client::make_hello("old", 99));
-    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::BAD_VERSION);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+              wire::Error::BAD_VERSION);
   }
   auto c = player(server, "probe");
   auto expect_error = [&](const wire::Envelope& sent, wire::Error::Code code) {
     c->send(sent);
-    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), code);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+              code);
   };
-  expect_error(client::make_set_view(std::numeric_limits<float>::quiet_NaN(), 0, 0, 1), wire::Error::BAD_VALUE);
-  expect_error(client::make_set_view(0, std::numeric_limits<float>::infinity(), 0, 1), wire::Error::BAD_VALUE);
-  expect_error(client::make_set_view(0, 0, 0, 5), wire::Error::BAD_VALUE);  // radius over --max-view-radius
+  expect_error(client::make_set_view(std::numeric_limits<float>::quiet_NaN(), 0, 0, 1),
+               wire::Error::BAD_VALUE);
+  expect_error(client::make_set_view(0, std::numeric_limits<float>::infinity(), 0, 1),
+               wire::Error::BAD_VALUE);
+  expect_error(client::make_set_view(0, 0, 0, 5),
+               wire::Error::BAD_VALUE);  // radius over --max-view-radius
   expect_error(client::make_hello("again"), wire::Error::DUPLICATE_HELLO);
   {  // unknown fields: UNKNOWN_MESSAGE
     wire::Envelope ping;
@@ -211,7 +230,8 @@ TEST(Server, BadInputGetsSpecificErrors) {
     std::vector<uint8_t> frame;
     proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);
     c->send_raw(frame);
-    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::UNKNOWN_MESSAGE);
+    EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+              wire::Error::UNKNOWN_MESSAGE);
   }
   {  // an empty Envelope: UNKNOWN_MESSAGE
     wire::Envelope empty;
@@ -251,14 +271,16 @@ TEST(Server, RefusesClientsOverTheLimitAndSilentHandshakes) {
   hello.mutable_hello()->set_protocol_version(1);
   hello.mutable_hello()->set_player_name("c");
   c->send(hello);
-  EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })), wire::Error::SERVER_FULL);
+  EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); })),
+            wire::Error::SERVER_FULL);
   b.reset();  // a slot frees up
   auto silent = std::make_unique<Client>();
   const auto deadline = client::Clock::now() + 5s;
   std::optional<wire::Envelope> error;
   while (client::Clock::now() < deadline && !error) {  // the freed slot may take a moment
     silent = connect_to(server);
-    error = wait_for(*silent, [](const wire::Envelope& m) { return m.has_error(); }, 3s);
+    error = wait_for(
+        *silent, [](const wire::Envelope& m) { return m.has_error(); }, 3s);
     if (error_code(error) == wire::Error::SERVER_FULL) error.reset();
   }
   EXPECT_EQ(error_code(error), wire::Error::HANDSHAKE_TIMEOUT);
@@ -271,7 +293,9 @@ TEST(Server, ShutsDownGracefullyOnSigterm) {
   test::view(*c, 0, surface_y(0, 0), 0, 1);
   const int code = server.terminate();
   EXPECT_EQ(code, 0);
-  EXPECT_EQ(error_code(wait_for(*c, [](const wire::Envelope& m) { return m.has_error(); }, 5s)), wire::Error::SHUTTING_DOWN);
+  EXPECT_EQ(error_code(wait_for(
+                *c, [](const wire::Envelope& m) { return m.has_error(); }, 5s)),
+            wire::Error::SHUTTING_DOWN);
 }
 
 }  // namespace
@@ -283,7 +307,8 @@ namespace {
 TEST(Server, DisconnectsIdleClientsAndKeepsServingOthers) {
   test::ServerProcess server({"--idle-timeout-ms", "400"});
   auto quiet = player(server, "quiet");
-  auto error = wait_for(*quiet, [](const wire::Envelope& m) { return m.has_error(); }, 5s);
+  auto error = wait_for(
+      *quiet, [](const wire::Envelope& m) { return m.has_error(); }, 5s);
   EXPECT_EQ(error_code(error), wire::Error::IDLE_TIMEOUT);
   EXPECT_FALSE(quiet->receive(2s));
   EXPECT_TRUE(quiet->closed());
@@ -319,7 +344,8 @@ TEST(Server, EditFloodIsBoundedPerClient) {
   std::set<uint64_t> answered;
   size_t limited = 0;
   while (answered.size() < kEdits) {
-    auto r = wait_for(*c, [](const wire::Envelope& m) { return m.has_edit_result(); }, 60s);
+    auto r = wait_for(
+        *c, [](const wire::Envelope& m) { return m.has_edit_result(); }, 60s);
     ASSERT_TRUE(r) << answered.size() << " results";
     EXPECT_TRUE(answered.insert(r->edit_result().request_id()).second) << "one result per edit";
     limited += r->edit_result().status() == wire::EditResult::TOO_MANY_EDITS ? 1 : 0;

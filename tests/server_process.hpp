@@ -28,14 +28,19 @@ class ServerProcess {
  public:
   explicit ServerProcess(std::vector<std::string> extra_args = {}) {
     static int counter = 0;
-    dir_ = std::filesystem::temp_directory_path() / ("voxeld_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+    dir_ = std::filesystem::temp_directory_path() /
+           ("voxeld_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
     std::filesystem::create_directories(dir_);
     const std::string port_file = (dir_ / "port").string();
-    std::vector<std::string> args = {VOXELD_PATH, "--port", "0", "--bind", "127.0.0.1", "--port-file", port_file};
+    std::vector<std::string> args = {VOXELD_PATH, "--port",      "0",      "--bind",
+                                     "127.0.0.1", "--port-file", port_file};
     // Defaults a test may override: every test client comes from 127.0.0.1, so the
     // per-address cap is off unless a test sets it.
     const std::vector<std::pair<std::string, std::string>> defaults = {
-        {"--threads", "2"}, {"--stats-interval", "0"}, {"--log-level", "warn"}, {"--max-per-address", "0"},
+        {"--threads", "2"},
+        {"--stats-interval", "0"},
+        {"--log-level", "warn"},
+        {"--max-per-address", "0"},
         {"--max-handshaking-per-address", "0"}};
     for (const auto& [flag, value] : defaults) {
       if (std::find(extra_args.begin(), extra_args.end(), flag) == extra_args.end()) {
@@ -72,8 +77,10 @@ class ServerProcess {
       std::ifstream in(port_file);
       if (in >> port_ && port_ != 0) return;
       int status = 0;
-      if (waitpid(pid_, &status, WNOHANG) == pid_) throw std::runtime_error("voxeld exited at start");
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // polling a file the child writes
+      if (waitpid(pid_, &status, WNOHANG) == pid_)
+        throw std::runtime_error("voxeld exited at start");
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(10));  // polling a file the child writes
     }
     throw std::runtime_error("voxeld did not report its port in time");
   }
@@ -94,7 +101,8 @@ class ServerProcess {
       std::ifstream in(dir_ / "metrics_port");
       uint16_t port = 0;
       if (in >> port && port != 0) return port;
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));  // polling a file the child writes
+      std::this_thread::sleep_for(
+          std::chrono::milliseconds(10));  // polling a file the child writes
     }
     return 0;
   }

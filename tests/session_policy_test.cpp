@@ -32,8 +32,12 @@ TEST(TokenBucket, ZeroRateIsUnlimited) {
 }
 
 TEST(AdmissionControl, HandshakingConnectionsDoNotCountAsPlayersButHaveTheirOwnCap) {
-  AdmissionControl a({.max_players = 2, .max_handshaking = 3, .max_per_address = 0, .max_handshaking_per_address = 0});
-  for (int i = 0; i < 3; ++i) EXPECT_EQ(a.connect("10.0.0." + std::to_string(i)), AdmissionControl::Verdict::kAdmit);
+  AdmissionControl a({.max_players = 2,
+                      .max_handshaking = 3,
+                      .max_per_address = 0,
+                      .max_handshaking_per_address = 0});
+  for (int i = 0; i < 3; ++i)
+    EXPECT_EQ(a.connect("10.0.0." + std::to_string(i)), AdmissionControl::Verdict::kAdmit);
   EXPECT_EQ(a.connect("10.0.0.9"), AdmissionControl::Verdict::kHandshakesFull);
   EXPECT_EQ(a.promote("10.0.0.0"), AdmissionControl::Verdict::kAdmit);
   EXPECT_EQ(a.promote("10.0.0.1"), AdmissionControl::Verdict::kAdmit);
@@ -49,7 +53,10 @@ TEST(AdmissionControl, HandshakingConnectionsDoNotCountAsPlayersButHaveTheirOwnC
 }
 
 TEST(AdmissionControl, OneAddressCannotFillTheServer) {
-  AdmissionControl a({.max_players = 100, .max_handshaking = 100, .max_per_address = 4, .max_handshaking_per_address = 0});
+  AdmissionControl a({.max_players = 100,
+                      .max_handshaking = 100,
+                      .max_per_address = 4,
+                      .max_handshaking_per_address = 0});
   for (int i = 0; i < 4; ++i) EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAdmit);
   EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAddressFull);
   EXPECT_EQ(a.connect("5.6.7.8"), AdmissionControl::Verdict::kAdmit);
@@ -62,12 +69,15 @@ TEST(AdmissionControl, OneAddressCannotFillTheServer) {
 }
 
 TEST(AdmissionControl, AFewAddressesCannotHoldEveryHandshakeSlot) {
-  AdmissionControl a({.max_players = 100, .max_handshaking = 64, .max_per_address = 16,
+  AdmissionControl a({.max_players = 100,
+                      .max_handshaking = 64,
+                      .max_per_address = 16,
                       .max_handshaking_per_address = 4});
   for (int i = 0; i < 4; ++i) EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAdmit);
   EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAddressFull) << "a fifth silent one";
   EXPECT_EQ(a.promote("1.2.3.4"), AdmissionControl::Verdict::kAdmit);
-  EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAdmit) << "players free handshake slots";
+  EXPECT_EQ(a.connect("1.2.3.4"), AdmissionControl::Verdict::kAdmit)
+      << "players free handshake slots";
   EXPECT_EQ(a.handshaking(), 4u);
 }
 

@@ -31,7 +31,8 @@ inline std::unique_ptr<client::Client> connect_to(const ServerProcess& server) {
   return c;
 }
 
-inline std::unique_ptr<client::Client> player(const ServerProcess& server, const std::string& name) {
+inline std::unique_ptr<client::Client> player(const ServerProcess& server,
+                                              const std::string& name) {
   auto c = connect_to(server);
   c->handshake(name, 5s * kSlow);
   return c;
@@ -40,10 +41,12 @@ inline std::unique_ptr<client::Client> player(const ServerProcess& server, const
 // The first message matching `pred` within the deadline (times kSlow); meshes on the way
 // are applied, and one that does not apply fails the test.
 template <class Pred>
-std::optional<wire::Envelope> wait_for(client::Client& c, Pred pred, std::chrono::milliseconds limit = 10s) {
+std::optional<wire::Envelope> wait_for(client::Client& c, Pred pred,
+                                       std::chrono::milliseconds limit = 10s) {
   const auto deadline = client::Clock::now() + limit * kSlow;
   while (client::Clock::now() < deadline) {
-    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
+    auto m = c.receive(
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
     if (!m) return std::nullopt;
     if (m->has_chunk_mesh()) {
       const auto error = c.apply(m->chunk_mesh());
@@ -57,13 +60,14 @@ std::optional<wire::Envelope> wait_for(client::Client& c, Pred pred, std::chrono
 // Sets the view and receives until its ViewReady (then every chunk of it is held): the
 // messages in arrival order, the ViewReady last. Meshes are applied; a mesh that does not
 // apply, an Error or no ViewReady in time fails the test.
-inline std::vector<wire::Envelope> view_messages(client::Client& c, float x, float y, float z, uint32_t radius,
-                                                 uint64_t view_id = 1) {
+inline std::vector<wire::Envelope> view_messages(client::Client& c, float x, float y, float z,
+                                                 uint32_t radius, uint64_t view_id = 1) {
   c.send(client::make_set_view(x, y, z, radius, view_id));
   std::vector<wire::Envelope> out;
   const auto deadline = client::Clock::now() + 60s * kSlow;
   while (client::Clock::now() < deadline) {
-    auto m = c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
+    auto m = c.receive(
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
     if (!m) break;
     if (m->has_chunk_mesh()) {
       const auto error = c.apply(m->chunk_mesh());
@@ -75,20 +79,24 @@ inline std::vector<wire::Envelope> view_messages(client::Client& c, float x, flo
     out.push_back(std::move(*m));
     if (done) return out;
   }
-  ADD_FAILURE() << "no ViewReady for view " << view_id << (c.closed() ? " (connection closed)" : " in time");
+  ADD_FAILURE() << "no ViewReady for view " << view_id
+                << (c.closed() ? " (connection closed)" : " in time");
   return out;
 }
 
-inline wire::ViewReady view(client::Client& c, float x, float y, float z, uint32_t radius, uint64_t view_id = 1) {
+inline wire::ViewReady view(client::Client& c, float x, float y, float z, uint32_t radius,
+                            uint64_t view_id = 1) {
   auto messages = view_messages(c, x, y, z, radius, view_id);
-  return messages.empty() || !messages.back().has_view_ready() ? wire::ViewReady{} : messages.back().view_ready();
+  return messages.empty() || !messages.back().has_view_ready() ? wire::ViewReady{}
+                                                               : messages.back().view_ready();
 }
 
 inline float surface_y(float x, float z, uint64_t seed = 1) {
   return world::TerrainGenerator(seed).height_at(static_cast<int>(x), static_cast<int>(z));
 }
 
-inline wire::Envelope brush_at(uint64_t request, float x, float y, float z, float radius, bool remove = false) {
+inline wire::Envelope brush_at(uint64_t request, float x, float y, float z, float radius,
+                               bool remove = false) {
   wire::Envelope m;
   auto* e = m.mutable_edit();
   e->set_request_id(request);
@@ -106,7 +114,8 @@ inline wire::Envelope brush_at(uint64_t request, float x, float y, float z, floa
 inline std::optional<wire::Envelope> edit_and_wait(client::Client& c, const wire::Envelope& edit,
                                                    std::chrono::milliseconds limit = 10s) {
   c.send(edit);
-  return wait_for(c, [](const wire::Envelope& m) { return m.has_edit_result(); }, limit);
+  return wait_for(
+      c, [](const wire::Envelope& m) { return m.has_edit_result(); }, limit);
 }
 
 }  // namespace vox::test

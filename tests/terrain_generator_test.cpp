@@ -1,3 +1,5 @@
+#include "server/world/terrain_generator.hpp"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -5,7 +7,6 @@
 #include <set>
 
 #include "server/world/parallel.hpp"
-#include "server/world/terrain_generator.hpp"
 
 namespace vox::world {
 namespace {
@@ -30,8 +31,11 @@ TEST(TerrainGenerator, SameSeedGivesIdenticalChunksWhateverThreadsOrOrder) {
     std::shuffle(order.begin(), order.end(), std::mt19937(threads));
     std::vector<Chunk> parallel(coords.size());
     tbb::task_arena arena(threads);
-    parallel_for_index(arena, order.size(), [&](size_t k) { parallel[order[k]] = TerrainGenerator(42).generate(coords[order[k]]); });
-    for (size_t i = 0; i < coords.size(); ++i) ASSERT_EQ(parallel[i], serial[i]) << "chunk " << i << " threads " << threads;
+    parallel_for_index(arena, order.size(), [&](size_t k) {
+      parallel[order[k]] = TerrainGenerator(42).generate(coords[order[k]]);
+    });
+    for (size_t i = 0; i < coords.size(); ++i)
+      ASSERT_EQ(parallel[i], serial[i]) << "chunk " << i << " threads " << threads;
   }
 }
 
@@ -45,7 +49,8 @@ TEST(TerrainGenerator, PointSamplesEqualChunkSamples) {
   for (const ChunkCoord c : {ChunkCoord{0, -1, 0}, ChunkCoord{-2, 0, 3}, ChunkCoord{1, -2, -1}}) {
     const Chunk chunk = gen.generate(c);
     for (int k = 0; k < 500; ++k) {
-      const int x = static_cast<int>(rng() % 32), y = static_cast<int>(rng() % 32), z = static_cast<int>(rng() % 32);
+      const int x = static_cast<int>(rng() % 32), y = static_cast<int>(rng() % 32),
+                z = static_cast<int>(rng() % 32);
       ASSERT_EQ(chunk.at(x, y, z), gen.sample_at(c.x * 32 + x, c.y * 32 + y, c.z * 32 + z));
     }
   }
@@ -76,7 +81,9 @@ TEST(TerrainGenerator, SurfaceHasThreeMaterialsByDepthAndCaves) {
       for (int x = 0; x < 32; x += 4)
         for (int y = 0; y < 32; ++y) {
           const int wy = c.y * 32 + y;
-          if (gen.height_at(c.x * 32 + x, c.z * 32 + z) - wy > 12 && !is_solid(chunk.at(x, y, z).density)) ++cave_air;
+          if (gen.height_at(c.x * 32 + x, c.z * 32 + z) - wy > 12 &&
+              !is_solid(chunk.at(x, y, z).density))
+            ++cave_air;
         }
   }
   EXPECT_GE(materials.size(), 3u);

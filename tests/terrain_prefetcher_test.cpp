@@ -1,3 +1,5 @@
+#include "server/pipeline/terrain_prefetcher.hpp"
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -5,8 +7,6 @@
 #include <map>
 #include <mutex>
 #include <thread>
-
-#include "server/pipeline/terrain_prefetcher.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -35,7 +35,8 @@ TEST(TerrainPrefetcher, GeneratesInTheBackgroundExactlyWhatTheGeneratorMakes) {
   for (const ChunkCoord& c : want) EXPECT_TRUE(p.pending(c));
   const auto got = collect(p, want.size());
   ASSERT_EQ(got.size(), want.size());
-  for (const ChunkCoord& c : want) EXPECT_TRUE(got.at(c) == gen.generate(c)) << "chunk differs from inline generation";
+  for (const ChunkCoord& c : want)
+    EXPECT_TRUE(got.at(c) == gen.generate(c)) << "chunk differs from inline generation";
   EXPECT_GT(notified.load(), 0);
   EXPECT_EQ(p.pending_count(), 0u) << "taken chunks are no longer pending";
   EXPECT_FALSE(p.pending(want[0]));
@@ -65,7 +66,8 @@ TEST(TerrainPrefetcher, RefusesWhatIsOverItsBoundAndReservesMemoryForWhatIsOnIts
   });
   const std::vector<ChunkCoord> want{{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
   const std::vector<ChunkCoord> refused = p.request(want);
-  EXPECT_EQ(refused, (std::vector<ChunkCoord>{{3, 0, 0}, {4, 0, 0}})) << "the caller generates these itself";
+  EXPECT_EQ(refused, (std::vector<ChunkCoord>{{3, 0, 0}, {4, 0, 0}}))
+      << "the caller generates these itself";
   EXPECT_EQ(p.pending_count(), 3u);
   EXPECT_GE(p.memory_bytes(), 2 * 500u) << "chunks on their way count at their reserve";
   {

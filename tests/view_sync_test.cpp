@@ -88,7 +88,8 @@ TEST(ViewSync, ResyncSendsAFullCopyAfterTheClientsBaseWentBad) {
   ASSERT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
   ASSERT_GT(result->edit_result().changed_chunks_size(), 0);
   // A's delta of a changed chunk, applied to a corrupted copy of its base, fails.
-  auto delta = wait_for(*a, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s);
+  auto delta = wait_for(
+      *a, [](const wire::Envelope& m) { return m.has_chunk_mesh(); }, 10s);
   ASSERT_TRUE(delta);
   const wire::ChunkMesh& d = delta->chunk_mesh();
   ASSERT_NE(d.base_version(), 0u);
@@ -99,8 +100,9 @@ TEST(ViewSync, ResyncSendsAFullCopyAfterTheClientsBaseWentBad) {
   proto::ZstdCodec zstd;
   mesh::Buffer<uint8_t> expanded;
   const auto* p = reinterpret_cast<const uint8_t*>(d.payload().data());
-  const bool applies = !zstd.decompress_into({p, d.payload().size()}, bad_base, 1 << 22, expanded) &&
-                       proto::decode_mesh({expanded.data(), expanded.size()});
+  const bool applies =
+      !zstd.decompress_into({p, d.payload().size()}, bad_base, 1 << 22, expanded) &&
+      proto::decode_mesh({expanded.data(), expanded.size()});
   EXPECT_FALSE(applies) << "a delta applied to a corrupted base must not decode";
   // Recovery: Resync, then a full copy equal to what a fresh client gets.
   const wire::ChunkCoord coord = d.coord();
@@ -143,12 +145,15 @@ TEST(ViewSync, ResyncOverTheLimitIsRefusedAndOutsideTheViewIgnored) {
   // A chunk with a published mesh (another player's view), outside this client's view.
   auto other = player(server, "elsewhere");
   const wire::ViewReady there = test::view(*other, 3200, surface_y(3200, 16), 16, 0);
-  ASSERT_EQ(there.chunks_sent() + there.chunks_empty(), 1u) << "the other view's one chunk is published";
+  ASSERT_EQ(there.chunks_sent() + there.chunks_empty(), 1u)
+      << "the other view's one chunk is published";
   c->send(client::make_resync({&there.center(), 1}));
   wire::Envelope ping;
   ping.mutable_ping()->set_nonce(9);
   c->send(ping);
-  auto pong = wait_for(*c, [](const wire::Envelope& m) { return m.has_pong() || m.has_chunk_mesh() || m.has_error(); });
+  auto pong = wait_for(*c, [](const wire::Envelope& m) {
+    return m.has_pong() || m.has_chunk_mesh() || m.has_error();
+  });
   ASSERT_TRUE(pong);
   EXPECT_TRUE(pong->has_pong()) << "a chunk outside the view is not sent, and is not an error";
   EXPECT_FALSE(c->receive(300ms * test::kSlow)) << "nothing else comes";

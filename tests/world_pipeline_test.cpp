@@ -4,9 +4,9 @@
 
 #include <atomic>
 #include <cmath>
+#include <future>
 #include <map>
 #include <random>
-#include <future>
 #include <thread>
 
 #include "tests/mesh_test_util.hpp"
@@ -302,13 +302,15 @@ TEST(WorldPipeline, AnEditWhereNothingIsMeshedGeneratesOnlyWhatItTouches) {
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
   const world::TerrainGenerator gen(kSeed);
   const float x = 100000, y = gen.height_at(100000, 0);
-  const world::Stamp box{world::Stamp::Shape::kBox, {x + 2, y - 28, 2}, {x + 62, y + 28, 62}, {}, 1, true, 3};
+  const world::Stamp box{
+      world::Stamp::Shape::kBox, {x + 2, y - 28, 2}, {x + 62, y + 28, 62}, {}, 1, true, 3};
   const EditResult far = p.submit(box).get();
   ASSERT_TRUE(far.accepted);
   EXPECT_LE(far.chunks_generated, 27u);
   EXPECT_TRUE(far.changed_chunks.empty()) << "no one holds a mesh there";
   // A view then loads the area: the edited chunks are meshed with the edit in them.
-  const ChunkCoord c = world::chunk_of_voxel(static_cast<int32_t>(x) + 32, static_cast<int32_t>(y), 32);
+  const ChunkCoord c =
+      world::chunk_of_voxel(static_cast<int32_t>(x) + 32, static_cast<int32_t>(y), 32);
   p.load({c.offset(-1, -1, -1), c.offset(1, 1, 1)}).get();
   const MeshVersionPtr mesh = p.meshes().get(c);
   ASSERT_TRUE(mesh);
@@ -334,7 +336,8 @@ TEST(WorldPipeline, EditOnlyBatchesKeepNoColumnHeights) {
   const world::TerrainGenerator gen(kSeed);
   for (int i = 0; i < 20; ++i) {
     const float x = 50000.0f + static_cast<float>(i) * 200;
-    ASSERT_TRUE(p.submit(world::Brush{{x, gen.height_at(static_cast<int>(x), 0), 0}, 3, 1}).get().accepted);
+    ASSERT_TRUE(
+        p.submit(world::Brush{{x, gen.height_at(static_cast<int>(x), 0), 0}, 3, 1}).get().accepted);
   }
   p.inspect([](const world::ChunkMap&) {});  // the last edit's batch has ended
   EXPECT_EQ(p.stats().cached_columns, 0u);
@@ -409,7 +412,8 @@ TEST(WorldPipeline, AViewSetDuringABatchProtectsItsChunksFromThatBatchsEviction)
   using namespace std::chrono_literals;
   // Chunks in no view are evicted once unused for 1 s: the box survives until the view
   // is set (well within that), and the blocked batch ends after it.
-  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .evict_after = 1000ms, .evict_min_age = 0ms});
+  WorldPipeline p(
+      PipelineConfig{.seed = kSeed, .threads = 2, .evict_after = 1000ms, .evict_min_age = 0ms});
   const mesh::ChunkBox box = surface_box();
   p.load(box).get();  // one-off load: meshed, in no view
   const world::ChunkCoord centre = box.at(box.count() / 2);
@@ -421,7 +425,7 @@ TEST(WorldPipeline, AViewSetDuringABatchProtectsItsChunksFromThatBatchsEviction)
     });
   });
   entered.get_future().wait();
-  p.set_view(5, centre, 1);  // arrives mid-batch
+  p.set_view(5, centre, 1);             // arrives mid-batch
   std::this_thread::sleep_for(1200ms);  // older than evict_after when the batch ends
   release.set_value();
   blocker.join();
@@ -440,7 +444,8 @@ TEST(WorldPipeline, AViewSetDuringABatchProtectsItsChunksFromThatBatchsEviction)
 // still get them: they were dropped with the first view, and its view never completed.
 TEST(WorldPipeline, AChunkTwoViewsWaitForIsMeshedWhenTheViewThatPlannedItLeaves) {
   for (int attempt = 0; attempt < 5; ++attempt) {
-    WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .load_work_per_owner = 0, .generate_threads = 1});
+    WorldPipeline p(PipelineConfig{
+        .seed = kSeed, .threads = 2, .load_work_per_owner = 0, .generate_threads = 1});
     auto next_pass = [&p] {  // the second batch from now starts after a load pass was taken
       p.inspect([](const world::ChunkMap&) {});
       p.inspect([](const world::ChunkMap&) {});
@@ -452,14 +457,15 @@ TEST(WorldPipeline, AChunkTwoViewsWaitForIsMeshedWhenTheViewThatPlannedItLeaves)
     p.set_view(1, centre, 2);
     next_pass();  // view 1 planned its chunks; their terrain is on its way
     p.set_view(2, centre.offset(1, 0, 0), 2);
-    next_pass();  // view 2 found most of them waiting
+    next_pass();                    // view 2 found most of them waiting
     p.set_view(1, {-x, y, -x}, 0);  // and view 1 leaves before they are meshed
     const std::vector<world::ChunkCoord> wanted = ball_nearest_first(centre.offset(1, 0, 0), 2);
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20 * kSlow);
     size_t missing = wanted.size(), waiting = 1;
     while ((missing > 0 || waiting > 0) && std::chrono::steady_clock::now() < deadline) {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      missing = std::count_if(wanted.begin(), wanted.end(), [&](world::ChunkCoord c) { return !p.meshes().get(c); });
+      missing = std::count_if(wanted.begin(), wanted.end(),
+                              [&](world::ChunkCoord c) { return !p.meshes().get(c); });
       waiting = p.stats().meshes_waiting;  // view 1's new chunk too, until its terrain lands
     }
     ASSERT_EQ(missing, 0u) << "attempt " << attempt << ": chunks of view 2 never meshed";
@@ -499,7 +505,8 @@ TEST(WorldPipeline, StaysWithinItsMemoryBudgetWhileAViewMovesFar) {
     for (;;) {
       const PipelineStats s = p.stats();
       peak = std::max(peak, s.accounted_bytes);
-      const bool loaded = s.queued_load_chunks == 0 && s.meshes_waiting == 0 && s.chunks_generating == 0;
+      const bool loaded =
+          s.queued_load_chunks == 0 && s.meshes_waiting == 0 && s.chunks_generating == 0;
       if (loaded || std::chrono::steady_clock::now() > deadline) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(5));  // sampling the figure
     }
@@ -544,9 +551,11 @@ TEST(WorldPipeline, HeavyEditsAtFarPlacesStayWithinTheMemoryBudget) {
   for (int i = 0; i < 300 && busy < 3; ++i) {
     const float x = static_cast<float>(i * 300);
     const float y = gen.height_at(static_cast<int>(x), 0);
-    const EditResult r = p.submit(world::Stamp{world::Stamp::Shape::kBox, {x, y - 30, 0},
-                                               {x + 63, y + 30, 63}, {}, 1, true, 3})
-                             .get();
+    const EditResult r =
+        p
+            .submit(world::Stamp{
+                world::Stamp::Shape::kBox, {x, y - 30, 0}, {x + 63, y + 30, 63}, {}, 1, true, 3})
+            .get();
     if (!r.accepted) {
       EXPECT_EQ(r.reason, world::RefusalReason::kServerBusy);
       ++busy;

@@ -22,7 +22,7 @@ namespace vox::mesh {
 namespace {
 
 using world::Density;
-constexpr int kStride[3] = {1, kBlockSide, kBlockSide * kBlockSide};
+constexpr int kStride[3] = {1, kBlockSide, kBlockSide* kBlockSide};
 
 // Bit x of the result is set when sample x of the row (x in 0..32) is solid.
 inline uint64_t classify_row(const Density* row) {
@@ -48,7 +48,9 @@ inline uint64_t classify_row(const Density* row) {
 // (products under 2^21). Zero area needs a vertex on a sample: two vertices meet only
 // there, and three on one line lie on a cell edge's line, two of them at its ends.
 inline bool has_zero_area(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
-  auto scaled = [](float v, float from) { return static_cast<int32_t>((v - from) * kFractionSteps); };
+  auto scaled = [](float v, float from) {
+    return static_cast<int32_t>((v - from) * kFractionSteps);
+  };
   const int32_t ux = scaled(b.x, a.x), uy = scaled(b.y, a.y), uz = scaled(b.z, a.z);
   const int32_t wx = scaled(c.x, a.x), wy = scaled(c.y, a.y), wz = scaled(c.z, a.z);
   return uy * wz == uz * wy && uz * wx == ux * wz && ux * wy == uy * wx;
@@ -69,7 +71,8 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
 
   // --- 1. classify samples [0, n] on each axis ---------------------------------------
   for (int z = 0; z <= nz; ++z)
-    for (int y = 0; y <= ny; ++y) s.solid[detail::row_of(y, z)] = classify_row(dens + PaddedBlock::index(0, y, z));
+    for (int y = 0; y <= ny; ++y)
+      s.solid[detail::row_of(y, z)] = classify_row(dens + PaddedBlock::index(0, y, z));
 
   // --- 2. cut edges per row and axis; first vertex index of each (row, axis) ---------
   const uint32_t vertex_count = index_cut_edges(s, in.cells);
@@ -81,7 +84,8 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   Vec3f* pos = out.positions.data();
   Vec3f* nrm = out.normals.data();
   uint8_t* mat = out.materials.data();
-  bool on_corner = false;  // some vertex sits on a sample (fraction 0 or 1): check for flat triangles
+  bool on_corner =
+      false;  // some vertex sits on a sample (fraction 0 or 1): check for flat triangles
   for (int z = 0; z <= nz; ++z) {
     for (int y = 0; y <= ny; ++y) {
       const int r = detail::row_of(y, z);
@@ -91,14 +95,17 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
           const int i0 = PaddedBlock::index(x, y, z), i1 = i0 + kStride[a];
           const int d0 = dens[i0], d1 = dens[i1];
           const float t = static_cast<float>(d0) / static_cast<float>(d0 - d1);
-          const int q = static_cast<int>(t * kFractionSteps + 0.5f);  // the wire's step: a client decodes this mesh
+          const int q = static_cast<int>(t * kFractionSteps +
+                                         0.5f);  // the wire's step: a client decodes this mesh
           const float tq = static_cast<float>(q) * (1.0f / kFractionSteps);
           on_corner |= (q == 0) | (q == kFractionSteps);
           // Selects instead of indexing a member by axis, which would force p through memory.
-          *pos++ = {static_cast<float>(x) + (a == 0 ? tq : 0.0f), static_cast<float>(y) + (a == 1 ? tq : 0.0f),
+          *pos++ = {static_cast<float>(x) + (a == 0 ? tq : 0.0f),
+                    static_cast<float>(y) + (a == 1 ? tq : 0.0f),
                     static_cast<float>(z) + (a == 2 ? tq : 0.0f)};
           const Vec3f g0 = gradient(dens, i0), g1 = gradient(dens, i1);
-          Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)), -(g0.z + t * (g1.z - g0.z))};
+          Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)),
+                  -(g0.z + t * (g1.z - g0.z))};
           const float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
           if (len2 > 0.0f) {
             const float inv = 1.0f / std::sqrt(len2);
@@ -117,9 +124,10 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   // --- 4. triangles of the cells whose corners differ ---------------------------------
   out.indices.resize(max_triangles(s, in.cells) * 3);
   const Vec3f* vpos = out.positions.data();
-  const size_t triangles = emit_triangles(s, in.cells, out.indices.data(), [&](uint32_t a, uint32_t b, uint32_t c) {
-    return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
-  });
+  const size_t triangles =
+      emit_triangles(s, in.cells, out.indices.data(), [&](uint32_t a, uint32_t b, uint32_t c) {
+        return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
+      });
   out.indices.resize(triangles * 3);
 }
 
@@ -154,7 +162,8 @@ size_t table_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
   for (int z = 0; z < cells[2]; ++z) {
     for (int y = 0; y < cells[1]; ++y) {
       const uint64_t r00 = s.solid[detail::row_of(y, z)], r10 = s.solid[detail::row_of(y + 1, z)],
-                     r01 = s.solid[detail::row_of(y, z + 1)], r11 = s.solid[detail::row_of(y + 1, z + 1)];
+                     r01 = s.solid[detail::row_of(y, z + 1)],
+                     r11 = s.solid[detail::row_of(y + 1, z + 1)];
       for (uint64_t left = detail::mixed_cells(s, cells[0], y, z); left != 0; left &= left - 1) {
         total += kCount[detail::cube_index(r00, r10, r01, r11, std::countr_zero(left))];
       }
@@ -166,7 +175,8 @@ size_t table_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
 size_t max_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
   size_t mixed = 0;
   for (int z = 0; z < cells[2]; ++z)
-    for (int y = 0; y < cells[1]; ++y) mixed += std::popcount(detail::mixed_cells(s, cells[0], y, z));
+    for (int y = 0; y < cells[1]; ++y)
+      mixed += std::popcount(detail::mixed_cells(s, cells[0], y, z));
   return mixed * 5;
 }
 

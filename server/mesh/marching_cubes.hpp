@@ -27,8 +27,8 @@ struct MeshScratch {
 // Meshes cells [0, in.cells) of the block into `out` (cleared first). A vertex's fraction
 // along its edge is rounded to 1/kFractionSteps; triangles of zero area at those positions
 // are dropped. Vertices on the block's faces depend only on the samples of that face, so
-// neighbouring chunks produce bit-identical vertices there (in world space). Afterwards scratch.solid holds the
-// samples' solid bits (rows 0..cells), which the mesh codec transmits.
+// neighbouring chunks produce bit-identical vertices there (in world space). Afterwards
+// scratch.solid holds the samples' solid bits (rows 0..cells), which the mesh codec transmits.
 void mesh_chunk(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out);
 
 // The topology half of the mesher, shared with the mesh codec's decoder, which rebuilds a
@@ -49,7 +49,8 @@ size_t table_triangles(const MeshScratch& scratch, const std::array<int, 3>& cel
 // max_triangles). keep(a, b, c) decides whether a triangle is written. Returns the number
 // of triangles written.
 template <class Keep>
-size_t emit_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells, uint32_t* out, Keep&& keep);
+size_t emit_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells, uint32_t* out,
+                      Keep&& keep);
 
 }  // namespace vox::mesh
 

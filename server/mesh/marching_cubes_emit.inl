@@ -23,8 +23,8 @@ inline constexpr EdgeSlot kEdgeSlot[12] = {
 
 // Bit x set when cell (x, y, z) has corners on both sides of the surface.
 inline uint64_t mixed_cells(const MeshScratch& s, int nx, int y, int z) {
-  const uint64_t r00 = s.solid[row_of(y, z)], r10 = s.solid[row_of(y + 1, z)], r01 = s.solid[row_of(y, z + 1)],
-                 r11 = s.solid[row_of(y + 1, z + 1)];
+  const uint64_t r00 = s.solid[row_of(y, z)], r10 = s.solid[row_of(y + 1, z)],
+                 r01 = s.solid[row_of(y, z + 1)], r11 = s.solid[row_of(y + 1, z + 1)];
   const uint64_t all = r00 & r10 & r01 & r11, any = r00 | r10 | r01 | r11;
   return ~(all & (all >> 1)) & (any | (any >> 1)) & low_bits(nx);
 }
@@ -32,21 +32,24 @@ inline uint64_t mixed_cells(const MeshScratch& s, int nx, int y, int z) {
 // Bourke cube index of cell x from the four sample rows around it.
 inline unsigned cube_index(uint64_t r00, uint64_t r10, uint64_t r01, uint64_t r11, int x) {
   // Bourke corner order: (0,0,0) (1,0,0) (1,1,0) (0,1,0), then the same at z + 1.
-  return static_cast<unsigned>(((r00 >> x) & 3) | (((r10 >> (x + 1)) & 1) << 2) | (((r10 >> x) & 1) << 3) |
-                               (((r01 >> x) & 3) << 4) | (((r11 >> (x + 1)) & 1) << 6) | (((r11 >> x) & 1) << 7));
+  return static_cast<unsigned>(((r00 >> x) & 3) | (((r10 >> (x + 1)) & 1) << 2) |
+                               (((r10 >> x) & 1) << 3) | (((r01 >> x) & 3) << 4) |
+                               (((r11 >> (x + 1)) & 1) << 6) | (((r11 >> x) & 1) << 7));
 }
 
 }  // namespace detail
 
 template <class Keep>
-size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uint32_t* out, Keep&& keep) {
+size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uint32_t* out,
+                      Keep&& keep) {
   uint32_t* idx = out;
   for (int z = 0; z < cells[2]; ++z) {
     for (int y = 0; y < cells[1]; ++y) {
       uint64_t cells_left = detail::mixed_cells(s, cells[0], y, z);
       if (cells_left == 0) continue;
       const uint64_t r00 = s.solid[detail::row_of(y, z)], r10 = s.solid[detail::row_of(y + 1, z)],
-                     r01 = s.solid[detail::row_of(y, z + 1)], r11 = s.solid[detail::row_of(y + 1, z + 1)];
+                     r01 = s.solid[detail::row_of(y, z + 1)],
+                     r11 = s.solid[detail::row_of(y + 1, z + 1)];
       // Per edge of this row of cells: the cut mask and first vertex of the row it lies in.
       uint64_t edge_cut[12];
       uint32_t edge_first[12];
@@ -64,8 +67,9 @@ size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uin
         uint32_t vertex[12];
         for (unsigned edges = edgeTable[cube_index]; edges != 0; edges &= edges - 1) {
           const int e = std::countr_zero(edges);
-          vertex[e] = edge_first[e] +
-                      static_cast<uint32_t>(std::popcount(edge_cut[e] & before[detail::kEdgeSlot[e].dx]));
+          vertex[e] =
+              edge_first[e] +
+              static_cast<uint32_t>(std::popcount(edge_cut[e] & before[detail::kEdgeSlot[e].dx]));
         }
         for (const int8_t* tri = triTable[cube_index].data(); *tri >= 0; tri += 3) {
           const uint32_t a = vertex[tri[0]], b = vertex[tri[1]], c = vertex[tri[2]];

@@ -41,10 +41,12 @@ constexpr int fan_triangle_weight(int e0, int e1, int e2) {
   const int edges[3] = {e0, e1, e2};
   for (int k = 0; k < 3; ++k)
     for (int j = 0; j < 3; ++j)
-      p[k][j] = kCubeCorner[kEdgeCorners[edges[k]][0]][j] + kCubeCorner[kEdgeCorners[edges[k]][1]][j];
+      p[k][j] =
+          kCubeCorner[kEdgeCorners[edges[k]][0]][j] + kCubeCorner[kEdgeCorners[edges[k]][1]][j];
   const int u[3] = {p[1][0] - p[0][0], p[1][1] - p[0][1], p[1][2] - p[0][2]};
   const int w[3] = {p[2][0] - p[0][0], p[2][1] - p[0][1], p[2][2] - p[0][2]};
-  const int n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+  const int n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2],
+                    u[0] * w[1] - u[1] * w[0]};
   return n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
 }
 
@@ -90,7 +92,8 @@ constexpr std::array<int8_t, 16> make_tri_row(int c) {
     for (int apex = 0; apex < n; ++apex) {
       int thinnest = 1 << 30;
       for (int k = 1; k + 1 < n; ++k) {
-        const int w = fan_triangle_weight(polygon[apex], polygon[(apex + k) % n], polygon[(apex + k + 1) % n]);
+        const int w = fan_triangle_weight(polygon[apex], polygon[(apex + k) % n],
+                                          polygon[(apex + k + 1) % n]);
         thinnest = w < thinnest ? w : thinnest;
       }
       if (thinnest > best_weight) {

@@ -20,10 +20,28 @@ extern const std::array<uint16_t, 256> edgeTable;
 extern const std::array<std::array<int8_t, 16>, 256> triTable;
 
 inline constexpr std::array<std::array<int8_t, 3>, 8> kCubeCorner = {{
-    {0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1},
+    {0, 0, 0},
+    {1, 0, 0},
+    {1, 1, 0},
+    {0, 1, 0},
+    {0, 0, 1},
+    {1, 0, 1},
+    {1, 1, 1},
+    {0, 1, 1},
 }};
 inline constexpr std::array<std::array<int8_t, 2>, 12> kEdgeCorners = {{
-    {0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6}, {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7},
+    {0, 1},
+    {1, 2},
+    {2, 3},
+    {3, 0},
+    {4, 5},
+    {5, 6},
+    {6, 7},
+    {7, 4},
+    {0, 4},
+    {1, 5},
+    {2, 6},
+    {3, 7},
 }};
 
 }  // namespace vox::mesh

@@ -74,7 +74,8 @@ struct FacePlace {
 };
 inline FacePlace face_place(const Vec3f& l) {
   FacePlace f;
-  if (l.x != 0.0f && l.y != 0.0f && l.z != 0.0f && l.x != kFace && l.y != kFace && l.z != kFace) return f;
+  if (l.x != 0.0f && l.y != 0.0f && l.z != 0.0f && l.x != kFace && l.y != kFace && l.z != kFace)
+    return f;
   const float c[3] = {l.x, l.y, l.z};
   for (unsigned a = 0; a < 3; ++a) {
     f.on |= (c[a] == 0.0f || c[a] == kFace) ? 1u << a : 0u;
@@ -93,11 +94,13 @@ struct Grid {
             static_cast<int>(i / dims[0] / dims[1])};
   }
   size_t index(const std::array<int, 3>& g) const {
-    return static_cast<size_t>(g[0]) + static_cast<size_t>(dims[0]) * (g[1] + static_cast<size_t>(dims[1]) * g[2]);
+    return static_cast<size_t>(g[0]) +
+           static_cast<size_t>(dims[0]) * (g[1] + static_cast<size_t>(dims[1]) * g[2]);
   }
   Vec3f origin_of(size_t i) const {
     const auto g = pos(i);
-    return {origin.x + kFace * static_cast<float>(g[0]), origin.y + kFace * static_cast<float>(g[1]),
+    return {origin.x + kFace * static_cast<float>(g[0]),
+            origin.y + kFace * static_cast<float>(g[1]),
             origin.z + kFace * static_cast<float>(g[2])};
   }
 };
@@ -143,8 +146,8 @@ void find_used_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, Par
 // used copy, trying first the chunk where its face coordinates are 0 (its home), then the
 // chunks below it on those axes. Every holder tries the same chunks in the same order, so
 // all agree; a missing or empty neighbour just does not hold it.
-Foreign owner_of(const Grid& grid, std::span<const PartPlan> plans, size_t i, const std::array<int, 3>& g, uint32_t v,
-                 const FacePlace& f, const Key& key) {
+Foreign owner_of(const Grid& grid, std::span<const PartPlan> plans, size_t i,
+                 const std::array<int, 3>& g, uint32_t v, const FacePlace& f, const Key& key) {
   std::array<int, 3> home{};
   for (int a = 0; a < 3; ++a) home[a] = g[a] + static_cast<int>((f.upper >> a) & 1);
   for (unsigned e = 0; e < 8; ++e) {
@@ -166,7 +169,8 @@ Foreign owner_of(const Grid& grid, std::span<const PartPlan> plans, size_t i, co
 }
 
 // Pass 2, one part: which used vertices it keeps; the others point at the kept copy.
-void plan_part(const Grid& grid, std::span<const PartPlan> plans, size_t i, const ChunkMesh& p, PartPlan& plan) {
+void plan_part(const Grid& grid, std::span<const PartPlan> plans, size_t i, const ChunkMesh& p,
+               PartPlan& plan) {
   const Vec3f o = grid.origin_of(i);
   const std::array<int, 3> g = grid.pos(i);
   for (uint32_t v = 0; v < p.vertex_count(); ++v) {
@@ -187,7 +191,8 @@ void plan_part(const Grid& grid, std::span<const PartPlan> plans, size_t i, cons
 
 // Pass 3, one part: the welded index of each copy it points at (read before any part
 // rewrites its numbers in pass 4).
-void resolve_foreign(std::span<const PartPlan> plans, std::span<const size_t> vertex_base, PartPlan& plan) {
+void resolve_foreign(std::span<const PartPlan> plans, std::span<const size_t> vertex_base,
+                     PartPlan& plan) {
   for (Foreign& f : plan.foreign) {
     assert(plans[f.part].local[f.vertex] < kForeignBit);
     f.global = static_cast<uint32_t>(vertex_base[f.part] + plans[f.part].local[f.vertex]);
@@ -195,8 +200,8 @@ void resolve_foreign(std::span<const PartPlan> plans, std::span<const size_t> ve
 }
 
 // Pass 4, one part: its kept vertices in world space, its triangles with welded indices.
-void write_part(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan, size_t vertex_base, ChunkMesh& out,
-                size_t index_base) {
+void write_part(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan, size_t vertex_base,
+                ChunkMesh& out, size_t index_base) {
   const Vec3f o = grid.origin_of(i);
   for (size_t k = 0; k < plan.kept.size(); ++k) {
     const uint32_t v = plan.kept[k];
@@ -207,7 +212,8 @@ void write_part(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan, 
   std::vector<uint32_t>& global = plan.local;  // rewritten in place to welded indices
   for (uint32_t& l : global) {
     if (l == kUnused) continue;
-    l = (l & kForeignBit) != 0 ? plan.foreign[l & ~kForeignBit].global : static_cast<uint32_t>(vertex_base + l);
+    l = (l & kForeignBit) != 0 ? plan.foreign[l & ~kForeignBit].global
+                               : static_cast<uint32_t>(vertex_base + l);
   }
   uint32_t* dst = out.indices.data() + index_base;
   for (uint32_t index : p.indices) *dst++ = global[index];
@@ -215,12 +221,14 @@ void write_part(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan, 
 
 }  // namespace
 
-ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> grid_dims, Vec3f origin, int threads) {
+ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> grid_dims,
+                          Vec3f origin, int threads) {
   const size_t n = parts.size();
   const Grid grid{grid_dims, origin};
   std::vector<PartPlan> plans(n);
   tbb::task_arena arena(arena_concurrency(threads));
-  parallel_for_index(arena, n, [&](size_t i) { find_used_face_vertices(grid, i, parts[i], plans[i]); });
+  parallel_for_index(arena, n,
+                     [&](size_t i) { find_used_face_vertices(grid, i, parts[i], plans[i]); });
   parallel_for_index(arena, n, [&](size_t i) { plan_part(grid, plans, i, parts[i], plans[i]); });
 
   std::vector<size_t> vertex_base(n + 1, 0), index_base(n + 1, 0);

@@ -20,6 +20,7 @@ namespace vox::mesh {
 // parts[i] is the chunk at grid position (i % g.x, i / g.x % g.y, i / g.x / g.y), an empty
 // mesh where there is none; its world origin is origin + 32 * grid position. `threads` 0
 // uses all cores.
-ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> grid, Vec3f origin, int threads = 0);
+ChunkMesh weld_chunk_grid(std::span<const ChunkMesh> parts, std::array<int, 3> grid, Vec3f origin,
+                          int threads = 0);
 
 }  // namespace vox::mesh

@@ -2,7 +2,6 @@
 
 #include <cstring>
 
-
 namespace vox::mesh {
 namespace {
 
@@ -12,11 +11,14 @@ using world::kChunkSize;
 // Block coordinate b in -1..33 comes from neighbour 0 (b = -1, its sample 31), 1 (the
 // centre chunk, b = 0..31) or 2 (b = 32, 33: its samples 0, 1).
 constexpr int source_of(int b) { return b < 0 ? 0 : (b < kChunkSize ? 1 : 2); }
-constexpr int local_of(int b) { return b < 0 ? kChunkSize - 1 : (b < kChunkSize ? b : b - kChunkSize); }
+constexpr int local_of(int b) {
+  return b < 0 ? kChunkSize - 1 : (b < kChunkSize ? b : b - kChunkSize);
+}
 
 // Copies `count` samples of one x-row of `src` starting at local (x, y, z), or fills them
 // with the uniform sample (air when src is null).
-inline void copy_row(const Chunk* src, int x, int y, int z, int count, world::Density* dst_d, world::Material* dst_m) {
+inline void copy_row(const Chunk* src, int x, int y, int z, int count, world::Density* dst_d,
+                     world::Material* dst_m) {
   if (src == nullptr || src->is_uniform()) {
     const world::Sample s = src == nullptr ? world::Sample{} : src->uniform_value();
     for (int i = 0; i < count; ++i) dst_d[i] = s.density;

@@ -24,7 +24,8 @@ world::ChunkCoord ChunkBox::at(size_t i) const {
 
 std::vector<ChunkMesh> mesh_chunks(const world::ChunkMap& map, const ChunkBox& box, int threads) {
   std::vector<ChunkMesh> meshes(box.count());
-  tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers([] { return std::make_unique<Worker>(); });
+  tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers(
+      [] { return std::make_unique<Worker>(); });
   tbb::task_arena arena(arena_concurrency(threads));
   parallel_for_index(arena, meshes.size(), [&](size_t i) {
     Worker& w = *workers.local();
@@ -37,9 +38,11 @@ std::vector<ChunkMesh> mesh_chunks(const world::ChunkMap& map, const ChunkBox& b
 ChunkMesh mesh_region(const world::ChunkMap& map, const ChunkBox& box, int threads) {
   const std::vector<ChunkMesh> meshes = mesh_chunks(map, box, threads);
   const float k = static_cast<float>(world::kChunkSize);
-  return weld_chunk_grid(meshes, {box.hi.x - box.lo.x + 1, box.hi.y - box.lo.y + 1, box.hi.z - box.lo.z + 1},
-                         Vec3f{k * static_cast<float>(box.lo.x), k * static_cast<float>(box.lo.y), k * static_cast<float>(box.lo.z)},
-                         threads);
+  return weld_chunk_grid(
+      meshes, {box.hi.x - box.lo.x + 1, box.hi.y - box.lo.y + 1, box.hi.z - box.lo.z + 1},
+      Vec3f{k * static_cast<float>(box.lo.x), k * static_cast<float>(box.lo.y),
+            k * static_cast<float>(box.lo.z)},
+      threads);
 }
 
 }  // namespace vox::mesh

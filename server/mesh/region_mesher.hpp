@@ -19,7 +19,8 @@ struct ChunkBox {
 
 // One mesh per chunk of the box, chunk-local positions, in ChunkBox::at order. Chunks
 // missing from the map read as air.
-std::vector<ChunkMesh> mesh_chunks(const world::ChunkMap& map, const ChunkBox& box, int threads = 0);
+std::vector<ChunkMesh> mesh_chunks(const world::ChunkMap& map, const ChunkBox& box,
+                                   int threads = 0);
 // The same chunks welded into one mesh in world coordinates.
 ChunkMesh mesh_region(const world::ChunkMap& map, const ChunkBox& box, int threads = 0);
 

@@ -32,7 +32,8 @@ void gather_from_volume(const QuantizedVolume& v, const std::array<int, 3>& o, P
     const int vz = std::clamp(o[2] + bz, 0, dz - 1);
     for (int by = -1; by <= kChunkSize + 1; ++by) {
       const int vy = std::clamp(o[1] + by, 0, dy - 1);
-      const world::Density* src = v.density.data() + static_cast<size_t>(dx) * (vy + static_cast<size_t>(dy) * vz);
+      const world::Density* src =
+          v.density.data() + static_cast<size_t>(dx) * (vy + static_cast<size_t>(dy) * vz);
       world::Density* dst = out.density.get() + PaddedBlock::index(-1, by, bz);
       int b = 0;
       for (int x = x_lo; x < copy_lo; ++x) dst[b++] = src[0];
@@ -61,11 +62,13 @@ QuantizedVolume quantize_volume(const Volume& volume, const VolumeMeshOptions& o
 
 ChunkMesh mesh_volume(const QuantizedVolume& volume, int threads) {
   std::array<int, 3> chunks{};
-  for (int a = 0; a < 3; ++a) chunks[a] = std::max(0, (volume.dims[a] - 1 + kChunkSize - 1) / kChunkSize);
+  for (int a = 0; a < 3; ++a)
+    chunks[a] = std::max(0, (volume.dims[a] - 1 + kChunkSize - 1) / kChunkSize);
   const size_t chunk_count = static_cast<size_t>(chunks[0]) * chunks[1] * chunks[2];
   std::vector<ChunkMesh> parts(chunk_count);
 
-  tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers([] { return std::make_unique<Worker>(); });
+  tbb::enumerable_thread_specific<std::unique_ptr<Worker>> workers(
+      [] { return std::make_unique<Worker>(); });
   tbb::task_arena arena(arena_concurrency(threads));
   parallel_for_index(arena, chunk_count, [&](size_t i) {
     Worker& w = *workers.local();
@@ -77,7 +80,8 @@ ChunkMesh mesh_volume(const QuantizedVolume& volume, int threads) {
     const int cy = static_cast<int>(i / chunks[0] % chunks[1]);
     const int cz = static_cast<int>(i / chunks[0] / chunks[1]);
     const std::array<int, 3> origin{cx * kChunkSize, cy * kChunkSize, cz * kChunkSize};
-    for (int a = 0; a < 3; ++a) w.block.cells[a] = std::min(kChunkSize, volume.dims[a] - 1 - origin[a]);
+    for (int a = 0; a < 3; ++a)
+      w.block.cells[a] = std::min(kChunkSize, volume.dims[a] - 1 - origin[a]);
     gather_from_volume(volume, origin, w.block);
     mesh_chunk(w.block, w.scratch, parts[i]);
   });

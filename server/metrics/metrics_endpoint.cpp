@@ -89,13 +89,15 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     edits(out);
     world(out);
     traffic(out);
-    out.push_back(histogram("voxeld_edit_publish_seconds",
-                            "From an edit's submission to the pipeline to its result (its meshes published)",
-                            c_.edit_to_publish));
-    out.push_back(histogram("voxeld_edit_delta_written_seconds",
-                            "From an edit's submission to the pipeline to a delta showing it written "
-                            "to a player's socket (once per player who receives it)",
-                            c_.edit_to_delta_written));
+    out.push_back(
+        histogram("voxeld_edit_publish_seconds",
+                  "From an edit's submission to the pipeline to its result (its meshes published)",
+                  c_.edit_to_publish));
+    out.push_back(
+        histogram("voxeld_edit_delta_written_seconds",
+                  "From an edit's submission to the pipeline to a delta showing it written "
+                  "to a player's socket (once per player who receives it)",
+                  c_.edit_to_delta_written));
     out.push_back(histogram("voxeld_batch_duration_seconds", "World pipeline batch duration",
                             c_.batch_duration));
     out.push_back(histogram("voxeld_remesh_duration_seconds",
@@ -114,13 +116,18 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     auto refused = family("voxeld_connections_refused_total", "Connections or Hellos refused",
                           MetricType::Counter);
     const char* reasons[] = {"handshakes_full", "address_full", "server_full"};
-    for (size_t i = 0; i < c_.refused.size(); ++i) add(refused, value_of(c_.refused[i]), {{"reason", reasons[i]}});
-    auto disconnects = family("voxeld_disconnects_total", "Connections the server closed, by reason",
-                              MetricType::Counter);
-    add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kSlowReader)]), {{"reason", "slow_reader"}});
-    add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kWriteTimeout)]), {{"reason", "write_timeout"}});
-    for (auto code : {wire::Error::IDLE_TIMEOUT, wire::Error::HANDSHAKE_TIMEOUT, wire::Error::FRAME_TIMEOUT}) {
-      add(disconnects, value_of(c_.errors_sent[code]), {{"reason", lower(wire::Error::Code_Name(code))}});
+    for (size_t i = 0; i < c_.refused.size(); ++i)
+      add(refused, value_of(c_.refused[i]), {{"reason", reasons[i]}});
+    auto disconnects = family("voxeld_disconnects_total",
+                              "Connections the server closed, by reason", MetricType::Counter);
+    add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kSlowReader)]),
+        {{"reason", "slow_reader"}});
+    add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kWriteTimeout)]),
+        {{"reason", "write_timeout"}});
+    for (auto code :
+         {wire::Error::IDLE_TIMEOUT, wire::Error::HANDSHAKE_TIMEOUT, wire::Error::FRAME_TIMEOUT}) {
+      add(disconnects, value_of(c_.errors_sent[code]),
+          {{"reason", lower(wire::Error::Code_Name(code))}});
     }
     auto errors = family("voxeld_errors_sent_total", "Error messages sent to clients, by code",
                          MetricType::Counter);
@@ -129,7 +136,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
       add(errors, value_of(c_.errors_sent[code]),
           {{"code", wire::Error::Code_Name(static_cast<wire::Error::Code>(code))}});
     }
-    for (auto* f : {&players, &conns, &refused, &disconnects, &errors}) out.push_back(std::move(*f));
+    for (auto* f : {&players, &conns, &refused, &disconnects, &errors})
+      out.push_back(std::move(*f));
   }
 
   void edits(std::vector<MetricFamily>& out) const {
@@ -137,13 +145,16 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     for (int s = 0; s < static_cast<int>(c_.edit_results.size()); ++s) {
       if (!wire::EditResult::Status_IsValid(s)) continue;
       add(edits, value_of(c_.edit_results[s]),
-          {{"status", lower(wire::EditResult::Status_Name(static_cast<wire::EditResult::Status>(s)))}});
+          {{"status",
+            lower(wire::EditResult::Status_Name(static_cast<wire::EditResult::Status>(s)))}});
     }
-    auto coalesced = family("voxeld_set_views_coalesced_total",
-                            "SetViews over the rate, coalesced into a newer one", MetricType::Counter);
+    auto coalesced =
+        family("voxeld_set_views_coalesced_total",
+               "SetViews over the rate, coalesced into a newer one", MetricType::Counter);
     add(coalesced, value_of(c_.set_views_coalesced));
-    auto paused = family("voxeld_reads_paused_total",
-                         "Times a connection was read slower for its message rate", MetricType::Counter);
+    auto paused =
+        family("voxeld_reads_paused_total",
+               "Times a connection was read slower for its message rate", MetricType::Counter);
     add(paused, value_of(c_.reads_paused));
     auto resynced = family("voxeld_chunks_resynced_total",
                            "Chunks clients asked for again in full (Resync)", MetricType::Counter);
@@ -153,34 +164,46 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
 
   void world(std::vector<MetricFamily>& out) const {
     const pipeline::PipelineStats s = pipeline_.stats();
-    gauge(out, "voxeld_load_chunks_queued", "Chunks queued for loading (every view's)", double(s.queued_load_chunks));
+    gauge(out, "voxeld_load_chunks_queued", "Chunks queued for loading (every view's)",
+          double(s.queued_load_chunks));
     gauge(out, "voxeld_load_owners", "Views and loads with queued chunks", double(s.load_owners));
-    gauge(out, "voxeld_chunks_generating", "Terrain chunks queued or ready in the background generator", double(s.chunks_generating));
-    gauge(out, "voxeld_meshes_waiting", "Loaded chunks waiting for their neighbours' terrain", double(s.meshes_waiting));
+    gauge(out, "voxeld_chunks_generating",
+          "Terrain chunks queued or ready in the background generator",
+          double(s.chunks_generating));
+    gauge(out, "voxeld_meshes_waiting", "Loaded chunks waiting for their neighbours' terrain",
+          double(s.meshes_waiting));
     gauge(out, "voxeld_edits_queued", "Edits waiting for the next batch", double(s.queued_edits));
     gauge(out, "voxeld_chunks_loaded", "Chunks in memory", double(s.loaded_chunks));
-    gauge(out, "voxeld_chunks_modified", "Chunks changed by edits (never evicted)", double(s.modified_chunks));
+    gauge(out, "voxeld_chunks_modified", "Chunks changed by edits (never evicted)",
+          double(s.modified_chunks));
     gauge(out, "voxeld_meshes_loaded", "Published meshes in the store", double(s.mesh_count));
-    auto accounted = family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
+    auto accounted =
+        family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
     add(accounted, double(s.chunk_bytes), {{"part", "chunks"}});
     add(accounted, double(s.mesh_bytes), {{"part", "meshes"}});
     add(accounted, double(s.other_bytes), {{"part", "sessions"}});
     out.push_back(std::move(accounted));
     gauge(out, "voxeld_memory_budget_bytes", "--max-memory", double(pipeline_.config().max_memory));
     gauge(out, "voxeld_loads_blocked", "1 while loads wait for memory", s.loads_blocked ? 1 : 0);
-    gauge(out, "voxeld_resident_memory_bytes", "The process's resident set size", double(resident_bytes()));
+    gauge(out, "voxeld_resident_memory_bytes", "The process's resident set size",
+          double(resident_bytes()));
     counter(out, "voxeld_batches_total", "World pipeline batches", double(s.batches));
-    counter(out, "voxeld_chunks_generated_total", "Chunks generated from the seed", double(s.chunks_generated));
+    counter(out, "voxeld_chunks_generated_total", "Chunks generated from the seed",
+            double(s.chunks_generated));
     counter(out, "voxeld_chunks_evicted_total", "Chunks evicted", double(s.chunks_evicted));
-    counter(out, "voxeld_meshes_published_total", "Mesh versions published", double(s.meshes_published));
-    counter(out, "voxeld_memory_blocked_total", "Times loads started waiting for memory", double(s.memory_blocked));
+    counter(out, "voxeld_meshes_published_total", "Mesh versions published",
+            double(s.meshes_published));
+    counter(out, "voxeld_memory_blocked_total", "Times loads started waiting for memory",
+            double(s.memory_blocked));
   }
 
   void traffic(std::vector<MetricFamily>& out) const {
     counter(out, "voxeld_sent_bytes_total", "Bytes written to clients", value_of(c_.bytes_sent));
-    counter(out, "voxeld_sent_messages_total", "Messages written to clients", value_of(c_.messages_sent));
+    counter(out, "voxeld_sent_messages_total", "Messages written to clients",
+            value_of(c_.messages_sent));
     counter(out, "voxeld_meshes_sent_total", "ChunkMesh messages sent", value_of(c_.meshes_sent));
-    counter(out, "voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas", value_of(c_.deltas_sent));
+    counter(out, "voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas",
+            value_of(c_.deltas_sent));
   }
 
   const net::ServerCounters& c_;

@@ -44,10 +44,14 @@ size_t AdmissionControl::connections_from(const std::string& address) const {
 
 const char* to_string(AdmissionControl::Verdict v) {
   switch (v) {
-    case AdmissionControl::Verdict::kAdmit: return "admitted";
-    case AdmissionControl::Verdict::kHandshakesFull: return "too many connections in handshake";
-    case AdmissionControl::Verdict::kAddressFull: return "too many connections from one address";
-    case AdmissionControl::Verdict::kServerFull: return "server full";
+    case AdmissionControl::Verdict::kAdmit:
+      return "admitted";
+    case AdmissionControl::Verdict::kHandshakesFull:
+      return "too many connections in handshake";
+    case AdmissionControl::Verdict::kAddressFull:
+      return "too many connections from one address";
+    case AdmissionControl::Verdict::kServerFull:
+      return "server full";
   }
   return "?";
 }

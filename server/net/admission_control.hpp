@@ -20,7 +20,7 @@ namespace vox::net {
 struct AdmissionLimits {
   size_t max_players = 256;
   size_t max_handshaking = 64;
-  size_t max_per_address = 16;  // 0: no cap
+  size_t max_per_address = 16;             // 0: no cap
   size_t max_handshaking_per_address = 4;  // 0: no cap
 };
 

@@ -2,6 +2,8 @@
 // without including <utility>, which GCC 12 no longer pulls in indirectly.
 #pragma once
 
+// <utility> must come first (see above).
+// clang-format off
 #include <utility>
-
 #include <boost/asio.hpp>
+// clang-format on

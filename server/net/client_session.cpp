@@ -4,8 +4,8 @@
 
 #include <spdlog/spdlog.h>
 
-#include "server/net/wire_convert.hpp"
 #include "proto/mesh_codec.hpp"
+#include "server/net/wire_convert.hpp"
 
 namespace vox::net {
 
@@ -90,19 +90,19 @@ void ClientSession::arm_idle_timer() {
 
 void ClientSession::read_more() {
   if (closing_ || reading_paused_) return;
-  socket_.async_read_some(
-      asio::buffer(read_buffer_),
-      asio::bind_executor(strand_, [self = shared_from_this()](boost::system::error_code ec,
-                                                               size_t n) {
-        if (ec) {
-          if (!self->closing_)
-            spdlog::debug("session {}: connection closed by peer ({})", self->id_, ec.message());
-          self->shutdown();
-          return;
-        }
-        self->decoder_.feed({self->read_buffer_.data(), n});
-        self->process_frames();
-      }));
+  socket_.async_read_some(asio::buffer(read_buffer_),
+                          asio::bind_executor(strand_, [self = shared_from_this()](
+                                                           boost::system::error_code ec, size_t n) {
+                            if (ec) {
+                              if (!self->closing_)
+                                spdlog::debug("session {}: connection closed by peer ({})",
+                                              self->id_, ec.message());
+                              self->shutdown();
+                              return;
+                            }
+                            self->decoder_.feed({self->read_buffer_.data(), n});
+                            self->process_frames();
+                          }));
 }
 
 // Handles the complete frames buffered; stops reading for a while when the client sends
@@ -225,8 +225,9 @@ void ClientSession::send_error(wire::Error::Code code, const std::string& messag
   if (auto suppressed = services_.logs->allow("error:" + name)) {
     spdlog::info("session {}: {} ({}){}{}", id_, name, escape_for_log(message, 200),
                  close ? ", closing" : "",
-                 *suppressed ? fmt::format(" [{} more {} since the last such line]", *suppressed, name)
-                             : std::string());
+                 *suppressed
+                     ? fmt::format(" [{} more {} since the last such line]", *suppressed, name)
+                     : std::string());
   }
   wire::Envelope error;
   error.mutable_error()->set_code(code);
@@ -277,7 +278,8 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
     m->set_base_version(send->base->version);
     m->set_payload(delta->data(), delta->size());
     counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
-    if (send->version->edited_at != Clock::time_point{}) write_edits_.push_back(send->version->edited_at);
+    if (send->version->edited_at != Clock::time_point{})
+      write_edits_.push_back(send->version->edited_at);
   } else {
     m->set_base_version(0);
     m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());

@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "proto/framing.hpp"
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
 #include "server/net/log_hygiene.hpp"
@@ -18,7 +19,6 @@
 #include "server/net/server_counters.hpp"
 #include "server/pipeline/token_bucket.hpp"
 #include "server/pipeline/world_pipeline.hpp"
-#include "proto/framing.hpp"
 #include "voxel.pb.h"
 
 namespace vox::net {
@@ -28,10 +28,10 @@ namespace asio = boost::asio;
 struct ServerConfig {
   std::string bind = "127.0.0.1";
   uint16_t port = 7777;
-  size_t max_clients = 256;      // players (past Hello)
-  size_t max_handshaking = 64;   // connections before Hello, not counted in max_clients
-  size_t max_per_address = 16;   // connections from one address (0: no cap)
-  size_t max_handshaking_per_address = 4;  // of them before Hello (0: no cap)
+  size_t max_clients = 256;                 // players (past Hello)
+  size_t max_handshaking = 64;              // connections before Hello, not counted in max_clients
+  size_t max_per_address = 16;              // connections from one address (0: no cap)
+  size_t max_handshaking_per_address = 4;   // of them before Hello (0: no cap)
   uint32_t max_view_radius = 12;            // chunks
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
@@ -49,9 +49,9 @@ struct ServerConfig {
   double edit_budget_burst = 600000;  // samples
   double set_view_rate = 2;           // per second; more are coalesced into the newest
   double set_view_burst = 4;
-  double message_rate = 200;          // messages per second; over it the session stops reading
+  double message_rate = 200;  // messages per second; over it the session stops reading
   double message_burst = 400;
-  double protocol_error_rate = 5;     // kept-connection errors per second; over it: closed
+  double protocol_error_rate = 5;  // kept-connection errors per second; over it: closed
   double protocol_error_burst = 20;
   std::string server_version = "voxeld 0.2.0";
 };
@@ -132,10 +132,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::array<uint8_t, 16 * 1024> read_buffer_;
   // When the partial frame in decoder_ started (none: no partial frame).
   std::optional<std::chrono::steady_clock::time_point> partial_since_;
-  bool frame_watch_ = false;      // frame_timer_ is armed for a partial frame
-  bool reading_paused_ = false;   // over the message rate: read_pause_timer_ resumes
-  std::string name_;              // as the client sent it
-  std::string log_name_;          // escaped, for logs
+  bool frame_watch_ = false;     // frame_timer_ is armed for a partial frame
+  bool reading_paused_ = false;  // over the message rate: read_pause_timer_ resumes
+  std::string name_;             // as the client sent it
+  std::string log_name_;         // escaped, for logs
   bool closing_ = false;
   bool writing_ = false;
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued
@@ -149,7 +149,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
 
   SendScheduler scheduler_;
-  uint64_t view_id_ = 0;  // of the view applied last (echoed in its ViewReady)
+  uint64_t view_id_ = 0;           // of the view applied last (echoed in its ViewReady)
   mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)
   world::ChunkCoord view_center_{};
   int view_radius_ = -1;

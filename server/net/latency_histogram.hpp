@@ -13,9 +13,8 @@ namespace vox::net {
 class LatencyHistogram {
  public:
   // 0.5 ms .. 30 s: what an edit, a batch or a re-mesh can take.
-  static constexpr std::array<double, 16> kBounds{0.0005, 0.001, 0.0025, 0.005, 0.01,
-                                                 0.025,  0.05,  0.1,    0.25,  0.5,
-                                                 1,      2.5,   5,      10,    20, 30};
+  static constexpr std::array<double, 16> kBounds{
+      0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 20, 30};
 
   void observe(double seconds) {  // any thread
     size_t i = 0;

@@ -29,7 +29,8 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
   for (int dz = -radius; dz <= radius; ++dz)
     for (int dy = -radius; dy <= radius; ++dy)
       for (int dx = -radius; dx <= radius; ++dx) {
-        if (dx * dx + dy * dy + dz * dz <= r2 && visible_.try_emplace(center.offset(dx, dy, dz)).second) {
+        if (dx * dx + dy * dy + dz * dz <= r2 &&
+            visible_.try_emplace(center.offset(dx, dy, dz)).second) {
           ++unresolved_;
         }
       }
@@ -107,13 +108,15 @@ int64_t SendScheduler::nearest_waiting() {
   return INT64_MAX;
 }
 
-std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup, uint64_t first_unsendable) {
+std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup,
+                                                       uint64_t first_unsendable) {
   if (auto send = take(updates_, false, lookup, first_unsendable)) return send;
   return take(fresh_, true, lookup, first_unsendable);
 }
 
 std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap, bool fresh,
-                                                       const Lookup& lookup, uint64_t first_unsendable) {
+                                                       const Lookup& lookup,
+                                                       uint64_t first_unsendable) {
   while (!heap.empty()) {
     if (fresh && heap.front().first > nearest_waiting()) return std::nullopt;  // a nearer one loads
     std::pop_heap(heap.begin(), heap.end(), std::greater<>());

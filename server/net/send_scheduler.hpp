@@ -28,7 +28,9 @@ class SendScheduler {
   bool has_view() const { return radius_ >= 0; }
   bool visible(world::ChunkCoord c) const { return visible_.count(c) > 0; }
   size_t visible_count() const { return visible_.size(); }
-  size_t stale_count() const { return updates_.size() + fresh_.size(); }  // each visible chunk at most once
+  size_t stale_count() const {
+    return updates_.size() + fresh_.size();
+  }  // each visible chunk at most once
 
   // A newer version of c may exist; ignored unless c is visible.
   void mark_stale(world::ChunkCoord c);
@@ -51,9 +53,9 @@ class SendScheduler {
   // The next stale chunk (see above) whose newest version (from `lookup`) is newer than
   // what the client holds, recorded as held from now on. Chunks not published yet are
   // set aside (they are marked again when published) and hold back farther new ones; a
-  // first version without triangles is recorded but not sent. A newest version at or above `first_unsendable` (one that may
-  // show an edit whose result the client has not been sent) is deferred until
-  // release_deferred(). nullopt when nothing is left.
+  // first version without triangles is recorded but not sent. A newest version at or above
+  // `first_unsendable` (one that may show an edit whose result the client has not been sent) is
+  // deferred until release_deferred(). nullopt when nothing is left.
   std::optional<Send> next(const Lookup& lookup, uint64_t first_unsendable = UINT64_MAX);
   // Marks the deferred chunks stale again (the limit given to next() has moved).
   void release_deferred();

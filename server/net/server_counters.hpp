@@ -15,7 +15,7 @@ enum class DroppedBy : uint8_t { kSlowReader, kWriteTimeout, kCount };
 
 struct ServerCounters {
   using Counter = std::atomic<uint64_t>;
-  static constexpr size_t kStatuses = 16;  // EditResult.Status values
+  static constexpr size_t kStatuses = 16;    // EditResult.Status values
   static constexpr size_t kErrorCodes = 16;  // Error.Code values
 
   Counter players{0};      // gauge: sessions past Hello
@@ -27,15 +27,15 @@ struct ServerCounters {
   Counter messages_sent{0};
   Counter disconnects{0};
   Counter set_views_coalesced{0};
-  Counter reads_paused{0};  // times a session stopped reading (message rate)
-  Counter chunks_resynced{0};  // chunks clients asked for again in full (Resync)
+  Counter reads_paused{0};                        // times a session stopped reading (message rate)
+  Counter chunks_resynced{0};                     // chunks clients asked for again in full (Resync)
   std::array<Counter, kStatuses> edit_results{};  // by EditResult.Status
   std::array<Counter, kErrorCodes> errors_sent{};  // by Error.Code
   std::array<Counter, static_cast<size_t>(RefusedBy::kCount)> refused{};
   std::array<Counter, static_cast<size_t>(DroppedBy::kCount)> dropped{};
   Counter session_bytes{0};  // gauge: sessions' accounted memory
 
-  LatencyHistogram edit_to_publish;  // submit -> the pipeline's result (meshes published)
+  LatencyHistogram edit_to_publish;        // submit -> the pipeline's result (meshes published)
   LatencyHistogram edit_to_delta_written;  // submit -> a delta showing it written to a socket
   LatencyHistogram batch_duration;
   LatencyHistogram remesh_duration;

@@ -5,9 +5,9 @@
 
 #include <cmath>
 
+#include "proto/mesh_codec.hpp"
 #include "server/net/client_session.hpp"
 #include "server/net/wire_convert.hpp"
-#include "proto/mesh_codec.hpp"
 
 namespace vox::net {
 
@@ -171,8 +171,8 @@ void ClientSession::apply_view(ChunkCoord center, int r, uint64_t view_id) {
 void ClientSession::handle_resync(const wire::Resync& resync) {
   if (static_cast<size_t>(resync.coords_size()) > config_.max_resync_chunks) {
     send_error(wire::Error::BAD_VALUE,
-               "Resync carries " + std::to_string(resync.coords_size()) + " chunks, over the limit of " +
-                   std::to_string(config_.max_resync_chunks),
+               "Resync carries " + std::to_string(resync.coords_size()) +
+                   " chunks, over the limit of " + std::to_string(config_.max_resync_chunks),
                false);
     return;
   }
@@ -194,8 +194,8 @@ void ClientSession::queue_result(uint64_t request, wire::EditResult::Status stat
   r->set_status(status);
   r->set_reason(reason);
   r->set_retry_after_ms(retry_after_ms);
-  ServerCounters::bump(counters_.edit_results[static_cast<size_t>(status) %
-                                              ServerCounters::kStatuses]);
+  ServerCounters::bump(
+      counters_.edit_results[static_cast<size_t>(status) % ServerCounters::kStatuses]);
   results_.push_ready(std::move(result));
   results_.drain([this](const wire::Envelope& e) { queue_control(e); });
 }
@@ -214,17 +214,17 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
   }
   if (edits_in_flight_ >= config_.max_edits_in_flight) {
     // A client cannot queue unbounded work in the shared pipeline.
-    queue_result(request, wire::EditResult::TOO_MANY_EDITS,
-                 "over " + std::to_string(config_.max_edits_in_flight) +
-                     " edits still being applied");
+    queue_result(
+        request, wire::EditResult::TOO_MANY_EDITS,
+        "over " + std::to_string(config_.max_edits_in_flight) + " edits still being applied");
     return;
   }
   const double cost = edit_cost(*converted.edit);
   if (const auto wait = edit_budget_.take(cost, Clock::now()); wait.count() > 0) {
-    queue_result(request, wire::EditResult::RATE_LIMITED,
-                 "over the edit budget (" + std::to_string(static_cast<uint64_t>(cost)) +
-                     " samples)",
-                 clamp_ms(wait));
+    queue_result(
+        request, wire::EditResult::RATE_LIMITED,
+        "over the edit budget (" + std::to_string(static_cast<uint64_t>(cost)) + " samples)",
+        clamp_ms(wait));
     return;
   }
   counters_.edits.fetch_add(1, std::memory_order_relaxed);
@@ -266,8 +266,8 @@ void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_
   if (r->status() == wire::EditResult::RATE_LIMITED) {
     r->set_retry_after_ms(clamp_ms(edit_budget_.wait_for(kSamplesPerChunk, now)));
   }
-  ServerCounters::bump(counters_.edit_results[static_cast<size_t>(r->status()) %
-                                              ServerCounters::kStatuses]);
+  ServerCounters::bump(
+      counters_.edit_results[static_cast<size_t>(r->status()) % ServerCounters::kStatuses]);
   results_.fill(ticket, std::move(result));
   results_.drain([this](const wire::Envelope& e) { queue_control(e); });
   // The result is queued ahead of any mesh: versions held back for it may go now.

@@ -32,33 +32,41 @@ WireEdit edit_from_wire(const wire::Edit& e) {
   switch (e.kind_case()) {
     case wire::Edit::kBrush: {
       const auto& b = e.brush();
-      if (!material_fits(b.material())) return refuse(wire::EditResult::BAD_MATERIAL, "material must be 0..255");
+      if (!material_fits(b.material()))
+        return refuse(wire::EditResult::BAD_MATERIAL, "material must be 0..255");
       world::Brush brush{from_wire(b.center()), b.radius(), b.strength(), b.remove(), std::nullopt};
       if (b.material() != 0) brush.material = static_cast<world::Material>(b.material());
       out.edit = brush;
       break;
     }
     case wire::Edit::kExplosion:
-      out.edit = world::Explosion{from_wire(e.explosion().center()), e.explosion().radius(), e.explosion().power()};
+      out.edit = world::Explosion{from_wire(e.explosion().center()), e.explosion().radius(),
+                                  e.explosion().power()};
       break;
     case wire::Edit::kSmooth:
-      out.edit = world::Smooth{from_wire(e.smooth().center()), e.smooth().radius(), e.smooth().strength()};
+      out.edit =
+          world::Smooth{from_wire(e.smooth().center()), e.smooth().radius(), e.smooth().strength()};
       break;
     case wire::Edit::kPaint: {
       const auto& p = e.paint();
-      if (!material_fits(p.material())) return refuse(wire::EditResult::BAD_MATERIAL, "material must be 1..255");
-      out.edit = world::Paint{from_wire(p.center()), p.radius(), static_cast<world::Material>(p.material())};
+      if (!material_fits(p.material()))
+        return refuse(wire::EditResult::BAD_MATERIAL, "material must be 1..255");
+      out.edit = world::Paint{from_wire(p.center()), p.radius(),
+                              static_cast<world::Material>(p.material())};
       break;
     }
     case wire::Edit::kStamp: {
       const auto& s = e.stamp();
       if (!wire::Stamp::Shape_IsValid(s.shape())) {
         out.unknown_enum = true;
-        return refuse(wire::EditResult::BAD_VALUE, "unknown stamp shape " + std::to_string(s.shape()));
+        return refuse(wire::EditResult::BAD_VALUE,
+                      "unknown stamp shape " + std::to_string(s.shape()));
       }
-      if (!material_fits(s.material())) return refuse(wire::EditResult::BAD_MATERIAL, "material must be 1..255");
+      if (!material_fits(s.material()))
+        return refuse(wire::EditResult::BAD_MATERIAL, "material must be 1..255");
       world::Stamp stamp;
-      stamp.shape = s.shape() == wire::Stamp::SPHERE ? world::Stamp::Shape::kSphere : world::Stamp::Shape::kBox;
+      stamp.shape = s.shape() == wire::Stamp::SPHERE ? world::Stamp::Shape::kSphere
+                                                     : world::Stamp::Shape::kBox;
       stamp.min = from_wire(s.min());
       stamp.max = from_wire(s.max());
       stamp.center = from_wire(s.center());
@@ -76,15 +84,24 @@ WireEdit edit_from_wire(const wire::Edit& e) {
 
 wire::EditResult::Status status_of(world::RefusalReason r) {
   switch (r) {
-    case world::RefusalReason::kNone: return wire::EditResult::ACCEPTED;
-    case world::RefusalReason::kNotFinite: return wire::EditResult::NOT_FINITE;
-    case world::RefusalReason::kOutOfBounds: return wire::EditResult::OUT_OF_BOUNDS;
-    case world::RefusalReason::kBadRadius: return wire::EditResult::BAD_RADIUS;
-    case world::RefusalReason::kBadStrength: return wire::EditResult::BAD_STRENGTH;
-    case world::RefusalReason::kBadMaterial: return wire::EditResult::BAD_MATERIAL;
-    case world::RefusalReason::kShuttingDown: return wire::EditResult::SHUTTING_DOWN;
-    case world::RefusalReason::kServerBusy: return wire::EditResult::SERVER_BUSY;
-    case world::RefusalReason::kOverBudget: return wire::EditResult::RATE_LIMITED;
+    case world::RefusalReason::kNone:
+      return wire::EditResult::ACCEPTED;
+    case world::RefusalReason::kNotFinite:
+      return wire::EditResult::NOT_FINITE;
+    case world::RefusalReason::kOutOfBounds:
+      return wire::EditResult::OUT_OF_BOUNDS;
+    case world::RefusalReason::kBadRadius:
+      return wire::EditResult::BAD_RADIUS;
+    case world::RefusalReason::kBadStrength:
+      return wire::EditResult::BAD_STRENGTH;
+    case world::RefusalReason::kBadMaterial:
+      return wire::EditResult::BAD_MATERIAL;
+    case world::RefusalReason::kShuttingDown:
+      return wire::EditResult::SHUTTING_DOWN;
+    case world::RefusalReason::kServerBusy:
+      return wire::EditResult::SERVER_BUSY;
+    case world::RefusalReason::kOverBudget:
+      return wire::EditResult::RATE_LIMITED;
   }
   return wire::EditResult::ACCEPTED;
 }

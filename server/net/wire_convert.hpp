@@ -9,8 +9,8 @@
 #include <vector>
 
 #include "server/pipeline/world_pipeline.hpp"
-#include "voxel.pb.h"
 #include "server/world/edit.hpp"
+#include "voxel.pb.h"
 
 namespace vox::net {
 

@@ -45,7 +45,8 @@ std::vector<OrderedTask> BatchScheduler::take_ordered() {
 
 // Created on first use, while the owner has a request (which names its group).
 BatchScheduler::OwnerBudget& BatchScheduler::budget_of(LoadOwner owner, Clock::time_point now) {
-  auto [it, inserted] = budgets_.try_emplace(owner, OwnerBudget{TokenBucket(owner_rate_, owner_burst_, now), 0});
+  auto [it, inserted] =
+      budgets_.try_emplace(owner, OwnerBudget{TokenBucket(owner_rate_, owner_burst_, now), 0});
   const auto r = requests_.find(owner);
   const uint64_t group = r == requests_.end() ? 0 : r->second.group;
   if (inserted && group != 0 && group_rate_ > 0) {
@@ -74,7 +75,8 @@ void BatchScheduler::charge(LoadOwner owner, double work, Clock::time_point now)
 void BatchScheduler::purge_groups(Clock::time_point now) {
   for (auto it = groups_.begin(); it != groups_.end();) {
     GroupBudget& g = it->second;
-    it = g.owners == 0 && g.bucket.tokens(now) >= g.bucket.burst() ? groups_.erase(it) : std::next(it);
+    it = g.owners == 0 && g.bucket.tokens(now) >= g.bucket.burst() ? groups_.erase(it)
+                                                                   : std::next(it);
   }
 }
 

@@ -14,10 +14,9 @@
 //   owner that has spent it waits, so view floods cannot take the whole pipeline.
 #pragma once
 
-#include <cstddef>
 #include <chrono>
-#include <cstdint>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
 #include <functional>
 #include <unordered_map>
@@ -69,8 +68,11 @@ class BatchScheduler {
   // budget outlives its owners until it has refilled, so reconnecting does not refill it.
   explicit BatchScheduler(size_t group = 32, double owner_rate = 0, double owner_burst = 0,
                           double group_rate = 0, double group_burst = 0)
-      : group_(group), owner_rate_(owner_rate), owner_burst_(owner_burst),
-        group_rate_(group_rate), group_burst_(group_burst) {}
+      : group_(group),
+        owner_rate_(owner_rate),
+        owner_burst_(owner_burst),
+        group_rate_(group_rate),
+        group_burst_(group_burst) {}
   static constexpr LoadOwner kUnlimitedOwners = LoadOwner{1} << 63;
 
   void add(OrderedTask task);

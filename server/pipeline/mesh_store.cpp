@@ -6,8 +6,8 @@ namespace vox::pipeline {
 
 size_t MeshVersion::memory_bytes() const {
   return sizeof(MeshVersion) + mesh.positions.capacity() * sizeof(mesh::Vec3f) +
-         mesh.normals.capacity() * sizeof(mesh::Vec3f) + mesh.materials.capacity() + mesh.indices.capacity() * 4 +
-         encoding.capacity() + full_frame.capacity();
+         mesh.normals.capacity() * sizeof(mesh::Vec3f) + mesh.materials.capacity() +
+         mesh.indices.capacity() * 4 + encoding.capacity() + full_frame.capacity();
 }
 
 MeshVersion::~MeshVersion() {
@@ -33,7 +33,8 @@ std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVe
   }
   constexpr size_t kKeptDeltas = 8;  // the most recent bases; older clients get a fresh one made
   if (deltas_.size() >= kKeptDeltas) {
-    if (delta_account_) delta_account_->fetch_sub(deltas_.front().second->capacity(), std::memory_order_relaxed);
+    if (delta_account_)
+      delta_account_->fetch_sub(deltas_.front().second->capacity(), std::memory_order_relaxed);
     deltas_.erase(deltas_.begin());
   }
   deltas_.emplace_back(base.version, delta);
@@ -51,7 +52,8 @@ MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {
 void MeshStore::publish(MeshVersionPtr mesh) {
   const size_t added = mesh->memory_bytes();
   mesh->delta_account_ = delta_bytes_;  // before any reader can see it: no delta exists yet
-  if (mesh->version > newest_.load(std::memory_order_relaxed)) newest_.store(mesh->version, std::memory_order_release);
+  if (mesh->version > newest_.load(std::memory_order_relaxed))
+    newest_.store(mesh->version, std::memory_order_release);
   MeshVersionPtr old;  // released after the lock, so a last reference is freed outside it
   {
     Shard& s = shard(mesh->coord);

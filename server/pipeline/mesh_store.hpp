@@ -4,8 +4,8 @@
 #pragma once
 
 #include <array>
-#include <chrono>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -19,8 +19,8 @@ namespace vox::pipeline {
 
 struct MeshVersion {
   world::ChunkCoord coord;
-  uint64_t version = 0;  // increases with every publication (so also per chunk)
-  mesh::ChunkMesh mesh;  // chunk-local positions
+  uint64_t version = 0;             // increases with every publication (so also per chunk)
+  mesh::ChunkMesh mesh;             // chunk-local positions
   std::vector<uint8_t> encoding;    // the wire encoding (docs/PROTOCOL.md section 2)
   std::vector<uint8_t> full_frame;  // zstd frame of `encoding`: a full ChunkMesh payload
   // When the oldest edit this version shows was submitted to the pipeline; the epoch when
@@ -48,8 +48,8 @@ using MeshVersionPtr = std::shared_ptr<const MeshVersion>;
 class MeshStore {
  public:
   MeshVersionPtr get(world::ChunkCoord c) const;  // any thread; null when none published
-  void publish(MeshVersionPtr mesh);             // pipeline thread
-  void erase(world::ChunkCoord c);               // pipeline thread
+  void publish(MeshVersionPtr mesh);              // pipeline thread
+  void erase(world::ChunkCoord c);                // pipeline thread
   size_t size() const { return count_.load(std::memory_order_relaxed); }
   // Published meshes with their encodings and cached deltas (also of versions already
   // replaced that sessions still hold).

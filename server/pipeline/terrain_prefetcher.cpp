@@ -21,7 +21,9 @@ constexpr int kNice = 10;
 TerrainPrefetcher::TerrainPrefetcher(const world::TerrainGenerator& generator, int threads,
                                      size_t max_chunks, size_t reserve_bytes,
                                      std::function<void()> on_ready)
-    : generator_(generator), max_chunks_(max_chunks), reserve_bytes_(reserve_bytes),
+    : generator_(generator),
+      max_chunks_(max_chunks),
+      reserve_bytes_(reserve_bytes),
       on_ready_(std::move(on_ready)) {
   for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
 }

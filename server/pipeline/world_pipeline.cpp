@@ -53,17 +53,18 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
                  config_.load_work_per_address, config_.load_burst_per_address),
       state_(std::make_unique<WorldState>(config_.threads)) {
-  const int generate_threads = config_.generate_threads >= 0
-                                   ? config_.generate_threads
-                                   : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  prefetcher_ = std::make_unique<TerrainPrefetcher>(generator_, generate_threads, config_.max_generating,
-                                                    MemoryBudget::kBytesPerChunk, [this] {
-    {
-      std::lock_guard lock(queue_mutex_);
-      generated_ready_ = true;
-    }
-    queue_cv_.notify_one();
-  });
+  const int generate_threads =
+      config_.generate_threads >= 0
+          ? config_.generate_threads
+          : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  prefetcher_ = std::make_unique<TerrainPrefetcher>(
+      generator_, generate_threads, config_.max_generating, MemoryBudget::kBytesPerChunk, [this] {
+        {
+          std::lock_guard lock(queue_mutex_);
+          generated_ready_ = true;
+        }
+        queue_cv_.notify_one();
+      });
   thread_ = std::thread([this] { run(); });
 }
 
@@ -118,7 +119,8 @@ std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
   return future;
 }
 
-void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius, uint64_t budget_group) {
+void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius,
+                             uint64_t budget_group) {
   std::vector<ChunkCoord> chunks = ball_nearest_first(center, radius);  // outside the lock
   std::function<void()> replaced;
   {
@@ -209,9 +211,11 @@ void WorldPipeline::run() {
         // Idle: wake now and then to evict idle chunks. Loads waiting for memory: retry
         // eviction more often (sessions release meshes). Loads waiting for their owners'
         // budgets: look again soon.
-        const auto wait = !scheduler_.has_loads() ? std::chrono::duration_cast<std::chrono::milliseconds>(config_.evict_after / 4)
-                          : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
-                                                                            : kBudgetRetry;
+        const auto wait =
+            !scheduler_.has_loads()
+                ? std::chrono::duration_cast<std::chrono::milliseconds>(config_.evict_after / 4)
+            : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
+                                                             : kBudgetRetry;
         queue_cv_.wait_for(lock, wait);
         take_view_updates();
         lock.unlock();
@@ -298,7 +302,8 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   const int nx = hi.x - lo.x + 1, ny = hi.y - lo.y + 1, nz = hi.z - lo.z + 1;
   std::vector<char> marked(static_cast<size_t>(nx) * ny * nz, 0);
   auto index = [&](int32_t x, int32_t y, int32_t z) {
-    return static_cast<size_t>(x - lo.x) + static_cast<size_t>(nx) * ((y - lo.y) + static_cast<size_t>(ny) * (z - lo.z));
+    return static_cast<size_t>(x - lo.x) +
+           static_cast<size_t>(nx) * ((y - lo.y) + static_cast<size_t>(ny) * (z - lo.z));
   };
   for (const ChunkCoord& c : wanted) {
     if (c.x >= lo.x && c.x <= hi.x && c.y >= lo.y && c.y <= hi.y && c.z >= lo.z && c.z <= hi.z)
@@ -332,9 +337,11 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
     const size_t target = budget_.evict_target(other_bytes_.load(std::memory_order_relaxed));
     // Chunks this batch used (loaded or touched: last used `now`) always stay.
-    st.evict(meshes_, now, config_.evict_after, std::max<std::chrono::milliseconds>(
-                 std::min(config_.evict_min_age, config_.evict_after), std::chrono::milliseconds(1)),
-             target > need ? target - need : 0, kPressureScan);
+    st.evict(
+        meshes_, now, config_.evict_after,
+        std::max<std::chrono::milliseconds>(std::min(config_.evict_min_age, config_.evict_after),
+                                            std::chrono::milliseconds(1)),
+        target > need ? target - need : 0, kPressureScan);
     if (!budget_.may_generate(resident_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
@@ -406,7 +413,8 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
     if (!fresh[i]) continue;
     fresh[i]->version = st.next_version++;
     if (edited_at) {
-      if (auto it = edited_at->find(dirty[i]); it != edited_at->end()) fresh[i]->edited_at = it->second;
+      if (auto it = edited_at->find(dirty[i]); it != edited_at->end())
+        fresh[i]->edited_at = it->second;
     }
     meshes_.publish(std::move(fresh[i]));
     published.push_back(dirty[i]);
@@ -443,14 +451,18 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       continue;
     }
     size_t& generated = generated_by[task.owner];
-    const size_t max_generate =
-        task.owner == 0 ? SIZE_MAX : config_.max_generated_per_owner - std::min(generated, config_.max_generated_per_owner);
-    const world::RefusalReason refused = apply_edit_task(edit, now, max_generate, edit_dirty[t], results[t]);
+    const size_t max_generate = task.owner == 0
+                                    ? SIZE_MAX
+                                    : config_.max_generated_per_owner -
+                                          std::min(generated, config_.max_generated_per_owner);
+    const world::RefusalReason refused =
+        apply_edit_task(edit, now, max_generate, edit_dirty[t], results[t]);
     if (refused != world::RefusalReason::kNone) {
       results[t].reason = refused;
-      results[t].message = refused == world::RefusalReason::kServerBusy
-                               ? "the server's memory budget is full; edits that need new chunks wait"
-                               : "your edits made the server generate too much terrain at once";
+      results[t].message =
+          refused == world::RefusalReason::kServerBusy
+              ? "the server's memory budget is full; edits that need new chunks wait"
+              : "your edits made the server generate too much terrain at once";
       ++delta.edits_refused;
       delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
       continue;
@@ -460,7 +472,8 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
     ++delta.edits_applied;
     delta.chunks_generated += results[t].chunks_generated;
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
-    for (const ChunkCoord& c : edit_dirty[t]) edited_at.try_emplace(c, task.submitted);  // arrival order
+    for (const ChunkCoord& c : edit_dirty[t])
+      edited_at.try_emplace(c, task.submitted);  // arrival order
   }
   if (!any_edit) return;
   const std::vector<ChunkCoord> published = remesh_and_publish(dirty, &edited_at);

@@ -86,8 +86,9 @@ struct PipelineStats {
   size_t queued_edits = 0, queued_load_chunks = 0, load_owners = 0;
   size_t chunks_generating = 0;  // terrain queued or ready in the background
   size_t meshes_waiting = 0;     // loaded chunks waiting for their neighbours' terrain
-  size_t cached_columns = 0;  // column heights left by earlier batches at the last batch's start (0)
-  size_t other_bytes = 0;      // reported by set_other_bytes (sessions)
+  size_t cached_columns =
+      0;                   // column heights left by earlier batches at the last batch's start (0)
+  size_t other_bytes = 0;  // reported by set_other_bytes (sessions)
   size_t accounted_bytes = 0;  // chunks + meshes + other
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
 };
@@ -157,11 +158,12 @@ class WorldPipeline {
 
   void enqueue(OrderedTask task);
   void run();
-  bool batch_ready();  // under queue_mutex_
+  bool batch_ready();        // under queue_mutex_
   void take_view_updates();  // under queue_mutex_, pipeline thread
   std::vector<LoadSlice> take_loads(LoadPlan& plan, Clock::time_point now);  // pipeline thread
   size_t load_work_allowed(bool edits_waiting);
-  void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now, PipelineStats& batch);
+  void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
+                       PipelineStats& batch);
   void process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan, Clock::time_point now,
                      PipelineStats& batch);
   size_t install_generated(Clock::time_point now);
@@ -224,9 +226,9 @@ class WorldPipeline {
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> waiting_set_;
   std::vector<std::pair<uint64_t, std::function<void()>>> waiting_done_;
   uint64_t load_pass_ = 0;
-  bool last_eviction_freed_ = false;    // pipeline thread only
-  size_t resident_at_eviction_ = 0;    // resident_bytes() after the last eviction; pipeline thread
-  bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
+  bool last_eviction_freed_ = false;  // pipeline thread only
+  size_t resident_at_eviction_ = 0;   // resident_bytes() after the last eviction; pipeline thread
+  bool evicted_for_edits_ = false;    // this batch made room for edits; pipeline thread
   std::thread thread_;
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
 };

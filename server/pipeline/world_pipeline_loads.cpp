@@ -25,7 +25,8 @@ size_t WorldPipeline::accounted_bytes() const {
 }
 
 size_t WorldPipeline::resident_bytes() const {
-  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + other_bytes_.load(std::memory_order_relaxed);
+  return state_->chunks.memory_bytes() + meshes_.memory_bytes() +
+         other_bytes_.load(std::memory_order_relaxed);
 }
 
 bool WorldPipeline::needs_generating(ChunkCoord c) const {
@@ -194,18 +195,17 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
   // grew since (terrain installed, meshes made); when it freed nothing and nothing came
   // (everything is in use), retry only now and then: the scan is not free.
   const size_t resident = resident_bytes();
-  const bool pressure = budget_.should_evict(resident) &&
-                        (last_eviction_freed_ || resident > resident_at_eviction_ ||
-                         now - st.last_eviction > kPressureRetry);
+  const bool pressure =
+      budget_.should_evict(resident) && (last_eviction_freed_ || resident > resident_at_eviction_ ||
+                                         now - st.last_eviction > kPressureRetry);
   if (periodic || pressure) {
     st.last_eviction = now;
     // The periodic pass drops only idle chunks; under pressure, down to the target.
-    const size_t target = pressure ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed))
-                                   : SIZE_MAX;
-    const size_t dropped =
-        st.evict(meshes_, now, config_.evict_after,
-                 std::min(config_.evict_min_age, config_.evict_after), target,
-                 periodic ? SIZE_MAX : kPressureScan);
+    const size_t target =
+        pressure ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed)) : SIZE_MAX;
+    const size_t dropped = st.evict(meshes_, now, config_.evict_after,
+                                    std::min(config_.evict_min_age, config_.evict_after), target,
+                                    periodic ? SIZE_MAX : kPressureScan);
     last_eviction_freed_ = dropped > 0;
     resident_at_eviction_ = resident_bytes();
     std::lock_guard lock(stats_mutex_);

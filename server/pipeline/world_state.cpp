@@ -66,8 +66,7 @@ void WorldState::unpin_neighbourhood(ChunkCoord c) {
 }
 
 size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::milliseconds idle,
-                         std::chrono::milliseconds min_age, size_t target_bytes,
-                         size_t max_scan) {
+                         std::chrono::milliseconds min_age, size_t target_bytes, size_t max_scan) {
   struct Candidate {
     Clock::time_point used;
     ChunkCoord coord;
@@ -80,7 +79,8 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   for (size_t seen = 0; seen < buckets && scanned < max_scan; ++seen, b = (b + 1) % buckets) {
     for (auto it = info.begin(b); it != info.end(b); ++it, ++scanned) {
       const auto& [c, chunk_info] = *it;
-      if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c) || pins.count(c)) {
+      if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c) ||
+          pins.count(c)) {
         continue;
       }
       const MeshVersionPtr mesh = meshes.get(c);

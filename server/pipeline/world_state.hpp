@@ -12,12 +12,12 @@
 #include <unordered_map>
 #include <vector>
 
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
 #include "server/mesh/marching_cubes.hpp"
 #include "server/mesh/padded_block.hpp"
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/view_index.hpp"
-#include "proto/mesh_codec.hpp"
-#include "proto/zstd_codec.hpp"
 #include "server/world/chunk_map.hpp"
 #include "server/world/terrain_generator.hpp"
 

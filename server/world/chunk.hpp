@@ -31,7 +31,7 @@ class Chunk {
   void set(int x, int y, int z, Sample s);
   Density* densities();   // full arrays (expands a uniform chunk)
   Material* materials();  // full arrays (expands a uniform chunk)
-  const Density* densities() const { return density_.get(); }   // null when uniform
+  const Density* densities() const { return density_.get(); }    // null when uniform
   const Material* materials() const { return material_.get(); }  // null when uniform
 
   // Drops the arrays when every sample is equal. Returns true if the chunk is now uniform.

@@ -6,11 +6,15 @@
 namespace vox::world {
 namespace {
 
-bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
+bool finite(const Vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
 
 constexpr float kStampMargin = 2.0f;  // the stamp's boundary ramp
 
-Refusal refuse(RefusalReason r, const std::string& what) { return {r, std::string(to_string(r)) + ": " + what}; }
+Refusal refuse(RefusalReason r, const std::string& what) {
+  return {r, std::string(to_string(r)) + ": " + what};
+}
 
 std::optional<Refusal> check_radius(float radius, const EditLimits& limits) {
   if (!std::isfinite(radius)) return refuse(RefusalReason::kNotFinite, "radius");
@@ -51,7 +55,8 @@ std::optional<Refusal> check_bounds(const Vec3& lo, const Vec3& hi, const EditLi
   return std::nullopt;
 }
 
-std::optional<Refusal> check_sphere(const Vec3& c, float r, const EditLimits& limits, float margin = 0) {
+std::optional<Refusal> check_sphere(const Vec3& c, float r, const EditLimits& limits,
+                                    float margin = 0) {
   if (!finite(c)) return refuse(RefusalReason::kNotFinite, "center");
   if (auto bad = check_radius(r, limits)) return bad;
   const float m = r + margin;
@@ -62,15 +67,24 @@ std::optional<Refusal> check_sphere(const Vec3& c, float r, const EditLimits& li
 
 const char* to_string(RefusalReason r) {
   switch (r) {
-    case RefusalReason::kNone: return "accepted";
-    case RefusalReason::kNotFinite: return "not finite";
-    case RefusalReason::kOutOfBounds: return "out of bounds";
-    case RefusalReason::kBadRadius: return "bad radius";
-    case RefusalReason::kBadStrength: return "bad strength";
-    case RefusalReason::kBadMaterial: return "bad material";
-    case RefusalReason::kShuttingDown: return "shutting down";
-    case RefusalReason::kServerBusy: return "server busy";
-    case RefusalReason::kOverBudget: return "over budget";
+    case RefusalReason::kNone:
+      return "accepted";
+    case RefusalReason::kNotFinite:
+      return "not finite";
+    case RefusalReason::kOutOfBounds:
+      return "out of bounds";
+    case RefusalReason::kBadRadius:
+      return "bad radius";
+    case RefusalReason::kBadStrength:
+      return "bad strength";
+    case RefusalReason::kBadMaterial:
+      return "bad material";
+    case RefusalReason::kShuttingDown:
+      return "shutting down";
+    case RefusalReason::kServerBusy:
+      return "server busy";
+    case RefusalReason::kOverBudget:
+      return "over budget";
   }
   return "unknown";
 }
@@ -81,7 +95,8 @@ std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits) {
     std::optional<Refusal> operator()(const Brush& b) const {
       if (auto bad = check_sphere(b.center, b.radius, limits)) return bad;
       if (auto bad = check_strength(b.strength, limits, "strength")) return bad;
-      if (b.material && *b.material == kAir && !b.remove) return refuse(RefusalReason::kBadMaterial, "material 0 is air");
+      if (b.material && *b.material == kAir && !b.remove)
+        return refuse(RefusalReason::kBadMaterial, "material 0 is air");
       return std::nullopt;
     }
     std::optional<Refusal> operator()(const Explosion& e) const {
@@ -89,9 +104,11 @@ std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits) {
       return check_strength(e.power, limits, "power");
     }
     std::optional<Refusal> operator()(const Smooth& s) const {
-      if (auto bad = check_sphere(s.center, s.radius, limits, 1.0f)) return bad;  // reads one sample further
+      if (auto bad = check_sphere(s.center, s.radius, limits, 1.0f))
+        return bad;  // reads one sample further
       if (auto bad = check_strength(s.strength, limits, "strength")) return bad;
-      if (s.strength > 1.0f) return refuse(RefusalReason::kBadStrength, "smooth strength must be in (0, 1]");
+      if (s.strength > 1.0f)
+        return refuse(RefusalReason::kBadStrength, "smooth strength must be in (0, 1]");
       return std::nullopt;
     }
     std::optional<Refusal> operator()(const Paint& p) const {
@@ -100,17 +117,21 @@ std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits) {
       return std::nullopt;
     }
     std::optional<Refusal> operator()(const Stamp& s) const {
-      if (s.solid && s.material == kAir) return refuse(RefusalReason::kBadMaterial, "material 0 is air");
-      if (s.shape == Stamp::Shape::kSphere) return check_sphere(s.center, s.radius, limits, kStampMargin);
+      if (s.solid && s.material == kAir)
+        return refuse(RefusalReason::kBadMaterial, "material 0 is air");
+      if (s.shape == Stamp::Shape::kSphere)
+        return check_sphere(s.center, s.radius, limits, kStampMargin);
       if (!finite(s.min) || !finite(s.max)) return refuse(RefusalReason::kNotFinite, "box corner");
       const float side[3] = {s.max.x - s.min.x, s.max.y - s.min.y, s.max.z - s.min.z};
       for (float d : side) {
         if (!(d > 0.0f) || d > 2 * limits.max_radius) {
-          return refuse(RefusalReason::kBadRadius, "box sides must be in (0, " + std::to_string(2 * limits.max_radius) + "]");
+          return refuse(RefusalReason::kBadRadius,
+                        "box sides must be in (0, " + std::to_string(2 * limits.max_radius) + "]");
         }
       }
       const float m = kStampMargin;
-      return check_bounds({s.min.x - m, s.min.y - m, s.min.z - m}, {s.max.x + m, s.max.y + m, s.max.z + m}, limits);
+      return check_bounds({s.min.x - m, s.min.y - m, s.min.z - m},
+                          {s.max.x + m, s.max.y + m, s.max.z + m}, limits);
     }
   };
   return std::visit(Visitor{limits}, edit);
@@ -125,9 +146,11 @@ VoxelBox touched_box(const Edit& edit) {
     VoxelBox operator()(const Stamp& s) const {
       if (s.shape == Stamp::Shape::kSphere) return sphere_box(s.center, s.radius + kStampMargin);
       const float m = kStampMargin;
-      return {{static_cast<int32_t>(std::floor(s.min.x - m)), static_cast<int32_t>(std::floor(s.min.y - m)),
+      return {{static_cast<int32_t>(std::floor(s.min.x - m)),
+               static_cast<int32_t>(std::floor(s.min.y - m)),
                static_cast<int32_t>(std::floor(s.min.z - m))},
-              {static_cast<int32_t>(std::ceil(s.max.x + m)), static_cast<int32_t>(std::ceil(s.max.y + m)),
+              {static_cast<int32_t>(std::ceil(s.max.x + m)),
+               static_cast<int32_t>(std::ceil(s.max.y + m)),
                static_cast<int32_t>(std::ceil(s.max.z + m))}};
     }
   };

@@ -15,7 +15,8 @@ float falloff_smooth(float d2, float r2) {
 }
 
 float dist2(const Vec3& c, int x, int y, int z) {
-  const float dx = static_cast<float>(x) - c.x, dy = static_cast<float>(y) - c.y, dz = static_cast<float>(z) - c.z;
+  const float dx = static_cast<float>(x) - c.x, dy = static_cast<float>(y) - c.y,
+              dz = static_cast<float>(z) - c.z;
   return dx * dx + dy * dy + dz * dz;
 }
 
@@ -67,17 +68,19 @@ float box_sdf(const Stamp& s, int x, int y, int z) {
 Sample SampleSnapshot::at(int32_t x, int32_t y, int32_t z) const {
   const int32_t nx = box.hi[0] - box.lo[0] + 1, ny = box.hi[1] - box.lo[1] + 1;
   return samples[static_cast<size_t>(x - box.lo[0]) +
-                 static_cast<size_t>(nx) * (static_cast<size_t>(y - box.lo[1]) + static_cast<size_t>(ny) * (z - box.lo[2]))];
+                 static_cast<size_t>(nx) * (static_cast<size_t>(y - box.lo[1]) +
+                                            static_cast<size_t>(ny) * (z - box.lo[2]))];
 }
 
 SampleSnapshot take_snapshot(const ChunkMap& map, const VoxelBox& box) {
   SampleSnapshot snap;
   snap.box = box;
-  snap.samples.reserve(static_cast<size_t>(box.hi[0] - box.lo[0] + 1) * (box.hi[1] - box.lo[1] + 1) *
-                       (box.hi[2] - box.lo[2] + 1));
+  snap.samples.reserve(static_cast<size_t>(box.hi[0] - box.lo[0] + 1) *
+                       (box.hi[1] - box.lo[1] + 1) * (box.hi[2] - box.lo[2] + 1));
   for (int32_t z = box.lo[2]; z <= box.hi[2]; ++z)
     for (int32_t y = box.lo[1]; y <= box.hi[1]; ++y)
-      for (int32_t x = box.lo[0]; x <= box.hi[0]; ++x) snap.samples.push_back(map.sample_at(x, y, z));
+      for (int32_t x = box.lo[0]; x <= box.hi[0]; ++x)
+        snap.samples.push_back(map.sample_at(x, y, z));
   return snap;
 }
 
@@ -99,17 +102,21 @@ void ChangedBox::add(int x, int y, int z) {
   }
 }
 
-ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot) {
+ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk,
+                      const SampleSnapshot* snapshot) {
   const VoxelBox box = touched_box(edit);
   if (const auto* b = std::get_if<Brush>(&edit)) {
     const float r2 = b->radius * b->radius, sign = b->remove ? -1.0f : 1.0f;
     return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
       const float d2 = dist2(b->center, x, y, z);
       if (d2 >= r2) return old;
-      Sample s = with_density(old, dequantize_density(old.density) + sign * b->strength * falloff_smooth(d2, r2));
+      Sample s = with_density(
+          old, dequantize_density(old.density) + sign * b->strength * falloff_smooth(d2, r2));
       if (is_solid(s.density) && !b->remove) {
-        if (b->material) s.material = *b->material;
-        else if (!is_solid(old.density) || old.material == kAir) s.material = kDefaultFill;
+        if (b->material)
+          s.material = *b->material;
+        else if (!is_solid(old.density) || old.material == kAir)
+          s.material = kDefaultFill;
       }
       return s;
     });
@@ -137,8 +144,10 @@ ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const Sample
             if (n.density > densest.density) densest = n;
           }
       const float before = dequantize_density(snapshot->at(x, y, z).density);
-      Sample s = with_density(old, before + sm->strength * falloff_smooth(d2, r2) * (sum / 27.0f - before));
-      if (is_solid(s.density) && s.material == kAir) s.material = densest.material == kAir ? kDefaultFill : densest.material;
+      Sample s = with_density(
+          old, before + sm->strength * falloff_smooth(d2, r2) * (sum / 27.0f - before));
+      if (is_solid(s.density) && s.material == kAir)
+        s.material = densest.material == kAir ? kDefaultFill : densest.material;
       return s;
     });
   }
@@ -151,8 +160,9 @@ ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const Sample
   }
   const auto& st = std::get<Stamp>(edit);
   return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
-    const float sdf = st.shape == Stamp::Shape::kSphere ? std::sqrt(dist2(st.center, x, y, z)) - st.radius
-                                                        : box_sdf(st, x, y, z);
+    const float sdf = st.shape == Stamp::Shape::kSphere
+                          ? std::sqrt(dist2(st.center, x, y, z)) - st.radius
+                          : box_sdf(st, x, y, z);
     const float shape = std::clamp(-sdf * kStampRamp, -1.0f, 1.0f);
     const float before = dequantize_density(old.density);
     if (st.solid) {

@@ -13,36 +13,60 @@ inline float lerp(float a, float b, float t) { return a + t * (b - a); }
 
 inline float grad2(uint32_t h, float x, float y) {
   switch (h & 7u) {
-    case 0: return x + y;
-    case 1: return -x + y;
-    case 2: return x - y;
-    case 3: return -x - y;
-    case 4: return x;
-    case 5: return -x;
-    case 6: return y;
-    default: return -y;
+    case 0:
+      return x + y;
+    case 1:
+      return -x + y;
+    case 2:
+      return x - y;
+    case 3:
+      return -x - y;
+    case 4:
+      return x;
+    case 5:
+      return -x;
+    case 6:
+      return y;
+    default:
+      return -y;
   }
 }
 
 // The 12 cube-edge directions of improved noise (16 entries, 4 repeated).
 inline float grad3(uint32_t h, float x, float y, float z) {
   switch (h & 15u) {
-    case 0: return x + y;
-    case 1: return -x + y;
-    case 2: return x - y;
-    case 3: return -x - y;
-    case 4: return x + z;
-    case 5: return -x + z;
-    case 6: return x - z;
-    case 7: return -x - z;
-    case 8: return y + z;
-    case 9: return -y + z;
-    case 10: return y - z;
-    case 11: return -y - z;
-    case 12: return x + y;
-    case 13: return -y + z;
-    case 14: return -x + y;
-    default: return -y - z;
+    case 0:
+      return x + y;
+    case 1:
+      return -x + y;
+    case 2:
+      return x - y;
+    case 3:
+      return -x - y;
+    case 4:
+      return x + z;
+    case 5:
+      return -x + z;
+    case 6:
+      return x - z;
+    case 7:
+      return -x - z;
+    case 8:
+      return y + z;
+    case 9:
+      return -y + z;
+    case 10:
+      return y - z;
+    case 11:
+      return -y - z;
+    case 12:
+      return x + y;
+    case 13:
+      return -y + z;
+    case 14:
+      return -x + y;
+    default:
+      return -y - z;
   }
 }
 
@@ -51,7 +75,8 @@ inline float grad3(uint32_t h, float x, float y, float z) {
 // Lattice hash: the coordinates mixed with odd constants, then the MurmurHash3 32-bit
 // finaliser. Cheap enough to run 4-8 times per noise sample.
 uint32_t GradientNoise::hash(int32_t x, int32_t y, int32_t z, uint32_t octave) const {
-  uint32_t h = static_cast<uint32_t>(seed_) ^ static_cast<uint32_t>(seed_ >> 32) ^ (octave * 0x9E3779B9u);
+  uint32_t h =
+      static_cast<uint32_t>(seed_) ^ static_cast<uint32_t>(seed_ >> 32) ^ (octave * 0x9E3779B9u);
   h ^= static_cast<uint32_t>(x) * 0x85EBCA6Bu;
   h ^= static_cast<uint32_t>(y) * 0xC2B2AE35u;
   h ^= static_cast<uint32_t>(z) * 0x27D4EB2Fu;
@@ -97,7 +122,8 @@ float GradientNoise::fbm2(float x, float y, int octaves) const {
   float sum = 0, amplitude = 1, norm = 0;
   for (int o = 0; o < octaves; ++o) {
     // Offset each octave so their lattices do not line up at the origin.
-    sum += amplitude * noise2(x + 17.13f * static_cast<float>(o), y - 31.7f * static_cast<float>(o));
+    sum +=
+        amplitude * noise2(x + 17.13f * static_cast<float>(o), y - 31.7f * static_cast<float>(o));
     norm += amplitude;
     amplitude *= 0.5f;
     x *= 2.0f;

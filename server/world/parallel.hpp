@@ -19,7 +19,9 @@
 namespace vox {
 
 // 0 means "all cores".
-inline int arena_concurrency(int threads) { return threads > 0 ? threads : tbb::task_arena::automatic; }
+inline int arena_concurrency(int threads) {
+  return threads > 0 ? threads : tbb::task_arena::automatic;
+}
 
 template <class Body>
 void parallel_for_index(tbb::task_arena& arena, size_t n, const Body& body) {

@@ -23,7 +23,9 @@ inline float cave_level(float c00, float c10, float c01, float c11, float fx, fl
   const float x1 = c01 + fx * (c11 - c01);
   return x0 + fz * (x1 - x0);
 }
-inline float cave_between(float below, float above, float fy) { return below + fy * (above - below); }
+inline float cave_between(float below, float above, float fy) {
+  return below + fy * (above - below);
+}
 
 }  // namespace
 
@@ -49,13 +51,15 @@ float TerrainGenerator::cave_lattice(int32_t i, int32_t j, int32_t k) const {
 
 Sample TerrainGenerator::make_sample(float height, int32_t y, const float* cave) const {
   const float depth = height - static_cast<float>(y);
-  if (depth <= -1.0f / kSurfaceRamp) return Sample{kDensityMin, kAir};  // open air: density clamps to -1
+  if (depth <= -1.0f / kSurfaceRamp)
+    return Sample{kDensityMin, kAir};  // open air: density clamps to -1
   float d = depth * kSurfaceRamp;
   const float band = std::clamp(
       std::min(depth - params_.cave_top_depth, params_.cave_bottom_depth - depth) / kCaveBandFade,
       0.0f, 1.0f);
   if (band > 0.0f && cave != nullptr) {
-    const float solidity = (params_.cave_threshold - *cave) * kCaveRamp + (1.0f - band) * kCaveSealed;
+    const float solidity =
+        (params_.cave_threshold - *cave) * kCaveRamp + (1.0f - band) * kCaveSealed;
     d = std::min(d, solidity);
   }
   Sample s{quantize_density(d), kAir};
@@ -73,14 +77,16 @@ Sample TerrainGenerator::make_sample(float height, int32_t y, const float* cave)
 
 Sample TerrainGenerator::sample_at(int32_t x, int32_t y, int32_t z) const {
   const float height = height_at(x, z);
-  const int32_t i = floor_div(x, kCaveStep), j = floor_div(y, kCaveStep), k = floor_div(z, kCaveStep);
+  const int32_t i = floor_div(x, kCaveStep), j = floor_div(y, kCaveStep),
+                k = floor_div(z, kCaveStep);
   const float step = 1.0f / kCaveStep;
-  const float fx = static_cast<float>(floor_mod(x, kCaveStep)) * step, fy = static_cast<float>(floor_mod(y, kCaveStep)) * step,
+  const float fx = static_cast<float>(floor_mod(x, kCaveStep)) * step,
+              fy = static_cast<float>(floor_mod(y, kCaveStep)) * step,
               fz = static_cast<float>(floor_mod(z, kCaveStep)) * step;
   float level[2];
   for (int l = 0; l < 2; ++l) {
-    level[l] = cave_level(cave_lattice(i, j + l, k), cave_lattice(i + 1, j + l, k), cave_lattice(i, j + l, k + 1),
-                          cave_lattice(i + 1, j + l, k + 1), fx, fz);
+    level[l] = cave_level(cave_lattice(i, j + l, k), cave_lattice(i + 1, j + l, k),
+                          cave_lattice(i, j + l, k + 1), cave_lattice(i + 1, j + l, k + 1), fx, fz);
   }
   const float cave = cave_between(level[0], level[1], fy);
   return make_sample(height, y, &cave);
@@ -117,7 +123,8 @@ Chunk TerrainGenerator::generate(ChunkCoord c, const ColumnHeights& column) cons
     return Chunk(Sample{kDensityMax, kStone});
   }
 
-  const bool caves = hmax - y_bottom > params_.cave_top_depth && min_depth < params_.cave_bottom_depth;
+  const bool caves =
+      hmax - y_bottom > params_.cave_top_depth && min_depth < params_.cave_bottom_depth;
   std::array<float, kLattice * kLattice * kLattice> lattice;
   if (caves) {
     const int32_t i0 = c.x * (kChunkSize / kCaveStep), j0 = c.y * (kChunkSize / kCaveStep),
@@ -138,15 +145,20 @@ Chunk TerrainGenerator::generate(ChunkCoord c, const ColumnHeights& column) cons
       const float height = heights[x + kChunkSize * z];
       if (caves) {
         const int li = x / kCaveStep, lk = z / kCaveStep;
-        const float fx = static_cast<float>(x % kCaveStep) * kStepInv, fz = static_cast<float>(z % kCaveStep) * kStepInv;
+        const float fx = static_cast<float>(x % kCaveStep) * kStepInv,
+                    fz = static_cast<float>(z % kCaveStep) * kStepInv;
         for (int j = 0; j < kLattice; ++j) {
-          const auto at = [&](int di, int dk) { return lattice[(li + di) + kLattice * (j + kLattice * (lk + dk))]; };
+          const auto at = [&](int di, int dk) {
+            return lattice[(li + di) + kLattice * (j + kLattice * (lk + dk))];
+          };
           levels[j] = cave_level(at(0, 0), at(1, 0), at(0, 1), at(1, 1), fx, fz);
         }
       }
       for (int y = 0; y < kChunkSize; ++y) {
         float cave = 0;
-        if (caves) cave = cave_between(levels[y / kCaveStep], levels[y / kCaveStep + 1], static_cast<float>(y % kCaveStep) * kStepInv);
+        if (caves)
+          cave = cave_between(levels[y / kCaveStep], levels[y / kCaveStep + 1],
+                              static_cast<float>(y % kCaveStep) * kStepInv);
         const Sample s = make_sample(height, y0 + y, caves ? &cave : nullptr);
         const int idx = Chunk::index(x, y, z);
         dens[idx] = s.density;

@@ -20,8 +20,8 @@ struct TerrainParams {
   float hill_wavelength = 160.0f;  // voxels per lowest-octave period
   int hill_octaves = 5;
   float cave_wavelength = 40.0f;
-  float cave_threshold = 0.35f;  // air where cave noise exceeds this
-  float cave_top_depth = 8.0f;   // caves start this far below the surface...
+  float cave_threshold = 0.35f;     // air where cave noise exceeds this
+  float cave_top_depth = 8.0f;      // caves start this far below the surface...
   float cave_bottom_depth = 96.0f;  // ...and stop this far below
 };
 

@@ -8,7 +8,6 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
-
 #include <vector>
 
 #include "proto/crc32c.hpp"
@@ -31,14 +30,16 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       std::vector<uint8_t> fixed(input.begin(), input.end());
       if (fixed.size() >= 4) {
         const uint32_t crc = vox::proto::crc32c(fixed.data(), fixed.size() - 4);
-        for (int i = 0; i < 4; ++i) fixed[fixed.size() - 4 + i] = static_cast<uint8_t>(crc >> (8 * i));
+        for (int i = 0; i < 4; ++i)
+          fixed[fixed.size() - 4 + i] = static_cast<uint8_t>(crc >> (8 * i));
       }
       (void)vox::proto::decode_mesh(fixed, limits, scratch, mesh);
       break;
     }
     default: {
-      auto encoding = zstd.decompress(input, data[0] % 4 == 2 ? std::span<const uint8_t>(base) : std::span<const uint8_t>(),
-                                      limits.max_encoding_bytes);
+      auto encoding = zstd.decompress(
+          input, data[0] % 4 == 2 ? std::span<const uint8_t>(base) : std::span<const uint8_t>(),
+          limits.max_encoding_bytes);
       if (encoding) (void)vox::proto::decode_mesh(*encoding, limits, scratch, mesh);
     }
   }
