@@ -198,6 +198,9 @@ int main(int argc, char** argv) {
     vox::pipeline::PipelineObserver observer{
         .batch = [&counters](double s, size_t, size_t) { counters.batch_duration.observe(s); },
         .remesh = [&counters](double s, size_t) { counters.remesh_duration.observe(s); }};
+    // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
+    // sessions they hold, which hold nothing of the Server), then the pipeline (sessions
+    // drop their views in it) and the counters.
     vox::pipeline::WorldPipeline pipeline(world, observer);
     asio::io_context io;
     vox::net::Server server(io, net, pipeline, counters);

@@ -33,8 +33,7 @@ std::vector<uint8_t> frame_of(const wire::Envelope& message) {
 }  // namespace
 
 ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, uint64_t id,
-                             const ServerConfig& config, pipeline::WorldPipeline& pipeline,
-                             SessionServices services)
+                             pipeline::WorldPipeline& pipeline, SessionServices services)
     : socket_(std::move(socket)),
       strand_(asio::make_strand(socket_.get_executor())),
       handshake_timer_(strand_),
@@ -45,15 +44,15 @@ ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, 
       view_timer_(strand_),
       address_(std::move(address)),
       id_(id),
-      config_(config),
+      services_(std::move(services)),
+      config_(*services_.config),
       pipeline_(pipeline),
-      counters_(services.counters),
-      services_(services),
-      decoder_(config.max_frame_bytes),
-      edit_budget_(config.edit_budget_rate, config.edit_budget_burst),
-      view_budget_(config.set_view_rate, config.set_view_burst),
-      message_budget_(config.message_rate, config.message_burst),
-      error_budget_(config.protocol_error_rate, config.protocol_error_burst) {
+      counters_(services_.counters),
+      decoder_(config_.max_frame_bytes),
+      edit_budget_(config_.edit_budget_rate, config_.edit_budget_burst),
+      view_budget_(config_.set_view_rate, config_.set_view_burst),
+      message_budget_(config_.message_rate, config_.message_burst),
+      error_budget_(config_.protocol_error_rate, config_.protocol_error_burst) {
   counters_.handshaking.fetch_add(1, std::memory_order_relaxed);
 }
 

@@ -1,6 +1,8 @@
-// One connected player. Each session runs on its own strand: a read chain (length, body,
-// dispatch) and a write chain that always sends the newest version of the nearest stale
-// chunk, as a delta from what the client holds. Other threads only post to the strand.
+// One connected player. Each session runs on its own strand: a read chain (async_read_some
+// into a 16 KiB buffer, FrameDecoder, parse, dispatch) and a write chain that sends
+// control messages first, then the meshes the SendScheduler picks (updates of held chunks,
+// then new chunks nearest first), each the newest version as a delta from what the client
+// holds. Other threads only post to the strand.
 #pragma once
 
 #include <chrono>
@@ -56,10 +58,14 @@ struct ServerConfig {
   std::string server_version = "voxeld 0.2.0";
 };
 
-// What every session shares with the server. Any thread. The gate and the log limit are
-// shared: a session destroyed after the Server (in ~io_context) still releases its slot.
+// What every session shares with the server. Any thread. A session holds nothing of the
+// Server itself: sessions still queued when the Server is destroyed are destroyed with
+// the io_context, after it, and must not touch it. So the configuration, the gate and the
+// log limit are shared, and what is referenced (counters, pipeline) outlives the
+// io_context.
 struct SessionServices {
-  ServerCounters& counters;  // outlives the io_context
+  ServerCounters& counters;
+  std::shared_ptr<const ServerConfig> config;
   std::shared_ptr<AdmissionGate> admission;
   std::shared_ptr<SharedLogRateLimit> logs;
 };
@@ -69,8 +75,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   // `address` was admitted (AdmissionGate::connect) for this connection; the session
   // releases it when it ends.
   ClientSession(asio::ip::tcp::socket socket, std::string address, uint64_t id,
-                const ServerConfig& config, pipeline::WorldPipeline& pipeline,
-                SessionServices services);
+                pipeline::WorldPipeline& pipeline, SessionServices services);
   ~ClientSession();
 
   void start();  // any thread, once
@@ -121,10 +126,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
       view_timer_;
   const std::string address_;  // the peer's address, as admitted
   const uint64_t id_;
+  SessionServices services_;  // before config_, which refers into it
   const ServerConfig& config_;
   pipeline::WorldPipeline& pipeline_;
   ServerCounters& counters_;
-  SessionServices services_;
   std::atomic<bool> player_{false};
   std::atomic<size_t> memory_bytes_{0};
 

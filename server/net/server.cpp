@@ -25,11 +25,13 @@ std::string address_key(const asio::ip::address& a) {
 Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline,
                ServerCounters& counters)
     : io_(io),
-      config_(std::move(config)),
+      strand_(asio::make_strand(io)),
+      shared_config_(std::make_shared<const ServerConfig>(std::move(config))),
+      config_(*shared_config_),
       pipeline_(pipeline),
-      acceptor_(io),
-      stats_timer_(io),
-      housekeeping_timer_(io),
+      acceptor_(strand_),
+      stats_timer_(strand_),
+      housekeeping_timer_(strand_),
       counters_(counters),
       admission_(std::make_shared<AdmissionGate>(
           AdmissionLimits{config_.max_clients, config_.max_handshaking, config_.max_per_address,
@@ -105,9 +107,9 @@ void Server::admit(asio::ip::tcp::socket socket) {
     return;
   }
   socket.set_option(asio::ip::tcp::no_delay(true), ec);
-  auto session =
-      std::make_shared<ClientSession>(std::move(socket), address, next_session_++, config_,
-                                      pipeline_, SessionServices{counters_, admission_, logs_});
+  auto session = std::make_shared<ClientSession>(
+      std::move(socket), address, next_session_++, pipeline_,
+      SessionServices{counters_, shared_config_, admission_, logs_});
   {
     std::lock_guard lock(sessions_mutex_);
     std::erase_if(sessions_, [](const auto& p) { return p.second.expired(); });
@@ -150,7 +152,7 @@ void Server::housekeeping() {
 }
 
 void Server::stop() {
-  asio::post(io_, [this] {
+  asio::post(strand_, [this] {
     boost::system::error_code ignored;
     acceptor_.close(ignored);
     stats_timer_.cancel();
@@ -175,11 +177,15 @@ size_t Server::session_count() const {
 
 void Server::start_stats_log(std::chrono::seconds interval) {
   stats_interval_ = interval;
+  arm_stats_timer();
+}
+
+void Server::arm_stats_timer() {
   stats_timer_.expires_after(stats_interval_);
   stats_timer_.async_wait([this](boost::system::error_code ec) {
     if (ec) return;
     log_stats();
-    start_stats_log(stats_interval_);
+    arm_stats_timer();
   });
 }
 

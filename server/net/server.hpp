@@ -23,23 +23,30 @@ class Server {
   ~Server();
 
   // Binds and starts accepting; throws boost::system::system_error when it cannot bind.
+  // Before the io_context runs (or on strand_).
   void start();
   uint16_t port() const { return port_; }  // the bound port (after start)
   // Stops accepting and tells every client SHUTTING_DOWN; sessions close themselves.
-  void stop();  // any thread
-  size_t session_count() const;
+  void stop();                   // any thread
+  size_t session_count() const;  // any thread
   const ServerCounters& counters() const { return counters_; }
-  void start_stats_log(std::chrono::seconds interval);
+  void start_stats_log(std::chrono::seconds interval);  // before the io_context runs
 
  private:
+  // All strand_ only.
   void accept();
   void admit(asio::ip::tcp::socket socket);
   void refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why);
   void housekeeping();  // every second: the sessions' memory into the pipeline's budget
   void log_stats();
+  void arm_stats_timer();
 
   asio::io_context& io_;
-  const ServerConfig config_;
+  // The acceptor, the timers and their handlers live on this strand, so stop() from a
+  // signal handler is safe with several --io-threads.
+  asio::strand<asio::io_context::executor_type> strand_;
+  std::shared_ptr<const ServerConfig> shared_config_;  // shared with the sessions
+  const ServerConfig& config_;                         // *shared_config_
   pipeline::WorldPipeline& pipeline_;
   asio::ip::tcp::acceptor acceptor_;
   asio::steady_timer stats_timer_, housekeeping_timer_;
@@ -49,7 +56,7 @@ class Server {
   std::shared_ptr<AdmissionGate> admission_;  // shared with the sessions
   std::shared_ptr<SharedLogRateLimit> logs_;
   uint64_t subscription_ = 0;
-  uint64_t next_session_ = 1;  // acceptor handler only
+  uint64_t next_session_ = 1;  // strand_ only
 
   // Leaf lock: guards sessions_; no call into a session while it is held.
   mutable std::mutex sessions_mutex_;
