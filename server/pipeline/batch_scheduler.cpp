@@ -171,9 +171,7 @@ std::vector<ChunkCoord> ball_nearest_first(ChunkCoord center, int radius) {
 
 std::vector<ChunkCoord> box_nearest_first(ChunkCoord lo, ChunkCoord hi) {
   std::vector<ChunkCoord> chunks;
-  for (int32_t z = lo.z; z <= hi.z; ++z)
-    for (int32_t y = lo.y; y <= hi.y; ++y)
-      for (int32_t x = lo.x; x <= hi.x; ++x) chunks.push_back({x, y, z});
+  world::for_each_chunk_in(lo, hi, [&chunks](ChunkCoord c) { chunks.push_back(c); });
   sort_nearest_first(chunks, int64_t{lo.x} + hi.x, int64_t{lo.y} + hi.y, int64_t{lo.z} + hi.z);
   return chunks;
 }

@@ -14,17 +14,15 @@ ChunkCoord ViewIndex::region_of(ChunkCoord c) {
 void ViewIndex::for_regions(const View& v, uint64_t owner, bool add) {
   const ChunkCoord lo = region_of(v.center.offset(-v.radius, -v.radius, -v.radius));
   const ChunkCoord hi = region_of(v.center.offset(v.radius, v.radius, v.radius));
-  for (int32_t z = lo.z; z <= hi.z; ++z)
-    for (int32_t y = lo.y; y <= hi.y; ++y)
-      for (int32_t x = lo.x; x <= hi.x; ++x) {
-        auto& owners = regions_[{x, y, z}];
-        if (add) {
-          owners.push_back(owner);
-        } else {
-          std::erase(owners, owner);
-          if (owners.empty()) regions_.erase({x, y, z});
-        }
-      }
+  world::for_each_chunk_in(lo, hi, [&](ChunkCoord region) {
+    auto& owners = regions_[region];
+    if (add) {
+      owners.push_back(owner);
+    } else {
+      std::erase(owners, owner);
+      if (owners.empty()) regions_.erase(region);
+    }
+  });
 }
 
 void ViewIndex::set(uint64_t owner, ChunkCoord center, int radius) {

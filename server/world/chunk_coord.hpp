@@ -28,6 +28,14 @@ constexpr ChunkCoord chunk_of_voxel(int32_t vx, int32_t vy, int32_t vz) {
   return {floor_div(vx, kChunkSize), floor_div(vy, kChunkSize), floor_div(vz, kChunkSize)};
 }
 
+// Calls fn(ChunkCoord) for every chunk of the inclusive box lo..hi, x fastest.
+template <class Fn>
+void for_each_chunk_in(ChunkCoord lo, ChunkCoord hi, Fn&& fn) {
+  for (int32_t z = lo.z; z <= hi.z; ++z)
+    for (int32_t y = lo.y; y <= hi.y; ++y)
+      for (int32_t x = lo.x; x <= hi.x; ++x) fn(ChunkCoord{x, y, z});
+}
+
 struct ChunkCoordHash {
   size_t operator()(const ChunkCoord& c) const noexcept {
     uint64_t h = static_cast<uint32_t>(c.x);

@@ -102,63 +102,69 @@ void ChangedBox::add(int x, int y, int z) {
   }
 }
 
-ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk,
-                      const SampleSnapshot* snapshot) {
-  const VoxelBox box = touched_box(edit);
-  if (const auto* b = std::get_if<Brush>(&edit)) {
-    const float r2 = b->radius * b->radius, sign = b->remove ? -1.0f : 1.0f;
-    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
-      const float d2 = dist2(b->center, x, y, z);
-      if (d2 >= r2) return old;
-      Sample s = with_density(
-          old, dequantize_density(old.density) + sign * b->strength * falloff_smooth(d2, r2));
-      if (is_solid(s.density) && !b->remove) {
-        if (b->material)
-          s.material = *b->material;
-        else if (!is_solid(old.density) || old.material == kAir)
-          s.material = kDefaultFill;
-      }
-      return s;
-    });
-  }
-  if (const auto* e = std::get_if<Explosion>(&edit)) {
-    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
-      const float d = std::sqrt(dist2(e->center, x, y, z));
-      if (d >= e->radius) return old;
-      const float u = 1.0f - d / e->radius;
-      return with_density(old, dequantize_density(old.density) - e->power * u * u);
-    });
-  }
-  if (const auto* sm = std::get_if<Smooth>(&edit)) {
-    const float r2 = sm->radius * sm->radius;
-    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
-      const float d2 = dist2(sm->center, x, y, z);
-      if (d2 >= r2) return old;
-      float sum = 0;
-      Sample densest{kDensityMin, kAir};
-      for (int dz = -1; dz <= 1; ++dz)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dx = -1; dx <= 1; ++dx) {
-            const Sample n = snapshot->at(x + dx, y + dy, z + dz);
-            sum += dequantize_density(n.density);
-            if (n.density > densest.density) densest = n;
-          }
-      const float before = dequantize_density(snapshot->at(x, y, z).density);
-      Sample s = with_density(
-          old, before + sm->strength * falloff_smooth(d2, r2) * (sum / 27.0f - before));
-      if (is_solid(s.density) && s.material == kAir)
-        s.material = densest.material == kAir ? kDefaultFill : densest.material;
-      return s;
-    });
-  }
-  if (const auto* p = std::get_if<Paint>(&edit)) {
-    const float r2 = p->radius * p->radius;
-    return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
-      if (!is_solid(old.density) || dist2(p->center, x, y, z) >= r2) return old;
-      return Sample{old.density, p->material};
-    });
-  }
-  const auto& st = std::get<Stamp>(edit);
+namespace {
+
+// One function per edit kind: each maps every sample of chunk c inside the edit's box.
+ChangedBox apply_brush(const Brush& b, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
+  const float r2 = b.radius * b.radius, sign = b.remove ? -1.0f : 1.0f;
+  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+    const float d2 = dist2(b.center, x, y, z);
+    if (d2 >= r2) return old;
+    Sample s = with_density(
+        old, dequantize_density(old.density) + sign * b.strength * falloff_smooth(d2, r2));
+    if (is_solid(s.density) && !b.remove) {
+      if (b.material)
+        s.material = *b.material;
+      else if (!is_solid(old.density) || old.material == kAir)
+        s.material = kDefaultFill;
+    }
+    return s;
+  });
+}
+
+ChangedBox apply_explosion(const Explosion& e, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
+  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+    const float d = std::sqrt(dist2(e.center, x, y, z));
+    if (d >= e.radius) return old;
+    const float u = 1.0f - d / e.radius;
+    return with_density(old, dequantize_density(old.density) - e.power * u * u);
+  });
+}
+
+// Reads the pre-edit `snapshot`, so the result does not depend on the chunks' order.
+ChangedBox apply_smooth(const Smooth& sm, const VoxelBox& box, ChunkCoord c, Chunk& chunk,
+                        const SampleSnapshot& snapshot) {
+  const float r2 = sm.radius * sm.radius;
+  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+    const float d2 = dist2(sm.center, x, y, z);
+    if (d2 >= r2) return old;
+    float sum = 0;
+    Sample densest{kDensityMin, kAir};
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const Sample n = snapshot.at(x + dx, y + dy, z + dz);
+          sum += dequantize_density(n.density);
+          if (n.density > densest.density) densest = n;
+        }
+    const float before = dequantize_density(snapshot.at(x, y, z).density);
+    Sample s =
+        with_density(old, before + sm.strength * falloff_smooth(d2, r2) * (sum / 27.0f - before));
+    if (is_solid(s.density) && s.material == kAir)
+      s.material = densest.material == kAir ? kDefaultFill : densest.material;
+    return s;
+  });
+}
+
+ChangedBox apply_paint(const Paint& p, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
+  const float r2 = p.radius * p.radius;
+  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+    if (!is_solid(old.density) || dist2(p.center, x, y, z) >= r2) return old;
+    return Sample{old.density, p.material};
+  });
+}
+
+ChangedBox apply_stamp(const Stamp& st, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
   return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
     const float sdf = st.shape == Stamp::Shape::kSphere
                           ? std::sqrt(dist2(st.center, x, y, z)) - st.radius
@@ -174,6 +180,27 @@ ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk,
     if (-shape >= before) return old;
     return with_density(old, -shape);
   });
+}
+
+}  // namespace
+
+ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk,
+                      const SampleSnapshot* snapshot) {
+  const VoxelBox box = touched_box(edit);
+  struct Dispatch {
+    const VoxelBox& box;
+    ChunkCoord c;
+    Chunk& chunk;
+    const SampleSnapshot* snapshot;
+    ChangedBox operator()(const Brush& b) const { return apply_brush(b, box, c, chunk); }
+    ChangedBox operator()(const Explosion& e) const { return apply_explosion(e, box, c, chunk); }
+    ChangedBox operator()(const Smooth& s) const {
+      return apply_smooth(s, box, c, chunk, *snapshot);
+    }
+    ChangedBox operator()(const Paint& p) const { return apply_paint(p, box, c, chunk); }
+    ChangedBox operator()(const Stamp& s) const { return apply_stamp(s, box, c, chunk); }
+  };
+  return std::visit(Dispatch{box, c, chunk, snapshot}, edit);
 }
 
 void append_dirty_chunks(ChunkCoord c, const ChangedBox& changed, std::vector<ChunkCoord>& out) {
@@ -192,9 +219,7 @@ std::vector<ChunkCoord> chunks_overlapping(const VoxelBox& box) {
   const ChunkCoord lo = chunk_of_voxel(box.lo[0], box.lo[1], box.lo[2]);
   const ChunkCoord hi = chunk_of_voxel(box.hi[0], box.hi[1], box.hi[2]);
   std::vector<ChunkCoord> out;
-  for (int32_t z = lo.z; z <= hi.z; ++z)
-    for (int32_t y = lo.y; y <= hi.y; ++y)
-      for (int32_t x = lo.x; x <= hi.x; ++x) out.push_back({x, y, z});
+  for_each_chunk_in(lo, hi, [&out](ChunkCoord c) { out.push_back(c); });
   return out;
 }
 
