@@ -38,8 +38,8 @@ struct CodecScratch {
 };
 
 // `topology` is the mesher's scratch right after mesh_chunk() produced `mesh` (its solid
-// rows, cut edges and vertex numbering for `cells`). Appends the encoding to `out`
-// (cleared first).
+// rows, cut edges and vertex numbering for `cells`). Writes the encoding into `out`,
+// replacing what it held (its capacity is reused).
 void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology,
                  const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out);
 

@@ -461,7 +461,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       results[t].reason = refused;
       results[t].message =
           refused == world::RefusalReason::kServerBusy
-              ? "the server's memory budget is full; edits that need new chunks wait"
+              ? "the server's memory budget is full: edits needing new terrain are refused"
               : "your edits made the server generate too much terrain at once";
       ++delta.edits_refused;
       delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
