@@ -79,4 +79,20 @@ std::pair<std::string, uint16_t> parse_server(const std::string& text) {
   return {text.substr(0, colon), static_cast<uint16_t>(port)};
 }
 
+po::options_description network_options(const std::string& command) {
+  po::options_description opts("voxel-cli " + command + " options");
+  opts.add_options()("help,h", "show this help")(
+      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+  return opts;
+}
+
+void add_view_options(po::options_description& opts, const char* at_help, bool timeout) {
+  opts.add_options()("at", po::value<std::string>()->required(), at_help)(
+      "radius", po::value<uint32_t>()->default_value(2), "view radius in chunks");
+  if (timeout) {
+    opts.add_options()("timeout", po::value<double>()->default_value(120),
+                       "seconds to wait for the whole view");
+  }
+}
+
 }  // namespace vox::cli

@@ -30,6 +30,12 @@ std::pair<std::string, uint16_t> parse_server(const std::string& text);
 
 inline constexpr const char* kDefaultServer = "127.0.0.1:7777";
 
+// The options of a network command: --help and --server, under "voxel-cli NAME options".
+po::options_description network_options(const std::string& command);
+// The options of a command that fetches a view: --at (meaning `at_help`), --radius in
+// chunks (default 2) and, with `timeout`, --timeout (seconds to wait for the whole view).
+void add_view_options(po::options_description& opts, const char* at_help, bool timeout);
+
 // Runs a command's body and maps what it throws to the exit codes every command shares:
 // std::invalid_argument (a bad option value) is 2, anything else 1, each as one line.
 template <class Body>

@@ -17,13 +17,9 @@ namespace vox::cli {
 using namespace std::chrono_literals;
 
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  po::options_description opts("voxel-cli export options");
-  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(),
-                                                 "X,Y,Z: centre")(
-      "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
-      "out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb")(
-      "timeout", po::value<double>()->default_value(120), "seconds to wait for the whole view")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+  po::options_description opts = network_options("export");
+  add_view_options(opts, "X,Y,Z: centre", true);
+  opts.add_options()("out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb");
   po::variables_map vm;
   const int rc =
       parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE",

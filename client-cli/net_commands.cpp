@@ -35,9 +35,7 @@ void set_vec3(wire::Vec3* v, const std::array<float, 3>& a) {
 }
 
 po::options_description edit_options(const std::string& kind) {
-  po::options_description o("voxel-cli " + kind + " options");
-  o.add_options()("help,h", "show this help")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+  po::options_description o = network_options(kind);
   if (kind == "stamp") {
     o.add_options()("shape", po::value<std::string>()->default_value("box"), "box or sphere")(
         "min", po::value<std::string>(), "X,Y,Z: box corner")("max", po::value<std::string>(),
@@ -153,9 +151,7 @@ extern "C" void on_sigint(int) { g_interrupted = true; }
 }  // namespace
 
 int info_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  po::options_description opts("voxel-cli info options");
-  opts.add_options()("help,h", "show this help")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+  po::options_description opts = network_options("info");
   po::variables_map vm;
   const int rc = parse_options(args, opts, nullptr, "usage: voxel-cli info [--server HOST:PORT]",
                                vm, out, err);
@@ -206,10 +202,8 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
 }
 
 int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  po::options_description opts("voxel-cli script options");
-  opts.add_options()("help,h", "show this help")("file", po::value<std::string>()->required(),
-                                                 "edits, one per line")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld")(
+  po::options_description opts = network_options("script");
+  opts.add_options()("file", po::value<std::string>()->required(), "edits, one per line")(
       "window", po::value<int>()->default_value(32), "edits in flight at once (1..1024)");
   po::positional_options_description positional;
   positional.add("file", 1);
@@ -283,12 +277,10 @@ int script_command(const std::vector<std::string>& args, std::ostream& out, std:
 }
 
 int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  po::options_description opts("voxel-cli watch options");
-  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(),
-                                                 "X,Y,Z: view centre")(
-      "radius", po::value<uint32_t>()->default_value(2), "view radius in chunks")(
-      "for", po::value<double>(), "stop after this many seconds (default: until Ctrl-C)")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+  po::options_description opts = network_options("watch");
+  add_view_options(opts, "X,Y,Z: view centre", false);
+  opts.add_options()("for", po::value<double>(),
+                     "stop after this many seconds (default: until Ctrl-C)");
   po::variables_map vm;
   const int rc =
       parse_options(args, opts, nullptr,

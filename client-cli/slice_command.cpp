@@ -142,15 +142,12 @@ void contour(const HeightMap& map, float level, float floor_value, std::string& 
 }  // namespace
 
 int slice_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  po::options_description opts("voxel-cli slice options");
-  opts.add_options()("help,h", "show this help")("at", po::value<std::string>()->required(),
-                                                 "X,Z: map centre")(
-      "y", po::value<float>()->required(), "height of the view centre (world voxels)")(
-      "radius", po::value<uint32_t>()->default_value(2), "radius in chunks")(
+  po::options_description opts = network_options("slice");
+  add_view_options(opts, "X,Z: map centre", true);
+  opts.add_options()("y", po::value<float>()->required(),
+                     "height of the view centre (world voxels)")(
       "levels", po::value<int>()->default_value(8), "number of contour heights (1..64)")(
-      "out,o", po::value<std::string>()->required(), "output .svg")(
-      "timeout", po::value<double>()->default_value(120), "seconds to wait for the whole view")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+      "out,o", po::value<std::string>()->required(), "output .svg");
   po::variables_map vm;
   const int rc =
       parse_options(args, opts, nullptr,
