@@ -17,6 +17,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev libmeshoptimizer-dev
   prometheus-cpp-dev libjemalloc-dev
   python3-protobuf python3-zstandard
+  clang-format
 )
 
 missing=()
@@ -47,6 +48,9 @@ case "$mode" in
     exec "$build/bin/voxeld" --port 7777 --seed 1 "$@"
     ;;
   test)
+    # The written rules first (seconds): the folders' dependency table and the format.
+    /usr/bin/python3 "$root/scripts/check_deps.py" "$root"
+    bash "$root/scripts/check_format.sh"
     (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900)
     # The same tests under AddressSanitizer+UndefinedBehaviorSanitizer and under
     # ThreadSanitizer (set VOXEL_SKIP_SANITIZERS=1 to skip them locally).
