@@ -18,6 +18,7 @@ packages=(
   prometheus-cpp-dev libjemalloc-dev
   python3-protobuf python3-zstandard
   clang-format
+  libpqxx-dev postgresql
 )
 
 missing=()

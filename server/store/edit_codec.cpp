@@ -1,0 +1,194 @@
+#include "server/store/edit_codec.hpp"
+
+#include <bit>
+#include <cstring>
+#include <sstream>
+
+namespace vox::store {
+namespace {
+
+enum Kind : uint8_t { kBrush = 0, kExplosion = 1, kSmooth = 2, kPaint = 3, kStamp = 4 };
+
+class Writer {
+ public:
+  explicit Writer(Kind kind) : out_{kEditFormat, kind} {}
+  Writer& u8(uint8_t v) {
+    out_.push_back(v);
+    return *this;
+  }
+  Writer& f32(float v) {
+    const auto bits = std::bit_cast<uint32_t>(v);
+    for (int i = 0; i < 4; ++i) out_.push_back(static_cast<uint8_t>(bits >> (8 * i)));
+    return *this;
+  }
+  Writer& vec(const world::Vec3& v) { return f32(v.x).f32(v.y).f32(v.z); }
+  std::vector<uint8_t> take() { return std::move(out_); }
+
+ private:
+  std::vector<uint8_t> out_;
+};
+
+class Reader {
+ public:
+  explicit Reader(std::span<const uint8_t> bytes) : bytes_(bytes) {}
+  uint8_t u8() {
+    if (pos_ + 1 > bytes_.size()) return fail();
+    return bytes_[pos_++];
+  }
+  float f32() {
+    if (pos_ + 4 > bytes_.size()) return fail();
+    uint32_t bits = 0;
+    for (int i = 0; i < 4; ++i) bits |= uint32_t{bytes_[pos_ + i]} << (8 * i);
+    pos_ += 4;
+    return std::bit_cast<float>(bits);
+  }
+  world::Vec3 vec() {
+    const float x = f32(), y = f32(), z = f32();
+    return {x, y, z};
+  }
+  bool ok_at_end() const { return ok_ && pos_ == bytes_.size(); }
+
+ private:
+  uint8_t fail() {
+    ok_ = false;
+    return 0;
+  }
+  std::span<const uint8_t> bytes_;
+  size_t pos_ = 0;
+  bool ok_ = true;
+};
+
+struct Encode {
+  std::vector<uint8_t> operator()(const world::Brush& b) const {
+    const uint8_t flags = (b.remove ? 1 : 0) | (b.material ? 2 : 0);
+    return Writer(kBrush)
+        .vec(b.center)
+        .f32(b.radius)
+        .f32(b.strength)
+        .u8(flags)
+        .u8(b.material.value_or(0))
+        .take();
+  }
+  std::vector<uint8_t> operator()(const world::Explosion& e) const {
+    return Writer(kExplosion).vec(e.center).f32(e.radius).f32(e.power).take();
+  }
+  std::vector<uint8_t> operator()(const world::Smooth& s) const {
+    return Writer(kSmooth).vec(s.center).f32(s.radius).f32(s.strength).take();
+  }
+  std::vector<uint8_t> operator()(const world::Paint& p) const {
+    return Writer(kPaint).vec(p.center).f32(p.radius).u8(p.material).take();
+  }
+  std::vector<uint8_t> operator()(const world::Stamp& s) const {
+    const bool sphere = s.shape == world::Stamp::Shape::kSphere;
+    Writer w(kStamp);
+    w.u8(sphere ? 1 : 0).u8(s.solid ? 1 : 0).u8(s.material);
+    if (sphere) return w.vec(s.center).f32(s.radius).take();
+    return w.vec(s.min).vec(s.max).take();
+  }
+};
+
+std::optional<world::Edit> decode_body(uint8_t kind, Reader& r) {
+  switch (kind) {
+    case kBrush: {
+      world::Brush b;
+      b.center = r.vec();
+      b.radius = r.f32();
+      b.strength = r.f32();
+      const uint8_t flags = r.u8(), material = r.u8();
+      if (flags > 3) return std::nullopt;
+      b.remove = (flags & 1) != 0;
+      if (flags & 2) b.material = material;
+      return b;
+    }
+    case kExplosion: {
+      world::Explosion e;
+      e.center = r.vec();
+      e.radius = r.f32();
+      e.power = r.f32();
+      return e;
+    }
+    case kSmooth: {
+      world::Smooth s;
+      s.center = r.vec();
+      s.radius = r.f32();
+      s.strength = r.f32();
+      return s;
+    }
+    case kPaint: {
+      world::Paint p;
+      p.center = r.vec();
+      p.radius = r.f32();
+      p.material = r.u8();
+      return p;
+    }
+    case kStamp: {
+      world::Stamp s;
+      const uint8_t shape = r.u8(), solid = r.u8();
+      if (shape > 1 || solid > 1) return std::nullopt;
+      s.shape = shape ? world::Stamp::Shape::kSphere : world::Stamp::Shape::kBox;
+      s.solid = solid != 0;
+      s.material = r.u8();
+      if (shape) {
+        s.center = r.vec();
+        s.radius = r.f32();
+      } else {
+        s.min = r.vec();
+        s.max = r.vec();
+      }
+      return s;
+    }
+    default:
+      return std::nullopt;
+  }
+}
+
+std::string fmt_vec(const world::Vec3& v) {
+  std::ostringstream o;
+  o << "(" << v.x << ", " << v.y << ", " << v.z << ")";
+  return o.str();
+}
+
+}  // namespace
+
+std::vector<uint8_t> encode_edit(const world::Edit& edit) { return std::visit(Encode{}, edit); }
+
+std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes, std::string* error) {
+  auto fail = [error](const char* why) -> std::optional<world::Edit> {
+    if (error) *error = why;
+    return std::nullopt;
+  };
+  if (bytes.size() < 2) return fail("edit record shorter than its header");
+  if (bytes[0] != kEditFormat) return fail("edit record of an unknown format");
+  Reader r(bytes.subspan(2));
+  auto edit = decode_body(bytes[1], r);
+  if (!edit) return fail("edit record of an unknown kind or with a bad field");
+  if (!r.ok_at_end()) return fail("edit record of the wrong length");
+  return edit;
+}
+
+std::string describe_edit(const world::Edit& edit) {
+  std::ostringstream o;
+  if (const auto* b = std::get_if<world::Brush>(&edit)) {
+    o << "brush at " << fmt_vec(b->center) << " r " << b->radius << " strength " << b->strength
+      << (b->remove ? " remove" : " add");
+    if (b->material) o << " material " << int{*b->material};
+  } else if (const auto* e = std::get_if<world::Explosion>(&edit)) {
+    o << "explosion at " << fmt_vec(e->center) << " r " << e->radius << " power " << e->power;
+  } else if (const auto* s = std::get_if<world::Smooth>(&edit)) {
+    o << "smooth at " << fmt_vec(s->center) << " r " << s->radius << " strength " << s->strength;
+  } else if (const auto* p = std::get_if<world::Paint>(&edit)) {
+    o << "paint at " << fmt_vec(p->center) << " r " << p->radius << " material "
+      << int{p->material};
+  } else {
+    const auto& st = std::get<world::Stamp>(edit);
+    o << "stamp " << (st.solid ? "solid " : "air ");
+    if (st.shape == world::Stamp::Shape::kSphere)
+      o << "sphere at " << fmt_vec(st.center) << " r " << st.radius;
+    else
+      o << "box " << fmt_vec(st.min) << ".." << fmt_vec(st.max);
+    if (st.solid) o << " material " << int{st.material};
+  }
+  return o.str();
+}
+
+}  // namespace vox::store

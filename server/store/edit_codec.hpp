@@ -1,0 +1,36 @@
+// The edit log's record of one edit: its parameters in a few tens of bytes, enough to
+// apply it again bit for bit (the floats are stored exactly). Decoding never trusts the
+// bytes: a record of an unknown kind, a wrong length or a bad enum value is an error.
+//
+// Layout (little-endian): u8 format (1), u8 kind (0 brush, 1 explosion, 2 smooth, 3 paint,
+// 4 stamp), then per kind:
+//   brush      f32 cx cy cz, f32 radius, f32 strength, u8 flags (1 remove, 2 has material),
+//              u8 material                                                       (23 bytes)
+//   explosion  f32 cx cy cz, f32 radius, f32 power                               (20 bytes)
+//   smooth     f32 cx cy cz, f32 radius, f32 strength                            (20 bytes)
+//   paint      f32 cx cy cz, f32 radius, u8 material                             (17 bytes)
+//   stamp      u8 shape (0 box, 1 sphere), u8 solid, u8 material, then a box's f32 min xyz,
+//              max xyz, or a sphere's f32 cx cy cz, radius                  (27 or 19 bytes)
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "server/world/edit.hpp"
+
+namespace vox::store {
+
+inline constexpr uint8_t kEditFormat = 1;
+
+std::vector<uint8_t> encode_edit(const world::Edit& edit);
+// nullopt and `error` set when the bytes are not a record this version writes.
+std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes,
+                                       std::string* error = nullptr);
+
+// One line for people: "brush at (1, 2, 3) r 4 strength 0.5 add material 3".
+std::string describe_edit(const world::Edit& edit);
+
+}  // namespace vox::store

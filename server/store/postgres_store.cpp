@@ -1,0 +1,219 @@
+#include "server/store/postgres_store.hpp"
+
+#include <pqxx/pqxx>
+
+#include "server/store/edit_codec.hpp"
+#include "server/store/store_schema.hpp"
+#include "server/store/world_store_checks.hpp"
+
+namespace vox::store {
+namespace {
+
+constexpr const char* kCreateTables = R"sql(
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS edit_log (seq BIGINT PRIMARY KEY, at_ms BIGINT NOT NULL,
+                                     author TEXT NOT NULL, edit BYTEA NOT NULL);
+CREATE TABLE IF NOT EXISTS chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
+                                   seq BIGINT NOT NULL, samples BYTEA NOT NULL,
+                                   PRIMARY KEY (x, y, z));
+)sql";
+
+constexpr const char* kUpsertMeta =
+    "INSERT INTO meta (key, value) VALUES ($1, $2) "
+    "ON CONFLICT (key) DO UPDATE SET value = excluded.value";
+
+pqxx::binarystring binary(std::span<const uint8_t> bytes) {
+  return pqxx::binarystring(bytes.data(), bytes.size());
+}
+
+Meta read_meta(pqxx::transaction_base& t) {
+  Meta meta;
+  for (const auto& row : t.exec("SELECT key, value FROM meta"))
+    meta[row[0].as<std::string>()] = row[1].as<std::string>();
+  return meta;
+}
+
+bool has_meta_table(pqxx::transaction_base& t) {
+  return t.exec1("SELECT to_regclass('meta') IS NOT NULL")[0].as<bool>();
+}
+
+class PostgresStore final : public WorldStore {
+ public:
+  PostgresStore(std::string uri, const OpenOptions& options)
+      : uri_(std::move(uri)), name_("PostgreSQL " + redact_uri(uri_)), options_(options) {
+    run([&](pqxx::connection& c) {
+      if (options_.read_only) {
+        pqxx::read_transaction t(c);
+        if (!has_meta_table(t)) throw StoreError(name_ + ": no world in this database");
+        check_meta(name_, read_meta(t), options_);
+        return;
+      }
+      pqxx::work t(c);
+      // One opener at a time sets the world up (several voxeld may share it).
+      t.exec("SELECT pg_advisory_xact_lock(7007)");
+      if (has_meta_table(t)) check_meta(name_, read_meta(t), options_);
+      t.exec(kCreateTables);
+      const Meta meta = read_meta(t);
+      if (!meta.contains(schema::kMetaSchemaVersion)) {
+        t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
+        t.exec_params(kUpsertMeta, schema::kMetaSeed, std::to_string(options_.seed.value_or(0)));
+        t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, "0");
+      }
+      const uint64_t starts =
+          meta.contains(schema::kMetaStarts)
+              ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
+              : 0;
+      t.exec_params(kUpsertMeta, schema::kMetaStarts, std::to_string(starts + 1));
+      t.commit();
+    });
+  }
+
+  const std::string& name() const override { return name_; }
+
+  WorldInfo info() override {
+    WorldInfo i;
+    run([&](pqxx::connection& c) {
+      pqxx::read_transaction t(c);
+      i = info_from_meta(name_, read_meta(t));
+      const auto log = t.exec1("SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log");
+      i.logged_edits = log[0].as<uint64_t>();
+      i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
+      i.modified_chunks = t.exec1("SELECT COUNT(*) FROM chunks")[0].as<uint64_t>();
+      i.size_bytes =
+          t.exec1(
+               "SELECT pg_total_relation_size('meta') + "
+               "pg_total_relation_size('edit_log') + pg_total_relation_size('chunks')")[0]
+              .as<uint64_t>();
+    });
+    return i;
+  }
+
+  void append_edits(std::span<const LoggedEdit> edits) override {
+    refuse_if_read_only();
+    if (edits.empty()) return;
+    run([&](pqxx::connection& c) {
+      pqxx::work t(c);
+      for (const LoggedEdit& e : edits) {
+        const auto bytes = encode_edit(e.edit);
+        t.exec_params("INSERT INTO edit_log (seq, at_ms, author, edit) VALUES ($1, $2, $3, $4)",
+                      static_cast<int64_t>(e.seq), e.unix_ms, e.author, binary(bytes));
+      }
+      t.commit();
+    });
+  }
+
+  void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
+                        uint64_t trim_through) override {
+    refuse_if_read_only();
+    run([&](pqxx::connection& c) {
+      pqxx::work t(c);
+      for (const ChunkRecord& r : chunks) {
+        t.exec_params(
+            "INSERT INTO chunks (x, y, z, seq, samples) VALUES ($1, $2, $3, $4, $5) "
+            "ON CONFLICT (x, y, z) DO UPDATE SET seq = excluded.seq, samples = excluded.samples",
+            r.coord.x, r.coord.y, r.coord.z, static_cast<int64_t>(r.seq), binary(r.samples));
+      }
+      t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
+      if (trim_through > 0)
+        t.exec_params("DELETE FROM edit_log WHERE seq <= $1", static_cast<int64_t>(trim_through));
+      t.commit();
+    });
+  }
+
+  std::optional<ChunkRecord> read_chunk(world::ChunkCoord coord) override {
+    std::optional<ChunkRecord> out;
+    run([&](pqxx::connection& c) {
+      pqxx::read_transaction t(c);
+      const auto r =
+          t.exec_params("SELECT seq, samples FROM chunks WHERE x = $1 AND y = $2 AND z = $3",
+                        coord.x, coord.y, coord.z);
+      if (r.empty()) return;
+      const pqxx::binarystring samples(r[0][1]);
+      out = ChunkRecord{
+          coord, r[0][0].as<uint64_t>(), {samples.data(), samples.data() + samples.size()}};
+    });
+    return out;
+  }
+
+  void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>& fn) override {
+    run([&](pqxx::connection& c) {
+      pqxx::read_transaction t(c);
+      for (const auto& row : t.exec("SELECT x, y, z, seq FROM chunks"))
+        fn({row[0].as<int32_t>(), row[1].as<int32_t>(), row[2].as<int32_t>()},
+           row[3].as<uint64_t>());
+    });
+  }
+
+  void for_each_edit(uint64_t after_seq,
+                     const std::function<bool(const LoggedEdit&)>& fn) override {
+    run([&](pqxx::connection& c) {
+      pqxx::read_transaction t(c);
+      // In pages, so a long log is never one result in memory.
+      uint64_t from = after_seq;
+      for (;;) {
+        const auto rows = t.exec_params(
+            "SELECT seq, at_ms, author, edit FROM edit_log WHERE seq > $1 ORDER BY seq LIMIT 10000",
+            static_cast<int64_t>(from));
+        for (const auto& row : rows) {
+          LoggedEdit e;
+          e.seq = row[0].as<uint64_t>();
+          e.unix_ms = row[1].as<int64_t>();
+          e.author = row[2].as<std::string>();
+          const pqxx::binarystring bytes(row[3]);
+          e.edit = decode_logged_edit(name_, e.seq, {bytes.data(), bytes.size()});
+          if (!fn(e)) return;
+          from = e.seq;
+        }
+        if (rows.size() < 10000) return;
+      }
+    });
+  }
+
+ private:
+  // Runs fn on the connection (opened, or reopened after a failure); every libpqxx
+  // failure becomes a StoreError naming the store, and drops the connection.
+  template <class Fn>
+  void run(Fn&& fn) {
+    try {
+      if (!conn_ || !conn_->is_open()) conn_ = std::make_unique<pqxx::connection>(uri_);
+      fn(*conn_);
+    } catch (const StoreError&) {
+      throw;
+    } catch (const pqxx::broken_connection& e) {
+      conn_.reset();
+      throw StoreError(name_ + ": connection lost: " + first_line(e.what()));
+    } catch (const std::exception& e) {
+      conn_.reset();
+      throw StoreError(name_ + ": " + first_line(e.what()));
+    }
+  }
+
+  void refuse_if_read_only() const {
+    if (options_.read_only) throw StoreError(name_ + ": opened read-only");
+  }
+
+  static std::string first_line(const std::string& s) { return s.substr(0, s.find('\n')); }
+
+  std::string uri_;
+  std::string name_;
+  OpenOptions options_;
+  std::unique_ptr<pqxx::connection> conn_;
+};
+
+}  // namespace
+
+std::string redact_uri(const std::string& uri) {
+  const auto scheme = uri.find("://");
+  const auto at = uri.find('@');
+  if (scheme == std::string::npos || at == std::string::npos || at < scheme) return uri;
+  const auto colon = uri.find(':', scheme + 3);
+  if (colon == std::string::npos || colon > at) return uri;
+  return uri.substr(0, colon) + ":***" + uri.substr(at);
+}
+
+std::unique_ptr<WorldStore> open_postgres_store(const std::string& uri,
+                                                const OpenOptions& options) {
+  return std::make_unique<PostgresStore>(uri, options);
+}
+
+}  // namespace vox::store

@@ -1,0 +1,286 @@
+#include "server/store/sqlite_store.hpp"
+
+#include <sqlite3.h>
+
+#include <chrono>
+#include <system_error>
+
+#include "server/store/edit_codec.hpp"
+#include "server/store/store_schema.hpp"
+#include "server/store/world_store_checks.hpp"
+
+namespace vox::store {
+namespace {
+
+constexpr const char* kCreateTables = R"sql(
+CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS edit_log (seq INTEGER PRIMARY KEY, at_ms INTEGER NOT NULL,
+                                     author TEXT NOT NULL, edit BLOB NOT NULL);
+CREATE TABLE IF NOT EXISTS chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
+                                   seq INTEGER NOT NULL, samples BLOB NOT NULL,
+                                   PRIMARY KEY (x, y, z));
+)sql";
+
+class Statement {
+ public:
+  Statement(sqlite3* db, const char* sql, const std::string& name) : name_(name) {
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK)
+      throw StoreError(name_ + ": " + sqlite3_errmsg(db));
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  Statement(const Statement&) = delete;
+  Statement& operator=(const Statement&) = delete;
+
+  Statement& bind(int i, int64_t v) {
+    check(sqlite3_bind_int64(stmt_, i, v));
+    return *this;
+  }
+  Statement& bind(int i, const std::string& v) {
+    check(sqlite3_bind_text(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  Statement& bind(int i, std::span<const uint8_t> v) {
+    check(sqlite3_bind_blob(stmt_, i, v.data(), static_cast<int>(v.size()), SQLITE_TRANSIENT));
+    return *this;
+  }
+  // True while there is a row.
+  bool step() {
+    const int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    throw StoreError(name_ + ": " + sqlite3_errmsg(sqlite3_db_handle(stmt_)));
+  }
+  void run() {
+    while (step()) {
+    }
+    reset();
+  }
+  void reset() {
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+  }
+  int64_t int64(int col) const { return sqlite3_column_int64(stmt_, col); }
+  std::string text(int col) const {
+    const auto* p = sqlite3_column_text(stmt_, col);
+    return p ? std::string(reinterpret_cast<const char*>(p),
+                           static_cast<size_t>(sqlite3_column_bytes(stmt_, col)))
+             : std::string();
+  }
+  std::span<const uint8_t> blob(int col) const {
+    const auto* p = static_cast<const uint8_t*>(sqlite3_column_blob(stmt_, col));
+    return {p, static_cast<size_t>(sqlite3_column_bytes(stmt_, col))};
+  }
+
+ private:
+  void check(int rc) {
+    if (rc != SQLITE_OK) throw StoreError(name_ + ": " + sqlite3_errstr(rc));
+  }
+  sqlite3_stmt* stmt_ = nullptr;
+  const std::string& name_;
+};
+
+class SqliteStore final : public WorldStore {
+ public:
+  SqliteStore(std::filesystem::path file, const OpenOptions& options)
+      : file_(std::move(file)), name_("SQLite " + file_.string()) {
+    const bool exists = std::filesystem::exists(file_);
+    if (options.read_only && !exists) throw StoreError(name_ + ": no such world (file missing)");
+    // An existing file is checked read-only first: a corrupt file, a newer schema or
+    // another seed is refused before anything is written (WAL mode writes the header).
+    if (exists) open(SQLITE_OPEN_READONLY), check_existing(options);
+    if (options.read_only) return;
+    if (exists) sqlite3_close(db_), db_ = nullptr;
+    open(SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
+    exec("PRAGMA journal_mode=WAL");
+    exec("PRAGMA synchronous=FULL");
+    exec("BEGIN IMMEDIATE");
+    exec(kCreateTables);
+    const auto meta = read_meta();
+    if (!meta.contains(schema::kMetaSchemaVersion)) {
+      set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
+      set_meta(schema::kMetaSeed, std::to_string(options.seed.value_or(0)));
+      set_meta(schema::kMetaCheckpointSeq, "0");
+    }
+    const auto starts =
+        meta.contains(schema::kMetaStarts)
+            ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
+            : 0;
+    set_meta(schema::kMetaStarts, std::to_string(starts + 1));
+    exec("COMMIT");
+  }
+  ~SqliteStore() override { sqlite3_close(db_); }
+
+  const std::string& name() const override { return name_; }
+
+  WorldInfo info() override {
+    const auto meta = read_meta();
+    WorldInfo i = info_from_meta(name_, meta);
+    Statement q(db_, "SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log", name_);
+    if (q.step())
+      i.logged_edits = static_cast<uint64_t>(q.int64(0)),
+      i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
+    Statement c(db_, "SELECT COUNT(*) FROM chunks", name_);
+    if (c.step()) i.modified_chunks = static_cast<uint64_t>(c.int64(0));
+    std::error_code ec;
+    for (const char* suffix : {"", "-wal"}) {
+      const auto n = std::filesystem::file_size(file_.string() + suffix, ec);
+      if (!ec) i.size_bytes += n;
+    }
+    return i;
+  }
+
+  void append_edits(std::span<const LoggedEdit> edits) override {
+    if (edits.empty()) return;
+    Transaction t(*this);
+    Statement ins(db_, "INSERT INTO edit_log (seq, at_ms, author, edit) VALUES (?, ?, ?, ?)",
+                  name_);
+    for (const LoggedEdit& e : edits) {
+      const auto bytes = encode_edit(e.edit);
+      ins.bind(1, static_cast<int64_t>(e.seq)).bind(2, e.unix_ms).bind(3, e.author).bind(4, bytes);
+      ins.run();
+    }
+    t.commit();
+  }
+
+  void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
+                        uint64_t trim_through) override {
+    Transaction t(*this);
+    Statement put(db_,
+                  "INSERT INTO chunks (x, y, z, seq, samples) VALUES (?, ?, ?, ?, ?) "
+                  "ON CONFLICT (x, y, z) DO UPDATE SET seq = excluded.seq, "
+                  "samples = excluded.samples",
+                  name_);
+    for (const ChunkRecord& c : chunks) {
+      put.bind(1, c.coord.x).bind(2, c.coord.y).bind(3, c.coord.z);
+      put.bind(4, static_cast<int64_t>(c.seq)).bind(5, c.samples);
+      put.run();
+    }
+    set_meta(schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
+    if (trim_through > 0) {
+      Statement trim(db_, "DELETE FROM edit_log WHERE seq <= ?", name_);
+      trim.bind(1, static_cast<int64_t>(trim_through)).run();
+    }
+    t.commit();
+  }
+
+  std::optional<ChunkRecord> read_chunk(world::ChunkCoord c) override {
+    Statement q(db_, "SELECT seq, samples FROM chunks WHERE x = ? AND y = ? AND z = ?", name_);
+    q.bind(1, c.x).bind(2, c.y).bind(3, c.z);
+    if (!q.step()) return std::nullopt;
+    const auto blob = q.blob(1);
+    return ChunkRecord{c, static_cast<uint64_t>(q.int64(0)), {blob.begin(), blob.end()}};
+  }
+
+  void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>& fn) override {
+    Statement q(db_, "SELECT x, y, z, seq FROM chunks", name_);
+    while (q.step()) {
+      fn({static_cast<int32_t>(q.int64(0)), static_cast<int32_t>(q.int64(1)),
+          static_cast<int32_t>(q.int64(2))},
+         static_cast<uint64_t>(q.int64(3)));
+    }
+  }
+
+  void for_each_edit(uint64_t after_seq,
+                     const std::function<bool(const LoggedEdit&)>& fn) override {
+    Statement q(db_, "SELECT seq, at_ms, author, edit FROM edit_log WHERE seq > ? ORDER BY seq",
+                name_);
+    q.bind(1, static_cast<int64_t>(after_seq));
+    while (q.step()) {
+      LoggedEdit e;
+      e.seq = static_cast<uint64_t>(q.int64(0));
+      e.unix_ms = q.int64(1);
+      e.author = q.text(2);
+      e.edit = decode_logged_edit(name_, e.seq, q.blob(3));
+      if (!fn(e)) return;
+    }
+  }
+
+ private:
+  class Transaction {
+   public:
+    explicit Transaction(SqliteStore& s) : s_(s) { s_.exec("BEGIN IMMEDIATE"); }
+    ~Transaction() {
+      if (!done_) sqlite3_exec(s_.db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    }
+    void commit() {
+      s_.exec("COMMIT");
+      done_ = true;
+    }
+
+   private:
+    SqliteStore& s_;
+    bool done_ = false;
+  };
+
+  void open(int flags) {
+    const int rc = sqlite3_open_v2(file_.c_str(), &db_, flags | SQLITE_OPEN_NOMUTEX, nullptr);
+    if (rc != SQLITE_OK) {
+      const std::string why = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
+      sqlite3_close(db_);
+      db_ = nullptr;
+      throw StoreError(name_ + ": " + why);
+    }
+    sqlite3_busy_timeout(db_, 5000);
+  }
+
+  void check_existing(const OpenOptions& options) {
+    std::string result;
+    try {
+      Statement q(db_, "PRAGMA quick_check", name_);
+      if (q.step()) result = q.text(0);
+    } catch (const StoreError& e) {
+      throw StoreError(std::string(e.what()) + " (corrupt or not a voxeld world)");
+    }
+    if (result != "ok") throw StoreError(name_ + ": corrupt: " + result);
+    Statement t(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'meta'",
+                name_);
+    if (!t.step() || t.int64(0) == 0) {
+      Statement any(db_, "SELECT COUNT(*) FROM sqlite_master", name_);
+      if (any.step() && any.int64(0) > 0) throw StoreError(name_ + ": not a voxeld world");
+      return;  // an empty database file: made into a world
+    }
+    check_meta(name_, read_meta(), options);
+  }
+
+  void exec(const char* sql) {
+    char* error = nullptr;
+    if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+      const std::string why = error ? error : sqlite3_errmsg(db_);
+      sqlite3_free(error);
+      throw StoreError(name_ + ": " + why);
+    }
+  }
+
+  Meta read_meta() {
+    Meta meta;
+    Statement q(db_, "SELECT key, value FROM meta", name_);
+    while (q.step()) meta[q.text(0)] = q.text(1);
+    return meta;
+  }
+
+  void set_meta(const char* key, const std::string& value) {
+    Statement q(db_,
+                "INSERT INTO meta (key, value) VALUES (?, ?) "
+                "ON CONFLICT (key) DO UPDATE SET value = excluded.value",
+                name_);
+    q.bind(1, std::string(key)).bind(2, value).run();
+  }
+
+  std::filesystem::path file_;
+  std::string name_;
+  sqlite3* db_ = nullptr;
+};
+
+}  // namespace
+
+std::unique_ptr<WorldStore> open_sqlite_store(const std::filesystem::path& dir,
+                                              const OpenOptions& options) {
+  if (!options.read_only) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) throw StoreError("world directory " + dir.string() + ": " + ec.message());
+  }
+  return std::make_unique<SqliteStore>(dir / kSqliteFileName, options);
+}
+
+}  // namespace vox::store

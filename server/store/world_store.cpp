@@ -1,0 +1,71 @@
+#include "server/store/world_store.hpp"
+
+#include "server/store/edit_codec.hpp"
+#include "server/store/postgres_store.hpp"
+#include "server/store/sqlite_store.hpp"
+#include "server/store/store_schema.hpp"
+#include "server/store/world_store_checks.hpp"
+
+namespace vox::store {
+
+bool is_postgres_uri(const std::string& where) {
+  return where.starts_with("postgresql://") || where.starts_with("postgres://");
+}
+
+std::unique_ptr<WorldStore> open_world_store(const std::string& where, const OpenOptions& options) {
+  if (is_postgres_uri(where)) return open_postgres_store(where, options);
+  return open_sqlite_store(where, options);
+}
+
+uint64_t parse_meta_u64(const std::string& store, const char* key, const std::string& value) {
+  size_t used = 0;
+  unsigned long long v = 0;
+  try {
+    v = std::stoull(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size() || value[0] == '-')
+    throw StoreError(store + ": metadata '" + key + "' is not a number: '" + value + "'");
+  return v;
+}
+
+void check_meta(const std::string& store, const Meta& meta, const OpenOptions& options) {
+  for (const char* key : {schema::kMetaSchemaVersion, schema::kMetaSeed})
+    if (!meta.contains(key)) throw StoreError(store + ": metadata '" + key + "' missing");
+  const uint64_t version =
+      parse_meta_u64(store, schema::kMetaSchemaVersion, meta.at(schema::kMetaSchemaVersion));
+  if (version > static_cast<uint64_t>(kSchemaVersion)) {
+    throw StoreError(store + ": schema version " + std::to_string(version) +
+                     " is newer than this voxeld's (" + std::to_string(kSchemaVersion) +
+                     "); use a newer voxeld");
+  }
+  const uint64_t seed = parse_meta_u64(store, schema::kMetaSeed, meta.at(schema::kMetaSeed));
+  if (options.seed && *options.seed != seed) {
+    throw StoreError(store + ": the world was created with seed " + std::to_string(seed) +
+                     ", not " + std::to_string(*options.seed) + " (--seed); start it with --seed " +
+                     std::to_string(seed) + " or use another --world");
+  }
+}
+
+WorldInfo info_from_meta(const std::string& store, const Meta& meta) {
+  check_meta(store, meta, {});
+  WorldInfo i;
+  i.seed = parse_meta_u64(store, schema::kMetaSeed, meta.at(schema::kMetaSeed));
+  if (auto it = meta.find(schema::kMetaStarts); it != meta.end())
+    i.starts = parse_meta_u64(store, schema::kMetaStarts, it->second);
+  if (auto it = meta.find(schema::kMetaCheckpointSeq); it != meta.end())
+    i.checkpoint_seq = parse_meta_u64(store, schema::kMetaCheckpointSeq, it->second);
+  i.last_seq = i.checkpoint_seq;
+  return i;
+}
+
+world::Edit decode_logged_edit(const std::string& store, uint64_t seq,
+                               std::span<const uint8_t> bytes) {
+  std::string why;
+  auto edit = decode_edit(bytes, &why);
+  if (!edit) throw StoreError(store + ": logged edit " + std::to_string(seq) + ": " + why);
+  return *edit;
+}
+
+}  // namespace vox::store

@@ -1,0 +1,89 @@
+// The durable world: the log of accepted edits and checkpoints of modified chunks, behind
+// one narrow interface with two backends (SQLite in a world directory, the default; and
+// PostgreSQL, for a world that several processes share). Unmodified chunks are never
+// stored: they regenerate from the seed.
+//
+// A WorldStore is one connection: not thread-safe; each thread that needs one opens its
+// own (SQLite in WAL mode and PostgreSQL both let readers run beside the writer). Every
+// failure (disk full, database gone, corrupt file) throws StoreError with a one-line
+// message naming the store; a later call tries again (PostgreSQL reconnects).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "server/world/chunk_coord.hpp"
+#include "server/world/edit.hpp"
+
+namespace vox::store {
+
+struct StoreError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// The schema this code writes; a store of a newer one is refused, never written.
+inline constexpr int kSchemaVersion = 1;
+
+struct LoggedEdit {
+  uint64_t seq = 0;     // global sequence number, from 1, in the order the edits applied
+  int64_t unix_ms = 0;  // when it was accepted
+  std::string author;   // the player (empty until identity exists)
+  world::Edit edit;
+};
+
+struct ChunkRecord {
+  world::ChunkCoord coord;
+  uint64_t seq = 0;              // the samples include every edit up to this one
+  std::vector<uint8_t> samples;  // encode_chunk()
+};
+
+struct WorldInfo {
+  uint64_t seed = 0;
+  uint64_t starts = 0;          // read-write opens so far (this one included)
+  uint64_t last_seq = 0;        // the newest logged (or checkpointed) edit
+  uint64_t checkpoint_seq = 0;  // the chunks include every edit up to this one
+  uint64_t logged_edits = 0;    // rows in the log (those after trimming)
+  uint64_t modified_chunks = 0;
+  uint64_t size_bytes = 0;  // on disk, as the backend counts it
+};
+
+struct OpenOptions {
+  // A new world records this seed; an existing one must have it (else StoreError naming
+  // both). nullopt: open an existing world whatever its seed (tools).
+  std::optional<uint64_t> seed;
+  bool read_only = false;  // tools: no write, works beside a running voxeld
+};
+
+class WorldStore {
+ public:
+  virtual ~WorldStore() = default;
+  // "SQLite world/world.sqlite" or "PostgreSQL host/db": for messages.
+  virtual const std::string& name() const = 0;
+  virtual WorldInfo info() = 0;
+  // Appends the edits in one transaction, durable when it returns (fsync / commit).
+  virtual void append_edits(std::span<const LoggedEdit> edits) = 0;
+  // One transaction: writes (replaces) the chunks, records that the chunks include every
+  // edit up to `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it).
+  virtual void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
+                                uint64_t trim_through) = 0;
+  virtual std::optional<ChunkRecord> read_chunk(world::ChunkCoord c) = 0;
+  // Every stored chunk's coordinate and seq.
+  virtual void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t seq)>& fn) = 0;
+  // The logged edits after `after_seq`, in order; fn returns false to stop. A record that
+  // does not decode throws StoreError naming its seq.
+  virtual void for_each_edit(uint64_t after_seq,
+                             const std::function<bool(const LoggedEdit&)>& fn) = 0;
+};
+
+// `where`: a world directory (SQLite, `world.sqlite` in it; created with the directory
+// when missing unless read_only) or a postgresql:// URI.
+std::unique_ptr<WorldStore> open_world_store(const std::string& where, const OpenOptions& options);
+bool is_postgres_uri(const std::string& where);
+
+}  // namespace vox::store

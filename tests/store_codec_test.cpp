@@ -1,0 +1,135 @@
+// The store's records: edits and chunk samples round-trip bit for bit, stay small, and
+// hostile bytes are refused with an error, never a crash or a huge allocation.
+#include <gtest/gtest.h>
+#include <zstd.h>
+
+#include <random>
+
+#include "server/store/chunk_codec.hpp"
+#include "server/store/edit_codec.hpp"
+#include "server/world/terrain_generator.hpp"
+
+namespace vox::store {
+namespace {
+
+std::vector<world::Edit> edits() {
+  world::Stamp box;
+  box.min = {-3.25f, 1, 2};
+  box.max = {4, 5.5f, 6};
+  box.material = 9;
+  world::Stamp sphere;
+  sphere.shape = world::Stamp::Shape::kSphere;
+  sphere.center = {1e-7f, -2, 3};
+  sphere.radius = 2.5f;
+  sphere.solid = false;
+  return {world::Brush{{1.5f, 2.25f, -3}, 4, 0.3f, true, std::nullopt},
+          world::Brush{{0.1f, 0.2f, 0.3f}, 2, 0.5f, false, world::Material{7}},
+          world::Explosion{{100, -50, 7.75f}, 12, 1.5f},
+          world::Smooth{{3, 3, 3}, 5, 0.25f},
+          world::Paint{{-8, 9, 10}, 3, 200},
+          box,
+          sphere};
+}
+
+TEST(EditCodec, EveryKindRoundTripsBitForBitInAFewTensOfBytes) {
+  for (const world::Edit& e : edits()) {
+    const auto bytes = encode_edit(e);
+    EXPECT_LE(bytes.size(), 32u) << describe_edit(e);
+    std::string why;
+    const auto back = decode_edit(bytes, &why);
+    ASSERT_TRUE(back) << why;
+    EXPECT_EQ(back->index(), e.index());
+    EXPECT_EQ(encode_edit(*back), bytes) << describe_edit(e);
+  }
+}
+
+TEST(EditCodec, RefusesEveryTruncationAndAnyTrailingByte) {
+  for (const world::Edit& e : edits()) {
+    const auto bytes = encode_edit(e);
+    for (size_t n = 0; n < bytes.size(); ++n)
+      EXPECT_FALSE(decode_edit({bytes.data(), n})) << describe_edit(e) << " cut at " << n;
+    auto longer = bytes;
+    longer.push_back(0);
+    EXPECT_FALSE(decode_edit(longer)) << describe_edit(e);
+  }
+}
+
+TEST(EditCodec, RefusesUnknownFormatsKindsAndFlags) {
+  auto bytes = encode_edit(world::Brush{});
+  auto bad = bytes;
+  bad[0] = 2;
+  EXPECT_FALSE(decode_edit(bad));
+  bad = bytes;
+  bad[1] = 5;
+  EXPECT_FALSE(decode_edit(bad));
+  bad = bytes;
+  bad[bytes.size() - 2] = 4;  // brush flags
+  EXPECT_FALSE(decode_edit(bad));
+  auto stamp = encode_edit(world::Stamp{});
+  stamp[2] = 2;  // shape
+  EXPECT_FALSE(decode_edit(stamp));
+}
+
+TEST(EditCodec, RandomBytesNeverCrash) {
+  std::mt19937 rng(5);
+  for (int i = 0; i < 20000; ++i) {
+    std::vector<uint8_t> b(rng() % 40);
+    for (auto& x : b) x = static_cast<uint8_t>(rng());
+    if (!b.empty()) b[0] = kEditFormat;
+    (void)decode_edit(b);
+  }
+}
+
+TEST(ChunkCodec, TerrainAndUniformChunksRoundTripExactly) {
+  const world::TerrainGenerator gen(3);
+  size_t surface = 0;
+  for (int y = -3; y <= 3; ++y) {
+    const world::Chunk c = gen.generate({1, y, -2});
+    const auto bytes = encode_chunk(c);
+    std::string why;
+    const auto back = decode_chunk(bytes, &why);
+    ASSERT_TRUE(back) << why;
+    EXPECT_TRUE(*back == c);
+    EXPECT_EQ(back->is_uniform(), c.is_uniform());
+    if (!c.is_uniform()) {
+      ++surface;
+      EXPECT_LT(bytes.size(), 98304u / 2) << "terrain compresses";
+    } else {
+      EXPECT_EQ(bytes.size(), 5u);
+    }
+  }
+  EXPECT_GT(surface, 0u);
+}
+
+TEST(ChunkCodec, RefusesFramesThatDoNotDeclareExactlyAChunk) {
+  world::Chunk c;
+  c.set(1, 2, 3, {100, 2});
+  auto bytes = encode_chunk(c);
+  ASSERT_TRUE(decode_chunk(bytes));
+  for (size_t n = 0; n < bytes.size(); ++n) EXPECT_FALSE(decode_chunk({bytes.data(), n})) << n;
+  // A frame of another size, and one without a declared size.
+  std::vector<uint8_t> small(1000, 1), frame(2 + ZSTD_compressBound(1000));
+  frame[0] = kChunkFormat;
+  frame[1] = 1;
+  frame.resize(2 +
+               ZSTD_compress(frame.data() + 2, frame.size() - 2, small.data(), small.size(), 1));
+  std::string why;
+  EXPECT_FALSE(decode_chunk(frame, &why));
+  EXPECT_NE(why.find("size"), std::string::npos) << why;
+  // A uniform record with a density below -32767.
+  EXPECT_FALSE(decode_chunk(std::vector<uint8_t>{kChunkFormat, 0, 0x00, 0x80, 0}));
+  EXPECT_FALSE(decode_chunk(std::vector<uint8_t>{kChunkFormat, 7, 0, 0, 0}));
+}
+
+TEST(ChunkCodec, RandomBytesNeverCrash) {
+  std::mt19937 rng(9);
+  const auto good = encode_chunk(world::TerrainGenerator(1).generate({0, 0, 0}));
+  for (int i = 0; i < 2000; ++i) {
+    auto b = good;
+    for (int k = 0; k < 4; ++k) b[2 + rng() % (b.size() - 2)] = static_cast<uint8_t>(rng());
+    (void)decode_chunk(b);
+  }
+}
+
+}  // namespace
+}  // namespace vox::store

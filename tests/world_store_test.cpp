@@ -1,0 +1,289 @@
+// The world store's backends, against real databases: SQLite in a temporary world
+// directory and a real PostgreSQL server (tests/postgres_server.hpp). The same suite runs
+// on both; SQLite's file cases (corrupt, truncated, newer schema) follow.
+#include "server/store/world_store.hpp"
+
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <random>
+
+#include "server/store/chunk_codec.hpp"
+#include "server/store/edit_codec.hpp"
+#include "server/store/postgres_store.hpp"
+#include "server/store/sqlite_store.hpp"
+#include "tests/postgres_server.hpp"
+
+namespace vox::store {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path temp_world(const std::string& tag) {
+  static int counter = 0;
+  const fs::path dir = fs::temp_directory_path() / ("voxel_store_" + std::to_string(::getpid()) +
+                                                    "_" + tag + std::to_string(counter++));
+  fs::remove_all(dir);
+  return dir;
+}
+
+std::vector<world::Edit> one_of_each() {
+  world::Stamp box;
+  box.min = {-3.25f, 1, 2};
+  box.max = {4, 5.5f, 6};
+  world::Stamp sphere;
+  sphere.shape = world::Stamp::Shape::kSphere;
+  sphere.center = {1e-7f, -2, 3};
+  sphere.radius = 2.5f;
+  sphere.solid = false;
+  return {world::Brush{{1.5f, 2.25f, -3}, 4, 0.3f, true, std::nullopt},
+          world::Brush{{0.1f, 0.2f, 0.3f}, 2, 0.5f, false, world::Material{7}},
+          world::Explosion{{100, -50, 7.75f}, 12, 1.5f},
+          world::Smooth{{3, 3, 3}, 5, 0.25f},
+          world::Paint{{-8, 9, 10}, 3, 200},
+          box,
+          sphere};
+}
+
+// Bit-for-bit equality of two edits (encodings compare every float exactly).
+bool same(const world::Edit& a, const world::Edit& b) { return encode_edit(a) == encode_edit(b); }
+
+world::Chunk full_chunk(uint32_t seed) {
+  world::Chunk c;
+  std::mt19937 rng(seed);
+  for (int i = 0; i < world::kChunkVolume; ++i) {
+    c.densities()[i] = static_cast<world::Density>(static_cast<int>(rng() % 65535) - 32767);
+    c.materials()[i] = static_cast<world::Material>(rng() % 4);
+  }
+  return c;
+}
+
+// One backend: SQLite in a fresh directory, or a fresh database on the shared server.
+class WorldStoreTest : public ::testing::TestWithParam<std::string> {
+ protected:
+  static void SetUpTestSuite() {}
+  static void TearDownTestSuite() { postgres_.reset(); }
+
+  // Where a fresh world lives for this backend.
+  std::string fresh_world() {
+    static int n = 0;
+    if (GetParam() == "sqlite") return temp_world("t").string();
+    if (!postgres_) postgres_ = std::make_unique<test::PostgresServer>();
+    return postgres_->create_database("world" + std::to_string(n++));
+  }
+  static std::unique_ptr<test::PostgresServer> postgres_;
+};
+std::unique_ptr<test::PostgresServer> WorldStoreTest::postgres_;
+
+TEST_P(WorldStoreTest, ANewWorldRecordsItsSeedAndCountsItsStarts) {
+  const std::string where = fresh_world();
+  {
+    auto s = open_world_store(where, {.seed = 42});
+    const WorldInfo i = s->info();
+    EXPECT_EQ(i.seed, 42u);
+    EXPECT_EQ(i.starts, 1u);
+    EXPECT_EQ(i.last_seq, 0u);
+    EXPECT_EQ(i.modified_chunks, 0u);
+  }
+  auto again = open_world_store(where, {.seed = 42});
+  EXPECT_EQ(again->info().starts, 2u);
+}
+
+TEST_P(WorldStoreTest, AnotherSeedIsRefusedNamingBoth) {
+  const std::string where = fresh_world();
+  open_world_store(where, {.seed = 7});
+  try {
+    open_world_store(where, {.seed = 8});
+    FAIL() << "opened a seed-7 world with seed 8";
+  } catch (const StoreError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("seed 7"), std::string::npos) << m;
+    EXPECT_NE(m.find("not 8"), std::string::npos) << m;
+  }
+  EXPECT_EQ(open_world_store(where, {})->info().seed, 7u);  // and nothing was changed
+}
+
+TEST_P(WorldStoreTest, AppendedEditsComeBackInOrderBitForBit) {
+  auto s = open_world_store(fresh_world(), {.seed = 1});
+  const auto edits = one_of_each();
+  std::vector<LoggedEdit> batch;
+  for (size_t i = 0; i < edits.size(); ++i)
+    batch.push_back(
+        {i + 1, 1700000000000 + static_cast<int64_t>(i), i % 2 ? "alice" : "", edits[i]});
+  s->append_edits({batch.data(), 3});
+  s->append_edits({batch.data() + 3, batch.size() - 3});
+  std::vector<LoggedEdit> back;
+  s->for_each_edit(0, [&](const LoggedEdit& e) {
+    back.push_back(e);
+    return true;
+  });
+  ASSERT_EQ(back.size(), batch.size());
+  for (size_t i = 0; i < back.size(); ++i) {
+    EXPECT_EQ(back[i].seq, batch[i].seq);
+    EXPECT_EQ(back[i].unix_ms, batch[i].unix_ms);
+    EXPECT_EQ(back[i].author, batch[i].author);
+    EXPECT_TRUE(same(back[i].edit, batch[i].edit)) << describe_edit(back[i].edit);
+  }
+  size_t after_five = 0;
+  s->for_each_edit(5, [&](const LoggedEdit& e) {
+    EXPECT_GT(e.seq, 5u);
+    ++after_five;
+    return true;
+  });
+  EXPECT_EQ(after_five, batch.size() - 5);
+  EXPECT_EQ(s->info().last_seq, batch.size());
+  EXPECT_EQ(s->info().logged_edits, batch.size());
+}
+
+TEST_P(WorldStoreTest, ABatchWithADuplicateSeqWritesNothing) {
+  auto s = open_world_store(fresh_world(), {.seed = 1});
+  const world::Edit e = world::Explosion{{0, 0, 0}, 3, 1};
+  s->append_edits(std::vector<LoggedEdit>{{1, 0, "", e}});
+  const std::vector<LoggedEdit> bad{{2, 0, "", e}, {1, 0, "", e}, {3, 0, "", e}};
+  EXPECT_THROW(s->append_edits(bad), StoreError);
+  EXPECT_EQ(s->info().logged_edits, 1u);
+  s->append_edits(std::vector<LoggedEdit>{{2, 0, "", e}});  // the store still works
+  EXPECT_EQ(s->info().last_seq, 2u);
+}
+
+TEST_P(WorldStoreTest, CheckpointsReplaceChunksAndTrimTheLog) {
+  auto s = open_world_store(fresh_world(), {.seed = 1});
+  std::vector<LoggedEdit> log;
+  for (uint64_t seq = 1; seq <= 10; ++seq)
+    log.push_back({seq, 0, "", world::Smooth{{0, 0, 0}, 2, 1}});
+  s->append_edits(log);
+  const world::Chunk a = full_chunk(1), b = full_chunk(2), air;
+  std::vector<ChunkRecord> first{{{0, 0, 0}, 4, encode_chunk(a)},
+                                 {{-1, 2, -3}, 4, encode_chunk(air)}};
+  s->write_checkpoint(first, 4, 4);
+  std::vector<ChunkRecord> second{{{0, 0, 0}, 9, encode_chunk(b)}};
+  s->write_checkpoint(second, 9, 0);  // keep the log this time
+  const WorldInfo i = s->info();
+  EXPECT_EQ(i.checkpoint_seq, 9u);
+  EXPECT_EQ(i.logged_edits, 6u);  // 5..10
+  EXPECT_EQ(i.last_seq, 10u);
+  EXPECT_EQ(i.modified_chunks, 2u);
+  const auto r = s->read_chunk({0, 0, 0});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->seq, 9u);
+  EXPECT_TRUE(*decode_chunk(r->samples) == b);
+  const auto u = s->read_chunk({-1, 2, -3});
+  ASSERT_TRUE(u);
+  EXPECT_TRUE(*decode_chunk(u->samples) == air);
+  EXPECT_FALSE(s->read_chunk({5, 5, 5}));
+  size_t listed = 0;
+  s->for_each_chunk([&](world::ChunkCoord, uint64_t) { ++listed; });
+  EXPECT_EQ(listed, 2u);
+}
+
+TEST_P(WorldStoreTest, ReadOnlyToolsReadAWorldWhileItIsWritten) {
+  const std::string where = fresh_world();
+  auto writer = open_world_store(where, {.seed = 3});
+  writer->append_edits(std::vector<LoggedEdit>{{1, 0, "bob", world::Paint{{1, 2, 3}, 2, 4}}});
+  auto reader = open_world_store(where, {.read_only = true});
+  EXPECT_EQ(reader->info().last_seq, 1u);
+  writer->append_edits(std::vector<LoggedEdit>{{2, 0, "bob", world::Paint{{1, 2, 3}, 2, 5}}});
+  EXPECT_EQ(reader->info().last_seq, 2u);
+  EXPECT_EQ(reader->info().starts, 1u);  // a read-only open is not a start
+  EXPECT_THROW(reader->append_edits(std::vector<LoggedEdit>{{3, 0, "", world::Paint{}}}),
+               StoreError);
+}
+
+INSTANTIATE_TEST_SUITE_P(Backends, WorldStoreTest, ::testing::Values("sqlite", "postgresql"),
+                         [](const auto& info) { return info.param; });
+
+// PostgreSQL going away and coming back: the store fails with a clear error, then works
+// again by itself (the connection is reopened).
+TEST(PostgresStore, AStoreThatWentAwayWorksAgainWhenItIsBack) {
+  test::PostgresServer server;
+  auto s = open_world_store(server.create_database("gone"), {.seed = 1});
+  const world::Edit e = world::Explosion{{0, 0, 0}, 3, 1};
+  s->append_edits(std::vector<LoggedEdit>{{1, 0, "", e}});
+  server.stop();
+  try {
+    s->append_edits(std::vector<LoggedEdit>{{2, 0, "", e}});
+    FAIL() << "appended with the database down";
+  } catch (const StoreError& err) {
+    EXPECT_NE(std::string(err.what()).find("PostgreSQL"), std::string::npos) << err.what();
+  }
+  server.start();
+  s->append_edits(std::vector<LoggedEdit>{{2, 0, "", e}});
+  EXPECT_EQ(s->info().last_seq, 2u);
+}
+
+TEST(PostgresStore, RedactsThePasswordInMessages) {
+  EXPECT_EQ(redact_uri("postgresql://voxel:secret@db.example:5432/world"),
+            "postgresql://voxel:***@db.example:5432/world");
+  EXPECT_EQ(redact_uri("postgresql:///world?host=/tmp"), "postgresql:///world?host=/tmp");
+}
+
+// --- SQLite files as an operator may find them ---
+
+std::string file_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+void expect_refused(const fs::path& dir, const std::string& what) {
+  const fs::path file = dir / kSqliteFileName;
+  const std::string before = file_bytes(file);
+  try {
+    open_world_store(dir.string(), {.seed = 1});
+    FAIL() << "opened " << what;
+  } catch (const StoreError& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << "one line: " << e.what();
+  }
+  EXPECT_EQ(file_bytes(file), before) << what << " was written";
+}
+
+TEST(SqliteStore, AFileThatIsNotADatabaseIsRefusedAndLeftAlone) {
+  const fs::path dir = temp_world("garbage");
+  fs::create_directories(dir);
+  std::ofstream(dir / kSqliteFileName) << std::string(5000, 'x');
+  expect_refused(dir, "a garbage file");
+}
+
+TEST(SqliteStore, ATruncatedFileIsRefusedAndLeftAlone) {
+  const fs::path dir = temp_world("trunc");
+  {
+    auto s = open_world_store(dir.string(), {.seed = 1});
+    std::vector<ChunkRecord> chunks;
+    for (int i = 0; i < 40; ++i) chunks.push_back({{i, 0, 0}, 1, encode_chunk(full_chunk(i))});
+    s->write_checkpoint(chunks, 1, 0);
+  }
+  const fs::path file = dir / kSqliteFileName;
+  ASSERT_FALSE(fs::exists(dir / (std::string(kSqliteFileName) + "-wal")) &&
+               fs::file_size(dir / (std::string(kSqliteFileName) + "-wal")) > 0);
+  fs::resize_file(file, fs::file_size(file) / 2);
+  expect_refused(dir, "a truncated file");
+}
+
+TEST(SqliteStore, ANewerSchemaIsRefusedAndLeftAlone) {
+  const fs::path dir = temp_world("newer");
+  open_world_store(dir.string(), {.seed = 1});
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / kSqliteFileName).c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "UPDATE meta SET value = '99' WHERE key = 'schema_version'", nullptr,
+                         nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  expect_refused(dir, "a schema from a newer version");
+  try {
+    open_world_store(dir.string(), {.seed = 1});
+  } catch (const StoreError& e) {
+    EXPECT_NE(std::string(e.what()).find("schema version 99 is newer"), std::string::npos);
+  }
+}
+
+TEST(SqliteStore, ReadOnlyOpenOfAMissingWorldCreatesNothing) {
+  const fs::path dir = temp_world("missing");
+  EXPECT_THROW(open_world_store(dir.string(), {.read_only = true}), StoreError);
+  EXPECT_FALSE(fs::exists(dir));
+}
+
+}  // namespace
+}  // namespace vox::store
