@@ -13,6 +13,7 @@
 
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
+#include "server/store/world_store.hpp"
 
 namespace po = boost::program_options;
 namespace asio = boost::asio;
@@ -62,7 +63,8 @@ size_t default_max_memory() {
 int main(int argc, char** argv) {
   vox::net::ServerConfig net;
   vox::pipeline::PipelineConfig world;
-  std::string port_file, log_level, max_memory, metrics_port_file;
+  std::string port_file, log_level, max_memory, metrics_port_file, world_dir, store_uri;
+  bool in_memory = false;
   int metrics_port = -1;
   int io_threads = 1, stats_seconds = 10;
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000,
@@ -77,7 +79,14 @@ int main(int argc, char** argv) {
       "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)")(
       "metrics-port-file", po::value<std::string>(&metrics_port_file),
       "write the metrics port to this file")(
-      "seed", po::value<uint64_t>(&world.seed)->default_value(1), "world seed")(
+      "seed", po::value<uint64_t>(&world.seed),
+      "world seed: recorded when the world is created (default 1); an existing world must "
+      "have it")("world", po::value<std::string>(&world_dir)->default_value("world"),
+                 "the world's directory (SQLite store; created on first start)")(
+      "store", po::value<std::string>(&store_uri),
+      "postgresql://... : keep the world in this PostgreSQL database instead of --world")(
+      "in-memory", po::bool_switch(&in_memory),
+      "keep no world on disk: every edit is lost when voxeld stops (benchmarks)")(
       "threads", po::value<int>(&world.threads)->default_value(0),
       "world pipeline threads (0: all cores)")(
       "io-threads", po::value<int>(&io_threads)->default_value(1), "network threads")(
@@ -192,6 +201,29 @@ int main(int argc, char** argv) {
       "{} SetViews/s",
       world.max_memory >> 20, kAllocator, net.edit_budget_rate, net.edit_budget_burst,
       net.set_view_rate);
+
+  // The durable world: opened (and checked) before anything listens.
+  std::unique_ptr<vox::store::WorldStore> store;
+  const std::optional<uint64_t> given_seed =
+      vm.count("seed") ? std::optional<uint64_t>(world.seed) : std::nullopt;
+  if (!store_uri.empty() && !vox::store::is_postgres_uri(store_uri)) {
+    std::cerr << "voxeld: --store must be a postgresql:// URI (the default store is --world)\n";
+    return 2;
+  }
+  if (in_memory) {
+    world.seed = given_seed.value_or(1);
+    spdlog::warn("--in-memory: no world on disk; every edit is lost when voxeld stops");
+  } else {
+    try {
+      store = vox::store::open_world_store(store_uri.empty() ? world_dir : store_uri,
+                                           {.seed = given_seed, .new_world_seed = 1});
+      world.seed = store->info().seed;
+    } catch (const std::exception& e) {
+      std::cerr << "voxeld: " << e.what() << "\n";
+      return 1;
+    }
+    world.store = store.get();
+  }
 
   try {
     vox::net::ServerCounters counters;

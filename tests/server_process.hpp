@@ -41,7 +41,8 @@ class ServerProcess {
         {"--stats-interval", "0"},
         {"--log-level", "warn"},
         {"--max-per-address", "0"},
-        {"--max-handshaking-per-address", "0"}};
+        {"--max-handshaking-per-address", "0"},
+        {"--world", (dir_ / "world").string()}};
     for (const auto& [flag, value] : defaults) {
       if (std::find(extra_args.begin(), extra_args.end(), flag) == extra_args.end()) {
         args.push_back(flag);

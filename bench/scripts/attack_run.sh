@@ -15,7 +15,8 @@ shift 3; [ $# -gt 0 ] && shift
 [ "${1:-}" = "--" ] && shift
 out=/tmp/voxeld_bench; mkdir -p "$out"
 rm -f "$out/$name".{port,mport}
-LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --port 0 --port-file "$out/$name.port" --metrics-port 0 --metrics-port-file "$out/$name.mport" \
+rm -rf "$out/$name.world"
+LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --world "$out/$name.world" --port 0 --port-file "$out/$name.port" --metrics-port 0 --metrics-port-file "$out/$name.mport" \
   --max-memory 1G --max-clients 4000 --stats-interval 10 \
   ${VOXELD_ARGS:-} > "$out/$name.log" 2>&1 &
 server=$!

@@ -9,7 +9,8 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${VOXEL_BIN:-$root/build/bin}"
 name="$1"; shift
 out=/tmp/voxeld_bench; mkdir -p "$out"; rm -f "$out/$name".{port,mport}
-LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --port 0 --port-file "$out/$name.port" --metrics-port 0 \
+rm -rf "$out/$name.world"
+LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --world "$out/$name.world" --port 0 --port-file "$out/$name.port" --metrics-port 0 \
   --metrics-port-file "$out/$name.mport" --max-memory 1G --evict-after 5 --max-per-address 0 \
   --max-handshaking-per-address 0 --max-clients 1000 --stats-interval 0 "$@" > "$out/$name.log" 2>&1 &
 server=$!

@@ -243,7 +243,9 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
         w->set_request_id(request);
         w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
         w->set_reason(r.message);
-        if (r.reason == world::RefusalReason::kServerBusy) w->set_retry_after_ms(kBusyRetryMs);
+        if (r.reason == world::RefusalReason::kServerBusy ||
+            r.reason == world::RefusalReason::kStorageUnavailable)
+          w->set_retry_after_ms(kBusyRetryMs);
         for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
         asio::post(self->strand_, [self, ticket, result = std::move(result),
                                    work = r.chunks_generated + r.chunks_expanded]() mutable {

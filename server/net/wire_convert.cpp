@@ -102,6 +102,8 @@ wire::EditResult::Status status_of(world::RefusalReason r) {
       return wire::EditResult::SERVER_BUSY;
     case world::RefusalReason::kOverBudget:
       return wire::EditResult::RATE_LIMITED;
+    case world::RefusalReason::kStorageUnavailable:
+      return wire::EditResult::STORAGE_UNAVAILABLE;
   }
   return wire::EditResult::ACCEPTED;
 }

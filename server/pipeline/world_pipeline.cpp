@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "server/pipeline/world_state.hpp"
+#include "server/store/chunk_codec.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/parallel.hpp"
 
@@ -33,6 +34,11 @@ double seconds_since(Clock::time_point t) {
 }
 
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
+// What an edit refused because the store could not write is told.
+constexpr const char* kStorageMessage =
+    "the world store cannot write now (disk full or database unreachable); the edit was not "
+    "applied";
+
 // A batch slower than this is logged: every edit queued behind it waited.
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
 // Chunks an owner gets per round-robin turn.
@@ -53,6 +59,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
                  config_.load_work_per_address, config_.load_burst_per_address),
       state_(std::make_unique<WorldState>(config_.threads)) {
+  if (config_.store) restore_from_store();  // before any thread: may throw StoreError
   const int generate_threads =
       config_.generate_threads >= 0
           ? config_.generate_threads
@@ -69,6 +76,56 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
 }
 
 WorldPipeline::~WorldPipeline() { stop(); }
+
+// The world as the store has it: every checkpointed chunk, then the log after the
+// checkpoint applied in order, exactly as the batches applied it (so the densities are
+// bit-identical). Eager: the chunks are resident from the start (modified chunks are
+// never evicted).
+void WorldPipeline::restore_from_store() {
+  store::WorldStore& store = *config_.store;
+  WorldState& st = *state_;
+  const Clock::time_point start = Clock::now();
+  const store::WorldInfo info = store.info();
+  std::vector<ChunkCoord> coords;
+  store.for_each_chunk([&coords](ChunkCoord c, uint64_t) { coords.push_back(c); });
+  for (const ChunkCoord& c : coords) {
+    const auto record = store.read_chunk(c);
+    if (!record) continue;
+    std::string why;
+    auto chunk = store::decode_chunk(record->samples, &why);
+    if (!chunk) {
+      throw store::StoreError(
+          fmt::format("{}: chunk ({}, {}, {}): {}", store.name(), c.x, c.y, c.z, why));
+    }
+    st.chunks.insert(c, std::move(*chunk));
+    auto& i = st.info[c];
+    i.modified = true;
+    i.last_used = start;
+    ++st.modified_count;
+  }
+  uint64_t replayed = 0, last = info.checkpoint_seq;
+  store.for_each_edit(info.checkpoint_seq, [&](const store::LoggedEdit& e) {
+    std::vector<ChunkCoord> dirtied;  // nothing is meshed yet
+    EditResult ignored;
+    const auto refused = apply_edit_task(e.edit, start, SIZE_MAX, dirtied, ignored);
+    if (refused != world::RefusalReason::kNone) {
+      throw store::StoreError(fmt::format(
+          "{}: logged edit {} cannot be applied again ({}); is --max-memory smaller than the "
+          "world?",
+          store.name(), e.seq, world::to_string(refused)));
+    }
+    ++replayed;
+    last = e.seq;
+    return true;
+  });
+  next_seq_ = std::max(info.last_seq, last) + 1;
+  stats_.modified_chunks = st.modified_count;
+  stats_.loaded_chunks = st.chunks.size();
+  stats_.chunk_bytes = st.chunks.memory_bytes();
+  spdlog::info(
+      "world: {} (seed {}, start {}): {} stored chunks, {} logged edits replayed in {:.0f} ms",
+      store.name(), info.seed, info.starts, coords.size(), replayed, seconds_since(start) * 1000);
+}
 
 void WorldPipeline::enqueue(OrderedTask task) {
   {
@@ -285,7 +342,7 @@ void WorldPipeline::drain_after_stop() {
 world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                                     size_t max_generate,
                                                     std::vector<ChunkCoord>& dirtied,
-                                                    EditResult& result) {
+                                                    EditResult& result, Undo* undo) {
   WorldState& st = *state_;
   const world::VoxelBox box = world::touched_box(edit);
   const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
@@ -358,6 +415,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   for (size_t i = 0; i < touched.size(); ++i) {
     targets[i] = st.chunks.find(touched[i]);
     was_uniform[i] = targets[i]->is_uniform();
+    if (undo) undo->chunks.try_emplace(touched[i], *targets[i], st.info.at(touched[i]).modified);
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
   if (touched.size() == 1) {
@@ -386,11 +444,16 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
 // publishes them as new versions. Returns the chunks given a new version.
 std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty,
                                                           const EditTimes* edited_at) {
+  FreshMeshes fresh = remesh(dirty);
+  return publish(dirty, fresh, edited_at);
+}
+
+WorldPipeline::FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty) {
   WorldState& st = *state_;
   const Clock::time_point start = Clock::now();
   std::sort(dirty.begin(), dirty.end());
   dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
-  std::vector<std::shared_ptr<MeshVersion>> fresh(dirty.size());
+  FreshMeshes fresh(dirty.size());
   std::vector<MeshVersionPtr> previous(dirty.size());
   for (size_t i = 0; i < dirty.size(); ++i) previous[i] = meshes_.get(dirty[i]);
   parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
@@ -405,6 +468,13 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
     w.zstd.compress(version->encoding, {}, version->full_frame);
     fresh[i] = std::move(version);
   });
+  if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
+  return fresh;
+}
+
+std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& dirty,
+                                               FreshMeshes& fresh, const EditTimes* edited_at) {
+  WorldState& st = *state_;
   for (const ChunkCoord& c : dirty) {
     if (auto it = st.info.find(c); it != st.info.end()) it->second.meshed = true;
   }
@@ -419,8 +489,54 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
     meshes_.publish(std::move(fresh[i]));
     published.push_back(dirty[i]);
   }
-  if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
   return published;
+}
+
+std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& accepted,
+                                        const std::function<void()>& work) {
+  const int64_t unix_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
+                              std::chrono::system_clock::now().time_since_epoch())
+                              .count();
+  std::vector<store::LoggedEdit> log;
+  log.reserve(accepted.size());
+  // Sequence numbers are never reused, even after a failed append (its outcome may be in
+  // doubt): the log may have gaps, never two edits with one number.
+  for (const world::Edit* e : accepted) log.push_back({next_seq_++, unix_ms, "", *e});
+  store::WorldStore& store = *config_.store;
+  auto append = std::async(std::launch::async, [&store, &log]() -> std::string {
+    try {
+      store.append_edits(log);
+      return {};
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+  });
+  work();
+  std::string error = append.get();
+  if (!error.empty()) {
+    store_retry_at_ = Clock::now() + config_.store_retry;
+    if (!store_failing_) spdlog::error("world store: {}; edits are refused until it works", error);
+    store_failing_ = true;
+  } else if (store_failing_) {
+    store_failing_ = false;
+    spdlog::info("world store: writing again; edits are accepted");
+  }
+  return error;
+}
+
+void WorldPipeline::roll_back(Undo& undo) {
+  WorldState& st = *state_;
+  for (auto& [coord, saved] : undo.chunks) {
+    world::Chunk* chunk = st.chunks.find(coord);
+    if (!chunk) continue;  // cannot happen: a batch evicts nothing it touched
+    const bool was_uniform = chunk->is_uniform();
+    *chunk = std::move(saved.first);
+    st.chunks.note_changed(was_uniform, *chunk);
+    bool& modified = st.info.at(coord).modified;
+    if (modified && !saved.second) --st.modified_count;
+    modified = saved.second;
+  }
+  undo.chunks.clear();
 }
 
 // Edits and inspections, in arrival order.
@@ -434,6 +550,12 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
   EditTimes edited_at;                                 // per dirty chunk, its oldest edit
   bool any_edit = false;
+  // With a store, accepted edits become durable before anything of the batch is published;
+  // after a failed append the store rests a while and edits are refused untried.
+  const bool durable = config_.store != nullptr;
+  const bool store_resting = durable && now < store_retry_at_;
+  Undo undo;
+  std::vector<const world::Edit*> accepted;  // in the order they applied
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
       // Sees every edit queued before it applied; the meshes of this batch are not
@@ -450,13 +572,19 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       ++delta.edits_refused;
       continue;
     }
+    if (store_resting) {
+      results[t].reason = world::RefusalReason::kStorageUnavailable;
+      results[t].message = kStorageMessage;
+      ++delta.edits_refused;
+      continue;
+    }
     size_t& generated = generated_by[task.owner];
     const size_t max_generate = task.owner == 0
                                     ? SIZE_MAX
                                     : config_.max_generated_per_owner -
                                           std::min(generated, config_.max_generated_per_owner);
-    const world::RefusalReason refused =
-        apply_edit_task(edit, now, max_generate, edit_dirty[t], results[t]);
+    const world::RefusalReason refused = apply_edit_task(edit, now, max_generate, edit_dirty[t],
+                                                         results[t], durable ? &undo : nullptr);
     if (refused != world::RefusalReason::kNone) {
       results[t].reason = refused;
       results[t].message =
@@ -469,6 +597,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
     }
     generated += results[t].chunks_generated;
     results[t].accepted = true;
+    accepted.push_back(&edit);
     ++delta.edits_applied;
     delta.chunks_generated += results[t].chunks_generated;
     dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
@@ -476,7 +605,28 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       edited_at.try_emplace(c, task.submitted);  // arrival order
   }
   if (!any_edit) return;
-  const std::vector<ChunkCoord> published = remesh_and_publish(dirty, &edited_at);
+  FreshMeshes fresh;
+  const std::string store_error =
+      durable && !accepted.empty()
+          ? commit_while(accepted, [&] { fresh = remesh(dirty); })  // overlapped
+          : (fresh = remesh(dirty), std::string());
+  if (!store_error.empty()) {
+    // Not durable, so not applied: the world goes back to before the batch, nothing of it
+    // is published, and its accepted edits are refused.
+    roll_back(undo);
+    for (size_t t = 0; t < tasks.size(); ++t) {
+      if (!results[t].accepted) continue;
+      results[t].accepted = false;
+      results[t].reason = world::RefusalReason::kStorageUnavailable;
+      results[t].message = kStorageMessage;
+      edit_dirty[t].clear();
+    }
+    delta.edits_applied -= accepted.size();
+    delta.edits_refused += accepted.size();
+    dirty.clear();
+    fresh.clear();
+  }
+  const std::vector<ChunkCoord> published = publish(dirty, fresh, &edited_at);
   const CoordSet published_set(published.begin(), published.end());
   delta.meshes_published += published.size();
   commit_stats(delta, batch);  // before the results: whoever waits on one sees its counts

@@ -25,6 +25,7 @@
 #include "server/pipeline/memory_budget.hpp"
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/terrain_prefetcher.hpp"
+#include "server/store/world_store.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/terrain_generator.hpp"
 
@@ -67,6 +68,14 @@ struct PipelineConfig {
   // only install it; 0: each load pass generates its terrain itself. -1: one per core.
   int generate_threads = -1;
   size_t max_generating = 2048;  // chunks queued or ready in the background at once
+  // The durable world (null: edits live in memory only). The pipeline restores the world
+  // from it when constructed and, from then on, is its only user: each batch's accepted
+  // edits are appended in one transaction, durable before any result or mesh of the batch
+  // is published. It must outlive the pipeline.
+  store::WorldStore* store = nullptr;
+  // After a failed append, edits are refused kStorageUnavailable without trying the store
+  // again for this long.
+  std::chrono::milliseconds store_retry{1000};
 };
 
 struct EditResult {
@@ -150,6 +159,12 @@ class WorldPipeline {
   struct LoadPlan {
     std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> to_mesh, to_generate;
   };
+  // Pre-edit copies of the chunks a batch's edits changed, to undo the batch when the
+  // store could not make it durable (pipeline thread).
+  struct Undo {
+    std::unordered_map<world::ChunkCoord, std::pair<world::Chunk, bool>, world::ChunkCoordHash>
+        chunks;  // the chunk and its `modified` flag before the batch
+  };
   // Chunks one eviction pass under memory pressure looks at (about 1 ms): a batch never
   // stalls on a scan of the whole world.
   static constexpr size_t kPressureScan = 4096;
@@ -176,11 +191,24 @@ class WorldPipeline {
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                        size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
-                                       EditResult& result);
+                                       EditResult& result, Undo* undo = nullptr);
   // `edited_at`: per chunk, when the oldest edit that dirtied it was submitted (none: a load).
   using EditTimes = std::unordered_map<world::ChunkCoord, Clock::time_point, world::ChunkCoordHash>;
+  using FreshMeshes = std::vector<std::shared_ptr<MeshVersion>>;  // null: mesh unchanged
   std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty,
                                                     const EditTimes* edited_at = nullptr);
+  // remesh_and_publish in two steps: `dirty` is sorted and deduplicated, each chunk meshed
+  // (in parallel); publish() gives the changed meshes their versions.
+  FreshMeshes remesh(std::vector<world::ChunkCoord>& dirty);
+  std::vector<world::ChunkCoord> publish(const std::vector<world::ChunkCoord>& dirty,
+                                         FreshMeshes& fresh, const EditTimes* edited_at);
+  void roll_back(Undo& undo);
+  // Appends the accepted edits of a batch (in order) to the store on another thread while
+  // `work` runs here; returns the store's error, empty when durable.
+  std::string commit_while(const std::vector<const world::Edit*>& accepted,
+                           const std::function<void()>& work);
+  // Constructor: loads the stored chunks and replays the log after their checkpoint.
+  void restore_from_store();
   void drain_after_stop();
   void manage_memory(Clock::time_point now);
   size_t accounted_bytes() const;  // pipeline thread
@@ -226,9 +254,12 @@ class WorldPipeline {
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> waiting_set_;
   std::vector<std::pair<uint64_t, std::function<void()>>> waiting_done_;
   uint64_t load_pass_ = 0;
-  bool last_eviction_freed_ = false;  // pipeline thread only
-  size_t resident_at_eviction_ = 0;   // resident_bytes() after the last eviction; pipeline thread
-  bool evicted_for_edits_ = false;    // this batch made room for edits; pipeline thread
+  bool last_eviction_freed_ = false;    // pipeline thread only
+  size_t resident_at_eviction_ = 0;     // resident_bytes() after the last eviction; pipeline thread
+  bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
+  uint64_t next_seq_ = 1;               // the next logged edit's sequence number; pipeline thread
+  Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
+  bool store_failing_ = false;          // the last append failed (logged once); pipeline thread
   std::thread thread_;
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
 };

@@ -56,7 +56,8 @@ class PostgresStore final : public WorldStore {
       const Meta meta = read_meta(t);
       if (!meta.contains(schema::kMetaSchemaVersion)) {
         t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
-        t.exec_params(kUpsertMeta, schema::kMetaSeed, std::to_string(options_.seed.value_or(0)));
+        t.exec_params(kUpsertMeta, schema::kMetaSeed,
+                      std::to_string(options_.seed.value_or(options_.new_world_seed)));
         t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, "0");
       }
       const uint64_t starts =

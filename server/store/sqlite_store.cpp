@@ -98,7 +98,7 @@ class SqliteStore final : public WorldStore {
     const auto meta = read_meta();
     if (!meta.contains(schema::kMetaSchemaVersion)) {
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
-      set_meta(schema::kMetaSeed, std::to_string(options.seed.value_or(0)));
+      set_meta(schema::kMetaSeed, std::to_string(options.seed.value_or(options.new_world_seed)));
       set_meta(schema::kMetaCheckpointSeq, "0");
     }
     const auto starts =

@@ -54,9 +54,10 @@ struct WorldInfo {
 };
 
 struct OpenOptions {
-  // A new world records this seed; an existing one must have it (else StoreError naming
-  // both). nullopt: open an existing world whatever its seed (tools).
+  // An existing world must have this seed (else StoreError naming both); nullopt: open it
+  // whatever its seed. A new world records `seed`, or `new_world_seed` when it is unset.
   std::optional<uint64_t> seed;
+  uint64_t new_world_seed = 1;
   bool read_only = false;  // tools: no write, works beside a running voxeld
 };
 

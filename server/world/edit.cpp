@@ -85,6 +85,8 @@ const char* to_string(RefusalReason r) {
       return "server busy";
     case RefusalReason::kOverBudget:
       return "over budget";
+    case RefusalReason::kStorageUnavailable:
+      return "storage unavailable";
   }
   return "unknown";
 }

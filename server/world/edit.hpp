@@ -60,14 +60,15 @@ using Edit = std::variant<Brush, Explosion, Smooth, Paint, Stamp>;
 
 enum class RefusalReason : uint8_t {
   kNone = 0,
-  kNotFinite,     // a coordinate, radius or strength is NaN or infinite
-  kOutOfBounds,   // the edit reaches outside the world's bounds
-  kBadRadius,     // radius <= 0 or over the limit (or a box side over it)
-  kBadStrength,   // strength / power <= 0 or over the limit
-  kBadMaterial,   // material 0 (air) where a solid material is needed
-  kShuttingDown,  // the pipeline stopped before applying it
-  kServerBusy,    // it needs chunks loaded while the memory budget is full
-  kOverBudget,    // its sender's edits made the server generate too much terrain at once
+  kNotFinite,           // a coordinate, radius or strength is NaN or infinite
+  kOutOfBounds,         // the edit reaches outside the world's bounds
+  kBadRadius,           // radius <= 0 or over the limit (or a box side over it)
+  kBadStrength,         // strength / power <= 0 or over the limit
+  kBadMaterial,         // material 0 (air) where a solid material is needed
+  kShuttingDown,        // the pipeline stopped before applying it
+  kServerBusy,          // it needs chunks loaded while the memory budget is full
+  kOverBudget,          // its sender's edits made the server generate too much terrain at once
+  kStorageUnavailable,  // the world store could not make it durable: it was not applied
 };
 const char* to_string(RefusalReason r);
 
