@@ -27,6 +27,7 @@ constexpr const char* kUsage =
     "  slice --y H --at X,Z --out map.svg   a top-down contour map of the terrain\n"
     "  mesh INPUT --out FILE   mesh a volume file offline (text or raw float32)\n"
     "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
+    "  world info|log|verify WORLD   a world directory (or postgresql:// URI), read-only\n"
     "Network commands take --server HOST:PORT (default 127.0.0.1:7777).\n"
     "Run 'voxel-cli COMMAND --help' for a command's options.\n";
 
@@ -140,6 +141,7 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (args[0] == "watch") return watch_command(rest, out, err);
   if (args[0] == "export") return export_command(rest, out, err);
   if (args[0] == "slice") return slice_command(rest, out, err);
+  if (args[0] == "world") return world_command(rest, out, err);
   for (const char* kind : {"brush", "explode", "smooth", "paint", "stamp"}) {
     if (args[0] == kind) return edit_command(kind, rest, out, err);
   }

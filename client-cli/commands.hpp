@@ -19,6 +19,8 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
 int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// world info|log|verify WORLD: the durable world, read-only.
+int world_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int slice_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace vox::cli

@@ -1,0 +1,150 @@
+// voxel-cli world info|log|verify WORLD: the durable world as an operator inspects it. Opens
+// the store read-only (a world directory or a postgresql:// URI), so it works beside a
+// running voxeld.
+#include <chrono>
+#include <ctime>
+#include <iomanip>
+#include <map>
+#include <ostream>
+#include <sstream>
+
+#include "client-cli/cli_options.hpp"
+#include "client-cli/commands.hpp"
+#include "server/store/chunk_codec.hpp"
+#include "server/store/edit_codec.hpp"
+#include "server/store/world_store.hpp"
+#include "server/world/edit_replay.hpp"
+
+namespace vox::cli {
+namespace {
+
+std::string utc_time(int64_t unix_ms) {
+  const std::time_t s = static_cast<std::time_t>(unix_ms / 1000);
+  std::tm tm{};
+  gmtime_r(&s, &tm);
+  std::ostringstream o;
+  o << std::put_time(&tm, "%Y-%m-%dT%H:%M:%S") << '.' << std::setw(3) << std::setfill('0')
+    << unix_ms % 1000 << 'Z';
+  return o.str();
+}
+
+int world_info(store::WorldStore& s, std::ostream& out) {
+  const store::WorldInfo i = s.info();
+  out << "world:          " << s.name() << "\n"
+      << "seed:           " << i.seed << "\n"
+      << "starts:         " << i.starts << "\n"
+      << "last sequence:  " << i.last_seq << "\n"
+      << "logged edits:   " << i.logged_edits << "\n"
+      << "checkpoint:     every edit through " << i.checkpoint_seq << " in " << i.modified_chunks
+      << " modified chunks\n"
+      << "size on disk:   " << i.size_bytes << " bytes\n";
+  return 0;
+}
+
+int world_log(store::WorldStore& s, uint64_t since, std::ostream& out) {
+  s.for_each_edit(since, [&](const store::LoggedEdit& e) {
+    out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
+        << "  " << store::describe_edit(e.edit) << "\n";
+    return static_cast<bool>(out);
+  });
+  return 0;
+}
+
+// Replays the log onto a fresh world from the seed and checks every checkpointed chunk
+// against it; with a trimmed log, checks that the tail applies onto the checkpoints.
+int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
+  const store::WorldInfo info = s.info();
+  const world::TerrainGenerator generator(info.seed);
+  std::map<world::ChunkCoord, uint64_t> stored;
+  s.for_each_chunk([&](world::ChunkCoord c, uint64_t seq) { stored[c] = seq; });
+  uint64_t first_logged = 0;
+  s.for_each_edit(0, [&](const store::LoggedEdit& e) {
+    first_logged = e.seq;
+    return false;
+  });
+  const bool whole_log = info.checkpoint_seq == 0 || (first_logged != 0 && first_logged <= 1);
+  world::ChunkMap map;
+  size_t mismatches = 0, checked = 0;
+  auto check_checkpoints = [&] {
+    for (const auto& [c, seq] : stored) {
+      const auto record = s.read_chunk(c);
+      std::string why;
+      const auto chunk = record ? store::decode_chunk(record->samples, &why) : std::nullopt;
+      if (!chunk) {
+        err << "chunk (" << c.x << ", " << c.y << ", " << c.z << "): " << why << "\n";
+        ++mismatches;
+        continue;
+      }
+      if (!map.find(c)) map.insert(c, generator.generate(c));
+      if (!(*map.find(c) == *chunk)) {
+        err << "chunk (" << c.x << ", " << c.y << ", " << c.z << ") at sequence " << seq
+            << " differs from the log replayed onto the seed\n";
+        ++mismatches;
+      }
+      ++checked;
+    }
+  };
+  if (!whole_log) {
+    for (const auto& [c, seq] : stored) {
+      const auto record = s.read_chunk(c);
+      std::string why;
+      auto chunk = record ? store::decode_chunk(record->samples, &why) : std::nullopt;
+      if (!chunk) throw std::runtime_error("chunk record does not decode: " + why);
+      map.insert(c, std::move(*chunk));
+    }
+  }
+  uint64_t replayed = 0, previous = 0;
+  const uint64_t from = whole_log ? 0 : info.checkpoint_seq;
+  bool checked_at_checkpoint = !whole_log || info.checkpoint_seq == 0;
+  world::EditLimits limits;
+  limits.max_radius = limits.max_strength = 1e9f;  // the server's limits may be wider
+  s.for_each_edit(from, [&](const store::LoggedEdit& e) {
+    if (!checked_at_checkpoint && e.seq > info.checkpoint_seq) {
+      check_checkpoints();
+      checked_at_checkpoint = true;
+    }
+    if (e.seq <= previous) throw std::runtime_error("log out of order at " + std::to_string(e.seq));
+    previous = e.seq;
+    if (auto refusal = world::validate(e.edit, limits))
+      throw std::runtime_error("logged edit " + std::to_string(e.seq) +
+                               " is not valid: " + refusal->message);
+    world::replay_edit(map, generator, e.edit);
+    ++replayed;
+    return true;
+  });
+  if (!checked_at_checkpoint) check_checkpoints();
+  out << "verify: " << replayed << " logged edits replayed"
+      << (whole_log ? " onto the seed" : " onto the checkpoints") << ", " << checked << " of "
+      << stored.size() << " checkpointed chunks checked";
+  if (!whole_log) out << " (the log before " << info.checkpoint_seq << " was trimmed)";
+  out << ": " << (mismatches == 0 ? "all match" : std::to_string(mismatches) + " differ") << "\n";
+  return mismatches == 0 ? 0 : 1;
+}
+
+}  // namespace
+
+int world_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  po::options_description opts("voxel-cli world options");
+  opts.add_options()("help,h", "show this help")("action", po::value<std::string>()->required(),
+                                                 "info, log or verify")(
+      "world", po::value<std::string>()->required(), "the world directory, or a postgresql:// URI")(
+      "since", po::value<uint64_t>()->default_value(0), "log: edits after this sequence number");
+  po::positional_options_description positional;
+  positional.add("action", 1).add("world", 1);
+  po::variables_map vm;
+  const int rc =
+      parse_options(args, opts, &positional,
+                    "usage: voxel-cli world info|log|verify WORLD [--since N]", vm, out, err);
+  if (rc >= 0) return rc;
+  return guarded(err, [&] {
+    const std::string action = vm["action"].as<std::string>();
+    if (action != "info" && action != "log" && action != "verify")
+      throw std::invalid_argument("world: the action must be info, log or verify");
+    auto s = store::open_world_store(vm["world"].as<std::string>(), {.read_only = true});
+    if (action == "info") return world_info(*s, out);
+    if (action == "log") return world_log(*s, vm["since"].as<uint64_t>(), out);
+    return world_verify(*s, out, err);
+  });
+}
+
+}  // namespace vox::cli
