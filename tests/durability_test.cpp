@@ -8,7 +8,12 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
+#include <random>
+#include <set>
+#include <thread>
 
+#include "server/store/world_store.hpp"
 #include "tests/session_test_util.hpp"
 
 namespace vox::test {
@@ -161,6 +166,137 @@ TEST(Durability, AWorldStartedWithAnotherSeedIsRefusedNamingBoth) {
   EXPECT_EQ(c->handshake("p", 5s * kSlow).world_seed(), 7u);
   fs::remove_all(world);
   fs::remove(out);
+}
+
+// An explosion or a brush whose centre is unique to (client, n), so the log can be searched
+// for it.
+wire::Envelope unique_edit(int client, int n, float y) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(static_cast<uint64_t>(n + 1));
+  const float x = 26.0f + static_cast<float>(n % 13) + 0.001f * static_cast<float>(client + 1);
+  const float z = 24.0f + static_cast<float>(n % 7) + 0.0001f * static_cast<float>(n);
+  wire::Vec3* c = nullptr;
+  if (n % 3 == 0) {
+    auto* b = e->mutable_brush();
+    b->set_radius(3);
+    b->set_strength(0.6f);
+    c = b->mutable_center();
+  } else {
+    auto* x1 = e->mutable_explosion();
+    x1->set_radius(2.5f);
+    x1->set_power(0.7f);
+    c = x1->mutable_center();
+  }
+  c->set_x(x);
+  c->set_y(y);
+  c->set_z(z);
+  return m;
+}
+
+std::tuple<float, float, float> centre_of(const wire::Edit& e) {
+  const auto& c = e.has_brush() ? e.brush().center() : e.explosion().center();
+  return {c.x(), c.y(), c.z()};
+}
+
+wire::Envelope to_message(const world::Edit& edit, uint64_t request) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(request);
+  wire::Vec3* c = nullptr;
+  world::Vec3 v;
+  if (const auto* b = std::get_if<world::Brush>(&edit)) {
+    e->mutable_brush()->set_radius(b->radius);
+    e->mutable_brush()->set_strength(b->strength);
+    c = e->mutable_brush()->mutable_center();
+    v = b->center;
+  } else {
+    const auto& x = std::get<world::Explosion>(edit);
+    e->mutable_explosion()->set_radius(x.radius);
+    e->mutable_explosion()->set_power(x.power);
+    c = e->mutable_explosion()->mutable_center();
+    v = x.center;
+  }
+  c->set_x(v.x);
+  c->set_y(v.y);
+  c->set_z(v.z);
+  return m;
+}
+
+// Three clients edit as fast as their results come back; voxeld is killed at a random
+// moment, five times, and restarted on the same world each time. Every ACCEPTED edit must
+// be in the log, and the world after the last restart must be the log replayed in order
+// onto a fresh world.
+TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
+  const fs::path world = temp_world("crash");
+  const float y = surface_y(32, 28);
+  std::set<std::tuple<float, float, float>> acknowledged;
+  std::mutex mutex;
+  std::mt19937 rng(20261201);
+  int counter = 0;
+  for (int round = 0; round < 5; ++round) {
+    ServerProcess s({"--world", world.string()});
+    std::vector<std::thread> clients;
+    for (int k = 0; k < 3; ++k) {
+      clients.emplace_back([&, k, base = counter + 1000 * k] {
+        try {
+          auto c = player(s, "crash" + std::to_string(k));
+          for (int n = base;; ++n) {
+            const wire::Envelope e = unique_edit(k, n, y);
+            const auto r = edit_and_wait(*c, e, 5s);
+            if (!r) return;  // killed
+            if (r->edit_result().status() == wire::EditResult::ACCEPTED) {
+              std::lock_guard lock(mutex);
+              acknowledged.insert(centre_of(e.edit()));
+            }
+          }
+        } catch (const std::exception&) {  // the connection went with the server
+        }
+      });
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(150 + rng() % 500) * kSlow);
+    ::kill(s.pid(), SIGKILL);
+    for (auto& t : clients) t.join();
+    counter += 100;
+  }
+  ASSERT_GT(acknowledged.size(), 20u) << "too few edits to prove anything";
+
+  std::vector<world::Edit> logged;
+  std::set<std::tuple<float, float, float>> in_log;
+  {
+    auto store = store::open_world_store(world.string(), {.read_only = true});
+    store->for_each_edit(0, [&](const store::LoggedEdit& e) {
+      logged.push_back(e.edit);
+      const world::Vec3 c = std::holds_alternative<world::Brush>(e.edit)
+                                ? std::get<world::Brush>(e.edit).center
+                                : std::get<world::Explosion>(e.edit).center;
+      in_log.insert({c.x, c.y, c.z});
+      return true;
+    });
+  }
+  size_t lost = 0;
+  for (const auto& c : acknowledged) lost += in_log.count(c) ? 0 : 1;
+  EXPECT_EQ(lost, 0u) << "of " << acknowledged.size() << " acknowledged edits";
+  RecordProperty("acknowledged", static_cast<int>(acknowledged.size()));
+  RecordProperty("logged", static_cast<int>(logged.size()));
+
+  std::map<client::ChunkKey, std::vector<uint8_t>> restarted, replayed;
+  {
+    ServerProcess s({"--world", world.string()});
+    restarted = world_seen(s);
+  }
+  {
+    ServerProcess fresh({"--in-memory"});
+    auto c = player(fresh, "replay");
+    uint64_t request = 1;
+    for (const auto& e : logged) {
+      const auto r = edit_and_wait(*c, to_message(e, request++));
+      ASSERT_TRUE(r && r->edit_result().status() == wire::EditResult::ACCEPTED);
+    }
+    replayed = world_seen(fresh);
+  }
+  EXPECT_TRUE(restarted == replayed) << logged.size() << " logged edits";
+  fs::remove_all(world);
 }
 
 }  // namespace
