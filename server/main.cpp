@@ -229,7 +229,15 @@ int main(int argc, char** argv) {
     vox::net::ServerCounters counters;
     vox::pipeline::PipelineObserver observer{
         .batch = [&counters](double s, size_t, size_t) { counters.batch_duration.observe(s); },
-        .remesh = [&counters](double s, size_t) { counters.remesh_duration.observe(s); }};
+        .remesh = [&counters](double s, size_t) { counters.remesh_duration.observe(s); },
+        .commit =
+            [&counters](double commit_s, double waited_s, size_t edits, bool ok) {
+              if (!ok) return vox::net::ServerCounters::bump(counters.store_failures);
+              counters.store_commit.observe(commit_s);
+              counters.store_commit_wait.observe(waited_s);
+              vox::net::ServerCounters::bump(counters.store_commits);
+              counters.store_committed_edits.fetch_add(edits, std::memory_order_relaxed);
+            }};
     // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
     // sessions they hold, which hold nothing of the Server), then the pipeline (sessions
     // drop their views in it) and the counters.

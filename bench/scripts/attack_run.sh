@@ -6,6 +6,8 @@
 # hostile client from its own loopback address) with --json, then prints the honest players' edit->delta p50/p99, errors,
 # disconnects, refusals, voxeld's max RSS, the first full view p99 and the server's own
 # edit->publish and edit->delta-written p99 (bench/scripts/metrics_quantile.py).
+# With the default world store it also prints commit p50/p99, the wait beyond re-meshing,
+# edits per commit and the world's size; VOXELD_ARGS=--in-memory runs without a store.
 # Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -52,3 +54,11 @@ q="$root/bench/scripts/metrics_quantile.py"
 echo "$name: first full view p99 $(/usr/bin/python3 -c "import json,sys;print(round(json.load(open(sys.argv[1]))['first_view_ms']['p99']))" "$out/$name.json") ms," \
   "server edit->publish p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_edit_publish_seconds) ms," \
   "edit->delta written p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_edit_delta_written_seconds) ms"
+if grep -q '^voxeld_store_commits_total [1-9]' "$out/$name.metrics"; then
+  commits=$(awk '/^voxeld_store_commits_total /{print $2}' "$out/$name.metrics")
+  edits=$(awk '/^voxeld_store_committed_edits_total /{print $2}' "$out/$name.metrics")
+  echo "$name: store commit p50/p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_store_commit_seconds 0.5 0.99) ms," \
+    "waited beyond re-meshing p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_store_commit_wait_seconds) ms," \
+    "$(/usr/bin/python3 -c "print(f'{$edits/$commits:.1f}')") edits per commit ($commits commits)," \
+    "world $(du -sb "$out/$name.world" | cut -f1) bytes"
+fi

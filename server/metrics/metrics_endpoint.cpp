@@ -103,6 +103,19 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     out.push_back(histogram("voxeld_remesh_duration_seconds",
                             "Time to re-mesh and encode one batch's dirty chunks",
                             c_.remesh_duration));
+    out.push_back(histogram("voxeld_store_commit_seconds",
+                            "A batch's append of its accepted edits to the world store (durable)",
+                            c_.store_commit));
+    out.push_back(histogram("voxeld_store_commit_wait_seconds",
+                            "How long a batch waited for its commit beyond its re-meshing",
+                            c_.store_commit_wait));
+    counter(out, "voxeld_store_commits_total", "Batches appended to the world store",
+            double(c_.store_commits.load()));
+    counter(out, "voxeld_store_committed_edits_total", "Edits appended to the world store",
+            double(c_.store_committed_edits.load()));
+    counter(out, "voxeld_store_failures_total",
+            "Appends that failed (their edits refused STORAGE_UNAVAILABLE)",
+            double(c_.store_failures.load()));
     return out;
   }
 

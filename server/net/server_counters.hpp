@@ -39,6 +39,9 @@ struct ServerCounters {
   LatencyHistogram edit_to_delta_written;  // submit -> a delta showing it written to a socket
   LatencyHistogram batch_duration;
   LatencyHistogram remesh_duration;
+  LatencyHistogram store_commit;       // a batch's append to the world store
+  LatencyHistogram store_commit_wait;  // what the batch waited for it beyond its re-meshing
+  Counter store_commits{0}, store_committed_edits{0}, store_failures{0};
 
   static void bump(Counter& c) { c.fetch_add(1, std::memory_order_relaxed); }
 };

@@ -503,16 +503,25 @@ std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& a
   // doubt): the log may have gaps, never two edits with one number.
   for (const world::Edit* e : accepted) log.push_back({next_seq_++, unix_ms, "", *e});
   store::WorldStore& store = *config_.store;
-  auto append = std::async(std::launch::async, [&store, &log]() -> std::string {
+  const Clock::time_point start = Clock::now();
+  double commit_s = 0;
+  auto append = std::async(std::launch::async, [&store, &log, &commit_s, start]() -> std::string {
+    std::string error;
     try {
       store.append_edits(log);
-      return {};
     } catch (const std::exception& e) {
-      return e.what();
+      error = e.what();
     }
+    commit_s = seconds_since(start);
+    return error;
   });
   work();
+  const Clock::time_point worked = Clock::now();
   std::string error = append.get();
+  if (observer_.commit) {
+    observer_.commit(commit_s, std::chrono::duration<double>(Clock::now() - worked).count(),
+                     log.size(), error.empty());
+  }
   if (!error.empty()) {
     store_retry_at_ = Clock::now() + config_.store_retry;
     if (!store_failing_) spdlog::error("world store: {}; edits are refused until it works", error);

@@ -107,6 +107,9 @@ struct PipelineStats {
 struct PipelineObserver {
   std::function<void(double seconds, size_t edits, size_t load_chunks)> batch;
   std::function<void(double seconds, size_t chunks)> remesh;
+  // A batch's append to the store: how long the commit took, how much longer than the
+  // re-meshing it overlapped the batch waited for it, its edits, and whether it failed.
+  std::function<void(double commit_s, double waited_s, size_t edits, bool ok)> commit;
 };
 
 class WorldPipeline {
