@@ -155,28 +155,6 @@ TEST(Server, BurstOfEditsCoalescesToTheNewestVersion) {
   }
 }
 
-TEST(Server, ClientThatStopsReadingDoesNotDelayOthers) {
-  test::ServerProcess server;
-  auto slow = player(server, "slow");
-  const float y = surface_y(16, 16);
-  slow->send(client::make_set_view(16, y, 16, 5));  // and never reads again
-  auto fast = player(server, "fast");
-  test::view(*fast, 16, y, 16, 1);
-  for (uint64_t i = 1; i <= 5; ++i) {
-    slow->send(brush_at(100 + i, 16, y, 16, 3));  // the slow one keeps editing
-    fast->send(brush_at(i, 20, y, 20, 2));
-    auto result = wait_for(
-        *fast,
-        [i](const wire::Envelope& m) {
-          return m.has_edit_result() && m.edit_result().request_id() == i;
-        },
-        5s);
-    ASSERT_TRUE(result) << "edit " << i << " of the fast client was delayed"
-                        << (fast->closed() ? " (its connection was closed)" : "")
-                        << (server.running() ? "" : " (voxeld is not running)");
-  }
-}
-
 TEST(Server, BadInputGetsSpecificErrors) {
   test::ServerProcess server({"--max-view-radius", "4"});
   {  // frame over the limit: FRAME_TOO_LARGE, then closed
