@@ -61,5 +61,29 @@ TEST(Percentiles, AreSamplesInOrderUpToTheMaximum) {
   }
 }
 
+// Regression: the percentile took the sample at index floor(q*n), one rank too high
+// whenever q*n is whole: p99 of 100 samples was the maximum, and 10 slow edits in 1,000
+// (1 %) made the p99 theirs. A pXX is the nearest rank: the smallest sample that at least
+// XX % of the samples do not exceed (rank ceil(q*n)).
+TEST(Percentiles, P99OfAHundredSamplesIsTheNinetyNinthNotTheMaximum) {
+  std::vector<double> hundred;
+  for (int i = 1; i <= 100; ++i) hundred.push_back(i);
+  const Percentiles p = percentiles(hundred);
+  EXPECT_EQ(p.p50, 50);
+  EXPECT_EQ(p.p95, 95);
+  EXPECT_EQ(p.p99, 99);
+  EXPECT_EQ(p.max, 100);
+
+  std::vector<double> edits(990, 1.0);
+  edits.insert(edits.end(), 10, 100.0);  // exactly 1 % slow
+  EXPECT_EQ(percentiles(edits).p99, 1.0);
+  edits.push_back(100.0);  // just over 1 %
+  EXPECT_EQ(percentiles(edits).p99, 100.0);
+  // Ranks near the top of small and odd counts.
+  EXPECT_EQ(percentiles({1, 2}).p50, 1);
+  EXPECT_EQ(percentiles({1, 2, 3}).p50, 2);
+  EXPECT_EQ(percentiles({1, 2, 3}).p99, 3);
+}
+
 }  // namespace
 }  // namespace vox::loadtest
