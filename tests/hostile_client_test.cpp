@@ -20,9 +20,9 @@ namespace {
 
 using namespace std::chrono_literals;
 using client::Client;
+using client::make_brush;
 namespace asio = boost::asio;
 
-using test::brush_at;
 using test::kSlow;
 using test::player;
 using test::surface_y;
@@ -245,14 +245,8 @@ TEST(HostileClients, EditsWhereNothingIsLoadedAreChargedForTheTerrainTheyGenerat
   s->set_solid(true);
   s->set_material(3);
   EXPECT_EQ(send_and_wait(stamp).status(), wire::EditResult::ACCEPTED);
-  wire::Envelope brush;  // 512 samples: fits the budget, but not the debt
-  brush.mutable_edit()->set_request_id(2);
-  auto* b = brush.mutable_edit()->mutable_brush();
-  b->mutable_center()->set_x(x + 30);
-  b->mutable_center()->set_y(y);
-  b->set_radius(3);
-  b->set_strength(1);
-  const wire::EditResult limited = send_and_wait(brush);
+  // 512 samples: fits the budget, but not the debt
+  const wire::EditResult limited = send_and_wait(make_brush(2, x + 30, y, 0, 3, 1, false));
   EXPECT_EQ(limited.status(), wire::EditResult::RATE_LIMITED);
   // 27 chunks of 32,768 samples generated: over 600,000 samples of debt at 300,000/s.
   EXPECT_GT(limited.retry_after_ms(), 1500u);
@@ -270,14 +264,8 @@ TEST(HostileClients, ViewFloodThenDisconnectLeavesNoQueuedWorkAndEditsStayFast) 
   }
   auto honest = player(server, "honest");
   const float y = surface_y(0, 0);
-  wire::Envelope edit;
-  edit.mutable_edit()->set_request_id(1);
-  auto* b = edit.mutable_edit()->mutable_brush();
-  b->mutable_center()->set_y(y);
-  b->set_radius(3);
-  b->set_strength(1);
   const auto sent = client::Clock::now();
-  honest->send(edit);
+  honest->send(make_brush(1, 0, y, 0, 3, 1, false));
   auto result = wait_for(
       *honest, [](const wire::Envelope& m) { return m.has_edit_result(); }, 5s);
   ASSERT_TRUE(result);
@@ -365,7 +353,7 @@ TEST(HostileClients, ClientThatStopsReadingDoesNotDelayOthersAndIsDroppedOnceIts
   while (dropped == 0 && client::Clock::now() < deadline) {
     slow.send(resync);
     ++edits;
-    fast->send(brush_at(edits, 20, y, 20, 2, edits % 2 == 0));
+    fast->send(make_brush(edits, 20, y, 20, 2, 1, edits % 2 == 0));
     const auto result = wait_for(
         *fast,
         [edits](const wire::Envelope& m) {
@@ -381,7 +369,7 @@ TEST(HostileClients, ClientThatStopsReadingDoesNotDelayOthersAndIsDroppedOnceIts
   EXPECT_GE(edits, 10u) << "the fast client's edits did not span the slow reader's stall";
   EXPECT_GT(slow.unread(), 0u) << "the server never wrote to the slow reader";
   // The server closed the slow reader, and still serves the other.
-  fast->send(brush_at(edits + 1, 20, y, 20, 2));
+  fast->send(make_brush(edits + 1, 20, y, 20, 2, 1, false));
   EXPECT_TRUE(wait_for(
       *fast, [](const wire::Envelope& m) { return m.has_edit_result(); }, 2s));
 }

@@ -8,6 +8,7 @@
 #include <limits>
 #include <string>
 
+#include "client/voxel_client.hpp"
 #include "server/world/edit.hpp"
 
 namespace vox::net {
@@ -30,12 +31,8 @@ wire::EditResult::Status status_for(const wire::Edit& e) {
 }
 
 wire::Edit brush_with_material(uint32_t material) {
-  wire::Edit e;
-  auto* b = e.mutable_brush();
-  b->mutable_center()->set_y(10);
-  b->set_radius(3);
-  b->set_strength(1);
-  b->set_material(material);
+  wire::Edit e = client::make_brush(1, 0, 10, 0, 3, 1, false).edit();
+  e.mutable_brush()->set_material(material);
   return e;
 }
 
