@@ -18,19 +18,6 @@ using namespace vox;
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 
-wire::Envelope brush(uint64_t id, float x, float y, float z, float r, bool remove) {
-  wire::Envelope m;
-  m.mutable_edit()->set_request_id(id);
-  auto* b = m.mutable_edit()->mutable_brush();
-  b->mutable_center()->set_x(x);
-  b->mutable_center()->set_y(y);
-  b->mutable_center()->set_z(z);
-  b->set_radius(r);
-  b->set_strength(0.8f);
-  b->set_remove(remove);
-  return m;
-}
-
 void drain(client::Client& c, std::chrono::milliseconds quiet, Clock::time_point* last = nullptr,
            size_t* meshes = nullptr, size_t* bytes = nullptr) {
   while (auto m = c.receive(quiet)) {
@@ -62,8 +49,8 @@ void BM_BrushRadius4EditToDecodedDeltas(benchmark::State& state) {
     const float x = xz(rng), z = xz(rng);
     ++id;
     const auto t0 = Clock::now();
-    c.send(
-        brush(id, x, gen.height_at(static_cast<int>(x), static_cast<int>(z)), z, 4, id % 2 == 0));
+    c.send(client::make_brush(id, x, gen.height_at(static_cast<int>(x), static_cast<int>(z)), z, 4,
+                              0.8f, id % 2 == 0));
     std::set<std::tuple<int, int, int>> waiting;
     bool have_result = false;
     while (!have_result || !waiting.empty()) {

@@ -144,4 +144,19 @@ wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords) {
   return m;
 }
 
+wire::Envelope make_brush(uint64_t request_id, float x, float y, float z, float radius,
+                          float strength, bool remove) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(request_id);
+  auto* b = e->mutable_brush();
+  b->mutable_center()->set_x(x);
+  b->mutable_center()->set_y(y);
+  b->mutable_center()->set_z(z);
+  b->set_radius(radius);
+  b->set_strength(strength);
+  b->set_remove(remove);
+  return m;
+}
+
 }  // namespace vox::client

@@ -62,5 +62,8 @@ class Client {
 wire::Envelope make_hello(const std::string& name, uint32_t version = 1);
 wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id = 0);
 wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords);
+// An Edit carrying a Brush at (x, y, z) that keeps the existing material (material 0).
+wire::Envelope make_brush(uint64_t request_id, float x, float y, float z, float radius,
+                          float strength, bool remove);
 
 }  // namespace vox::client

@@ -13,12 +13,12 @@ Percentiles percentiles(std::vector<double> v) {
   p.count = v.size();
   if (v.empty()) return p;
   std::sort(v.begin(), v.end());
-  auto at = [&v](double q) {
-    return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
-  };
-  p.p50 = at(0.50);
-  p.p95 = at(0.95);
-  p.p99 = at(0.99);
+  // Nearest rank: the smallest sample that at least q of them do not exceed, rank
+  // ceil(q * n), in integers (q * n in floating point can land just above a whole number).
+  auto at = [&v](size_t per_mille) { return v[(per_mille * v.size() + 999) / 1000 - 1]; };
+  p.p50 = at(500);
+  p.p95 = at(950);
+  p.p99 = at(990);
   p.max = v.back();
   return p;
 }

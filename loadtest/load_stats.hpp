@@ -17,6 +17,8 @@ struct Percentiles {
   double p50 = 0, p95 = 0, p99 = 0, max = 0;
   size_t count = 0;
 };
+// Nearest rank: pXX is the smallest sample that at least XX % of them do not exceed. No
+// samples: every figure 0 and count 0.
 Percentiles percentiles(std::vector<double> values);
 
 struct LatencySample {

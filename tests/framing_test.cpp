@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <vector>
+
+#include "tests/alloc_counter.hpp"
+
 namespace vox::proto {
 namespace {
 
@@ -36,14 +40,28 @@ TEST(FrameDecoder, RejectsEveryTruncationAsIncomplete) {
   }
 }
 
+// The length is untrusted: a header declaring 1 MiB against a 100-byte limit is refused
+// from the header alone. Nothing of the declared size is allocated, only the error message.
 TEST(FrameDecoder, RefusesALengthOverTheLimitBeforeAllocating) {
+  constexpr uint32_t kDeclared = 1 << 20;
+  std::vector<uint8_t> header;
+  for (int i = 0; i < 4; ++i) header.push_back(static_cast<uint8_t>(kDeclared >> (8 * i)));
+  ASSERT_EQ(read_frame_length(header.data()), kDeclared);
+  const std::vector<uint8_t> more_body(4096, 1);
   FrameDecoder d(100);
-  const uint8_t header[4] = {0xFF, 0xFF, 0xFF, 0xFF};
+  const size_t bytes_before = test::bytes_allocated_on_this_thread();
   d.feed(header);
   EXPECT_FALSE(d.next());
-  EXPECT_NE(d.error().find("over the limit"), std::string::npos);
-  d.feed(header);  // stays failed
+  const size_t bytes = test::bytes_allocated_on_this_thread() - bytes_before;
+  EXPECT_LT(bytes, 1024u) << "allocated for the declared length";
+  EXPECT_NE(d.error().find("over the limit"), std::string::npos) << d.error();
+  // It stays failed: what follows is neither buffered nor allocated for.
+  const size_t allocations_before = test::allocations_on_this_thread();
+  d.feed(more_body);
+  d.feed(header);
   EXPECT_FALSE(d.next());
+  EXPECT_EQ(test::allocations_on_this_thread() - allocations_before, 0u);
+  EXPECT_EQ(d.buffered(), 0u);
 }
 
 }  // namespace

@@ -1,8 +1,10 @@
 // A real voxeld on 127.0.0.1 against hostile clients: view floods, squatters, trickled
-// frames, empty-frame floods, forged names, edit floods; and its metrics endpoint. Each
-// test is bounded in connections and time. Squatters connect from 127.0.0.2 (still
-// loopback) so that the honest player's address, 127.0.0.1, has its own per-address cap.
+// frames, empty-frame floods, forged names, edit floods, a reader that stops reading; and
+// its metrics endpoint. Each test is bounded in connections and time. Squatters connect
+// from 127.0.0.2 (still loopback) so that the honest player's address, 127.0.0.1, has its
+// own per-address cap.
 #include <gtest/gtest.h>
+#include <sys/ioctl.h>
 
 #include <cmath>
 #include <fstream>
@@ -18,6 +20,7 @@ namespace {
 
 using namespace std::chrono_literals;
 using client::Client;
+using client::make_brush;
 namespace asio = boost::asio;
 
 using test::kSlow;
@@ -41,10 +44,19 @@ std::vector<uint8_t> frame(const wire::Envelope& m) {
 struct RawSocket {
   asio::io_context io;
   asio::ip::tcp::socket socket{io};
-  RawSocket(const std::string& source, uint16_t port) {
+  // `receive_buffer` (bytes, 0: the system's default) is set before connecting, so that
+  // the window the server sees is small from the start.
+  RawSocket(const std::string& source, uint16_t port, int receive_buffer = 0) {
     socket.open(asio::ip::tcp::v4());
+    if (receive_buffer > 0)
+      socket.set_option(asio::socket_base::receive_buffer_size(receive_buffer));
     socket.bind({asio::ip::make_address(source), 0});
     socket.connect({asio::ip::make_address("127.0.0.1"), port});
+  }
+  // Bytes that arrived and were not read (FIONREAD).
+  size_t unread() {
+    int n = 0;
+    return ::ioctl(socket.native_handle(), FIONREAD, &n) == 0 ? static_cast<size_t>(n) : 0;
   }
   void send(const std::vector<uint8_t>& bytes) {
     boost::system::error_code ec;
@@ -233,14 +245,8 @@ TEST(HostileClients, EditsWhereNothingIsLoadedAreChargedForTheTerrainTheyGenerat
   s->set_solid(true);
   s->set_material(3);
   EXPECT_EQ(send_and_wait(stamp).status(), wire::EditResult::ACCEPTED);
-  wire::Envelope brush;  // 512 samples: fits the budget, but not the debt
-  brush.mutable_edit()->set_request_id(2);
-  auto* b = brush.mutable_edit()->mutable_brush();
-  b->mutable_center()->set_x(x + 30);
-  b->mutable_center()->set_y(y);
-  b->set_radius(3);
-  b->set_strength(1);
-  const wire::EditResult limited = send_and_wait(brush);
+  // 512 samples: fits the budget, but not the debt
+  const wire::EditResult limited = send_and_wait(make_brush(2, x + 30, y, 0, 3, 1, false));
   EXPECT_EQ(limited.status(), wire::EditResult::RATE_LIMITED);
   // 27 chunks of 32,768 samples generated: over 600,000 samples of debt at 300,000/s.
   EXPECT_GT(limited.retry_after_ms(), 1500u);
@@ -258,14 +264,8 @@ TEST(HostileClients, ViewFloodThenDisconnectLeavesNoQueuedWorkAndEditsStayFast) 
   }
   auto honest = player(server, "honest");
   const float y = surface_y(0, 0);
-  wire::Envelope edit;
-  edit.mutable_edit()->set_request_id(1);
-  auto* b = edit.mutable_edit()->mutable_brush();
-  b->mutable_center()->set_y(y);
-  b->set_radius(3);
-  b->set_strength(1);
   const auto sent = client::Clock::now();
-  honest->send(edit);
+  honest->send(make_brush(1, 0, y, 0, 3, 1, false));
   auto result = wait_for(
       *honest, [](const wire::Envelope& m) { return m.has_edit_result(); }, 5s);
   ASSERT_TRUE(result);
@@ -308,6 +308,72 @@ TEST(HostileClients, MetricsEndpointServesPrometheusTextWithTheNamedSeries) {
   EXPECT_GT(m.at("voxeld_chunks_loaded"), 0);
   EXPECT_GT(m.at("voxeld_sent_bytes_total"), 0);
   EXPECT_GT(m.at("voxeld_resident_memory_bytes"), 1e6);
+}
+
+// A client that stops reading with a 4 KiB receive buffer, while it keeps asking for full
+// copies of its view's surface chunks (Resync): its socket and then the server's send
+// buffer (up to 4 MiB) fill, a write to it stops completing, and the write timeout drops
+// it. All along, another player's edits complete within their deadline, half the write
+// timeout: a server that made them wait for the slow reader's drop would miss it.
+TEST(HostileClients, ClientThatStopsReadingDoesNotDelayOthersAndIsDroppedOnceItsSocketIsFull) {
+  const auto write_timeout = 4000ms * kSlow;
+  const auto edit_deadline = 2000ms;  // wait_for stretches it by kSlow too
+  test::ServerProcess server({"--metrics-port", "0", "--message-rate", "0", "--write-timeout-ms",
+                              std::to_string(write_timeout.count())});
+  const auto write_timeouts = [&] {
+    return scrape(server.metrics_port()).at("voxeld_disconnects_total{reason=\"write_timeout\"}");
+  };
+  const float y = surface_y(16, 16);
+  RawSocket slow("127.0.0.1", server.port(), 4096);
+  slow.send(frame(client::make_hello("slow")));
+  slow.send(frame(client::make_set_view(16, y, 16, 3)));  // and never reads again
+  std::vector<wire::ChunkCoord> surface;  // the chunks at and below the surface of its view
+  for (int dz = -3; dz <= 3; ++dz) {
+    for (int dx = -3; dx <= 3; ++dx) {
+      if (dx * dx + dz * dz > 9) continue;
+      const int x = 16 + 32 * dx, z = 16 + 32 * dz;
+      const auto [cx, cy, cz] = client::chunk_of_voxel(x, static_cast<int>(surface_y(x, z)), z);
+      for (const int below : {0, 1}) {
+        wire::ChunkCoord c;
+        c.set_x(cx);
+        c.set_y(cy - below);
+        c.set_z(cz);
+        surface.push_back(c);
+      }
+    }
+  }
+  ASSERT_LE(surface.size(), 64u);  // one Resync
+  const auto resync = frame(client::make_resync(surface));
+
+  auto fast = player(server, "fast");
+  test::view(*fast, 20, y, 20, 1);
+  // Edits until the server has dropped the slow reader: they span the whole time a write
+  // to it did not complete (at least the write timeout).
+  const auto deadline = client::Clock::now() + write_timeout + 30s * kSlow;
+  uint64_t edits = 0;
+  double dropped = 0;
+  while (dropped == 0 && client::Clock::now() < deadline) {
+    slow.send(resync);
+    ++edits;
+    fast->send(make_brush(edits, 20, y, 20, 2, 1, edits % 2 == 0));
+    const auto result = wait_for(
+        *fast,
+        [edits](const wire::Envelope& m) {
+          return m.has_edit_result() && m.edit_result().request_id() == edits;
+        },
+        edit_deadline);
+    ASSERT_TRUE(result) << "edit " << edits << " of the fast client was delayed"
+                        << (fast->closed() ? " (its connection was closed)" : "")
+                        << (server.running() ? "" : " (voxeld is not running)");
+    dropped = write_timeouts();
+  }
+  EXPECT_EQ(dropped, 1) << "no write to the slow reader ever stopped completing";
+  EXPECT_GE(edits, 10u) << "the fast client's edits did not span the slow reader's stall";
+  EXPECT_GT(slow.unread(), 0u) << "the server never wrote to the slow reader";
+  // The server closed the slow reader, and still serves the other.
+  fast->send(make_brush(edits + 1, 20, y, 20, 2, 1, false));
+  EXPECT_TRUE(wait_for(
+      *fast, [](const wire::Envelope& m) { return m.has_edit_result(); }, edit_deadline));
 }
 
 }  // namespace

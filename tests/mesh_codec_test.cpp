@@ -1,9 +1,12 @@
 #include "proto/mesh_codec.hpp"
 
 #include <gtest/gtest.h>
+#include <zstd.h>
 
 #include <cmath>
 #include <random>
+#include <span>
+#include <vector>
 
 #include "proto/crc32c.hpp"
 #include "proto/zstd_codec.hpp"
@@ -245,21 +248,101 @@ TEST(MeshCodec, RejectsEveryTruncation) {
   }
 }
 
-TEST(MeshCodec, RejectsBombsAndFramesWithoutSize) {
+// `frame` with the content size its header declares rewritten to `size`. The size is the
+// header's last field (RFC 8878 3.1.1.1): after the magic number, the descriptor, the
+// window byte (absent in single-segment frames) and the dictionary id; in 2 bytes it is
+// stored as size - 256.
+std::vector<uint8_t> with_declared_size(std::vector<uint8_t> frame, uint64_t size) {
+  const uint8_t descriptor = frame.at(4);
+  const bool single_segment = (descriptor & 0x20) != 0;
+  const size_t dictionary_id_sizes[4] = {0, 1, 2, 4};
+  const size_t size_field_sizes[4] = {single_segment ? 1u : 0u, 2, 4, 8};
+  const size_t field = size_field_sizes[descriptor >> 6];
+  EXPECT_GT(field, 0u) << "the frame declares no size to rewrite";
+  const size_t at = 5 + (single_segment ? 0 : 1) + dictionary_id_sizes[descriptor & 3];
+  const uint64_t stored = field == 2 ? size - 256 : size;
+  for (size_t i = 0; i < field; ++i) frame.at(at + i) = static_cast<uint8_t>(stored >> (8 * i));
+  EXPECT_EQ(ZSTD_getFrameContentSize(frame.data(), frame.size()), size);
+  return frame;
+}
+
+// A real zstd frame of `data` that leaves its content size out: one-shot with the content
+// size flag off, or streamed in two pieces (the size is unknown when the header is written).
+std::vector<uint8_t> frame_without_size(std::span<const uint8_t> data, bool streamed) {
+  ZSTD_CCtx* cctx = ZSTD_createCCtx();
+  std::vector<uint8_t> frame(ZSTD_compressBound(data.size()));
+  size_t written = 0;
+  if (!streamed) {
+    ZSTD_CCtx_setParameter(cctx, ZSTD_c_contentSizeFlag, 0);
+    written = ZSTD_compress2(cctx, frame.data(), frame.size(), data.data(), data.size());
+    EXPECT_FALSE(ZSTD_isError(written));
+  } else {
+    ZSTD_outBuffer out{frame.data(), frame.size(), 0};
+    ZSTD_inBuffer first{data.data(), data.size() / 2, 0};
+    EXPECT_EQ(ZSTD_compressStream2(cctx, &out, &first, ZSTD_e_continue), 0u);
+    ZSTD_inBuffer rest{data.data() + data.size() / 2, data.size() - data.size() / 2, 0};
+    EXPECT_EQ(ZSTD_compressStream2(cctx, &out, &rest, ZSTD_e_end), 0u) << "frame not finished";
+    written = out.pos;
+  }
+  ZSTD_freeCCtx(cctx);
+  frame.resize(written);
+  return frame;
+}
+
+// A bomb: 8 MiB of zeros in under 2 KB. Refused from its header, before any output exists.
+TEST(ZstdCodec, RefusesAFrameDeclaringMoreThanTheLimit) {
   ZstdCodec zstd;
   std::vector<uint8_t> zeros(8 << 20, 0), frame;
   zstd.compress(zeros, {}, frame);
   EXPECT_LT(frame.size(), 2000u);
   auto r = zstd.decompress(frame, {}, DecodeLimits{}.max_encoding_bytes);
   ASSERT_FALSE(r);
-  EXPECT_NE(r.error().find("over the limit"), std::string::npos);
-  // A frame that lies about its size: patch the declared size down.
-  std::vector<uint8_t> small(1000, 7), f2;
-  zstd.compress(small, {}, f2);
-  EXPECT_TRUE(zstd.decompress(f2, {}, 1000));
-  EXPECT_FALSE(zstd.decompress(f2, {}, 999));
-  EXPECT_FALSE(zstd.decompress(std::vector<uint8_t>{1, 2, 3, 4, 5, 6, 7, 8}, {}, 1000));
-  // Counts in the header that cannot fit a chunk.
+  EXPECT_NE(r.error().find("over the limit"), std::string::npos) << r.error();
+  EXPECT_TRUE(zstd.decompress(frame, {}, zeros.size())) << "the same frame within its limit";
+}
+
+// Without a declared size the output could only be bounded while decoding; the codec
+// refuses such frames outright (the server always declares it).
+TEST(ZstdCodec, RefusesAWellFormedFrameWithoutADeclaredSize) {
+  ZstdCodec zstd;
+  std::vector<uint8_t> data(5000);
+  for (size_t i = 0; i < data.size(); ++i) data[i] = static_cast<uint8_t>(i * i % 251);
+  for (const bool streamed : {false, true}) {
+    const std::vector<uint8_t> frame = frame_without_size(data, streamed);
+    ASSERT_EQ(ZSTD_getFrameContentSize(frame.data(), frame.size()), ZSTD_CONTENTSIZE_UNKNOWN)
+        << (streamed ? "streamed" : "one-shot");
+    // Well formed: plain zstd decodes it to the data.
+    std::vector<uint8_t> plain(data.size());
+    ASSERT_EQ(ZSTD_decompress(plain.data(), plain.size(), frame.data(), frame.size()), data.size());
+    ASSERT_EQ(plain, data);
+    auto r = zstd.decompress(frame, {}, 1 << 20);
+    ASSERT_FALSE(r) << (streamed ? "streamed" : "one-shot");
+    EXPECT_NE(r.error().find("does not declare its size"), std::string::npos) << r.error();
+    // As a delta too: a base changes nothing.
+    auto delta = zstd.decompress(frame, data, 1 << 20);
+    ASSERT_FALSE(delta);
+    EXPECT_NE(delta.error().find("does not declare its size"), std::string::npos);
+  }
+}
+
+// A frame that lies about its size, either way, is refused; the limit applies to what it
+// declares.
+TEST(ZstdCodec, RefusesAFrameThatDecodesToOtherThanItsDeclaredSize) {
+  ZstdCodec zstd;
+  std::vector<uint8_t> small(1000, 7), frame;
+  zstd.compress(small, {}, frame);
+  EXPECT_TRUE(zstd.decompress(frame, {}, 1000));
+  EXPECT_FALSE(zstd.decompress(frame, {}, 999));
+  EXPECT_FALSE(zstd.decompress(with_declared_size(frame, 999), {}, 1000)) << "declares less";
+  EXPECT_FALSE(zstd.decompress(with_declared_size(frame, 1001), {}, 2000)) << "declares more";
+  EXPECT_TRUE(zstd.decompress(with_declared_size(frame, 1000), {}, 1000)) << "the rewrite";
+  auto garbage = zstd.decompress(std::vector<uint8_t>{1, 2, 3, 4, 5, 6, 7, 8}, {}, 1000);
+  ASSERT_FALSE(garbage);
+  EXPECT_NE(garbage.error().find("not a zstd frame"), std::string::npos) << garbage.error();
+}
+
+// Counts in the header that cannot fit a chunk, and a format this version does not know.
+TEST(MeshCodec, RefusesHeaderCountsThatCannotFitAChunkAndUnknownFormats) {
   Bytes fake(64, 0);
   fake[0] = kMeshFormat;
   fake[1] = fake[2] = fake[3] = 32;

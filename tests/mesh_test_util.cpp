@@ -1,7 +1,6 @@
 #include "tests/mesh_test_util.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <map>
 #include <numeric>
@@ -9,6 +8,7 @@
 
 #include "server/mesh/marching_cubes.hpp"
 #include "server/mesh/marching_cubes_tables.hpp"
+#include "server/mesh/position_key.hpp"
 
 namespace vox::test {
 namespace {
@@ -145,23 +145,12 @@ size_t unmatched_triangles(const std::vector<Triangle>& a, const std::vector<Tri
 }
 
 Topology analyse(const mesh::ChunkMesh& m) {
-  struct Key {
-    uint32_t x, y, z;
-    bool operator==(const Key&) const = default;
-  };
-  struct KeyHash {
-    size_t operator()(const Key& k) const {
-      return (k.x * 73856093u) ^ (k.y * 19349663u) ^ (k.z * 83492791u);
-    }
-  };
-  std::unordered_map<Key, uint32_t, KeyHash> ids;
+  std::unordered_map<mesh::PositionKey, uint32_t, mesh::PositionKeyHash> ids;
   std::vector<uint32_t> id_of(m.vertex_count());
   std::vector<Vec3f> position_of_id;
   for (size_t v = 0; v < m.vertex_count(); ++v) {
     const Vec3f p = m.positions[v];
-    const Key k{std::bit_cast<uint32_t>(p.x), std::bit_cast<uint32_t>(p.y),
-                std::bit_cast<uint32_t>(p.z)};
-    auto [it, inserted] = ids.try_emplace(k, static_cast<uint32_t>(ids.size()));
+    auto [it, inserted] = ids.try_emplace(mesh::position_key(p), static_cast<uint32_t>(ids.size()));
     if (inserted) position_of_id.push_back(p);
     id_of[v] = it->second;
   }

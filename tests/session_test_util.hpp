@@ -1,5 +1,5 @@
 // What the tests against a real voxeld share: clients that connect and say Hello, waits
-// with deadlines (stretched in sanitizer builds), terrain heights and a brush edit.
+// with deadlines (stretched in sanitizer builds) and terrain heights.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -93,21 +93,6 @@ inline wire::ViewReady view(client::Client& c, float x, float y, float z, uint32
 
 inline float surface_y(float x, float z, uint64_t seed = 1) {
   return world::TerrainGenerator(seed).height_at(static_cast<int>(x), static_cast<int>(z));
-}
-
-inline wire::Envelope brush_at(uint64_t request, float x, float y, float z, float radius,
-                               bool remove = false) {
-  wire::Envelope m;
-  auto* e = m.mutable_edit();
-  e->set_request_id(request);
-  auto* b = e->mutable_brush();
-  b->mutable_center()->set_x(x);
-  b->mutable_center()->set_y(y);
-  b->mutable_center()->set_z(z);
-  b->set_radius(radius);
-  b->set_strength(1.0f);
-  b->set_remove(remove);
-  return m;
 }
 
 // Sends an edit and waits for its EditResult (meshes on the way are applied).

@@ -13,7 +13,7 @@ namespace {
 
 using namespace std::chrono_literals;
 using client::ChunkKey;
-using test::brush_at;
+using client::make_brush;
 using test::player;
 using test::surface_y;
 using test::wait_for;
@@ -83,7 +83,7 @@ TEST(ViewSync, ResyncSendsAFullCopyAfterTheClientsBaseWentBad) {
   const float y = surface_y(16, 16);
   test::view(*a, 16, y, 16, 2);
   test::view(*editor, 16, y, 16, 2);
-  auto result = test::edit_and_wait(*editor, brush_at(1, 16.5f, y, 16.5f, 3));
+  auto result = test::edit_and_wait(*editor, make_brush(1, 16.5f, y, 16.5f, 3, 1, false));
   ASSERT_TRUE(result);
   ASSERT_EQ(result->edit_result().status(), wire::EditResult::ACCEPTED);
   ASSERT_GT(result->edit_result().changed_chunks_size(), 0);
@@ -118,7 +118,7 @@ TEST(ViewSync, ResyncSendsAFullCopyAfterTheClientsBaseWentBad) {
   EXPECT_EQ(a->chunks().at(key).version, fresh->chunks().at(key).version);
   EXPECT_EQ(a->chunks().at(key).encoding, fresh->chunks().at(key).encoding);
   // The next change is a delta against the resynced copy, and it applies.
-  ASSERT_TRUE(test::edit_and_wait(*editor, brush_at(2, 16.5f, y, 16.5f, 3, true)));
+  ASSERT_TRUE(test::edit_and_wait(*editor, make_brush(2, 16.5f, y, 16.5f, 3, 1, true)));
   auto next = wait_for(*a, [&](const wire::Envelope& m) {
     return m.has_chunk_mesh() && client::key_of(m.chunk_mesh().coord()) == key;
   });

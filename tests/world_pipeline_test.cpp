@@ -364,23 +364,49 @@ TEST(WorldPipeline, EditsDoNotWaitBehindABigLoad) {
   for (size_t i = 0; i < big.count(); ++i) EXPECT_TRUE(p.meshes().get(big.at(i))) << i;
 }
 
+// Edits still queued when stop() comes are all refused kShuttingDown, none applied; an
+// edit submitted after it is refused at once. The pipeline thread is held in an inspection
+// while the edits queue, so which edits are queued does not depend on timing.
 TEST(WorldPipeline, StopRefusesWhatIsStillQueued) {
   auto p = std::make_unique<WorldPipeline>(PipelineConfig{.seed = kSeed, .threads = 1});
   const mesh::ChunkBox box = surface_box();
-  std::vector<std::future<EditResult>> futures;
-  for (const auto& e : random_edits(box, 30, 3)) futures.push_back(p->submit(e));
-  p->stop();
-  size_t refused = 0;
-  for (auto& f : futures) {
-    const EditResult r = f.get();
-    if (!r.accepted) {
-      EXPECT_EQ(r.reason, world::RefusalReason::kShuttingDown);
-      ++refused;
-    }
+  std::promise<void> inspecting, release;
+  std::thread holder([&] {
+    p->inspect([&](const world::ChunkMap&) {
+      inspecting.set_value();
+      release.get_future().wait();
+    });
+  });
+  inspecting.get_future().wait();
+  std::vector<std::future<EditResult>> queued;
+  for (const auto& e : random_edits(box, 30, 3)) queued.push_back(p->submit(e));
+  std::thread stopper([&] { p->stop(); });
+  // stop() has begun once an edit is answered on the submitting thread instead of queued
+  // (polling: stop() sets its flag on the other thread, and nothing reports it).
+  std::vector<std::future<EditResult>> probes;
+  const auto deadline = Clock::now() + std::chrono::seconds(10 * kSlow);
+  bool stopping = false;
+  while (!stopping && Clock::now() < deadline) {
+    probes.push_back(p->submit(world::Brush{{0, 0, 0}, 2, 1}));
+    stopping = probes.back().wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+    if (!stopping) std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
+  release.set_value();
+  stopper.join();
+  holder.join();
+  ASSERT_TRUE(stopping) << "stop() never took effect";
+  size_t refused = 0, applied = 0;
+  for (auto& f : queued) {
+    const EditResult r = f.get();
+    applied += r.accepted ? 1 : 0;
+    refused += r.reason == world::RefusalReason::kShuttingDown ? 1 : 0;
+  }
+  EXPECT_EQ(applied, 0u) << "edits queued at the stop were applied";
+  EXPECT_EQ(refused, queued.size());
+  for (auto& f : probes) EXPECT_EQ(f.get().reason, world::RefusalReason::kShuttingDown);
+  EXPECT_EQ(p->stats().edits_applied, 0u);
   const EditResult late = p->submit(world::Brush{{0, 0, 0}, 2, 1}).get();
   EXPECT_EQ(late.reason, world::RefusalReason::kShuttingDown);
-  (void)refused;  // how many made it before the stop depends on timing
 }
 
 // Regression: an edit queued behind more than 4,096 load tasks (20 radius-12 views, about

@@ -1,11 +1,11 @@
 #include "server/mesh/mesh_welder.hpp"
 
-#include <bit>
 #include <cassert>
 #include <cmath>
 #include <cstdint>
 #include <vector>
 
+#include "server/mesh/position_key.hpp"
 #include "server/world/chunk_coord.hpp"
 #include "server/world/parallel.hpp"
 
@@ -14,24 +14,13 @@ namespace {
 
 constexpr float kFace = static_cast<float>(world::kChunkSize);
 
-struct Key {
-  uint32_t x, y, z;
-  bool operator==(const Key&) const = default;
-};
-inline uint32_t hash_of(const Key& k) {
-  uint64_t h = k.x * 0x9E3779B97F4A7C15ull;
-  h ^= (h >> 32) ^ (k.y * 0xC2B2AE3D27D4EB4Full);
-  h ^= (h >> 29) ^ (k.z * 0x165667B19E3779F9ull);
-  return static_cast<uint32_t>(h ^ (h >> 31));
-}
-
 // Face vertices of one part by world position, first one kept: an open-addressing table
 // in one array (linear probing, at most half full), built once from the collected
 // entries (std::unordered_map's node per entry made welding a tenth slower).
 class FaceTable {
  public:
   static constexpr uint32_t kNone = UINT32_MAX;
-  void add(const Key& k, uint32_t vertex) { pending_.push_back({k, vertex}); }
+  void add(const PositionKey& k, uint32_t vertex) { pending_.push_back({k, vertex}); }
   void build() {
     size_t capacity = 16;
     while (capacity < 2 * pending_.size()) capacity *= 2;
@@ -44,7 +33,7 @@ class FaceTable {
     }
     pending_ = {};
   }
-  uint32_t find(const Key& k) const {
+  uint32_t find(const PositionKey& k) const {
     if (slots_.empty()) return kNone;
     for (size_t at = hash_of(k) & mask_;; at = (at + 1) & mask_) {
       if (slots_[at].vertex == kNone || slots_[at].key == k) return slots_[at].vertex;
@@ -53,7 +42,7 @@ class FaceTable {
 
  private:
   struct Slot {
-    Key key;
+    PositionKey key;
     uint32_t vertex;
   };
   std::vector<Slot> pending_, slots_;
@@ -61,9 +50,6 @@ class FaceTable {
 };
 
 Vec3f add(const Vec3f& a, const Vec3f& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-Key key_of(const Vec3f& w) {
-  return {std::bit_cast<uint32_t>(w.x), std::bit_cast<uint32_t>(w.y), std::bit_cast<uint32_t>(w.z)};
-}
 
 // Where a vertex sits on its chunk's faces: bit a of `on` when its local coordinate a is 0
 // or 32, of `upper` when it is 32. Two vertices of one chunk can coincide only at a sample
@@ -136,7 +122,7 @@ void find_used_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, Par
     if (plan.local[v] == kUnused) continue;
     const FacePlace f = face_place(p.positions[v]);
     if (f.on == 0) continue;
-    if (f.upper != f.on || f.at_sample) plan.face.add(key_of(add(o, p.positions[v])), v);
+    if (f.upper != f.on || f.at_sample) plan.face.add(position_key(add(o, p.positions[v])), v);
     if (f.upper != 0 || f.at_sample) plan.local[v] = kAsk;
   }
   plan.face.build();
@@ -147,7 +133,8 @@ void find_used_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, Par
 // chunks below it on those axes. Every holder tries the same chunks in the same order, so
 // all agree; a missing or empty neighbour just does not hold it.
 Foreign owner_of(const Grid& grid, std::span<const PartPlan> plans, size_t i,
-                 const std::array<int, 3>& g, uint32_t v, const FacePlace& f, const Key& key) {
+                 const std::array<int, 3>& g, uint32_t v, const FacePlace& f,
+                 const PositionKey& key) {
   std::array<int, 3> home{};
   for (int a = 0; a < 3; ++a) home[a] = g[a] + static_cast<int>((f.upper >> a) & 1);
   for (unsigned e = 0; e < 8; ++e) {
@@ -177,7 +164,7 @@ void plan_part(const Grid& grid, std::span<const PartPlan> plans, size_t i, cons
     if (plan.local[v] == kUnused) continue;
     if (plan.local[v] == kAsk) {
       const Vec3f l = p.positions[v];
-      const Foreign owner = owner_of(grid, plans, i, g, v, face_place(l), key_of(add(o, l)));
+      const Foreign owner = owner_of(grid, plans, i, g, v, face_place(l), position_key(add(o, l)));
       if (owner.part != i || owner.vertex != v) {
         plan.local[v] = kForeignBit | static_cast<uint32_t>(plan.foreign.size());
         plan.foreign.push_back(owner);
