@@ -25,7 +25,7 @@ bool is_space(char c) {
 
 class Tokens {
  public:
-  explicit Tokens(const std::string& text) : p_(text.data()), end_(text.data() + text.size()) {}
+  explicit Tokens(std::string_view text) : p_(text.data()), end_(text.data() + text.size()) {}
   // Next token, or empty at the end of the text.
   std::string_view next() {
     while (p_ < end_ && is_space(*p_)) ++p_;
@@ -79,7 +79,10 @@ std::array<int, 3> parse_dims(const std::string& text) {
 }
 
 mesh::Volume read_text_volume(const std::string& path) {
-  const std::string text = read_file(path);
+  return parse_text_volume(read_file(path), path);
+}
+
+mesh::Volume parse_text_volume(std::string_view text, const std::string& path) {
   Tokens tokens(text);
   mesh::Volume volume;
   const char* names[3] = {"xdim", "ydim", "zdim"};

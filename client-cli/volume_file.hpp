@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 #include "server/mesh/volume_mesher.hpp"
 
@@ -21,6 +22,8 @@ struct VolumeError : std::runtime_error {
 inline constexpr size_t kMaxVolumeSamples = size_t{1} << 31;  // 8 GiB of float32
 
 mesh::Volume read_text_volume(const std::string& path);
+// The text format from memory; error messages name `path` as the file.
+mesh::Volume parse_text_volume(std::string_view text, const std::string& path);
 mesh::Volume read_raw_volume(const std::string& path, std::array<int, 3> dims);
 // Raw when dims are given, text otherwise.
 mesh::Volume read_volume(const std::string& path, const std::optional<std::array<int, 3>>& dims);

@@ -4,7 +4,6 @@
 
 #include <boost/asio.hpp>
 #include <boost/program_options.hpp>
-#include <cmath>
 #include <fstream>
 #include <iostream>
 #include <optional>
@@ -168,8 +167,9 @@ int main(int argc, char** argv) {
         << log_level << "')\n";
     return 2;
   }
-  // The largest edit (a box of side 2 * max radius) must fit in the budget's burst.
-  const double largest_edit = std::pow(2.0 * world.limits.max_radius + 5, 3);
+  // The largest edit (a box of side 2 * max radius, off the integer grid) must fit in the
+  // budget's burst.
+  const double largest_edit = vox::world::max_touched_samples(world.limits);
   if (net.edit_budget_rate > 0 && net.edit_budget_burst < largest_edit) {
     std::cerr << "voxeld: --edit-burst must be at least " << static_cast<uint64_t>(largest_edit)
               << " samples (the largest edit)\n";

@@ -146,5 +146,26 @@ TEST(EditApply, NoChangeReportsNothing) {
   EXPECT_TRUE(sky.is_uniform());
 }
 
+// voxeld refuses an --edit-burst below the largest edit's cost; it once took (2r + 5)^3,
+// which a stamp off the integer grid exceeds, so such an edit was refused for ever.
+TEST(EditValidation, MaxTouchedSamplesCoversTheLargestEditsOffTheGrid) {
+  const EditLimits limits;
+  Stamp box;
+  box.min = {0.5f, -7.25f, 100.5f};
+  box.max = {box.min.x + 64, box.min.y + 64, box.min.z + 64};
+  Stamp ball;
+  ball.shape = Stamp::Shape::kSphere;
+  ball.center = {0.5f, 0.5f, -0.5f};
+  ball.radius = limits.max_radius;
+  for (const Edit& e : {Edit{box}, Edit{ball}}) {
+    ASSERT_FALSE(validate(e, limits));
+    const VoxelBox b = touched_box(e);
+    double samples = 1;
+    for (int a = 0; a < 3; ++a) samples *= b.hi[a] - b.lo[a] + 1;
+    EXPECT_EQ(samples, 70.0 * 70 * 70);
+    EXPECT_LE(samples, max_touched_samples(limits));
+  }
+}
+
 }  // namespace
 }  // namespace vox::world

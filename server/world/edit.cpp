@@ -159,4 +159,8 @@ VoxelBox touched_box(const Edit& edit) {
   return std::visit(Visitor{}, edit);
 }
 
+double max_touched_samples(const EditLimits& limits) {
+  return std::pow(2.0 * (static_cast<double>(limits.max_radius) + kStampMargin) + 2, 3);
+}
+
 }  // namespace vox::world

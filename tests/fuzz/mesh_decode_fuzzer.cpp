@@ -1,10 +1,9 @@
-// libFuzzer target for the mesh decoder and the zstd frame reader.
-// Build: cmake -S . -B build-fuzz -DCMAKE_CXX_COMPILER=clang++ -DVOXEL_FUZZ=ON
-//        cmake --build build-fuzz --target mesh_decode_fuzzer
-// Run:   build-fuzz/bin/mesh_decode_fuzzer -max_total_time=60
+// libFuzzer target for the mesh decoder and the zstd frame reader: what a client does with
+// a ChunkMesh payload. scripts/fuzz.sh builds and runs it (README, "Fuzzing").
 // The first input byte picks the path: raw encoding (with its CRC as given, or fixed up
 // so that the structural checks behind it are reached), full frame, or delta against a
-// fixed base; the rest is the input.
+// real encoding (fuzz_meshes.hpp), decompressed into a reused buffer as the client
+// library does; the rest is the input.
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -13,18 +12,30 @@
 #include "proto/crc32c.hpp"
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
+#include "tests/fuzz/fuzz_meshes.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
   static vox::proto::ZstdCodec zstd;
   static vox::proto::CodecScratch scratch;
   static vox::mesh::ChunkMesh mesh;
-  static const std::vector<uint8_t> base(300, 0x5A);
+  static vox::mesh::Buffer<uint8_t> expanded;
+  static const vox::proto::Bytes base =
+      vox::fuzz::sphere_encoding(vox::fuzz::kBaseRadius, vox::fuzz::kBaseMaterial);
   const std::span<const uint8_t> input(data + 1, size - 1);
   const vox::proto::DecodeLimits limits{.max_encoding_bytes = 1 << 20};
   switch (data[0] % 4) {
     case 0:
       (void)vox::proto::decode_mesh(input, limits, scratch, mesh);
+      break;
+    case 1: {
+      auto encoding = zstd.decompress(input, {}, limits.max_encoding_bytes);
+      if (encoding) (void)vox::proto::decode_mesh(*encoding, limits, scratch, mesh);
+      break;
+    }
+    case 2:
+      if (!zstd.decompress_into(input, base, limits.max_encoding_bytes, expanded))
+        (void)vox::proto::decode_mesh(expanded, limits, scratch, mesh);
       break;
     case 3: {
       std::vector<uint8_t> fixed(input.begin(), input.end());
@@ -35,12 +46,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       }
       (void)vox::proto::decode_mesh(fixed, limits, scratch, mesh);
       break;
-    }
-    default: {
-      auto encoding = zstd.decompress(
-          input, data[0] % 4 == 2 ? std::span<const uint8_t>(base) : std::span<const uint8_t>(),
-          limits.max_encoding_bytes);
-      if (encoding) (void)vox::proto::decode_mesh(*encoding, limits, scratch, mesh);
     }
   }
   return 0;
