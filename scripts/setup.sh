@@ -17,7 +17,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev libmeshoptimizer-dev
   prometheus-cpp-dev libjemalloc-dev
   python3-protobuf python3-zstandard
-  clang-format
+  clang-format clang libclang-rt-14-dev
   libpqxx-dev postgresql
 )
 
@@ -53,6 +53,8 @@ case "$mode" in
     /usr/bin/python3 "$root/scripts/check_deps.py" "$root"
     bash "$root/scripts/check_format.sh"
     (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900)
+    # The libFuzzer targets, each for a bounded time (scripts/fuzz.sh; about 3 minutes).
+    bash "$root/scripts/fuzz.sh"
     # The same tests under AddressSanitizer+UndefinedBehaviorSanitizer and under
     # ThreadSanitizer (set VOXEL_SKIP_SANITIZERS=1 to skip them locally).
     if [ "${VOXEL_SKIP_SANITIZERS:-0}" != 1 ]; then
