@@ -33,9 +33,13 @@ fi
 
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
-  -DVOXEL_FUZZ=ON -DVOXEL_SANITIZE=address,undefined -DVOXEL_BUILD_TESTS=OFF \
-  -DVOXEL_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null
+# VOXEL_FUZZ_CONFIGURED=1: $build is already configured with clang, -DVOXEL_FUZZ=ON and
+# -DVOXEL_SANITIZE=address,undefined (the test command's sanitizer build), so only build.
+if [ "${VOXEL_FUZZ_CONFIGURED:-0}" != 1 ]; then
+  cmake -S "$root" -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+    -DVOXEL_FUZZ=ON -DVOXEL_SANITIZE=address,undefined -DVOXEL_BUILD_TESTS=OFF \
+    -DVOXEL_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null
+fi
 build_targets=("${targets[@]}")
 # All of them as one target: cmake --build builds several targets one after the other.
 [ $# -eq 0 ] && build_targets=(fuzzers)

@@ -53,21 +53,27 @@ case "$mode" in
     /usr/bin/python3 "$root/scripts/check_deps.py" "$root"
     bash "$root/scripts/check_format.sh"
     (cd "$build" && ctest --output-on-failure -j "$jobs" --timeout 900)
-    # The libFuzzer targets, each for a bounded time (scripts/fuzz.sh; about 3 minutes).
-    bash "$root/scripts/fuzz.sh"
     # The same tests under AddressSanitizer+UndefinedBehaviorSanitizer and under
     # ThreadSanitizer (set VOXEL_SKIP_SANITIZERS=1 to skip them locally).
     if [ "${VOXEL_SKIP_SANITIZERS:-0}" != 1 ]; then
       for san in address,undefined thread; do
         sbuild="$build-${san//,/-}"
         echo "setup: tests under -fsanitize=$san ($sbuild)"
+        # The ASan+UBSan build is clang's and also builds the libFuzzer targets (one build
+        # for both; scripts/fuzz.sh runs them below).
+        extra=()
+        [ "$san" = address,undefined ] && extra=(-DCMAKE_CXX_COMPILER=clang++ -DVOXEL_FUZZ=ON)
         cmake -S "$root" -B "$sbuild" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DVOXEL_SANITIZE="$san" \
-          -DVOXEL_BUILD_BENCH=OFF "${launcher[@]}" >/dev/null
+          -DVOXEL_BUILD_BENCH=OFF "${extra[@]}" "${launcher[@]}" >/dev/null
         cmake --build "$sbuild" -j "$jobs"
         (cd "$sbuild" && \
           ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
           TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$root/tests/tsan.supp" \
           ctest --output-on-failure -j "$jobs" --timeout 1800)
+        if [ "$san" = address,undefined ]; then
+          # Each libFuzzer target for a bounded time on its seed corpus (about 2.5 minutes).
+          VOXEL_FUZZ_BUILD_DIR="$sbuild" VOXEL_FUZZ_CONFIGURED=1 bash "$root/scripts/fuzz.sh"
+        fi
       done
     fi
     ;;
