@@ -8,31 +8,13 @@
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/world/terrain_generator.hpp"
+#include "tests/store_test_util.hpp"
 
 namespace vox::store {
 namespace {
 
-std::vector<world::Edit> edits() {
-  world::Stamp box;
-  box.min = {-3.25f, 1, 2};
-  box.max = {4, 5.5f, 6};
-  box.material = 9;
-  world::Stamp sphere;
-  sphere.shape = world::Stamp::Shape::kSphere;
-  sphere.center = {1e-7f, -2, 3};
-  sphere.radius = 2.5f;
-  sphere.solid = false;
-  return {world::Brush{{1.5f, 2.25f, -3}, 4, 0.3f, true, std::nullopt},
-          world::Brush{{0.1f, 0.2f, 0.3f}, 2, 0.5f, false, world::Material{7}},
-          world::Explosion{{100, -50, 7.75f}, 12, 1.5f},
-          world::Smooth{{3, 3, 3}, 5, 0.25f},
-          world::Paint{{-8, 9, 10}, 3, 200},
-          box,
-          sphere};
-}
-
 TEST(EditCodec, EveryKindRoundTripsBitForBitInAFewTensOfBytes) {
-  for (const world::Edit& e : edits()) {
+  for (const world::Edit& e : test::one_edit_of_each_kind()) {
     const auto bytes = encode_edit(e);
     EXPECT_LE(bytes.size(), 32u) << describe_edit(e);
     std::string why;
@@ -44,7 +26,7 @@ TEST(EditCodec, EveryKindRoundTripsBitForBitInAFewTensOfBytes) {
 }
 
 TEST(EditCodec, RefusesEveryTruncationAndAnyTrailingByte) {
-  for (const world::Edit& e : edits()) {
+  for (const world::Edit& e : test::one_edit_of_each_kind()) {
     const auto bytes = encode_edit(e);
     for (size_t n = 0; n < bytes.size(); ++n)
       EXPECT_FALSE(decode_edit({bytes.data(), n})) << describe_edit(e) << " cut at " << n;

@@ -16,6 +16,7 @@
 #include "server/store/postgres_store.hpp"
 #include "server/store/sqlite_store.hpp"
 #include "tests/postgres_server.hpp"
+#include "tests/store_test_util.hpp"
 
 namespace vox::store {
 namespace {
@@ -28,24 +29,6 @@ fs::path temp_world(const std::string& tag) {
                                                     "_" + tag + std::to_string(counter++));
   fs::remove_all(dir);
   return dir;
-}
-
-std::vector<world::Edit> one_of_each() {
-  world::Stamp box;
-  box.min = {-3.25f, 1, 2};
-  box.max = {4, 5.5f, 6};
-  world::Stamp sphere;
-  sphere.shape = world::Stamp::Shape::kSphere;
-  sphere.center = {1e-7f, -2, 3};
-  sphere.radius = 2.5f;
-  sphere.solid = false;
-  return {world::Brush{{1.5f, 2.25f, -3}, 4, 0.3f, true, std::nullopt},
-          world::Brush{{0.1f, 0.2f, 0.3f}, 2, 0.5f, false, world::Material{7}},
-          world::Explosion{{100, -50, 7.75f}, 12, 1.5f},
-          world::Smooth{{3, 3, 3}, 5, 0.25f},
-          world::Paint{{-8, 9, 10}, 3, 200},
-          box,
-          sphere};
 }
 
 // Bit-for-bit equality of two edits (encodings compare every float exactly).
@@ -108,7 +91,7 @@ TEST_P(WorldStoreTest, AnotherSeedIsRefusedNamingBoth) {
 
 TEST_P(WorldStoreTest, AppendedEditsComeBackInOrderBitForBit) {
   auto s = open_world_store(fresh_world(), {.seed = 1});
-  const auto edits = one_of_each();
+  const auto edits = test::one_edit_of_each_kind();
   std::vector<LoggedEdit> batch;
   for (size_t i = 0; i < edits.size(); ++i)
     batch.push_back(
