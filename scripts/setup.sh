@@ -67,7 +67,8 @@ case "$mode" in
           -DVOXEL_BUILD_BENCH=OFF "${extra[@]}" "${launcher[@]}" >/dev/null
         cmake --build "$sbuild" -j "$jobs"
         (cd "$sbuild" && \
-          ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+          ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 LSAN_OPTIONS="suppressions=$root/tests/lsan.supp" \
+          UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
           TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$root/tests/tsan.supp" \
           ctest --output-on-failure -j "$jobs" --timeout 1800)
         if [ "$san" = address,undefined ]; then

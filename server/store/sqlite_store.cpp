@@ -89,7 +89,7 @@ class SqliteStore final : public WorldStore {
     // another seed is refused before anything is written (WAL mode writes the header).
     if (exists) open(SQLITE_OPEN_READONLY), check_existing(options);
     if (options.read_only) return;
-    if (exists) sqlite3_close(db_), db_ = nullptr;
+    if (exists) sqlite3_close(conn_.db), conn_.db = nullptr;
     open(SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
     exec("PRAGMA journal_mode=WAL");
     exec("PRAGMA synchronous=FULL");
@@ -108,18 +108,17 @@ class SqliteStore final : public WorldStore {
     set_meta(schema::kMetaStarts, std::to_string(starts + 1));
     exec("COMMIT");
   }
-  ~SqliteStore() override { sqlite3_close(db_); }
 
   const std::string& name() const override { return name_; }
 
   WorldInfo info() override {
     const auto meta = read_meta();
     WorldInfo i = info_from_meta(name_, meta);
-    Statement q(db_, "SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log", name_);
+    Statement q(conn_.db, "SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log", name_);
     if (q.step())
       i.logged_edits = static_cast<uint64_t>(q.int64(0)),
       i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
-    Statement c(db_, "SELECT COUNT(*) FROM chunks", name_);
+    Statement c(conn_.db, "SELECT COUNT(*) FROM chunks", name_);
     if (c.step()) i.modified_chunks = static_cast<uint64_t>(c.int64(0));
     std::error_code ec;
     for (const char* suffix : {"", "-wal"}) {
@@ -132,7 +131,7 @@ class SqliteStore final : public WorldStore {
   void append_edits(std::span<const LoggedEdit> edits) override {
     if (edits.empty()) return;
     Transaction t(*this);
-    Statement ins(db_, "INSERT INTO edit_log (seq, at_ms, author, edit) VALUES (?, ?, ?, ?)",
+    Statement ins(conn_.db, "INSERT INTO edit_log (seq, at_ms, author, edit) VALUES (?, ?, ?, ?)",
                   name_);
     for (const LoggedEdit& e : edits) {
       const auto bytes = encode_edit(e.edit);
@@ -145,7 +144,7 @@ class SqliteStore final : public WorldStore {
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
                         uint64_t trim_through) override {
     Transaction t(*this);
-    Statement put(db_,
+    Statement put(conn_.db,
                   "INSERT INTO chunks (x, y, z, seq, samples) VALUES (?, ?, ?, ?, ?) "
                   "ON CONFLICT (x, y, z) DO UPDATE SET seq = excluded.seq, "
                   "samples = excluded.samples",
@@ -157,14 +156,14 @@ class SqliteStore final : public WorldStore {
     }
     set_meta(schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
     if (trim_through > 0) {
-      Statement trim(db_, "DELETE FROM edit_log WHERE seq <= ?", name_);
+      Statement trim(conn_.db, "DELETE FROM edit_log WHERE seq <= ?", name_);
       trim.bind(1, static_cast<int64_t>(trim_through)).run();
     }
     t.commit();
   }
 
   std::optional<ChunkRecord> read_chunk(world::ChunkCoord c) override {
-    Statement q(db_, "SELECT seq, samples FROM chunks WHERE x = ? AND y = ? AND z = ?", name_);
+    Statement q(conn_.db, "SELECT seq, samples FROM chunks WHERE x = ? AND y = ? AND z = ?", name_);
     q.bind(1, c.x).bind(2, c.y).bind(3, c.z);
     if (!q.step()) return std::nullopt;
     const auto blob = q.blob(1);
@@ -172,7 +171,7 @@ class SqliteStore final : public WorldStore {
   }
 
   void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>& fn) override {
-    Statement q(db_, "SELECT x, y, z, seq FROM chunks", name_);
+    Statement q(conn_.db, "SELECT x, y, z, seq FROM chunks", name_);
     while (q.step()) {
       fn({static_cast<int32_t>(q.int64(0)), static_cast<int32_t>(q.int64(1)),
           static_cast<int32_t>(q.int64(2))},
@@ -182,8 +181,8 @@ class SqliteStore final : public WorldStore {
 
   void for_each_edit(uint64_t after_seq,
                      const std::function<bool(const LoggedEdit&)>& fn) override {
-    Statement q(db_, "SELECT seq, at_ms, author, edit FROM edit_log WHERE seq > ? ORDER BY seq",
-                name_);
+    Statement q(conn_.db,
+                "SELECT seq, at_ms, author, edit FROM edit_log WHERE seq > ? ORDER BY seq", name_);
     q.bind(1, static_cast<int64_t>(after_seq));
     while (q.step()) {
       LoggedEdit e;
@@ -200,7 +199,7 @@ class SqliteStore final : public WorldStore {
    public:
     explicit Transaction(SqliteStore& s) : s_(s) { s_.exec("BEGIN IMMEDIATE"); }
     ~Transaction() {
-      if (!done_) sqlite3_exec(s_.db_, "ROLLBACK", nullptr, nullptr, nullptr);
+      if (!done_) sqlite3_exec(s_.conn_.db, "ROLLBACK", nullptr, nullptr, nullptr);
     }
     void commit() {
       s_.exec("COMMIT");
@@ -213,29 +212,29 @@ class SqliteStore final : public WorldStore {
   };
 
   void open(int flags) {
-    const int rc = sqlite3_open_v2(file_.c_str(), &db_, flags | SQLITE_OPEN_NOMUTEX, nullptr);
+    const int rc = sqlite3_open_v2(file_.c_str(), &conn_.db, flags | SQLITE_OPEN_NOMUTEX, nullptr);
     if (rc != SQLITE_OK) {
-      const std::string why = db_ ? sqlite3_errmsg(db_) : sqlite3_errstr(rc);
-      sqlite3_close(db_);
-      db_ = nullptr;
+      const std::string why = conn_.db ? sqlite3_errmsg(conn_.db) : sqlite3_errstr(rc);
+      sqlite3_close(conn_.db);
+      conn_.db = nullptr;
       throw StoreError(name_ + ": " + why);
     }
-    sqlite3_busy_timeout(db_, 5000);
+    sqlite3_busy_timeout(conn_.db, 5000);
   }
 
   void check_existing(const OpenOptions& options) {
     std::string result;
     try {
-      Statement q(db_, "PRAGMA quick_check", name_);
+      Statement q(conn_.db, "PRAGMA quick_check", name_);
       if (q.step()) result = q.text(0);
     } catch (const StoreError& e) {
       throw StoreError(std::string(e.what()) + " (corrupt or not a voxeld world)");
     }
     if (result != "ok") throw StoreError(name_ + ": corrupt: " + result);
-    Statement t(db_, "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'meta'",
-                name_);
+    Statement t(conn_.db,
+                "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'meta'", name_);
     if (!t.step() || t.int64(0) == 0) {
-      Statement any(db_, "SELECT COUNT(*) FROM sqlite_master", name_);
+      Statement any(conn_.db, "SELECT COUNT(*) FROM sqlite_master", name_);
       if (any.step() && any.int64(0) > 0) throw StoreError(name_ + ": not a voxeld world");
       return;  // an empty database file: made into a world
     }
@@ -244,8 +243,8 @@ class SqliteStore final : public WorldStore {
 
   void exec(const char* sql) {
     char* error = nullptr;
-    if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
-      const std::string why = error ? error : sqlite3_errmsg(db_);
+    if (sqlite3_exec(conn_.db, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+      const std::string why = error ? error : sqlite3_errmsg(conn_.db);
       sqlite3_free(error);
       throw StoreError(name_ + ": " + why);
     }
@@ -253,13 +252,13 @@ class SqliteStore final : public WorldStore {
 
   Meta read_meta() {
     Meta meta;
-    Statement q(db_, "SELECT key, value FROM meta", name_);
+    Statement q(conn_.db, "SELECT key, value FROM meta", name_);
     while (q.step()) meta[q.text(0)] = q.text(1);
     return meta;
   }
 
   void set_meta(const char* key, const std::string& value) {
-    Statement q(db_,
+    Statement q(conn_.db,
                 "INSERT INTO meta (key, value) VALUES (?, ?) "
                 "ON CONFLICT (key) DO UPDATE SET value = excluded.value",
                 name_);
@@ -268,7 +267,14 @@ class SqliteStore final : public WorldStore {
 
   std::filesystem::path file_;
   std::string name_;
-  sqlite3* db_ = nullptr;
+  // Closed by its destructor, so also when the constructor throws (a refused file).
+  struct Connection {
+    sqlite3* db = nullptr;
+    Connection() = default;
+    Connection(const Connection&) = delete;
+    Connection& operator=(const Connection&) = delete;
+    ~Connection() { sqlite3_close(db); }
+  } conn_;
 };
 
 }  // namespace
