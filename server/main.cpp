@@ -68,6 +68,7 @@ int main(int argc, char** argv) {
   int io_threads = 1, stats_seconds = 10;
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000,
        evict_after_s = 120;
+  double checkpoint_s = 10;
   po::options_description opts("voxeld options");
   opts.add_options()("help,h", "show this help")(
       "port", po::value<uint16_t>(&net.port)->default_value(7777), "TCP port (0: pick a free one)")(
@@ -84,6 +85,12 @@ int main(int argc, char** argv) {
                  "the world's directory (SQLite store; created on first start)")(
       "store", po::value<std::string>(&store_uri),
       "postgresql://... : keep the world in this PostgreSQL database instead of --world")(
+      "checkpoint-interval", po::value<double>(&checkpoint_s)->default_value(10),
+      "seconds between checkpoints of the changed chunks (sooner past 512 chunks or 50,000 "
+      "edits); a restart replays the log since the last one")(
+      "keep-log", po::bool_switch(&world.keep_log),
+      "keep every edit in the log (an audit trail; voxel-cli world log) instead of deleting "
+      "what a checkpoint includes")(
       "in-memory", po::bool_switch(&in_memory),
       "keep no world on disk: every edit is lost when voxeld stops (benchmarks)")(
       "threads", po::value<int>(&world.threads)->default_value(0),
@@ -119,7 +126,7 @@ int main(int argc, char** argv) {
       "frame-timeout-ms", po::value<long>(&frame_ms)->default_value(10000),
       "a started frame must complete within this")(
       "evict-after", po::value<long>(&evict_after_s)->default_value(120),
-      "seconds before an unused unmodified chunk is evicted")(
+      "seconds before an unused chunk (unmodified, or checkpointed) is evicted")(
       "max-view-radius", po::value<uint32_t>(&net.max_view_radius)->default_value(12),
       "largest view radius in chunks")("idle-timeout-ms",
                                        po::value<long>(&idle_ms)->default_value(60000),
@@ -147,11 +154,12 @@ int main(int argc, char** argv) {
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
   if (io_threads < 1 || io_threads > 64 || world.threads < 0 || idle_ms <= 0 || handshake_ms <= 0 ||
       write_ms <= 0 || frame_ms <= 0 || evict_after_s < 1 || metrics_port > 65535 ||
+      !(checkpoint_s >= 0.01 && checkpoint_s <= 86400) ||
       (vm.count("metrics-port") && metrics_port < 0) || net.max_view_radius > 32 ||
       net.max_clients < 1 || net.max_handshaking < 1) {
     std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, "
                  "--max-clients >= 1, "
-                 "--max-handshaking >= 1, timeouts > 0\n";
+                 "--max-handshaking >= 1, timeouts > 0, --checkpoint-interval 0.01..86400\n";
     return 2;
   }
   // The burst (8x) must hold one work unit, or no view of the address would ever load.
@@ -189,6 +197,7 @@ int main(int argc, char** argv) {
   net.write_timeout = std::chrono::milliseconds(write_ms);
   net.frame_timeout = std::chrono::milliseconds(frame_ms);
   world.evict_after = std::chrono::seconds(evict_after_s);
+  world.checkpoint.interval = std::chrono::milliseconds(static_cast<long>(checkpoint_s * 1000));
   if (net.max_per_address == 0)
     spdlog::warn("--max-per-address 0: one address may fill the server");
 #ifdef VOXEL_JEMALLOC
@@ -203,7 +212,7 @@ int main(int argc, char** argv) {
       net.set_view_rate);
 
   // The durable world: opened (and checked) before anything listens.
-  std::unique_ptr<vox::store::WorldStore> store;
+  std::unique_ptr<vox::store::WorldStore> store, checkpoint_store;
   const std::optional<uint64_t> given_seed =
       vm.count("seed") ? std::optional<uint64_t>(world.seed) : std::nullopt;
   if (!store_uri.empty() && !vox::store::is_postgres_uri(store_uri)) {
@@ -218,11 +227,15 @@ int main(int argc, char** argv) {
       store = vox::store::open_world_store(store_uri.empty() ? world_dir : store_uri,
                                            {.seed = given_seed, .new_world_seed = 1});
       world.seed = store->info().seed;
+      // Checkpoints are written on their own connection while edits are appended.
+      checkpoint_store = vox::store::open_world_store(store_uri.empty() ? world_dir : store_uri,
+                                                      {.seed = world.seed, .record_start = false});
     } catch (const std::exception& e) {
       std::cerr << "voxeld: " << e.what() << "\n";
       return 1;
     }
     world.store = store.get();
+    world.checkpoint_store = checkpoint_store.get();
   }
 
   try {
@@ -237,6 +250,12 @@ int main(int argc, char** argv) {
               counters.store_commit_wait.observe(waited_s);
               vox::net::ServerCounters::bump(counters.store_commits);
               counters.store_committed_edits.fetch_add(edits, std::memory_order_relaxed);
+            },
+        .checkpoint =
+            [&counters](double s, size_t, size_t bytes, bool ok) {
+              if (!ok) return;
+              counters.checkpoint_duration.observe(s);
+              counters.checkpoint_bytes.fetch_add(bytes, std::memory_order_relaxed);
             }};
     // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
     // sessions they hold, which hold nothing of the Server), then the pipeline (sessions

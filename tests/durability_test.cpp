@@ -143,8 +143,44 @@ TEST(Durability, ACleanStopKeepsEveryEditAndExitsZero) {
     apply_all(s, edits);
     EXPECT_EQ(s.terminate(), 0);
   }
+  {  // The stop wrote a checkpoint of everything: nothing is left to replay.
+    auto store = store::open_world_store(world.string(), {.read_only = true});
+    const store::WorldInfo info = store->info();
+    EXPECT_EQ(info.checkpoint_seq, edits.size());
+    EXPECT_EQ(info.logged_edits, 0u);
+    EXPECT_GT(info.modified_chunks, 0u);
+  }
   ServerProcess s({"--world", world.string()});
   EXPECT_TRUE(world_seen(s) == fresh_world_after(edits));
+  fs::remove_all(world);
+}
+
+// Checkpoints every 50 ms while the edits come (each trims the log it includes): the world
+// after kill -9 is the checkpoints plus the rest of the log, byte-identical all the same.
+TEST(Durability, KillNineBetweenCheckpointsLosesNothingTheLogNoLongerHolds) {
+  const fs::path world = temp_world("checkpoints");
+  const auto edits = some_edits();
+  {
+    ServerProcess s({"--world", world.string(), "--checkpoint-interval", "0.05"});
+    auto c = player(s, "editor");
+    for (const auto& e : edits) {
+      const auto r = edit_and_wait(*c, e);
+      ASSERT_TRUE(r && r->edit_result().status() == wire::EditResult::ACCEPTED);
+      std::this_thread::sleep_for(30ms);
+    }
+  }  // SIGKILL right after the last ACCEPTED
+  {
+    auto store = store::open_world_store(world.string(), {.read_only = true});
+    const store::WorldInfo info = store->info();
+    EXPECT_GT(info.checkpoint_seq, 0u) << "no checkpoint was written";
+    EXPECT_LT(info.logged_edits, edits.size()) << "no checkpoint trimmed the log";
+  }
+  std::map<client::ChunkKey, std::vector<uint8_t>> restarted;
+  {
+    ServerProcess s({"--world", world.string()});
+    restarted = world_seen(s);
+  }
+  EXPECT_TRUE(restarted == fresh_world_after(edits));
   fs::remove_all(world);
 }
 
@@ -235,7 +271,9 @@ TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
   std::mt19937 rng(20261201);
   int counter = 0;
   for (int round = 0; round < 5; ++round) {
-    ServerProcess s({"--world", world.string()});
+    // Checkpoints every 50 ms, so that kills land during them too; the log is kept whole
+    // so that every acknowledged edit can be looked for in it.
+    ServerProcess s({"--world", world.string(), "--keep-log", "--checkpoint-interval", "0.05"});
     std::vector<std::thread> clients;
     for (int k = 0; k < 3; ++k) {
       clients.emplace_back([&, k, base = counter + 1000 * k] {
@@ -276,6 +314,8 @@ TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
   }
   size_t lost = 0;
   for (const auto& c : acknowledged) lost += in_log.count(c) ? 0 : 1;
+  EXPECT_GT(store::open_world_store(world.string(), {.read_only = true})->info().checkpoint_seq, 0u)
+      << "no checkpoint was written";
   EXPECT_EQ(lost, 0u) << "of " << acknowledged.size() << " acknowledged edits";
   RecordProperty("acknowledged", static_cast<int>(acknowledged.size()));
   RecordProperty("logged", static_cast<int>(logged.size()));

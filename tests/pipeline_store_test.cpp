@@ -3,7 +3,9 @@
 // STORAGE_UNAVAILABLE, the world stays as it was, and edits are accepted again once the
 // store works. A real PostgreSQL server is stopped and started under it.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <filesystem>
 #include <thread>
 
 #include "server/pipeline/world_pipeline.hpp"
@@ -62,6 +64,106 @@ TEST(PipelineStore, EditsTheStoreCouldNotWriteAreUndoneAndRefusedUntilItIsBack) 
   });
   ASSERT_EQ(seqs.size(), 2u);
   EXPECT_LT(seqs[0], seqs[1]);
+}
+
+// Polls `done` every 10 ms for up to `limit`.
+template <typename F>
+bool eventually(F done, std::chrono::milliseconds limit = 10s) {
+  for (auto end = std::chrono::steady_clock::now() + limit; std::chrono::steady_clock::now() < end;
+       std::this_thread::sleep_for(10ms)) {
+    if (done()) return true;
+  }
+  return done();
+}
+
+std::filesystem::path temp_world(const std::string& tag) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("voxel_pstore_" + std::to_string(::getpid()) + "_" + tag);
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+// Edits over chunk borders, a smooth among them (it reads its neighbours' samples).
+std::vector<world::Edit> border_edits(int y) {
+  const float fy = static_cast<float>(y);
+  return {world::Explosion{{30, fy, 30}, 6, 1.2f}, world::Smooth{{33, fy - 2, 31}, 5, 0.5f},
+          world::Brush{{20, fy + 1, 34}, 4, 0.7f, true, std::nullopt},
+          world::Explosion{{12, fy, 12}, 5, 1}};
+}
+
+// A checkpointed chunk may be evicted like any other; read back, it is what it was, and
+// edits go on from it exactly as on a world that never evicted it.
+TEST(PipelineStore, CheckpointedChunksAreEvictedAndReadBackUnchanged) {
+  const auto dir = temp_world("evict");
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  auto cp = store::open_world_store(dir.string(), {.seed = 3, .record_start = false});
+  WorldPipeline p(PipelineConfig{.seed = 3,
+                                 .threads = 2,
+                                 .evict_after = 200ms,
+                                 .evict_min_age = 1ms,
+                                 .store = store.get(),
+                                 .checkpoint_store = cp.get(),
+                                 .checkpoint = {.interval = 20ms}});
+  WorldPipeline memory(PipelineConfig{.seed = 3, .threads = 2});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  const mesh::ChunkBox box{{-1, y / 32 - 1, -1}, {2, y / 32 + 1, 2}};
+  p.load(box).get();
+  memory.load(box).get();
+  for (const world::Edit& e : border_edits(y)) {
+    ASSERT_TRUE(p.submit(e).get().accepted);
+    ASSERT_TRUE(memory.submit(e).get().accepted);
+  }
+  const auto before = samples_around(p, 24, y, 24, 14);
+  const world::ChunkCoord edited{0, y / 32, 0};
+  const std::vector<uint8_t> mesh_before = p.meshes().get(edited)->encoding;
+
+  ASSERT_TRUE(eventually([&] {
+    const PipelineStats s = p.stats();
+    return s.unsaved_chunks == 0 && s.modified_chunks == 0;
+  })) << "checkpointed chunks were not evicted";
+  EXPECT_GT(p.stats().stored_chunks, 0u);
+  EXPECT_EQ(store->info().logged_edits, 0u) << "the checkpoint did not trim the log";
+
+  p.load(box).get();
+  EXPECT_EQ(samples_around(p, 24, y, 24, 14), before);
+  EXPECT_EQ(p.meshes().get(edited)->encoding, mesh_before);
+  const world::Edit next = world::Smooth{{31, static_cast<float>(y), 32}, 6, 0.8f};
+  ASSERT_TRUE(p.submit(next).get().accepted);
+  ASSERT_TRUE(memory.submit(next).get().accepted);
+  EXPECT_EQ(samples_around(p, 24, y, 24, 14), samples_around(memory, 24, y, 24, 14));
+  p.stop();
+  std::filesystem::remove_all(dir);
+}
+
+// A checkpoint the store refuses (here the last one, at stop) loses nothing: the log still
+// has the edits, and the next start replays them and checkpoints them.
+TEST(PipelineStore, ACheckpointTheStoreRefusedLosesNothing) {
+  test::PostgresServer server;
+  auto store = store::open_world_store(server.create_database("checkpoint"), {.seed = 3});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  const mesh::ChunkBox box{{-1, y / 32 - 1, -1}, {2, y / 32 + 1, 2}};
+  const PipelineConfig config{
+      .seed = 3, .threads = 2, .store = store.get(), .checkpoint = {.interval = 1h}};
+  std::vector<world::Sample> before;
+  {
+    WorldPipeline p(config);
+    p.load(box).get();
+    for (const world::Edit& e : border_edits(y)) ASSERT_TRUE(p.submit(e).get().accepted);
+    before = samples_around(p, 24, y, 24, 14);
+    server.stop();
+    p.stop();
+    EXPECT_EQ(p.stats().checkpoint_failures, 1u);
+    EXPECT_GT(p.stats().unsaved_chunks, 0u);
+  }
+  server.start();
+  WorldPipeline p(config);
+  p.load(box).get();
+  EXPECT_EQ(samples_around(p, 24, y, 24, 14), before);
+  p.stop();
+  EXPECT_EQ(p.stats().checkpoints, 1u);
+  const store::WorldInfo info = store->info();
+  EXPECT_EQ(info.checkpoint_seq, border_edits(y).size());
+  EXPECT_EQ(info.logged_edits, 0u);
 }
 
 }  // namespace

@@ -116,6 +116,11 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     counter(out, "voxeld_store_failures_total",
             "Appends that failed (their edits refused STORAGE_UNAVAILABLE)",
             double(c_.store_failures.load()));
+    out.push_back(histogram("voxeld_checkpoint_seconds",
+                            "A checkpoint: compressing the changed chunks and writing them",
+                            c_.checkpoint_duration));
+    counter(out, "voxeld_checkpoint_bytes_total", "Chunk records written by checkpoints",
+            double(c_.checkpoint_bytes.load()));
     return out;
   }
 
@@ -187,8 +192,18 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
           double(s.meshes_waiting));
     gauge(out, "voxeld_edits_queued", "Edits waiting for the next batch", double(s.queued_edits));
     gauge(out, "voxeld_chunks_loaded", "Chunks in memory", double(s.loaded_chunks));
-    gauge(out, "voxeld_chunks_modified", "Chunks changed by edits (never evicted)",
+    gauge(out, "voxeld_chunks_modified", "Resident chunks changed by edits",
           double(s.modified_chunks));
+    gauge(out, "voxeld_chunks_unsaved",
+          "Chunks changed since the last checkpoint (never evicted; their edits are in the log)",
+          double(s.unsaved_chunks));
+    gauge(out, "voxeld_chunks_stored", "Chunks the world store has a checkpoint of",
+          double(s.stored_chunks));
+    counter(out, "voxeld_checkpoints_total", "Checkpoints written", double(s.checkpoints));
+    counter(out, "voxeld_checkpoint_failures_total", "Checkpoints the store refused",
+            double(s.checkpoint_failures));
+    gauge(out, "voxeld_checkpoint_sequence", "The newest checkpoint includes every edit to this",
+          double(s.checkpoint_seq));
     gauge(out, "voxeld_meshes_loaded", "Published meshes in the store", double(s.mesh_count));
     auto accounted =
         family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);

@@ -42,6 +42,8 @@ struct ServerCounters {
   LatencyHistogram store_commit;       // a batch's append to the world store
   LatencyHistogram store_commit_wait;  // what the batch waited for it beyond its re-meshing
   Counter store_commits{0}, store_committed_edits{0}, store_failures{0};
+  LatencyHistogram checkpoint_duration;  // a checkpoint's compression and transaction
+  Counter checkpoint_bytes{0};           // chunk records written by checkpoints
 
   static void bump(Counter& c) { c.fetch_add(1, std::memory_order_relaxed); }
 };

@@ -58,7 +58,17 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
                  config_.load_work_per_address, config_.load_burst_per_address),
       state_(std::make_unique<WorldState>(config_.threads)) {
-  if (config_.store) restore_from_store();  // before any thread: may throw StoreError
+  if (config_.store) {
+    state_->read_stored = [this](ChunkCoord c) { return read_stored_chunk(c); };
+    restore_from_store();  // before any thread: may throw StoreError
+    store::WorldStore& cp = config_.checkpoint_store ? *config_.checkpoint_store : *config_.store;
+    checkpointer_ =
+        std::make_unique<CheckpointWriter>(cp, config_.checkpoint_store != nullptr, [this] {
+          { std::lock_guard lock(queue_mutex_); }  // the pipeline is waiting, or will look
+          queue_cv_.notify_one();
+        });
+    checkpoint_policy_.emplace(config_.checkpoint, Clock::now());
+  }
   const int generate_threads =
       config_.generate_threads >= 0
           ? config_.generate_threads
@@ -195,7 +205,8 @@ void WorldPipeline::stop() {
   }
   queue_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
-  prefetcher_.reset();  // its threads notify queue_cv_: stopped before the members go
+  checkpointer_.reset();  // after the final checkpoint; it notifies queue_cv_
+  prefetcher_.reset();    // its threads notify queue_cv_: stopped before the members go
 }
 
 // Pipeline thread, under queue_mutex_. Loads whose pass the memory budget cuts to nothing
@@ -217,15 +228,18 @@ void WorldPipeline::run() {
         // Idle: wake now and then to evict idle chunks. Loads waiting for memory: retry
         // eviction more often (sessions release meshes). Loads waiting for their owners'
         // budgets: look again soon.
-        const auto wait =
+        auto wait =
             !scheduler_.has_loads()
                 ? std::chrono::duration_cast<std::chrono::milliseconds>(config_.evict_after / 4)
             : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
                                                              : kBudgetRetry;
+        // Unsaved chunks: wake for their checkpoint (and a finished one wakes us).
+        if (!unsaved_.empty()) wait = std::min(wait, config_.checkpoint.interval);
         queue_cv_.wait_for(lock, wait);
         take_view_updates();
         lock.unlock();
         manage_memory(Clock::now());
+        checkpoint_if_due(Clock::now());
         lock.lock();
       }
       if (stopping_) break;
@@ -250,6 +264,7 @@ void WorldPipeline::run() {
       stats_.batches += 1;
     }
     manage_memory(Clock::now());
+    checkpoint_if_due(Clock::now());
     const double took = seconds_since(now);
     if (observer_.batch) observer_.batch(took, ordered.size(), plan.to_mesh.size());
     if (took > std::chrono::duration<double>(kSlowBatch).count()) {
@@ -261,6 +276,7 @@ void WorldPipeline::run() {
     }
   }
   drain_after_stop();
+  final_checkpoint();
 }
 
 void WorldPipeline::drain_after_stop() {
@@ -351,7 +367,12 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     if (!budget_.may_generate(resident_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
-  result.chunks_generated = st.ensure_loaded(wanted, generator_, now);
+  try {
+    result.chunks_generated = st.ensure_loaded(wanted, generator_, now);
+  } catch (const store::StoreError& e) {  // a checkpointed chunk could not be read back
+    note_store_read(e.what());
+    return world::RefusalReason::kStorageUnavailable;
+  }
 
   std::optional<world::SampleSnapshot> snapshot;
   if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
@@ -364,7 +385,11 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   for (size_t i = 0; i < touched.size(); ++i) {
     targets[i] = st.chunks.find(touched[i]);
     was_uniform[i] = targets[i]->is_uniform();
-    if (undo) undo->chunks.try_emplace(touched[i], *targets[i], st.info.at(touched[i]).modified);
+    if (undo) {
+      const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
+      undo->chunks.try_emplace(touched[i],
+                               Undo::Saved{*targets[i], i_info.modified, i_info.unsaved});
+    }
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
   if (touched.size() == 1) {
@@ -378,9 +403,10 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     st.chunks.note_changed(was_uniform[i] != 0, *targets[i]);
     result.chunks_expanded += was_uniform[i] && !targets[i]->is_uniform() ? 1 : 0;
     if (!changed[i].changed) continue;
-    bool& modified = st.info.at(touched[i]).modified;
-    st.modified_count += modified ? 0 : 1;
-    modified = true;
+    WorldState::ChunkInfo& info = st.info.at(touched[i]);
+    st.modified_count += info.modified ? 0 : 1;
+    info.modified = info.unsaved = true;
+    if (config_.store) unsaved_.insert(touched[i]);
     world::append_dirty_chunks(touched[i], changed[i], dirty_here);
   }
   for (const ChunkCoord& c : dirty_here) {
@@ -492,6 +518,8 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       results[t].message =
           refused == world::RefusalReason::kServerBusy
               ? "the server's memory budget is full: edits needing new terrain are refused"
+          : refused == world::RefusalReason::kStorageUnavailable
+              ? kStorageMessage
               : "your edits made the server generate too much terrain at once";
       ++delta.edits_refused;
       delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
@@ -527,6 +555,8 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
     delta.edits_refused += accepted.size();
     dirty.clear();
     fresh.clear();
+  } else {
+    unsaved_edits_ += accepted.size();
   }
   const std::vector<ChunkCoord> published = publish(dirty, fresh, &edited_at);
   const CoordSet published_set(published.begin(), published.end());

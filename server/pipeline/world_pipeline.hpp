@@ -15,6 +15,7 @@
 #include <future>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <unordered_map>
 #include <unordered_set>
@@ -22,6 +23,8 @@
 
 #include "server/mesh/region_mesher.hpp"
 #include "server/pipeline/batch_scheduler.hpp"
+#include "server/pipeline/checkpoint_policy.hpp"
+#include "server/pipeline/checkpoint_writer.hpp"
 #include "server/pipeline/memory_budget.hpp"
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/terrain_prefetcher.hpp"
@@ -44,8 +47,9 @@ struct PipelineConfig {
   // takes only the smaller budget.
   size_t load_pass_work = 192;
   size_t load_pass_work_while_edits_wait = 48;
-  // Unmodified chunks unused this long (and whose mesh no one else holds) are dropped;
-  // they regenerate from the seed. Modified chunks stay.
+  // Saved chunks unused this long (and whose mesh no one else holds) are dropped: they
+  // regenerate from the seed, or are read back from the store. Modified chunks the store
+  // does not have yet stay.
   std::chrono::milliseconds evict_after{std::chrono::minutes(2)};
   // Chunks used more recently than this are never evicted, even over the memory budget.
   std::chrono::milliseconds evict_min_age{std::chrono::seconds(1)};
@@ -71,8 +75,16 @@ struct PipelineConfig {
   // The durable world (null: edits live in memory only). The pipeline restores the world
   // from it when constructed and, from then on, is its only user: each batch's accepted
   // edits are appended in one transaction, durable before any result or mesh of the batch
-  // is published. It must outlive the pipeline.
+  // is published; checkpointed chunks are read back from it. It must outlive the pipeline.
   store::WorldStore* store = nullptr;
+  // A second connection to the same world for checkpoints, written in the background
+  // while edits go on (null: written between batches on the pipeline thread, with
+  // `store`). It must outlive the pipeline.
+  store::WorldStore* checkpoint_store = nullptr;
+  CheckpointLimits checkpoint;
+  // Checkpoints leave the log whole (an audit trail of every edit) instead of deleting
+  // what they include.
+  bool keep_log = false;
   // After a failed append, edits are refused kStorageUnavailable without trying the store
   // again for this long.
   std::chrono::milliseconds store_retry{1000};
@@ -100,6 +112,10 @@ struct PipelineStats {
   size_t other_bytes = 0;  // reported by set_other_bytes (sessions)
   size_t accounted_bytes = 0;  // chunks + meshes + other
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
+  // The durable world: chunks the store has a checkpoint of, resident chunks changed since
+  // (not evictable), checkpoints written, and the newest one's sequence number.
+  size_t stored_chunks = 0, unsaved_chunks = 0;
+  uint64_t checkpoints = 0, checkpoint_failures = 0, checkpoint_seq = 0;
 };
 
 // Durations the pipeline measures, for metrics. Called on the pipeline thread; must not
@@ -110,6 +126,8 @@ struct PipelineObserver {
   // A batch's append to the store: how long the commit took, how much longer than the
   // re-meshing it overlapped the batch waited for it, its edits, and whether it failed.
   std::function<void(double commit_s, double waited_s, size_t edits, bool ok)> commit;
+  // A checkpoint written (or failed): how long, how many chunks, their bytes.
+  std::function<void(double seconds, size_t chunks, size_t bytes, bool ok)> checkpoint;
 };
 
 class WorldPipeline {
@@ -153,7 +171,8 @@ class WorldPipeline {
   void set_other_bytes(size_t bytes) { other_bytes_.store(bytes, std::memory_order_relaxed); }
   const PipelineConfig& config() const { return config_; }
   // Finishes the batch in flight, refuses queued edits (kShuttingDown), runs queued load
-  // callbacks, joins the thread. Idempotent.
+  // callbacks, writes a checkpoint of every unsaved chunk (with a store), joins the
+  // thread. Idempotent.
   void stop();
 
  private:
@@ -165,8 +184,11 @@ class WorldPipeline {
   // Pre-edit copies of the chunks a batch's edits changed, to undo the batch when the
   // store could not make it durable (pipeline thread).
   struct Undo {
-    std::unordered_map<world::ChunkCoord, std::pair<world::Chunk, bool>, world::ChunkCoordHash>
-        chunks;  // the chunk and its `modified` flag before the batch
+    struct Saved {
+      world::Chunk chunk;
+      bool modified, unsaved;  // its flags before the batch
+    };
+    std::unordered_map<world::ChunkCoord, Saved, world::ChunkCoordHash> chunks;
   };
   // Chunks one eviction pass under memory pressure looks at (about 1 ms): a batch never
   // stalls on a scan of the whole world.
@@ -210,8 +232,20 @@ class WorldPipeline {
   // `work` runs here; returns the store's error, empty when durable.
   std::string commit_while(const std::vector<const world::Edit*>& accepted,
                            const std::function<void()>& work);
-  // Constructor: loads the stored chunks and replays the log after their checkpoint.
+  // Constructor: learns which chunks are stored and replays the log after their
+  // checkpoint (loading the chunks it touches).
   void restore_from_store();
+  // Pipeline thread: takes a finished checkpoint's result; starts the next one when due.
+  void checkpoint_if_due(Clock::time_point now);
+  void start_checkpoint(Clock::time_point now);
+  void finish_checkpoint(const CheckpointResult& r, Clock::time_point now);
+  void final_checkpoint();  // at stop: everything unsaved, waited for
+  // Reads a checkpointed chunk from the store (throws StoreError: unreadable, or does not
+  // decode); note_store_read logs a failure once until a read works again.
+  world::Chunk read_stored_chunk(world::ChunkCoord c);
+  void note_store_read(const std::string& error);
+  // Reads a stored chunk a mesh waits for; false (logged) when the store fails.
+  bool try_load_stored(world::ChunkCoord c, Clock::time_point now);
   void drain_after_stop();
   void manage_memory(Clock::time_point now);
   size_t accounted_bytes() const;  // pipeline thread
@@ -263,6 +297,15 @@ class WorldPipeline {
   uint64_t next_seq_ = 1;               // the next logged edit's sequence number; pipeline thread
   Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
   bool store_failing_ = false;          // the last append failed (logged once); pipeline thread
+  bool store_read_failing_ = false;     // the last chunk read failed (logged once); pipeline thread
+  std::string last_read_error_;         // pipeline thread
+  // Checkpoints (with a store; pipeline thread): resident chunks with info.unsaved, edits
+  // applied since the last checkpoint started (restored when it fails).
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> unsaved_;
+  uint64_t unsaved_edits_ = 0, checkpoint_edits_ = 0;
+  std::optional<CheckpointPolicy> checkpoint_policy_;
+  bool checkpoint_failing_ = false;
+  std::unique_ptr<CheckpointWriter> checkpointer_;  // reset by stop() once thread_ has ended
   std::thread thread_;
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
 };

@@ -21,6 +21,7 @@ constexpr size_t kMeshWork = 1;
 // taken while earlier ones wait for terrain do not overrun the memory budget.
 size_t WorldPipeline::accounted_bytes() const {
   return resident_bytes() + prefetcher_->memory_bytes() +
+         (checkpointer_ ? checkpointer_->memory_bytes() : 0) +
          waiting_meshes_.size() * MemoryBudget::kBytesPerMesh;
 }
 
@@ -30,7 +31,7 @@ size_t WorldPipeline::resident_bytes() const {
 }
 
 bool WorldPipeline::needs_generating(ChunkCoord c) const {
-  return !state_->info.count(c) && !prefetcher_->pending(c);
+  return !state_->info.count(c) && !state_->stored.count(c) && !prefetcher_->pending(c);
 }
 
 size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
@@ -96,7 +97,7 @@ size_t WorldPipeline::install_generated(Clock::time_point now) {
   WorldState& st = *state_;
   size_t installed = 0;
   for (auto& [c, chunk] : prefetcher_->take_ready()) {
-    if (st.info.count(c) || !st.pins.count(c)) continue;
+    if (st.info.count(c) || !st.pins.count(c) || st.stored.count(c)) continue;
     st.chunks.insert(c, std::move(chunk));
     st.info[c] = {.last_used = now};
     ++installed;
@@ -121,8 +122,11 @@ std::vector<ChunkCoord> WorldPipeline::take_meshable(Clock::time_point now, Pipe
             it->second.last_used = now;  // kept until the mesh is made
             continue;
           }
+          // Checkpointed: read back here (a store that fails is tried again next pass).
+          if (st.stored.count(n) && try_load_stored(n, now)) continue;
           complete = false;
-          if (asked.insert(n).second && !prefetcher_->pending(n)) missing.push_back(n);
+          if (!st.stored.count(n) && asked.insert(n).second && !prefetcher_->pending(n))
+            missing.push_back(n);
         }
     if (!complete) return false;
     meshable.push_back(w.coord);
@@ -211,6 +215,7 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
     std::lock_guard lock(stats_mutex_);
     stats_.chunks_evicted += dropped;
     stats_.loaded_chunks = st.chunks.size();
+    stats_.modified_chunks = st.modified_count;
     stats_.chunk_bytes = st.chunks.memory_bytes();
   }
   // Blocked: no room even once the terrain on its way has landed (while it is on its way,

@@ -21,37 +21,25 @@ double seconds_since(Clock::time_point t) {
 
 }  // namespace
 
-// The world as the store has it: every checkpointed chunk, then the log after the
-// checkpoint applied in order, exactly as the batches applied it (so the densities are
-// bit-identical). Eager: the chunks are resident from the start (modified chunks are
-// never evicted).
+// The world as the store has it: the checkpointed chunks (read when first needed), then
+// the log after the checkpoint applied in order, exactly as the batches applied it (so the
+// densities are bit-identical). The chunks the replay changed are unsaved: the next
+// checkpoint writes them.
 void WorldPipeline::restore_from_store() {
   store::WorldStore& store = *config_.store;
   WorldState& st = *state_;
   const Clock::time_point start = Clock::now();
   const store::WorldInfo info = store.info();
-  std::vector<ChunkCoord> coords;
-  store.for_each_chunk([&coords](ChunkCoord c, uint64_t) { coords.push_back(c); });
-  for (const ChunkCoord& c : coords) {
-    const auto record = store.read_chunk(c);
-    if (!record) continue;
-    std::string why;
-    auto chunk = store::decode_chunk(record->samples, &why);
-    if (!chunk) {
-      throw store::StoreError(
-          fmt::format("{}: chunk ({}, {}, {}): {}", store.name(), c.x, c.y, c.z, why));
-    }
-    st.chunks.insert(c, std::move(*chunk));
-    auto& i = st.info[c];
-    i.modified = true;
-    i.last_used = start;
-    ++st.modified_count;
-  }
+  store.for_each_chunk([&st](ChunkCoord c, uint64_t) { st.stored.insert(c); });
   uint64_t replayed = 0, last = info.checkpoint_seq;
   store.for_each_edit(info.checkpoint_seq, [&](const store::LoggedEdit& e) {
     std::vector<ChunkCoord> dirtied;  // nothing is meshed yet
     EditResult ignored;
     const auto refused = apply_edit_task(e.edit, start, SIZE_MAX, dirtied, ignored);
+    if (refused == world::RefusalReason::kStorageUnavailable) {
+      throw store::StoreError(fmt::format("{}: replaying edit {}: a checkpointed chunk: {}",
+                                          store.name(), e.seq, last_read_error_));
+    }
     if (refused != world::RefusalReason::kNone) {
       throw store::StoreError(fmt::format(
           "{}: logged edit {} cannot be applied again ({}); is --max-memory smaller than the "
@@ -63,12 +51,51 @@ void WorldPipeline::restore_from_store() {
     return true;
   });
   next_seq_ = std::max(info.last_seq, last) + 1;
+  unsaved_edits_ = replayed;
   stats_.modified_chunks = st.modified_count;
   stats_.loaded_chunks = st.chunks.size();
   stats_.chunk_bytes = st.chunks.memory_bytes();
+  stats_.stored_chunks = st.stored.size();
+  stats_.unsaved_chunks = unsaved_.size();
+  stats_.checkpoint_seq = info.checkpoint_seq;
   spdlog::info(
       "world: {} (seed {}, start {}): {} stored chunks, {} logged edits replayed in {:.0f} ms",
-      store.name(), info.seed, info.starts, coords.size(), replayed, seconds_since(start) * 1000);
+      store.name(), info.seed, info.starts, st.stored.size(), replayed,
+      seconds_since(start) * 1000);
+}
+
+world::Chunk WorldPipeline::read_stored_chunk(ChunkCoord c) {
+  store::WorldStore& store = *config_.store;
+  const auto record = store.read_chunk(c);
+  std::string why = "missing from the store";
+  auto chunk = record ? store::decode_chunk(record->samples, &why) : std::nullopt;
+  if (!chunk) {
+    throw store::StoreError(
+        fmt::format("{}: chunk ({}, {}, {}): {}", store.name(), c.x, c.y, c.z, why));
+  }
+  if (store_read_failing_) {
+    store_read_failing_ = false;
+    spdlog::info("world store: reading chunks again");
+  }
+  return std::move(*chunk);
+}
+
+void WorldPipeline::note_store_read(const std::string& error) {
+  last_read_error_ = error;
+  if (!store_read_failing_) {
+    spdlog::error("world store: {}; what needs the chunk waits until it can be read", error);
+  }
+  store_read_failing_ = true;
+}
+
+bool WorldPipeline::try_load_stored(ChunkCoord c, Clock::time_point now) {
+  try {
+    state_->load_stored(c, now);
+    return true;
+  } catch (const store::StoreError& e) {
+    note_store_read(e.what());
+    return false;
+  }
 }
 
 std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& accepted,
@@ -118,11 +145,13 @@ void WorldPipeline::roll_back(Undo& undo) {
     world::Chunk* chunk = st.chunks.find(coord);
     if (!chunk) continue;  // cannot happen: a batch evicts nothing it touched
     const bool was_uniform = chunk->is_uniform();
-    *chunk = std::move(saved.first);
+    *chunk = std::move(saved.chunk);
     st.chunks.note_changed(was_uniform, *chunk);
-    bool& modified = st.info.at(coord).modified;
-    if (modified && !saved.second) --st.modified_count;
-    modified = saved.second;
+    WorldState::ChunkInfo& info = st.info.at(coord);
+    if (info.modified && !saved.modified) --st.modified_count;
+    info.modified = saved.modified;
+    info.unsaved = saved.unsaved;
+    if (!saved.unsaved) unsaved_.erase(coord);
   }
   undo.chunks.clear();
 }

@@ -10,6 +10,12 @@ using world::ChunkCoord;
 
 WorldState::WorldState(int threads) : arena(arena_concurrency(threads)) {}
 
+void WorldState::load_stored(ChunkCoord c, Clock::time_point now) {
+  chunks.insert(c, read_stored(c));
+  info[c] = {.modified = true, .last_used = now};
+  ++modified_count;
+}
+
 size_t WorldState::ensure_loaded(const std::vector<ChunkCoord>& coords,
                                  const world::TerrainGenerator& gen, Clock::time_point now) {
   std::map<std::pair<int32_t, int32_t>, std::vector<int32_t>> columns;
@@ -17,6 +23,10 @@ size_t WorldState::ensure_loaded(const std::vector<ChunkCoord>& coords,
     auto it = info.find(c);
     if (it != info.end()) {
       it->second.last_used = now;
+      continue;
+    }
+    if (stored.count(c)) {
+      load_stored(c, now);
       continue;
     }
     columns[{c.x, c.z}].push_back(c.y);
@@ -79,8 +89,8 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   for (size_t seen = 0; seen < buckets && scanned < max_scan; ++seen, b = (b + 1) % buckets) {
     for (auto it = info.begin(b); it != info.end(b); ++it, ++scanned) {
       const auto& [c, chunk_info] = *it;
-      if (chunk_info.modified || now - chunk_info.last_used < min_age || views.viewed(c) ||
-          pins.count(c)) {
+      if (chunk_info.unsaved || chunk_info.checkpointing || now - chunk_info.last_used < min_age ||
+          views.viewed(c) || pins.count(c)) {
         continue;
       }
       const MeshVersionPtr mesh = meshes.get(c);
@@ -97,7 +107,9 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
     const bool idle_long = now - victim.used >= idle;
     if (!idle_long && chunks.memory_bytes() + meshes.memory_bytes() <= target_bytes) break;
     chunks.erase(victim.coord);
-    info.erase(victim.coord);
+    auto it = info.find(victim.coord);
+    modified_count -= it->second.modified ? 1 : 0;
+    info.erase(it);
     meshes.erase(victim.coord);
     ++dropped;
   }

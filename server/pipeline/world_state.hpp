@@ -7,9 +7,11 @@
 #include <tbb/task_arena.h>
 
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "proto/mesh_codec.hpp"
@@ -36,7 +38,10 @@ struct WorldState {
   explicit WorldState(int threads);
 
   struct ChunkInfo {
-    bool modified = false;
+    bool modified = false;  // differs from the generated terrain
+    // Changed since the last checkpoint; or being written by one. Either keeps it resident
+    // (the store does not have it yet); a modified chunk without them may be evicted.
+    bool unsaved = false, checkpointing = false;
     bool meshed = false;  // its mesh is in the store (so its neighbours were loaded)
     Clock::time_point last_used;
   };
@@ -46,7 +51,11 @@ struct WorldState {
   tbb::enumerable_thread_specific<std::unique_ptr<MeshWorker>> workers{
       [] { return std::make_unique<MeshWorker>(); }};
   uint64_t next_version = 1;
-  size_t modified_count = 0;  // chunks with info.modified
+  size_t modified_count = 0;  // resident chunks with info.modified
+  // Chunks the store has a checkpoint of (resident or not): loaded from it, never
+  // generated. `read_stored` reads one (throws store::StoreError).
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> stored;
+  std::function<world::Chunk(world::ChunkCoord)> read_stored;
   // Surface heights of the columns generated during one load pass.
   std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
   Clock::time_point last_eviction = Clock::now();
@@ -57,15 +66,17 @@ struct WorldState {
   void pin_neighbourhood(world::ChunkCoord c);
   void unpin_neighbourhood(world::ChunkCoord c);
 
+  // Loads a missing stored chunk from the store (modified, saved). Throws StoreError.
+  void load_stored(world::ChunkCoord c, Clock::time_point now);
   // Generates every chunk of `coords` that is missing, in parallel over columns so each
-  // column's surface heights are computed once; marks present ones used. Returns the number
-  // generated.
+  // column's surface heights are computed once (stored ones are read from the store: may
+  // throw StoreError); marks present ones used. Returns the number generated.
   size_t ensure_loaded(const std::vector<world::ChunkCoord>& coords,
                        const world::TerrainGenerator& gen, Clock::time_point now);
 
-  // Drops unmodified chunks (and their meshes) that are in no view and whose mesh no one
-  // but the store holds, least recently used first: every one unused for `idle`, then
-  // more until the chunks and meshes take at most `target_bytes`. A chunk used within
+  // Drops saved chunks (unmodified, or modified and checkpointed; and their meshes) that are in no
+  // view and whose mesh no one but the store holds, least recently used first: every one unused for
+  // `idle`, then more until the chunks and meshes take at most `target_bytes`. A chunk used within
   // `min_age` always stays. Returns the number dropped.
   // Looks at most `max_scan` chunks, continuing where the last call stopped (a pass under
   // memory pressure must not stall a batch on a scan of the whole world).

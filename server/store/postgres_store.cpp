@@ -64,7 +64,8 @@ class PostgresStore final : public WorldStore {
           meta.contains(schema::kMetaStarts)
               ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
               : 0;
-      t.exec_params(kUpsertMeta, schema::kMetaStarts, std::to_string(starts + 1));
+      if (options_.record_start)
+        t.exec_params(kUpsertMeta, schema::kMetaStarts, std::to_string(starts + 1));
       t.commit();
     });
   }

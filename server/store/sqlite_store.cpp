@@ -105,7 +105,7 @@ class SqliteStore final : public WorldStore {
         meta.contains(schema::kMetaStarts)
             ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
             : 0;
-    set_meta(schema::kMetaStarts, std::to_string(starts + 1));
+    if (options.record_start) set_meta(schema::kMetaStarts, std::to_string(starts + 1));
     exec("COMMIT");
   }
 

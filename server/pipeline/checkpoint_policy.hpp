@@ -1,0 +1,51 @@
+// When the pipeline writes a checkpoint of the chunks its edits changed: a pure policy
+// (no clock, no I/O), so it is unit-tested alone. A checkpoint is due when there is
+// something unsaved and one of three bounds is reached: time since the last one (what a
+// restart must replay stays short), unsaved chunks (what a checkpoint copies and writes
+// stays bounded), or logged edits since the last one (the log stays short). One at a time;
+// after a failure the store rests `retry` before the next try. Pipeline thread only.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+
+namespace vox::pipeline {
+
+struct CheckpointLimits {
+  std::chrono::milliseconds interval{std::chrono::seconds(10)};
+  size_t max_unsaved_chunks = 512;
+  uint64_t max_unsaved_edits = 50000;
+  std::chrono::milliseconds retry{std::chrono::seconds(5)};
+};
+
+class CheckpointPolicy {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  CheckpointPolicy(CheckpointLimits limits, Clock::time_point now)
+      : limits_(limits), last_(now), not_before_(now) {}
+
+  bool due(Clock::time_point now, size_t unsaved_chunks, uint64_t unsaved_edits) const {
+    if (in_flight_ || unsaved_chunks == 0 || now < not_before_) return false;
+    return now - last_ >= limits_.interval || unsaved_chunks >= limits_.max_unsaved_chunks ||
+           unsaved_edits >= limits_.max_unsaved_edits;
+  }
+  bool in_flight() const { return in_flight_; }
+  void started(Clock::time_point now) {
+    in_flight_ = true;
+    last_ = now;
+  }
+  void finished(Clock::time_point now, bool ok) {
+    in_flight_ = false;
+    if (!ok) not_before_ = now + limits_.retry;
+  }
+
+ private:
+  const CheckpointLimits limits_;
+  Clock::time_point last_;        // the last checkpoint started (or the policy was made)
+  Clock::time_point not_before_;  // after a failure, the store rests until then
+  bool in_flight_ = false;
+};
+
+}  // namespace vox::pipeline

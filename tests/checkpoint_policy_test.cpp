@@ -1,0 +1,50 @@
+#include "server/pipeline/checkpoint_policy.hpp"
+
+#include <gtest/gtest.h>
+
+namespace vox::pipeline {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = CheckpointPolicy::Clock;
+
+const CheckpointLimits kLimits{
+    .interval = 10s, .max_unsaved_chunks = 100, .max_unsaved_edits = 1000, .retry = 5s};
+
+TEST(CheckpointPolicy, NothingUnsavedIsNeverDue) {
+  const Clock::time_point t0{};
+  CheckpointPolicy p(kLimits, t0);
+  EXPECT_FALSE(p.due(t0 + 1h, 0, 5000));
+}
+
+TEST(CheckpointPolicy, DueAfterTheIntervalOrAtABound) {
+  const Clock::time_point t0{};
+  CheckpointPolicy p(kLimits, t0);
+  EXPECT_FALSE(p.due(t0 + 9s, 99, 999));
+  EXPECT_TRUE(p.due(t0 + 10s, 1, 1));
+  EXPECT_TRUE(p.due(t0 + 1s, 100, 1));   // too many chunks to wait
+  EXPECT_TRUE(p.due(t0 + 1s, 1, 1000));  // the log grew too long
+}
+
+TEST(CheckpointPolicy, OneAtATimeAndTheIntervalCountsFromTheStart) {
+  const Clock::time_point t0{};
+  CheckpointPolicy p(kLimits, t0);
+  p.started(t0 + 10s);
+  EXPECT_TRUE(p.in_flight());
+  EXPECT_FALSE(p.due(t0 + 11s, 500, 5000));
+  p.finished(t0 + 12s, true);
+  EXPECT_FALSE(p.due(t0 + 19s, 1, 1));
+  EXPECT_TRUE(p.due(t0 + 20s, 1, 1));
+}
+
+TEST(CheckpointPolicy, AFailedCheckpointRestsTheStore) {
+  const Clock::time_point t0{};
+  CheckpointPolicy p(kLimits, t0);
+  p.started(t0 + 10s);
+  p.finished(t0 + 11s, false);
+  EXPECT_FALSE(p.due(t0 + 15s, 500, 5000));  // bounds reached, but resting
+  EXPECT_TRUE(p.due(t0 + 16s, 500, 5000));
+}
+
+}  // namespace
+}  // namespace vox::pipeline
