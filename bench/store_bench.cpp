@@ -9,7 +9,9 @@
 #include <memory>
 #include <random>
 
+#include "server/store/chunk_codec.hpp"
 #include "server/store/world_store.hpp"
+#include "server/world/terrain_generator.hpp"
 #include "tests/postgres_server.hpp"
 
 namespace {
@@ -91,6 +93,44 @@ void BM_LogBytesPerEditSqlite(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_LogBytesPerEditSqlite)->Iterations(1)->Unit(benchmark::kMillisecond);
+
+// A checkpoint's work per chunk: compressing a surface chunk's samples (bytes: the record).
+void BM_EncodeSurfaceChunk(benchmark::State& state) {
+  const world::TerrainGenerator gen(1);
+  const int32_t y = static_cast<int32_t>(gen.height_at(16, 16)) / world::kChunkSize;
+  const world::Chunk chunk = gen.generate({0, y, 0});
+  size_t bytes = 0;
+  for (auto _ : state) bytes = store::encode_chunk(chunk).size();
+  state.counters["bytes"] = static_cast<double>(bytes);
+  state.counters["chunks/s"] =
+      benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_EncodeSurfaceChunk)->Unit(benchmark::kMicrosecond);
+
+// A checkpoint's transaction: `range(0)` surface chunks of about 12.7 KB each, replaced
+// again and again (as a busy world does), on SQLite.
+void BM_CheckpointSqlite(benchmark::State& state) {
+  const fs::path dir = fs::temp_directory_path() / "voxel_store_bench_checkpoint";
+  fs::remove_all(dir);
+  auto store = store::open_world_store(dir.string(), {.seed = 1});
+  const world::TerrainGenerator gen(1);
+  const int32_t y = static_cast<int32_t>(gen.height_at(16, 16)) / world::kChunkSize;
+  const std::vector<uint8_t> samples = store::encode_chunk(gen.generate({0, y, 0}));
+  std::vector<store::ChunkRecord> records;
+  for (int64_t i = 0; i < state.range(0); ++i)
+    records.push_back(
+        {{static_cast<int32_t>(i % 100), y, static_cast<int32_t>(i / 100)}, 0, samples});
+  uint64_t seq = 0;
+  for (auto _ : state) {
+    ++seq;
+    for (auto& r : records) r.seq = seq;
+    store->write_checkpoint(records, seq, seq);
+  }
+  state.counters["chunks/s"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * state.range(0)), benchmark::Counter::kIsRate);
+  fs::remove_all(dir);
+}
+BENCHMARK(BM_CheckpointSqlite)->Arg(64)->Arg(512)->UseRealTime()->Unit(benchmark::kMillisecond);
 
 void BM_AppendSqlite(benchmark::State& state) { append_batches(state, "sqlite"); }
 void BM_AppendPostgres(benchmark::State& state) { append_batches(state, "postgresql"); }

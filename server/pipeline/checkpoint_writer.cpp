@@ -2,15 +2,13 @@
 
 #include <chrono>
 
-#include "server/store/chunk_codec.hpp"
-
 namespace vox::pipeline {
 
 namespace {
 
 size_t job_memory(const CheckpointJob& job) {
   size_t bytes = 0;
-  for (const auto& [c, chunk] : job.chunks) bytes += chunk.memory_bytes();
+  for (const store::ChunkRecord& r : job.records) bytes += r.samples.capacity() + sizeof(r);
   return bytes;
 }
 
@@ -34,15 +32,12 @@ CheckpointWriter::~CheckpointWriter() {
 CheckpointResult CheckpointWriter::write(store::WorldStore& store, const CheckpointJob& job) {
   const auto start = std::chrono::steady_clock::now();
   CheckpointResult result{.seq = job.seq};
-  std::vector<store::ChunkRecord> records;
-  records.reserve(job.chunks.size());
-  for (const auto& [c, chunk] : job.chunks) {
-    records.push_back({c, job.seq, store::encode_chunk(chunk)});
-    result.bytes += records.back().samples.size();
-    result.coords.push_back(c);
+  for (const store::ChunkRecord& r : job.records) {
+    result.bytes += r.samples.size();
+    result.coords.push_back(r.coord);
   }
   try {
-    store.write_checkpoint(records, job.seq, job.trim_through);
+    store.write_checkpoint(job.records, job.seq, job.trim_through);
     result.ok = true;
   } catch (const std::exception& e) {
     result.error = e.what();
@@ -93,7 +88,7 @@ void CheckpointWriter::work() {
       job_.reset();
     }
     CheckpointResult r = write(store_, job);
-    job = {};  // the copies go before the memory they count is given back
+    job = {};  // the records go before the memory they count is given back
     {
       std::lock_guard lock(mutex_);
       result_ = std::move(r);

@@ -1,11 +1,11 @@
-// Writes the pipeline's checkpoints: copies of the chunks edits changed since the last
-// one, all as of one sequence number, compressed and written to the store in one
-// transaction that also records that sequence and trims the log through it. In the
+// Writes the pipeline's checkpoints: the chunks edits changed since the last one, all as
+// of one sequence number (encoded by the pipeline), to the store in one transaction that
+// also records that sequence and trims the log through it. In the
 // background (its own thread and its own store connection: the pipeline keeps appending
 // edits meanwhile) or, given the pipeline's own connection, on the caller's thread.
 //
 // Bounded: one job at a time (the pipeline submits the next once it took the result of
-// the last), and memory_bytes() counts its copies for the memory budget.
+// the last), and memory_bytes() counts its records for the memory budget.
 #pragma once
 
 #include <condition_variable>
@@ -19,14 +19,13 @@
 #include <vector>
 
 #include "server/store/world_store.hpp"
-#include "server/world/chunk.hpp"
 
 namespace vox::pipeline {
 
 struct CheckpointJob {
   uint64_t seq = 0;           // the chunks include every edit through this one, and no later one
   uint64_t trim_through = 0;  // the log is deleted through this edit (0: kept)
-  std::vector<std::pair<world::ChunkCoord, world::Chunk>> chunks;
+  std::vector<store::ChunkRecord> records;  // encoded, each with `seq`
 };
 
 struct CheckpointResult {
@@ -54,9 +53,9 @@ class CheckpointWriter {
   std::optional<CheckpointResult> take_result();
   // Pipeline thread: waits until the job in flight has finished.
   void wait();
-  size_t memory_bytes() const;  // any thread: the copies of the job in flight
+  size_t memory_bytes() const;  // any thread: the records of the job in flight
 
-  // The work itself: compresses the chunks and writes them in one transaction.
+  // The work itself: one transaction.
   static CheckpointResult write(store::WorldStore& store, const CheckpointJob& job);
 
  private:

@@ -387,8 +387,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     was_uniform[i] = targets[i]->is_uniform();
     if (undo) {
       const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
-      undo->chunks.try_emplace(touched[i],
-                               Undo::Saved{*targets[i], i_info.modified, i_info.unsaved});
+      undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
     }
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;

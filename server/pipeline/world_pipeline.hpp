@@ -7,6 +7,7 @@
 // when unused chunks are evicted and when loads must wait.
 #pragma once
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -181,14 +182,22 @@ class WorldPipeline {
   struct LoadPlan {
     std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> to_mesh, to_generate;
   };
-  // Pre-edit copies of the chunks a batch's edits changed, to undo the batch when the
-  // store could not make it durable (pipeline thread).
+  // What a batch's edits overwrote, to undo the batch when the store could not make it
+  // durable (pipeline thread): per edit and touched chunk, the samples of the edit's box
+  // in it (or the chunk's one sample when it was uniform), undone in reverse.
   struct Undo {
-    struct Saved {
-      world::Chunk chunk;
-      bool modified, unsaved;  // its flags before the batch
+    struct Patch {
+      world::ChunkCoord coord;
+      bool modified, unsaved;  // the chunk's flags before the edit
+      bool was_uniform;
+      world::Sample uniform;               // when was_uniform
+      std::array<int, 3> lo, hi;           // chunk-local, inclusive (when !was_uniform)
+      std::vector<world::Sample> samples;  // x fastest (when !was_uniform)
     };
-    std::unordered_map<world::ChunkCoord, Saved, world::ChunkCoordHash> chunks;
+    std::vector<Patch> patches;  // in the order the edits applied
+    // Before an edit changes chunk `c`: what it may overwrite (the box within the chunk).
+    void save(world::ChunkCoord c, const world::Chunk& chunk, const world::VoxelBox& box,
+              bool modified, bool unsaved);
   };
   // Chunks one eviction pass under memory pressure looks at (about 1 ms): a batch never
   // stalls on a scan of the whole world.

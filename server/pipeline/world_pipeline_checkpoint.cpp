@@ -8,6 +8,7 @@
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/pipeline/world_state.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::pipeline {
 
@@ -23,14 +24,20 @@ void WorldPipeline::start_checkpoint(Clock::time_point now) {
   WorldState& st = *state_;
   const uint64_t seq = next_seq_ - 1;  // every applied edit, and no other
   CheckpointJob job{.seq = seq, .trim_through = config_.keep_log ? 0 : seq};
-  job.chunks.reserve(unsaved_.size());
-  for (const ChunkCoord& c : unsaved_) {
+  const std::vector<ChunkCoord> coords(unsaved_.begin(), unsaved_.end());
+  for (const ChunkCoord& c : coords) {
     WorldState::ChunkInfo& info = st.info.at(c);  // unsaved chunks are never evicted
     info.unsaved = false;
     info.checkpointing = true;
-    job.chunks.emplace_back(c, *st.chunks.find(c));
   }
   unsaved_.clear();
+  // Encoded here, in parallel, between batches: the samples as of `seq` (compressed they
+  // take an eighth of a copy, and the writer only writes).
+  job.records.resize(coords.size());
+  parallel_for_index(st.arena, coords.size(), [&](size_t i) {
+    MeshWorker& w = *st.workers.local();
+    job.records[i] = {coords[i], seq, w.chunk_encoder.encode(*st.chunks.find(coords[i]))};
+  });
   checkpoint_edits_ = std::exchange(unsaved_edits_, 0);
   checkpoint_policy_->started(now);
   checkpointer_->submit(std::move(job));

@@ -139,21 +139,53 @@ std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& a
   return error;
 }
 
+void WorldPipeline::Undo::save(ChunkCoord c, const world::Chunk& chunk, const world::VoxelBox& box,
+                               bool modified, bool unsaved) {
+  Patch& p = patches.emplace_back();
+  p.coord = c;
+  p.modified = modified;
+  p.unsaved = unsaved;
+  p.was_uniform = chunk.is_uniform();
+  if (p.was_uniform) {
+    p.uniform = chunk.uniform_value();
+    return;
+  }
+  const int32_t o[3] = {c.x * world::kChunkSize, c.y * world::kChunkSize, c.z * world::kChunkSize};
+  for (int a = 0; a < 3; ++a) {  // an edit writes only within its box (world/edit_apply)
+    p.lo[a] = std::max(0, box.lo[a] - o[a]);
+    p.hi[a] = std::min(world::kChunkSize - 1, box.hi[a] - o[a]);
+  }
+  for (int z = p.lo[2]; z <= p.hi[2]; ++z)
+    for (int y = p.lo[1]; y <= p.hi[1]; ++y)
+      for (int x = p.lo[0]; x <= p.hi[0]; ++x) p.samples.push_back(chunk.at(x, y, z));
+}
+
+// Undoes the batch's edits, last first: each chunk gets back its samples and its flags
+// as they were before the batch (a chunk an edit compacted to one sample is expanded
+// again; the samples outside the box were that sample already).
 void WorldPipeline::roll_back(Undo& undo) {
   WorldState& st = *state_;
-  for (auto& [coord, saved] : undo.chunks) {
-    world::Chunk* chunk = st.chunks.find(coord);
+  for (auto it = undo.patches.rbegin(); it != undo.patches.rend(); ++it) {
+    const Undo::Patch& p = *it;
+    world::Chunk* chunk = st.chunks.find(p.coord);
     if (!chunk) continue;  // cannot happen: a batch evicts nothing it touched
     const bool was_uniform = chunk->is_uniform();
-    *chunk = std::move(saved.chunk);
+    if (p.was_uniform) {
+      *chunk = world::Chunk(p.uniform);
+    } else {
+      size_t i = 0;
+      for (int z = p.lo[2]; z <= p.hi[2]; ++z)
+        for (int y = p.lo[1]; y <= p.hi[1]; ++y)
+          for (int x = p.lo[0]; x <= p.hi[0]; ++x) chunk->set(x, y, z, p.samples[i++]);
+    }
     st.chunks.note_changed(was_uniform, *chunk);
-    WorldState::ChunkInfo& info = st.info.at(coord);
-    if (info.modified && !saved.modified) --st.modified_count;
-    info.modified = saved.modified;
-    info.unsaved = saved.unsaved;
-    if (!saved.unsaved) unsaved_.erase(coord);
+    WorldState::ChunkInfo& info = st.info.at(p.coord);
+    if (info.modified && !p.modified) --st.modified_count;
+    info.modified = p.modified;
+    info.unsaved = p.unsaved;
+    if (!p.unsaved) unsaved_.erase(p.coord);
   }
-  undo.chunks.clear();
+  undo.patches.clear();
 }
 
 }  // namespace vox::pipeline

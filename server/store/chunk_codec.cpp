@@ -11,27 +11,39 @@ namespace {
 static_assert(std::endian::native == std::endian::little, "the chunk format is little-endian");
 constexpr size_t kDensityBytes = world::kChunkVolume * sizeof(world::Density);
 constexpr size_t kRawBytes = kDensityBytes + world::kChunkVolume;
-// Level 3 (zstd's default): a terrain chunk in about a millisecond, 5-15x smaller.
+// Level 3 (zstd's default): a surface chunk in about 60 us with a reused context, 5-15x
+// smaller.
 constexpr int kLevel = 3;
 
 }  // namespace
 
-std::vector<uint8_t> encode_chunk(const world::Chunk& chunk) {
+ChunkEncoder::ChunkEncoder() : ctx_(ZSTD_createCCtx()), raw_(kRawBytes) {
+  if (!ctx_) throw std::bad_alloc();
+}
+
+ChunkEncoder::~ChunkEncoder() { ZSTD_freeCCtx(ctx_); }
+
+std::vector<uint8_t> ChunkEncoder::encode(const world::Chunk& chunk) {
   if (chunk.is_uniform()) {
     const world::Sample s = chunk.uniform_value();
     const auto d = static_cast<uint16_t>(s.density);
     return {kChunkFormat, 0, static_cast<uint8_t>(d), static_cast<uint8_t>(d >> 8), s.material};
   }
-  std::vector<uint8_t> raw(kRawBytes);
-  std::memcpy(raw.data(), chunk.densities(), kDensityBytes);
-  std::memcpy(raw.data() + kDensityBytes, chunk.materials(), world::kChunkVolume);
+  std::memcpy(raw_.data(), chunk.densities(), kDensityBytes);
+  std::memcpy(raw_.data() + kDensityBytes, chunk.materials(), world::kChunkVolume);
   std::vector<uint8_t> out(2 + ZSTD_compressBound(kRawBytes));
   out[0] = kChunkFormat;
   out[1] = 1;
-  const size_t n = ZSTD_compress(out.data() + 2, out.size() - 2, raw.data(), raw.size(), kLevel);
+  const size_t n =
+      ZSTD_compressCCtx(ctx_, out.data() + 2, out.size() - 2, raw_.data(), raw_.size(), kLevel);
   if (ZSTD_isError(n)) throw std::runtime_error(ZSTD_getErrorName(n));  // cannot happen: bound
   out.resize(2 + n);
+  out.shrink_to_fit();  // kept by the checkpoint until written
   return out;
+}
+
+std::vector<uint8_t> encode_chunk(const world::Chunk& chunk) {
+  return ChunkEncoder().encode(chunk);
 }
 
 std::optional<world::Chunk> decode_chunk(std::span<const uint8_t> bytes, std::string* error) {

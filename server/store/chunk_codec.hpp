@@ -14,11 +14,29 @@
 
 #include "server/world/chunk.hpp"
 
+struct ZSTD_CCtx_s;
+
 namespace vox::store {
 
 inline constexpr uint8_t kChunkFormat = 1;
 
-std::vector<uint8_t> encode_chunk(const world::Chunk& chunk);
+// Encodes one chunk after another with one compression context and buffer: a checkpoint
+// encodes thousands, and a fresh zstd context per chunk costs more than the chunk. Not
+// thread-safe: one per thread.
+class ChunkEncoder {
+ public:
+  ChunkEncoder();
+  ~ChunkEncoder();
+  ChunkEncoder(const ChunkEncoder&) = delete;
+  ChunkEncoder& operator=(const ChunkEncoder&) = delete;
+  std::vector<uint8_t> encode(const world::Chunk& chunk);
+
+ private:
+  ZSTD_CCtx_s* ctx_;
+  std::vector<uint8_t> raw_;
+};
+
+std::vector<uint8_t> encode_chunk(const world::Chunk& chunk);  // a one-off ChunkEncoder
 std::optional<world::Chunk> decode_chunk(std::span<const uint8_t> bytes,
                                          std::string* error = nullptr);
 

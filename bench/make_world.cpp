@@ -1,0 +1,154 @@
+// Builds a durable world for the restart benchmark (bench/scripts/restart_run.sh): `edits`
+// explosions and brushes at the surface over a square of about `chunks` chunk columns
+// around the origin, through the real pipeline and its store (group commit, checkpoints,
+// eviction), as a server would have made it. Prints the world's figures and the rate.
+//
+//   build/bin/bench_make_world WORLD [--edits N] [--chunks M] [--seed S] [--crash]
+//
+// WORLD: a directory (SQLite) or a postgresql:// URI. --crash: after the last edit is
+// durable, exits at once (no final checkpoint, as kill -9 would): a restart replays the
+// log since the last checkpoint.
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
+#include <random>
+#include <string>
+
+#include "server/pipeline/world_pipeline.hpp"
+#include "server/store/world_store.hpp"
+
+namespace {
+
+using namespace vox;
+
+struct Options {
+  std::string where;
+  uint64_t edits = 100000, chunks = 10000, seed = 1;
+  bool crash = false;
+};
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> uint64_t {
+      if (i + 1 >= argc) throw std::runtime_error(a + " needs a value");
+      return std::stoull(argv[++i]);
+    };
+    if (a == "--edits") {
+      o.edits = value();
+    } else if (a == "--chunks") {
+      o.chunks = value();
+    } else if (a == "--seed") {
+      o.seed = value();
+    } else if (a == "--crash") {
+      o.crash = true;
+    } else if (o.where.empty() && !a.starts_with("--")) {
+      o.where = a;
+    } else {
+      throw std::runtime_error("unknown argument " + a);
+    }
+  }
+  if (o.where.empty() || o.chunks == 0) throw std::runtime_error("usage: see bench/make_world.cpp");
+  return o;
+}
+
+// Edit i lands in column i % columns of a side x side square centred on the origin.
+world::Edit edit_number(uint64_t i, uint64_t side, const world::TerrainGenerator& gen,
+                        std::mt19937& rng) {
+  const uint64_t column = i % (side * side);
+  const int32_t cx = static_cast<int32_t>(column % side) - static_cast<int32_t>(side / 2);
+  const int32_t cz = static_cast<int32_t>(column / side) - static_cast<int32_t>(side / 2);
+  std::uniform_int_distribution<int> in_chunk(4, 27);
+  const int32_t x = cx * world::kChunkSize + in_chunk(rng);
+  const int32_t z = cz * world::kChunkSize + in_chunk(rng);
+  const world::Vec3 c{static_cast<float>(x), gen.height_at(x, z), static_cast<float>(z)};
+  if (i % 2) return world::Explosion{c, 3, 0.6f};
+  return world::Brush{c, 3, 0.5f, true, std::nullopt};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  try {
+    o = parse(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_make_world: %s\n", e.what());
+    return 2;
+  }
+  spdlog::set_level(spdlog::level::warn);
+  auto store = store::open_world_store(o.where, {.seed = o.seed});
+  auto cp = store::open_world_store(o.where, {.seed = o.seed, .record_start = false});
+  pipeline::PipelineConfig config{.seed = o.seed,
+                                  .evict_after = std::chrono::seconds(2),
+                                  .max_memory = size_t{1536} << 20,
+                                  .store = store.get(),
+                                  .checkpoint_store = cp.get()};
+  // Checkpoints as they go: how many chunks each took and how long.
+  std::mutex cp_mutex;
+  size_t cp_chunks_max = 0;
+  double cp_seconds_max = 0, cp_seconds_total = 0;
+  pipeline::PipelineObserver observer{.checkpoint = [&](double s, size_t chunks, size_t, bool) {
+    std::lock_guard lock(cp_mutex);
+    cp_chunks_max = std::max(cp_chunks_max, chunks);
+    cp_seconds_max = std::max(cp_seconds_max, s);
+    cp_seconds_total += s;
+  }};
+  pipeline::WorldPipeline p(config, observer);
+  const world::TerrainGenerator gen(o.seed);
+  const uint64_t side = static_cast<uint64_t>(std::ceil(std::sqrt(double(o.chunks))));
+  std::mt19937 rng(20261202);
+  std::mutex mutex;
+  std::condition_variable cv;
+  uint64_t in_flight = 0, refused = 0;
+  constexpr uint64_t kWindow = 512;  // edits queued at once
+  const auto start = std::chrono::steady_clock::now();
+  for (uint64_t i = 0; i < o.edits; ++i) {
+    {
+      std::unique_lock lock(mutex);
+      cv.wait(lock, [&] { return in_flight < kWindow; });
+      ++in_flight;
+    }
+    p.submit(edit_number(i, side, gen, rng), [&](const pipeline::EditResult& r) {
+      std::lock_guard lock(mutex);
+      --in_flight;
+      refused += r.accepted ? 0 : 1;
+      cv.notify_all();
+    });
+  }
+  {
+    std::unique_lock lock(mutex);
+    cv.wait(lock, [&] { return in_flight == 0; });
+  }
+  const double took =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const pipeline::PipelineStats s = p.stats();
+  std::printf(
+      "%llu edits (%llu refused) in %.1f s: %.0f edits/s; %llu checkpoints (largest %zu "
+      "chunks, longest %.0f ms, %.1f s in all)\n",
+      static_cast<unsigned long long>(o.edits), static_cast<unsigned long long>(refused), took,
+      double(o.edits) / took, static_cast<unsigned long long>(s.checkpoints), cp_chunks_max,
+      cp_seconds_max * 1000, cp_seconds_total);
+  if (o.crash) {
+    std::fflush(stdout);
+    std::_Exit(0);  // no final checkpoint: the log since the last one stays to replay
+  }
+  p.stop();
+  const store::WorldInfo info = store->info();
+  std::printf(
+      "world: %llu modified chunks, %llu logged edits, checkpoint through %llu, %llu "
+      "bytes on disk\n",
+      static_cast<unsigned long long>(info.modified_chunks),
+      static_cast<unsigned long long>(info.logged_edits),
+      static_cast<unsigned long long>(info.checkpoint_seq),
+      static_cast<unsigned long long>(info.size_bytes));
+  return refused == 0 ? 0 : 1;
+}
