@@ -14,7 +14,16 @@ const CheckpointLimits kLimits{
 TEST(CheckpointPolicy, NothingUnsavedIsNeverDue) {
   const Clock::time_point t0{};
   CheckpointPolicy p(kLimits, t0);
-  EXPECT_FALSE(p.due(t0 + 1h, 0, 5000));
+  EXPECT_FALSE(p.due(t0 + 1h, 0, 0));
+}
+
+// Edits that changed no chunk (an explosion in the air) are in the log all the same: a
+// checkpoint of no chunks trims them, or a client could grow the log without end.
+TEST(CheckpointPolicy, EditsThatChangedNothingAreCheckpointedToo) {
+  const Clock::time_point t0{};
+  CheckpointPolicy p(kLimits, t0);
+  EXPECT_TRUE(p.due(t0 + 10s, 0, 1));
+  EXPECT_TRUE(p.due(t0 + 1s, 0, 1000));
 }
 
 TEST(CheckpointPolicy, DueAfterTheIntervalOrAtABound) {

@@ -3,9 +3,11 @@
 // STORAGE_UNAVAILABLE, the world stays as it was, and edits are accepted again once the
 // store works. A real PostgreSQL server is stopped and started under it.
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <future>
 #include <thread>
 
 #include "server/pipeline/world_pipeline.hpp"
@@ -164,6 +166,60 @@ TEST(PipelineStore, ACheckpointTheStoreRefusedLosesNothing) {
   const store::WorldInfo info = store->info();
   EXPECT_EQ(info.checkpoint_seq, border_edits(y).size());
   EXPECT_EQ(info.logged_edits, 0u);
+}
+
+// Edits that changed no chunk (an explosion in the air) are in the log all the same; a
+// checkpoint trims them, or a client could grow the log (and the replay) without end.
+TEST(PipelineStore, EditsThatChangedNothingAreTrimmedFromTheLog) {
+  const auto dir = temp_world("noop");
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  {
+    WorldPipeline p(PipelineConfig{
+        .seed = 3, .threads = 2, .store = store.get(), .checkpoint = {.interval = 1h}});
+    for (int i = 0; i < 20; ++i) {
+      const auto r = p.submit(world::Explosion{{30, float(y + 300), 30}, 6, 1}).get();
+      ASSERT_TRUE(r.accepted) << r.message;
+    }
+    p.stop();  // the final checkpoint
+  }
+  const store::WorldInfo info = store->info();
+  EXPECT_EQ(info.checkpoint_seq, 20u);
+  EXPECT_EQ(info.logged_edits, 0u);
+  std::filesystem::remove_all(dir);
+}
+
+void run_sql(const std::filesystem::path& dir, const char* query) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / "world.sqlite").c_str(), &db), SQLITE_OK);
+  sqlite3_busy_timeout(db, 5000);
+  char* error = nullptr;
+  EXPECT_EQ(sqlite3_exec(db, query, nullptr, nullptr, &error), SQLITE_OK) << (error ? error : "");
+  sqlite3_free(error);
+  sqlite3_close(db);
+}
+
+// A stored chunk the store cannot give back for a while: the view load waiting for it is
+// tried again by itself once the store works (not only when something else wakes the
+// pipeline).
+TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
+  const auto dir = temp_world("unreadable");
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  {
+    auto store = store::open_world_store(dir.string(), {.seed = 3});
+    WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});
+    ASSERT_TRUE(p.submit(world::Explosion{{30, float(y), 30}, 6, 1.2f}).get().accepted);
+  }  // stop: checkpointed
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  WorldPipeline p(PipelineConfig{
+      .seed = 3, .threads = 2, .store = store.get(), .store_retry = std::chrono::milliseconds(50)});
+  run_sql(dir, "ALTER TABLE chunks RENAME TO chunks_away");
+  auto loaded = p.load(mesh::ChunkBox{{0, y / 32, 0}, {0, y / 32, 0}});
+  EXPECT_EQ(loaded.wait_for(300ms), std::future_status::timeout);
+  run_sql(dir, "ALTER TABLE chunks_away RENAME TO chunks");
+  EXPECT_EQ(loaded.wait_for(3s), std::future_status::ready);
+  p.stop();
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -1,9 +1,9 @@
 // When the pipeline writes a checkpoint of the chunks its edits changed: a pure policy
 // (no clock, no I/O), so it is unit-tested alone. A checkpoint is due when there is
-// something unsaved and one of three bounds is reached: time since the last one (what a
-// restart must replay stays short), unsaved chunks (what a checkpoint copies and writes
-// stays bounded), or logged edits since the last one (the log stays short). One at a time;
-// after a failure the store rests `retry` before the next try. Pipeline thread only.
+// something unsaved (a chunk, or an edit in the log) and one of three bounds is reached: time since
+// the last one (what a restart must replay stays short), unsaved chunks (what a checkpoint copies
+// and writes stays bounded), or logged edits since the last one (the log stays short). One at a
+// time; after a failure the store rests `retry` before the next try. Pipeline thread only.
 #pragma once
 
 #include <chrono>
@@ -26,8 +26,11 @@ class CheckpointPolicy {
   CheckpointPolicy(CheckpointLimits limits, Clock::time_point now)
       : limits_(limits), last_(now), not_before_(now) {}
 
+  // `unsaved_edits`: accepted since the last checkpoint, whether or not they changed a
+  // chunk (one that changed nothing is in the log all the same, and is trimmed by one).
   bool due(Clock::time_point now, size_t unsaved_chunks, uint64_t unsaved_edits) const {
-    if (in_flight_ || unsaved_chunks == 0 || now < not_before_) return false;
+    if (in_flight_ || (unsaved_chunks == 0 && unsaved_edits == 0) || now < not_before_)
+      return false;
     return now - last_ >= limits_.interval || unsaved_chunks >= limits_.max_unsaved_chunks ||
            unsaved_edits >= limits_.max_unsaved_edits;
   }

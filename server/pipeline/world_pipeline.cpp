@@ -212,7 +212,10 @@ void WorldPipeline::stop() {
 // Pipeline thread, under queue_mutex_. Loads whose pass the memory budget cuts to nothing
 // while terrain is on its way wait for it (generated_ready_), not in a busy loop.
 bool WorldPipeline::batch_ready() {
-  return scheduler_.has_ordered() || generated_ready_ ||
+  // After a failed read of a stored chunk, a pass now and then tries it again.
+  const bool retry_reads =
+      store_read_failing_ && !waiting_meshes_.empty() && Clock::now() >= store_read_retry_at_;
+  return scheduler_.has_ordered() || generated_ready_ || retry_reads ||
          (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
           scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0);
 }
@@ -234,7 +237,12 @@ void WorldPipeline::run() {
             : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
                                                              : kBudgetRetry;
         // Unsaved chunks: wake for their checkpoint (and a finished one wakes us).
-        if (!unsaved_.empty()) wait = std::min(wait, config_.checkpoint.interval);
+        if (!unsaved_.empty() || unsaved_edits_ > 0)
+          wait = std::min(wait, config_.checkpoint.interval);
+        // A chunk the store could not give back: try again then.
+        if (store_read_failing_ && !waiting_meshes_.empty())
+          wait = std::min(
+              wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
         queue_cv_.wait_for(lock, wait);
         take_view_updates();
         lock.unlock();
@@ -594,6 +602,8 @@ void WorldPipeline::commit_stats(const PipelineStats& delta, PipelineStats& batc
   stats_.loaded_chunks = st.chunks.size();
   stats_.modified_chunks = st.modified_count;
   stats_.chunk_bytes = st.chunks.memory_bytes();
+  stats_.unsaved_chunks = unsaved_.size();
+  stats_.stored_chunks = st.stored.size();
 }
 
 void WorldPipeline::notify_subscribers(const std::vector<ChunkCoord>& published) {

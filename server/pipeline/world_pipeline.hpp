@@ -308,6 +308,8 @@ class WorldPipeline {
   bool store_failing_ = false;          // the last append failed (logged once); pipeline thread
   bool store_read_failing_ = false;     // the last chunk read failed (logged once); pipeline thread
   std::string last_read_error_;         // pipeline thread
+  Clock::time_point store_read_retry_at_{};   // after a failed read: the next try
+  Clock::time_point store_read_logged_at_{};  // the last failed read logged
   // Checkpoints (with a store; pipeline thread): resident chunks with info.unsaved, edits
   // applied since the last checkpoint started (restored when it fails).
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> unsaved_;

@@ -84,12 +84,12 @@ void WorldPipeline::final_checkpoint() {
   if (!checkpointer_) return;
   checkpointer_->wait();
   if (auto r = checkpointer_->take_result()) finish_checkpoint(*r, Clock::now());
-  if (unsaved_.empty()) return;
+  if (unsaved_.empty() && unsaved_edits_ == 0) return;
   const size_t chunks = unsaved_.size();
   start_checkpoint(Clock::now());
   checkpointer_->wait();
   if (auto r = checkpointer_->take_result()) finish_checkpoint(*r, Clock::now());
-  if (unsaved_.empty()) {
+  if (unsaved_.empty() && unsaved_edits_ == 0) {
     spdlog::info("checkpoint at shutdown: {} chunks through edit {}", chunks, next_seq_ - 1);
   }
 }

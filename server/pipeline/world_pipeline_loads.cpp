@@ -82,7 +82,9 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
               const ChunkCoord n = c.offset(dx, dy, dz);
-              if (needs_generating(n) && plan.to_generate.insert(n).second) work += kGenerateWork;
+              // A stored chunk costs as much: read and decompressed on this thread.
+              const bool costs = needs_generating(n) || (!st.info.count(n) && st.stored.count(n));
+              if (costs && plan.to_generate.insert(n).second) work += kGenerateWork;
             }
         plan.to_mesh.insert(c);
         return work;

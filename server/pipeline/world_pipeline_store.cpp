@@ -73,16 +73,17 @@ world::Chunk WorldPipeline::read_stored_chunk(ChunkCoord c) {
     throw store::StoreError(
         fmt::format("{}: chunk ({}, {}, {}): {}", store.name(), c.x, c.y, c.z, why));
   }
-  if (store_read_failing_) {
-    store_read_failing_ = false;
-    spdlog::info("world store: reading chunks again");
-  }
+  store_read_failing_ = false;
   return std::move(*chunk);
 }
 
+// Logged at most every 10 s (a view resting on an unreadable chunk asks each pass).
 void WorldPipeline::note_store_read(const std::string& error) {
+  const Clock::time_point now = Clock::now();
   last_read_error_ = error;
-  if (!store_read_failing_) {
+  store_read_retry_at_ = now + config_.store_retry;
+  if (now - store_read_logged_at_ >= std::chrono::seconds(10)) {
+    store_read_logged_at_ = now;
     spdlog::error("world store: {}; what needs the chunk waits until it can be read", error);
   }
   store_read_failing_ = true;
