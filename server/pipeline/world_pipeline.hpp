@@ -244,6 +244,7 @@ class WorldPipeline {
   // Constructor: learns which chunks are stored and replays the log after their
   // checkpoint (loading the chunks it touches).
   void restore_from_store();
+  void preload_stored(const std::vector<store::LoggedEdit>& tail);
   // Pipeline thread: takes a finished checkpoint's result; starts the next one when due.
   void checkpoint_if_due(Clock::time_point now);
   void start_checkpoint(Clock::time_point now);

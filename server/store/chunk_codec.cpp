@@ -2,6 +2,7 @@
 
 #include <zstd.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 
@@ -68,11 +69,12 @@ std::optional<world::Chunk> decode_chunk(std::span<const uint8_t> bytes, std::st
   if (ZSTD_isError(n)) return fail(std::string("chunk record: ") + ZSTD_getErrorName(n));
   if (n != kRawBytes) return fail("chunk record shorter than a chunk");
   world::Chunk chunk;
-  std::memcpy(chunk.densities(), raw.data(), kDensityBytes);
+  world::Density* densities = chunk.densities();  // expands once
+  std::memcpy(densities, raw.data(), kDensityBytes);
   std::memcpy(chunk.materials(), raw.data() + kDensityBytes, world::kChunkVolume);
-  for (int i = 0; i < world::kChunkVolume; ++i)
-    if (chunk.densities()[i] < world::kDensityMin)
-      return fail("chunk record with a density out of range");
+  if (std::any_of(densities, densities + world::kChunkVolume,
+                  [](world::Density d) { return d < world::kDensityMin; }))
+    return fail("chunk record with a density out of range");
   chunk.compact();
   return chunk;
 }

@@ -225,8 +225,9 @@ class SqliteStore final : public WorldStore {
   void check_existing(const OpenOptions& options) {
     std::string result;
     try {
-      Statement q(conn_.db, "PRAGMA quick_check", name_);
-      if (q.step()) result = q.text(0);
+      Statement q(conn_.db, options.record_start ? "PRAGMA quick_check" : "PRAGMA schema_version",
+                  name_);
+      if (q.step()) result = options.record_start ? q.text(0) : "ok";
     } catch (const StoreError& e) {
       throw StoreError(std::string(e.what()) + " (corrupt or not a voxeld world)");
     }

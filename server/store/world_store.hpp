@@ -59,7 +59,8 @@ struct OpenOptions {
   std::optional<uint64_t> seed;
   uint64_t new_world_seed = 1;
   bool read_only = false;  // tools: no write, works beside a running voxeld
-  // Counts this open in WorldInfo::starts (false: a second connection of one process).
+  // Counts this open in WorldInfo::starts, and (SQLite) checks the whole file first
+  // (PRAGMA quick_check: it reads every page). False: a second connection of one process.
   bool record_start = true;
 };
 
