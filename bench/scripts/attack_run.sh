@@ -6,6 +6,7 @@
 # hostile client from its own loopback address) with --json, then prints the honest players' edit->delta p50/p99, errors,
 # disconnects, refusals, voxeld's max RSS, the first full view p99 and the server's own
 # edit->publish and edit->delta-written p99 (bench/scripts/metrics_quantile.py).
+# EDIT_RATE=N: edits per second per player (default 0.5).
 # With the default world store it also prints commit p50/p99, the wait beyond re-meshing,
 # edits per commit and the world's size; VOXELD_ARGS=--in-memory runs without a store.
 # Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
@@ -25,7 +26,7 @@ server=$!
 trap 'kill $server 2>/dev/null || true' EXIT
 for _ in $(seq 100); do [ -s "$out/$name.mport" ] && break; sleep 0.1; done
 args=(--server "127.0.0.1:$(cat "$out/$name.port")" --players "$players" --duration "$duration" --ramp 10
-      --edit-rate 0.5 --view-radius 4 --server-pid "$server" --json "$out/$name.json" --spread-addresses)
+      --edit-rate "${EDIT_RATE:-0.5}" --view-radius 4 --server-pid "$server" --json "$out/$name.json" --spread-addresses)
 [ -n "$attack" ] && args+=(--attack "$attack")
 set +e
 "$bin/voxel-loadtest" "${args[@]}" "$@" > "$out/$name.table" 2> "$out/$name.progress"
