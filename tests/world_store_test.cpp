@@ -262,6 +262,88 @@ TEST(SqliteStore, ANewerSchemaIsRefusedAndLeftAlone) {
   }
 }
 
+std::string fmt_hex(uint8_t byte) {
+  static const char* digits = "0123456789abcdef";
+  return {digits[byte >> 4], digits[byte & 15]};
+}
+
+void sql(const fs::path& dir, const char* query) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / kSqliteFileName).c_str(), &db), SQLITE_OK);
+  char* error = nullptr;
+  EXPECT_EQ(sqlite3_exec(db, query, nullptr, nullptr, &error), SQLITE_OK) << (error ? error : "");
+  sqlite3_free(error);
+  sqlite3_close(db);
+}
+
+// A checkpoint killed after some of its short transactions: its rows (above the recorded
+// checkpoint) are invisible to readers and deleted when a writer opens the world.
+TEST(SqliteStore, AnUnfinishedCheckpointIsInvisibleAndDroppedWhenAWriterOpens) {
+  const fs::path dir = temp_world("unfinished");
+  const world::Chunk a = full_chunk(1), b = full_chunk(2);
+  {
+    auto s = open_world_store(dir.string(), {.seed = 1});
+    s->write_checkpoint(std::vector<ChunkRecord>{{{0, 0, 0}, 4, encode_chunk(a)}}, 4, 4);
+  }
+  const std::string insert = "INSERT INTO chunks (x, y, z, seq, samples) VALUES (0, 0, 0, 9, x'" +
+                             [&] {
+                               std::string hex;
+                               for (uint8_t byte : encode_chunk(b)) hex += fmt_hex(byte);
+                               return hex;
+                             }() +
+                             "'), (7, 7, 7, 9, x'0100000000')";
+  sql(dir, insert.c_str());
+  auto check = [&](WorldStore& s) {
+    const auto r = s.read_chunk({0, 0, 0});
+    ASSERT_TRUE(r);
+    EXPECT_EQ(r->seq, 4u);
+    EXPECT_TRUE(*decode_chunk(r->samples) == a);
+    EXPECT_FALSE(s.read_chunk({7, 7, 7}));
+    EXPECT_EQ(s.info().modified_chunks, 1u);
+    size_t listed = 0;
+    s.for_each_chunk([&](world::ChunkCoord, uint64_t seq) {
+      ++listed;
+      EXPECT_EQ(seq, 4u);
+    });
+    EXPECT_EQ(listed, 1u);
+  };
+  check(*open_world_store(dir.string(), {.read_only = true}));
+  check(*open_world_store(dir.string(), {.seed = 1}));
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir / kSqliteFileName).c_str(), &db), SQLITE_OK);
+  sqlite3_stmt* q = nullptr;
+  sqlite3_prepare_v2(db, "SELECT COUNT(*) FROM chunks", -1, &q, nullptr);
+  ASSERT_EQ(sqlite3_step(q), SQLITE_ROW);
+  EXPECT_EQ(sqlite3_column_int(q, 0), 1) << "the unfinished checkpoint's rows are still there";
+  sqlite3_finalize(q);
+  sqlite3_close(db);
+}
+
+// A world of schema 1 (one row per chunk, yesterday's voxeld) is migrated by a writer and
+// keeps its chunks; readers read it as it is.
+TEST(SqliteStore, ASchemaOneWorldIsMigratedAndKeepsItsChunks) {
+  const fs::path dir = temp_world("schema1");
+  fs::create_directories(dir);
+  sql(dir,
+      "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);"
+      "CREATE TABLE edit_log (seq INTEGER PRIMARY KEY, at_ms INTEGER NOT NULL,"
+      " author TEXT NOT NULL, edit BLOB NOT NULL);"
+      "CREATE TABLE chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,"
+      " seq INTEGER NOT NULL, samples BLOB NOT NULL, PRIMARY KEY (x, y, z));"
+      "INSERT INTO meta VALUES ('schema_version', '1'), ('seed', '5'), ('starts', '1'),"
+      " ('checkpoint_seq', '3');"
+      "INSERT INTO chunks VALUES (1, 2, 3, 3, x'0100000000');");
+  EXPECT_TRUE(open_world_store(dir.string(), {.read_only = true})->read_chunk({1, 2, 3}));
+  auto s = open_world_store(dir.string(), {.seed = 5});
+  const auto r = s->read_chunk({1, 2, 3});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->seq, 3u);
+  const world::Chunk a = full_chunk(1);
+  s->write_checkpoint(std::vector<ChunkRecord>{{{1, 2, 3}, 8, encode_chunk(a)}}, 8, 8);
+  EXPECT_TRUE(*decode_chunk(s->read_chunk({1, 2, 3})->samples) == a);
+  EXPECT_EQ(s->info().modified_chunks, 1u);
+}
+
 TEST(SqliteStore, ReadOnlyOpenOfAMissingWorldCreatesNothing) {
   const fs::path dir = temp_world("missing");
   EXPECT_THROW(open_world_store(dir.string(), {.read_only = true}), StoreError);

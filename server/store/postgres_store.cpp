@@ -15,7 +15,19 @@ CREATE TABLE IF NOT EXISTS edit_log (seq BIGINT PRIMARY KEY, at_ms BIGINT NOT NU
                                      author TEXT NOT NULL, edit BYTEA NOT NULL);
 CREATE TABLE IF NOT EXISTS chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
                                    seq BIGINT NOT NULL, samples BYTEA NOT NULL,
-                                   PRIMARY KEY (x, y, z));
+                                   PRIMARY KEY (x, y, z, seq));
+CREATE INDEX IF NOT EXISTS chunks_seq ON chunks (seq);
+)sql";
+
+// Schema 1 -> 2: chunk rows keyed by (x, y, z, seq).
+constexpr const char* kMigrateChunks = R"sql(
+CREATE TABLE chunks_v2 (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
+                        seq BIGINT NOT NULL, samples BYTEA NOT NULL,
+                        PRIMARY KEY (x, y, z, seq));
+INSERT INTO chunks_v2 (x, y, z, seq, samples) SELECT x, y, z, seq, samples FROM chunks;
+DROP TABLE chunks;
+ALTER TABLE chunks_v2 RENAME TO chunks;
+CREATE INDEX chunks_seq ON chunks (seq);
 )sql";
 
 constexpr const char* kUpsertMeta =
@@ -52,6 +64,15 @@ class PostgresStore final : public WorldStore {
       // One opener at a time sets the world up (several voxeld may share it).
       t.exec("SELECT pg_advisory_xact_lock(7007)");
       if (has_meta_table(t)) check_meta(name_, read_meta(t), options_);
+      const Meta before = has_meta_table(t) ? read_meta(t) : Meta{};
+      const bool migrate =
+          before.contains(schema::kMetaSchemaVersion) &&
+          parse_meta_u64(name_, schema::kMetaSchemaVersion, before.at(schema::kMetaSchemaVersion)) <
+              schema::kVersionedChunks;
+      if (migrate) {
+        t.exec(kMigrateChunks);
+        t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
+      }
       t.exec(kCreateTables);
       const Meta meta = read_meta(t);
       if (!meta.contains(schema::kMetaSchemaVersion)) {
@@ -60,6 +81,7 @@ class PostgresStore final : public WorldStore {
                       std::to_string(options_.seed.value_or(options_.new_world_seed)));
         t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, "0");
       }
+      t.exec(schema::kDropUnfinishedChunks);
       const uint64_t starts =
           meta.contains(schema::kMetaStarts)
               ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
@@ -80,7 +102,7 @@ class PostgresStore final : public WorldStore {
       const auto log = t.exec1("SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log");
       i.logged_edits = log[0].as<uint64_t>();
       i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
-      i.modified_chunks = t.exec1("SELECT COUNT(*) FROM chunks")[0].as<uint64_t>();
+      i.modified_chunks = t.exec1(schema::kCountVisibleChunks)[0].as<uint64_t>();
       i.size_bytes =
           t.exec1(
                "SELECT pg_total_relation_size('meta') + "
@@ -107,14 +129,28 @@ class PostgresStore final : public WorldStore {
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
                         uint64_t trim_through) override {
     refuse_if_read_only();
+    const auto seq = static_cast<int64_t>(checkpoint_seq);
     run([&](pqxx::connection& c) {
-      pqxx::work t(c);
-      for (const ChunkRecord& r : chunks) {
-        t.exec_params(
-            "INSERT INTO chunks (x, y, z, seq, samples) VALUES ($1, $2, $3, $4, $5) "
-            "ON CONFLICT (x, y, z) DO UPDATE SET seq = excluded.seq, samples = excluded.samples",
-            r.coord.x, r.coord.y, r.coord.z, static_cast<int64_t>(r.seq), binary(r.samples));
+      for (size_t from = 0; from < chunks.size(); from += schema::kCheckpointPart) {
+        pqxx::work t(c);
+        for (const ChunkRecord& r :
+             chunks.subspan(from, std::min(schema::kCheckpointPart, chunks.size() - from))) {
+          t.exec_params(
+              "INSERT INTO chunks (x, y, z, seq, samples) VALUES ($1, $2, $3, $4, $5) "
+              "ON CONFLICT (x, y, z, seq) DO UPDATE SET samples = excluded.samples",
+              r.coord.x, r.coord.y, r.coord.z, seq, binary(r.samples));
+        }
+        t.commit();
       }
+      pqxx::work t(c);  // the move: readers see the new rows from here on
+      const uint64_t previous = info_from_meta(name_, read_meta(t)).checkpoint_seq;
+      for (const ChunkRecord& r : chunks) {
+        t.exec_params("DELETE FROM chunks WHERE x = $1 AND y = $2 AND z = $3 AND seq < $4",
+                      r.coord.x, r.coord.y, r.coord.z, seq);
+      }
+      // Rows of checkpoints that failed after `previous` (their chunks are in this one).
+      t.exec_params("DELETE FROM chunks WHERE seq > $1 AND seq < $2",
+                    static_cast<int64_t>(previous), seq);
       t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
       if (trim_through > 0)
         t.exec_params("DELETE FROM edit_log WHERE seq <= $1", static_cast<int64_t>(trim_through));
@@ -126,9 +162,11 @@ class PostgresStore final : public WorldStore {
     std::optional<ChunkRecord> out;
     run([&](pqxx::connection& c) {
       pqxx::read_transaction t(c);
-      const auto r =
-          t.exec_params("SELECT seq, samples FROM chunks WHERE x = $1 AND y = $2 AND z = $3",
-                        coord.x, coord.y, coord.z);
+      const auto r = t.exec_params(
+          "SELECT seq, samples FROM chunks WHERE x = $1 AND y = $2 AND z = $3 "
+          "AND seq <= (SELECT CAST(value AS BIGINT) FROM meta WHERE key = "
+          "'checkpoint_seq') ORDER BY seq DESC LIMIT 1",
+          coord.x, coord.y, coord.z);
       if (r.empty()) return;
       const pqxx::binarystring samples(r[0][1]);
       out = ChunkRecord{
@@ -140,7 +178,7 @@ class PostgresStore final : public WorldStore {
   void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>& fn) override {
     run([&](pqxx::connection& c) {
       pqxx::read_transaction t(c);
-      for (const auto& row : t.exec("SELECT x, y, z, seq FROM chunks"))
+      for (const auto& row : t.exec(schema::kVisibleChunkCoords))
         fn({row[0].as<int32_t>(), row[1].as<int32_t>(), row[2].as<int32_t>()},
            row[3].as<uint64_t>());
     });

@@ -18,7 +18,19 @@ CREATE TABLE IF NOT EXISTS edit_log (seq INTEGER PRIMARY KEY, at_ms INTEGER NOT 
                                      author TEXT NOT NULL, edit BLOB NOT NULL);
 CREATE TABLE IF NOT EXISTS chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
                                    seq INTEGER NOT NULL, samples BLOB NOT NULL,
-                                   PRIMARY KEY (x, y, z));
+                                   PRIMARY KEY (x, y, z, seq));
+CREATE INDEX IF NOT EXISTS chunks_seq ON chunks (seq);
+)sql";
+
+// Schema 1 -> 2: chunk rows keyed by (x, y, z, seq).
+constexpr const char* kMigrateChunks = R"sql(
+CREATE TABLE chunks_v2 (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
+                        seq INTEGER NOT NULL, samples BLOB NOT NULL,
+                        PRIMARY KEY (x, y, z, seq));
+INSERT INTO chunks_v2 (x, y, z, seq, samples) SELECT x, y, z, seq, samples FROM chunks;
+DROP TABLE chunks;
+ALTER TABLE chunks_v2 RENAME TO chunks;
+CREATE INDEX chunks_seq ON chunks (seq);
 )sql";
 
 class Statement {
@@ -100,7 +112,12 @@ class SqliteStore final : public WorldStore {
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
       set_meta(schema::kMetaSeed, std::to_string(options.seed.value_or(options.new_world_seed)));
       set_meta(schema::kMetaCheckpointSeq, "0");
+    } else if (parse_meta_u64(name_, schema::kMetaSchemaVersion,
+                              meta.at(schema::kMetaSchemaVersion)) < schema::kVersionedChunks) {
+      exec(kMigrateChunks);
+      set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
     }
+    exec(schema::kDropUnfinishedChunks);
     const auto starts =
         meta.contains(schema::kMetaStarts)
             ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
@@ -118,7 +135,7 @@ class SqliteStore final : public WorldStore {
     if (q.step())
       i.logged_edits = static_cast<uint64_t>(q.int64(0)),
       i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
-    Statement c(conn_.db, "SELECT COUNT(*) FROM chunks", name_);
+    Statement c(conn_.db, schema::kCountVisibleChunks, name_);
     if (c.step()) i.modified_chunks = static_cast<uint64_t>(c.int64(0));
     std::error_code ec;
     for (const char* suffix : {"", "-wal"}) {
@@ -143,17 +160,32 @@ class SqliteStore final : public WorldStore {
 
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
                         uint64_t trim_through) override {
-    Transaction t(*this);
     Statement put(conn_.db,
                   "INSERT INTO chunks (x, y, z, seq, samples) VALUES (?, ?, ?, ?, ?) "
-                  "ON CONFLICT (x, y, z) DO UPDATE SET seq = excluded.seq, "
-                  "samples = excluded.samples",
+                  "ON CONFLICT (x, y, z, seq) DO UPDATE SET samples = excluded.samples",
+                  name_);
+    for (size_t from = 0; from < chunks.size(); from += schema::kCheckpointPart) {
+      Transaction t(*this);
+      for (const ChunkRecord& c :
+           chunks.subspan(from, std::min(schema::kCheckpointPart, chunks.size() - from))) {
+        put.bind(1, c.coord.x).bind(2, c.coord.y).bind(3, c.coord.z);
+        put.bind(4, static_cast<int64_t>(checkpoint_seq)).bind(5, c.samples);
+        put.run();
+      }
+      t.commit();
+    }
+    Transaction t(*this);  // the move: readers see the new rows from here on
+    const uint64_t previous = info_from_meta(name_, read_meta()).checkpoint_seq;
+    Statement old(conn_.db, "DELETE FROM chunks WHERE x = ? AND y = ? AND z = ? AND seq < ?",
                   name_);
     for (const ChunkRecord& c : chunks) {
-      put.bind(1, c.coord.x).bind(2, c.coord.y).bind(3, c.coord.z);
-      put.bind(4, static_cast<int64_t>(c.seq)).bind(5, c.samples);
-      put.run();
+      old.bind(1, c.coord.x).bind(2, c.coord.y).bind(3, c.coord.z);
+      old.bind(4, static_cast<int64_t>(checkpoint_seq)).run();
     }
+    // Rows of checkpoints that failed after `previous` (their chunks are in this one).
+    Statement failed(conn_.db, "DELETE FROM chunks WHERE seq > ? AND seq < ?", name_);
+    failed.bind(1, static_cast<int64_t>(previous)).bind(2, static_cast<int64_t>(checkpoint_seq));
+    failed.run();
     set_meta(schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
     if (trim_through > 0) {
       Statement trim(conn_.db, "DELETE FROM edit_log WHERE seq <= ?", name_);
@@ -163,7 +195,11 @@ class SqliteStore final : public WorldStore {
   }
 
   std::optional<ChunkRecord> read_chunk(world::ChunkCoord c) override {
-    Statement q(conn_.db, "SELECT seq, samples FROM chunks WHERE x = ? AND y = ? AND z = ?", name_);
+    Statement q(conn_.db,
+                "SELECT seq, samples FROM chunks WHERE x = ? AND y = ? AND z = ? AND seq <= "
+                "(SELECT CAST(value AS BIGINT) FROM meta WHERE key = 'checkpoint_seq') "
+                "ORDER BY seq DESC LIMIT 1",
+                name_);
     q.bind(1, c.x).bind(2, c.y).bind(3, c.z);
     if (!q.step()) return std::nullopt;
     const auto blob = q.blob(1);
@@ -171,7 +207,7 @@ class SqliteStore final : public WorldStore {
   }
 
   void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>& fn) override {
-    Statement q(conn_.db, "SELECT x, y, z, seq FROM chunks", name_);
+    Statement q(conn_.db, schema::kVisibleChunkCoords, name_);
     while (q.step()) {
       fn({static_cast<int32_t>(q.int64(0)), static_cast<int32_t>(q.int64(1)),
           static_cast<int32_t>(q.int64(2))},

@@ -4,10 +4,34 @@
 //
 //   meta      key TEXT PRIMARY KEY, value TEXT: schema_version, seed, starts, checkpoint_seq
 //   edit_log  seq PRIMARY KEY, at_ms, author TEXT, edit (edit_codec.hpp)
-//   chunks    (x, y, z) PRIMARY KEY, seq, samples (chunk_codec.hpp)
+//   chunks    (x, y, z, seq) PRIMARY KEY, samples (chunk_codec.hpp); index on seq
+//
+// Chunk rows are versioned (schema 2): a checkpoint at sequence S writes its chunks as rows
+// of seq S in several short transactions, then one short transaction moves checkpoint_seq
+// to S, deletes the rows they supersede and trims the log. Readers see, per chunk, its row
+// of seq <= checkpoint_seq (there is at most one once the move committed): a checkpoint is
+// all or nothing, yet never holds the write lock for long. Rows above checkpoint_seq are an
+// unfinished checkpoint's, deleted when a writer opens the store. Schema 1 (one row per
+// chunk) is migrated when a writer opens it.
 #pragma once
 
+#include <cstddef>
+
 namespace vox::store::schema {
+
+inline constexpr int kVersionedChunks = 2;  // the schema that made chunk rows versioned
+// Chunk rows per transaction while a checkpoint writes (about 0.8 MB).
+inline constexpr size_t kCheckpointPart = 64;
+
+// The visible checkpoint, inside a statement (both backends cast TEXT to BIGINT alike).
+#define VOX_CHECKPOINT_SEQ "(SELECT CAST(value AS BIGINT) FROM meta WHERE key = 'checkpoint_seq')"
+inline constexpr const char* kCountVisibleChunks =
+    "SELECT COUNT(*) FROM chunks WHERE seq <= " VOX_CHECKPOINT_SEQ;
+inline constexpr const char* kVisibleChunkCoords =
+    "SELECT x, y, z, seq FROM chunks WHERE seq <= " VOX_CHECKPOINT_SEQ;
+inline constexpr const char* kDropUnfinishedChunks =
+    "DELETE FROM chunks WHERE seq > " VOX_CHECKPOINT_SEQ;
+#undef VOX_CHECKPOINT_SEQ
 
 inline constexpr const char* kMetaSchemaVersion = "schema_version";
 inline constexpr const char* kMetaSeed = "seed";

@@ -28,7 +28,7 @@ struct StoreError : std::runtime_error {
 };
 
 // The schema this code writes; a store of a newer one is refused, never written.
-inline constexpr int kSchemaVersion = 1;
+inline constexpr int kSchemaVersion = 2;
 
 struct LoggedEdit {
   uint64_t seq = 0;     // global sequence number, from 1, in the order the edits applied
@@ -72,8 +72,10 @@ class WorldStore {
   virtual WorldInfo info() = 0;
   // Appends the edits in one transaction, durable when it returns (fsync / commit).
   virtual void append_edits(std::span<const LoggedEdit> edits) = 0;
-  // One transaction: writes (replaces) the chunks, records that the chunks include every
-  // edit up to `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it).
+  // Writes (replaces) the chunks, records that the chunks include every edit up to
+  // `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it): all or
+  // nothing for readers, in several short transactions (another connection's appends are
+  // not held up for long). Each chunk's seq must be `checkpoint_seq`.
   virtual void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
                                 uint64_t trim_through) = 0;
   virtual std::optional<ChunkRecord> read_chunk(world::ChunkCoord c) = 0;
