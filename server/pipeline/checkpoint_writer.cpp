@@ -4,16 +4,6 @@
 
 namespace vox::pipeline {
 
-namespace {
-
-size_t job_memory(const CheckpointJob& job) {
-  size_t bytes = 0;
-  for (const store::ChunkRecord& r : job.records) bytes += r.samples.capacity() + sizeof(r);
-  return bytes;
-}
-
-}  // namespace
-
 CheckpointWriter::CheckpointWriter(store::WorldStore& store, bool background,
                                    std::function<void()> on_done)
     : store_(store), on_done_(std::move(on_done)) {
@@ -29,37 +19,81 @@ CheckpointWriter::~CheckpointWriter() {
   if (thread_.joinable()) thread_.join();
 }
 
-CheckpointResult CheckpointWriter::write(store::WorldStore& store, const CheckpointJob& job) {
+CheckpointResult CheckpointWriter::run(const CheckpointJob& job) {
   const auto start = std::chrono::steady_clock::now();
   CheckpointResult result{.seq = job.seq};
-  for (const store::ChunkRecord& r : job.records) {
-    result.bytes += r.samples.size();
-    result.coords.push_back(r.coord);
-  }
+  std::vector<store::ChunkRecord> records;
+  records.reserve(job.chunks.size());
   try {
-    store.write_checkpoint(job.records, job.seq, job.trim_through);
+    for (const auto& [c, live] : job.chunks) {
+      std::optional<world::Chunk> copy;
+      {
+        std::lock_guard lock(mutex_);
+        if (auto it = preserved_.find(c); it != preserved_.end()) {
+          copy = std::move(it->second);
+          preserved_.erase(it);
+        } else {
+          reading_ = c;
+        }
+      }
+      std::vector<uint8_t> bytes = encoder_.encode(copy ? *copy : *live);
+      {
+        std::lock_guard lock(mutex_);
+        reading_.reset();
+        pending_.erase(c);
+        bytes_ += bytes.size();
+        if (copy) bytes_ -= copy->memory_bytes();
+      }
+      cv_.notify_all();  // preserve() may wait for this chunk
+      result.bytes += bytes.size();
+      result.coords.push_back(c);
+      records.push_back({c, job.seq, std::move(bytes)});
+    }
+    store_.write_checkpoint(records, job.seq, job.trim_through);
     result.ok = true;
-  } catch (const std::exception& e) {
+  } catch (const std::exception& e) {  // the store's error, or no memory to encode
+    {
+      std::lock_guard lock(mutex_);
+      reading_.reset();
+    }
+    cv_.notify_all();
     result.error = e.what();
+    result.coords.clear();
+    for (const auto& [c, live] : job.chunks) result.coords.push_back(c);
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 
 void CheckpointWriter::submit(CheckpointJob job) {
-  if (!thread_.joinable()) {
-    CheckpointResult r = write(store_, job);
-    std::lock_guard lock(mutex_);
-    result_ = std::move(r);
-    return;
-  }
   {
     std::lock_guard lock(mutex_);
-    job_bytes_ = job_memory(job);
-    job_ = std::move(job);
+    pending_.clear();
+    for (const auto& [c, live] : job.chunks) pending_.insert(c);
     busy_ = true;
+    if (thread_.joinable()) {
+      job_ = std::move(job);
+    }
   }
-  cv_.notify_all();
+  if (thread_.joinable()) {
+    cv_.notify_all();
+    return;
+  }
+  CheckpointResult r = run(job);  // on this thread: nothing changes the chunks meanwhile
+  std::lock_guard lock(mutex_);
+  result_ = std::move(r);
+  pending_.clear();
+  preserved_.clear();
+  bytes_ = 0;
+  busy_ = false;
+}
+
+void CheckpointWriter::preserve(world::ChunkCoord c, const world::Chunk& live) {
+  std::unique_lock lock(mutex_);
+  cv_.wait(lock, [&] { return reading_ != c; });
+  if (!pending_.count(c) || preserved_.count(c)) return;  // encoded already, or kept
+  preserved_.emplace(c, live);
+  bytes_ += live.memory_bytes();
 }
 
 std::optional<CheckpointResult> CheckpointWriter::take_result() {
@@ -74,7 +108,7 @@ void CheckpointWriter::wait() {
 
 size_t CheckpointWriter::memory_bytes() const {
   std::lock_guard lock(mutex_);
-  return job_bytes_;
+  return bytes_;
 }
 
 void CheckpointWriter::work() {
@@ -87,12 +121,13 @@ void CheckpointWriter::work() {
       job = std::move(*job_);
       job_.reset();
     }
-    CheckpointResult r = write(store_, job);
-    job = {};  // the records go before the memory they count is given back
+    CheckpointResult r = run(job);
     {
       std::lock_guard lock(mutex_);
       result_ = std::move(r);
-      job_bytes_ = 0;
+      pending_.clear();
+      preserved_.clear();
+      bytes_ = 0;
       busy_ = false;
     }
     cv_.notify_all();

@@ -1,11 +1,17 @@
 // Writes the pipeline's checkpoints: the chunks edits changed since the last one, all as
-// of one sequence number (encoded by the pipeline), to the store in one transaction that
-// also records that sequence and trims the log through it. In the
-// background (its own thread and its own store connection: the pipeline keeps appending
+// of one sequence number, compressed and written to the store (which makes them visible
+// at once, records that sequence and trims the log through it). In the background (its
+// own thread and its own store connection: the pipeline keeps applying and appending
 // edits meanwhile) or, given the pipeline's own connection, on the caller's thread.
 //
+// Copy on write: a job names the live chunks. The writer encodes each from the pipeline's
+// own chunk, unless the pipeline is about to change it first: the pipeline then calls
+// preserve(), which keeps a copy of the chunk as it was (waiting, if the writer is
+// encoding that very chunk, until it is done). So a checkpoint costs the pipeline nothing
+// but the copies of the chunks it changes again before the writer reached them.
+//
 // Bounded: one job at a time (the pipeline submits the next once it took the result of
-// the last), and memory_bytes() counts its records for the memory budget.
+// the last); memory_bytes() counts its records and copies for the memory budget.
 #pragma once
 
 #include <condition_variable>
@@ -15,17 +21,23 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <unordered_map>
+#include <unordered_set>
 #include <utility>
 #include <vector>
 
+#include "server/store/chunk_codec.hpp"
 #include "server/store/world_store.hpp"
+#include "server/world/chunk.hpp"
 
 namespace vox::pipeline {
 
 struct CheckpointJob {
   uint64_t seq = 0;           // the chunks include every edit through this one, and no later one
   uint64_t trim_through = 0;  // the log is deleted through this edit (0: kept)
-  std::vector<store::ChunkRecord> records;  // encoded, each with `seq`
+  // The pipeline's chunks: never evicted, never replaced, and changed only after
+  // preserve(), until the result is taken.
+  std::vector<std::pair<world::ChunkCoord, const world::Chunk*>> chunks;
 };
 
 struct CheckpointResult {
@@ -49,25 +61,32 @@ class CheckpointWriter {
 
   // Pipeline thread, nothing in flight (take_result() returned the last job's result).
   void submit(CheckpointJob job);
+  // Pipeline thread, before it changes chunk `c` of the job in flight (`live` is that
+  // chunk): keeps a copy of it for the writer unless the writer is done with it.
+  void preserve(world::ChunkCoord c, const world::Chunk& live);
   // Pipeline thread: the finished job's result, once.
   std::optional<CheckpointResult> take_result();
   // Pipeline thread: waits until the job in flight has finished.
   void wait();
-  size_t memory_bytes() const;  // any thread: the records of the job in flight
-
-  // The work itself: one transaction.
-  static CheckpointResult write(store::WorldStore& store, const CheckpointJob& job);
+  size_t memory_bytes() const;  // any thread: the job's records and copies
 
  private:
   void work();
+  CheckpointResult run(const CheckpointJob& job);  // encodes and writes
 
   store::WorldStore& store_;
   const std::function<void()> on_done_;
-  mutable std::mutex mutex_;  // leaf lock; never held while writing
+  store::ChunkEncoder encoder_;  // the writing thread's
+  mutable std::mutex mutex_;     // leaf lock; never held while encoding or writing
   std::condition_variable cv_;
   std::optional<CheckpointJob> job_;
   std::optional<CheckpointResult> result_;
-  size_t job_bytes_ = 0;
+  // The job in flight's chunks not encoded yet; the copies preserve() made of some; the
+  // one being encoded from the pipeline's chunk.
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> pending_;
+  std::unordered_map<world::ChunkCoord, world::Chunk, world::ChunkCoordHash> preserved_;
+  std::optional<world::ChunkCoord> reading_;
+  size_t bytes_ = 0;   // records encoded and copies held
   bool busy_ = false;  // a job submitted and its result not produced yet
   bool stopping_ = false;
   std::thread thread_;

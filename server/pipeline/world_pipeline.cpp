@@ -393,10 +393,10 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   for (size_t i = 0; i < touched.size(); ++i) {
     targets[i] = st.chunks.find(touched[i]);
     was_uniform[i] = targets[i]->is_uniform();
-    if (undo) {
-      const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
-      undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
-    }
+    const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
+    // A checkpoint in flight still needs it as it is: the writer gets a copy.
+    if (i_info.checkpointing) checkpointer_->preserve(touched[i], *targets[i]);
+    if (undo) undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
   if (touched.size() == 1) {

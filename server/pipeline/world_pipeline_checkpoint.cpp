@@ -8,7 +8,6 @@
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/pipeline/world_state.hpp"
-#include "server/world/parallel.hpp"
 
 namespace vox::pipeline {
 
@@ -31,13 +30,10 @@ void WorldPipeline::start_checkpoint(Clock::time_point now) {
     info.checkpointing = true;
   }
   unsaved_.clear();
-  // Encoded here, in parallel, between batches: the samples as of `seq` (compressed they
-  // take an eighth of a copy, and the writer only writes).
-  job.records.resize(coords.size());
-  parallel_for_index(st.arena, coords.size(), [&](size_t i) {
-    MeshWorker& w = *st.workers.local();
-    job.records[i] = {coords[i], seq, w.chunk_encoder.encode(*st.chunks.find(coords[i]))};
-  });
+  // The writer reads the chunks themselves; a batch that changes one first preserves it
+  // (apply_edit_task, roll_back), so the checkpoint has every chunk as of `seq`.
+  job.chunks.reserve(coords.size());
+  for (const ChunkCoord& c : coords) job.chunks.emplace_back(c, st.chunks.find(c));
   checkpoint_edits_ = std::exchange(unsaved_edits_, 0);
   checkpoint_policy_->started(now);
   checkpointer_->submit(std::move(job));

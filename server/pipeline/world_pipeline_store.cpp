@@ -221,6 +221,8 @@ void WorldPipeline::roll_back(Undo& undo) {
     const Undo::Patch& p = *it;
     world::Chunk* chunk = st.chunks.find(p.coord);
     if (!chunk) continue;  // cannot happen: a batch evicts nothing it touched
+    WorldState::ChunkInfo& info = st.info.at(p.coord);
+    if (info.checkpointing) checkpointer_->preserve(p.coord, *chunk);  // preserved already
     const bool was_uniform = chunk->is_uniform();
     if (p.was_uniform) {
       *chunk = world::Chunk(p.uniform);
@@ -231,7 +233,6 @@ void WorldPipeline::roll_back(Undo& undo) {
           for (int x = p.lo[0]; x <= p.hi[0]; ++x) chunk->set(x, y, z, p.samples[i++]);
     }
     st.chunks.note_changed(was_uniform, *chunk);
-    WorldState::ChunkInfo& info = st.info.at(p.coord);
     if (info.modified && !p.modified) --st.modified_count;
     info.modified = p.modified;
     info.unsaved = p.unsaved;

@@ -20,7 +20,6 @@
 #include "server/mesh/padded_block.hpp"
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/view_index.hpp"
-#include "server/store/chunk_codec.hpp"
 #include "server/world/chunk_map.hpp"
 #include "server/world/terrain_generator.hpp"
 
@@ -33,7 +32,6 @@ struct MeshWorker {
   mesh::MeshScratch scratch;
   proto::CodecScratch codec;
   proto::ZstdCodec zstd;
-  store::ChunkEncoder chunk_encoder;  // checkpoints
 };
 
 struct WorldState {
