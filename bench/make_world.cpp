@@ -5,9 +5,10 @@
 //
 //   build/bin/bench_make_world WORLD [--edits N] [--chunks M] [--seed S] [--crash]
 //
-// WORLD: a directory (SQLite) or a postgresql:// URI. --crash: after the last edit is
-// durable, exits at once (no final checkpoint, as kill -9 would): a restart replays the
-// log since the last checkpoint.
+// WORLD: a directory (SQLite), a postgresql:// URI, or `postgres` (a PostgreSQL server this
+// program starts in a temporary directory, tests/postgres_server.hpp, and stops). --crash: after
+// the last edit is durable, exits at once (no final checkpoint, as kill -9 would): a restart
+// replays the log since the last checkpoint.
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -23,6 +24,7 @@
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/store/world_store.hpp"
+#include "tests/postgres_server.hpp"
 
 namespace {
 
@@ -57,6 +59,8 @@ Options parse(int argc, char** argv) {
     }
   }
   if (o.where.empty() || o.chunks == 0) throw std::runtime_error("usage: see bench/make_world.cpp");
+  if (o.crash && o.where == "postgres")
+    throw std::runtime_error("--crash would leave the temporary PostgreSQL server running");
   return o;
 }
 
@@ -85,6 +89,11 @@ int main(int argc, char** argv) {
     return 2;
   }
   spdlog::set_level(spdlog::level::warn);
+  std::unique_ptr<test::PostgresServer> postgres;
+  if (o.where == "postgres") {
+    postgres = std::make_unique<test::PostgresServer>();
+    o.where = postgres->create_database("make_world");
+  }
   auto store = store::open_world_store(o.where, {.seed = o.seed});
   auto cp = store::open_world_store(o.where, {.seed = o.seed, .record_start = false});
   pipeline::PipelineConfig config{.seed = o.seed,

@@ -4,6 +4,8 @@
 // in-memory one that applied the same edits in the same order.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -260,7 +262,8 @@ wire::Envelope to_message(const world::Edit& edit, uint64_t request) {
 }
 
 // Three clients edit as fast as their results come back; voxeld is killed at a random
-// moment, five times, and restarted on the same world each time. Every ACCEPTED edit must
+// moment, five times (VOXEL_KILL_ROUNDS=20 for the benchmark), and restarted on the same
+// world each time. Every ACCEPTED edit must
 // be in the log, and the world after the last restart must be the log replayed in order
 // onto a fresh world.
 TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
@@ -270,7 +273,9 @@ TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
   std::mutex mutex;
   std::mt19937 rng(20261201);
   int counter = 0;
-  for (int round = 0; round < 5; ++round) {
+  const char* rounds_env = std::getenv("VOXEL_KILL_ROUNDS");
+  const int rounds = rounds_env ? std::max(1, std::atoi(rounds_env)) : 5;
+  for (int round = 0; round < rounds; ++round) {
     // Checkpoints every 50 ms, so that kills land during them too; the log is kept whole
     // so that every acknowledged edit can be looked for in it.
     ServerProcess s({"--world", world.string(), "--keep-log", "--checkpoint-interval", "0.05"});
@@ -319,6 +324,8 @@ TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
   EXPECT_EQ(lost, 0u) << "of " << acknowledged.size() << " acknowledged edits";
   RecordProperty("acknowledged", static_cast<int>(acknowledged.size()));
   RecordProperty("logged", static_cast<int>(logged.size()));
+  std::printf("%d kills: %zu edits acknowledged, %zu logged, %zu lost\n", rounds,
+              acknowledged.size(), logged.size(), lost);
 
   std::map<client::ChunkKey, std::vector<uint8_t>> restarted, replayed;
   {

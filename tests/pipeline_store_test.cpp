@@ -8,9 +8,12 @@
 
 #include <filesystem>
 #include <future>
+#include <map>
+#include <mutex>
 #include <thread>
 
 #include "server/pipeline/world_pipeline.hpp"
+#include "server/store/chunk_codec.hpp"
 #include "server/store/world_store.hpp"
 #include "tests/postgres_server.hpp"
 
@@ -223,6 +226,67 @@ TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
   run_sql(dir, "ALTER TABLE chunks_away RENAME TO chunks");
   EXPECT_EQ(loaded.wait_for(3s), std::future_status::ready);
   p.stop();
+  std::filesystem::remove_all(dir);
+}
+
+// Edits keep coming while the writer encodes a checkpoint; they change chunks it has not
+// reached yet. Every checkpoint must hold its chunks as of its own sequence number: each
+// is read back the moment it landed and compared with a world that applied exactly the
+// edits up to that number.
+TEST(PipelineStore, EditsWhileACheckpointIsWrittenDoNotReachIt) {
+  const auto dir = temp_world("cow");
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  auto cp = store::open_world_store(dir.string(), {.seed = 3, .record_start = false});
+  using Snapshot = std::map<world::ChunkCoord, world::Chunk>;
+  std::vector<std::pair<uint64_t, Snapshot>> landed;  // pipeline thread, then read after stop
+  PipelineObserver observer{.checkpoint = [&](double, size_t, size_t, bool ok) {
+    if (!ok) return;
+    auto reader = store::open_world_store(dir.string(), {.read_only = true});
+    Snapshot chunks;
+    reader->for_each_chunk([&](world::ChunkCoord c, uint64_t) {
+      chunks.emplace(c, *store::decode_chunk(reader->read_chunk(c)->samples));
+    });
+    landed.emplace_back(reader->info().checkpoint_seq, std::move(chunks));
+  }};
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  std::vector<world::Edit> edits;
+  for (int i = 0; i < 48; ++i) {
+    const world::Vec3 at{static_cast<float>(8 + (i * 7) % 48), static_cast<float>(y),
+                         static_cast<float>(8 + (i * 11) % 48)};
+    if (i % 4 == 3) {
+      edits.push_back(world::Smooth{at, 4, 0.6f});
+    } else {
+      edits.push_back(world::Explosion{at, 4, 0.8f});
+    }
+  }
+  {
+    WorldPipeline p(PipelineConfig{.seed = 3,
+                                   .threads = 2,
+                                   .store = store.get(),
+                                   .checkpoint_store = cp.get(),
+                                   .checkpoint = {.interval = 1h, .max_unsaved_chunks = 4}},
+                    observer);
+    std::vector<std::future<EditResult>> results;
+    for (const world::Edit& e : edits) {  // queued at once: batches overlap the writer
+      results.push_back(p.submit(e));
+      if (results.size() % 6 == 0) std::this_thread::sleep_for(2ms);
+    }
+    for (auto& r : results) ASSERT_TRUE(r.get().accepted);
+    p.stop();
+  }
+  ASSERT_GE(landed.size(), 2u) << "too few checkpoints to prove anything";
+  for (const auto& [seq, chunks] : landed) {
+    WorldPipeline memory(PipelineConfig{.seed = 3, .threads = 2});
+    for (uint64_t i = 0; i < seq; ++i) ASSERT_TRUE(memory.submit(edits[i]).get().accepted);
+    size_t differ = 0;
+    memory.inspect([&](const world::ChunkMap& map) {
+      for (const auto& [c, chunk] : chunks) {
+        const world::Chunk* expected = map.find(c);
+        differ += expected && *expected == chunk ? 0 : 1;
+      }
+    });
+    EXPECT_EQ(differ, 0u) << "the checkpoint through edit " << seq << " holds later changes";
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -132,6 +132,24 @@ TEST_P(WorldStoreTest, ABatchWithADuplicateSeqWritesNothing) {
   EXPECT_EQ(s->info().last_seq, 2u);
 }
 
+// Appends whose outcome was in doubt (they failed, yet may have landed) and whose edits
+// the pipeline undid go from the log with the next append that works.
+TEST_P(WorldStoreTest, AnAppendForgetsTheDoubtfulOnesInItsTransaction) {
+  auto s = open_world_store(fresh_world(), {.seed = 1});
+  const world::Edit e = world::Explosion{{0, 0, 0}, 3, 1};
+  std::vector<LoggedEdit> five;
+  for (uint64_t seq = 1; seq <= 5; ++seq) five.push_back({seq, 0, "", e});
+  s->append_edits(five);
+  const std::vector<WorldStore::SeqRange> forget{{3, 4}};
+  s->append_edits(std::vector<LoggedEdit>{{7, 0, "", e}}, forget);
+  std::vector<uint64_t> seqs;
+  s->for_each_edit(0, [&](const LoggedEdit& l) {
+    seqs.push_back(l.seq);
+    return true;
+  });
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{1, 2, 5, 7}));
+}
+
 TEST_P(WorldStoreTest, CheckpointsReplaceChunksAndTrimTheLog) {
   auto s = open_world_store(fresh_world(), {.seed = 1});
   std::vector<LoggedEdit> log;

@@ -79,13 +79,19 @@ void CheckpointWriter::submit(CheckpointJob job) {
     cv_.notify_all();
     return;
   }
-  CheckpointResult r = run(job);  // on this thread: nothing changes the chunks meanwhile
-  std::lock_guard lock(mutex_);
-  result_ = std::move(r);
-  pending_.clear();
-  preserved_.clear();
-  bytes_ = 0;
-  busy_ = false;
+  done(run(job));  // on this thread: nothing changes the chunks meanwhile
+}
+
+void CheckpointWriter::done(CheckpointResult r) {
+  {
+    std::lock_guard lock(mutex_);
+    result_ = std::move(r);
+    pending_.clear();
+    preserved_.clear();
+    bytes_ = 0;
+    busy_ = false;
+  }
+  cv_.notify_all();
 }
 
 void CheckpointWriter::preserve(world::ChunkCoord c, const world::Chunk& live) {
@@ -121,16 +127,7 @@ void CheckpointWriter::work() {
       job = std::move(*job_);
       job_.reset();
     }
-    CheckpointResult r = run(job);
-    {
-      std::lock_guard lock(mutex_);
-      result_ = std::move(r);
-      pending_.clear();
-      preserved_.clear();
-      bytes_ = 0;
-      busy_ = false;
-    }
-    cv_.notify_all();
+    done(run(job));
     if (on_done_) on_done_();
   }
 }

@@ -73,6 +73,7 @@ class CheckpointWriter {
  private:
   void work();
   CheckpointResult run(const CheckpointJob& job);  // encodes and writes
+  void done(CheckpointResult r);                   // publishes the result; the job is over
 
   store::WorldStore& store_;
   const std::function<void()> on_done_;

@@ -306,9 +306,11 @@ class WorldPipeline {
   bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
   uint64_t next_seq_ = 1;               // the next logged edit's sequence number; pipeline thread
   Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
-  bool store_failing_ = false;          // the last append failed (logged once); pipeline thread
-  bool store_read_failing_ = false;     // the last chunk read failed (logged once); pipeline thread
-  std::string last_read_error_;         // pipeline thread
+  // Sequence numbers of failed appends since the last that worked (pipeline thread).
+  std::optional<store::WorldStore::SeqRange> doubtful_;
+  bool store_failing_ = false;       // the last append failed (logged once); pipeline thread
+  bool store_read_failing_ = false;  // the last chunk read failed (logged once); pipeline thread
+  std::string last_read_error_;      // pipeline thread
   Clock::time_point store_read_retry_at_{};   // after a failed read: the next try
   Clock::time_point store_read_logged_at_{};  // the last failed read logged
   // Checkpoints (with a store; pipeline thread): resident chunks with info.unsaved, edits

@@ -163,10 +163,14 @@ std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& a
   store::WorldStore& store = *config_.store;
   const Clock::time_point start = Clock::now();
   double commit_s = 0;
-  auto append = std::async(std::launch::async, [&store, &log, &commit_s, start]() -> std::string {
+  // Appends that failed since the last that worked may have landed all the same: their
+  // edits were undone here, so they go from the log with this append.
+  std::vector<store::WorldStore::SeqRange> forget;
+  if (doubtful_) forget.push_back(*doubtful_);
+  auto append = std::async(std::launch::async, [&]() -> std::string {
     std::string error;
     try {
-      store.append_edits(log);
+      store.append_edits(log, forget);
     } catch (const std::exception& e) {
       error = e.what();
     }
@@ -181,10 +185,16 @@ std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& a
                      log.size(), error.empty());
   }
   if (!error.empty()) {
+    // No append works in between, so one range covers every doubtful one.
+    if (!doubtful_) doubtful_ = store::WorldStore::SeqRange{log.front().seq, log.back().seq};
+    doubtful_->last = log.back().seq;
     store_retry_at_ = Clock::now() + config_.store_retry;
     if (!store_failing_) spdlog::error("world store: {}; edits are refused until it works", error);
     store_failing_ = true;
-  } else if (store_failing_) {
+  } else {
+    doubtful_.reset();
+  }
+  if (error.empty() && store_failing_) {
     store_failing_ = false;
     spdlog::info("world store: writing again; edits are accepted");
   }

@@ -112,11 +112,15 @@ class PostgresStore final : public WorldStore {
     return i;
   }
 
-  void append_edits(std::span<const LoggedEdit> edits) override {
+  void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget) override {
     refuse_if_read_only();
-    if (edits.empty()) return;
+    if (edits.empty() && forget.empty()) return;
     run([&](pqxx::connection& c) {
       pqxx::work t(c);
+      for (const SeqRange& r : forget) {
+        t.exec_params("DELETE FROM edit_log WHERE seq >= $1 AND seq <= $2",
+                      static_cast<int64_t>(r.first), static_cast<int64_t>(r.last));
+      }
       for (const LoggedEdit& e : edits) {
         const auto bytes = encode_edit(e.edit);
         t.exec_params("INSERT INTO edit_log (seq, at_ms, author, edit) VALUES ($1, $2, $3, $4)",

@@ -145,9 +145,12 @@ class SqliteStore final : public WorldStore {
     return i;
   }
 
-  void append_edits(std::span<const LoggedEdit> edits) override {
-    if (edits.empty()) return;
+  void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget) override {
+    if (edits.empty() && forget.empty()) return;
     Transaction t(*this);
+    Statement drop(conn_.db, "DELETE FROM edit_log WHERE seq >= ? AND seq <= ?", name_);
+    for (const SeqRange& r : forget)
+      drop.bind(1, static_cast<int64_t>(r.first)).bind(2, static_cast<int64_t>(r.last)).run();
     Statement ins(conn_.db, "INSERT INTO edit_log (seq, at_ms, author, edit) VALUES (?, ?, ?, ?)",
                   name_);
     for (const LoggedEdit& e : edits) {

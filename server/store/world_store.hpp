@@ -70,8 +70,15 @@ class WorldStore {
   // "SQLite world/world.sqlite" or "PostgreSQL host/db": for messages.
   virtual const std::string& name() const = 0;
   virtual WorldInfo info() = 0;
-  // Appends the edits in one transaction, durable when it returns (fsync / commit).
-  virtual void append_edits(std::span<const LoggedEdit> edits) = 0;
+  // Appends the edits in one transaction, durable when it returns (fsync / commit). In the
+  // same transaction, deletes the logged edits of sequence numbers [first, last] of each
+  // of `forget`: appends whose outcome was in doubt (they failed, yet may have landed) and
+  // whose edits the caller did not apply.
+  struct SeqRange {
+    uint64_t first = 0, last = 0;
+  };
+  virtual void append_edits(std::span<const LoggedEdit> edits,
+                            std::span<const SeqRange> forget = {}) = 0;
   // Writes (replaces) the chunks, records that the chunks include every edit up to
   // `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it): all or
   // nothing for readers, in several short transactions (another connection's appends are
