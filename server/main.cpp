@@ -86,7 +86,7 @@ int main(int argc, char** argv) {
       "store", po::value<std::string>(&store_uri),
       "postgresql://... : keep the world in this PostgreSQL database instead of --world")(
       "checkpoint-interval", po::value<double>(&checkpoint_s)->default_value(10),
-      "seconds between checkpoints of the changed chunks (sooner past 2,048 chunks or 50,000 "
+      "seconds between checkpoints of the changed chunks (sooner past 2,048 chunks or 20,000 "
       "edits); a restart replays the log since the last one")(
       "keep-log", po::bool_switch(&world.keep_log),
       "keep every edit in the log (an audit trail; voxel-cli world log) instead of deleting "

@@ -15,7 +15,7 @@ namespace vox::pipeline {
 struct CheckpointLimits {
   std::chrono::milliseconds interval{std::chrono::seconds(10)};
   size_t max_unsaved_chunks = 2048;
-  uint64_t max_unsaved_edits = 50000;
+  uint64_t max_unsaved_edits = 20000;
   std::chrono::milliseconds retry{std::chrono::seconds(5)};
 };
 
