@@ -229,6 +229,29 @@ TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
   std::filesystem::remove_all(dir);
 }
 
+// A damaged checkpointed chunk: an edit that needs it is refused, saying so (not "disk
+// full"), and the world is not touched; the server goes on.
+TEST(PipelineStore, AnEditNeedingADamagedStoredChunkIsRefusedSayingSo) {
+  const auto dir = temp_world("damaged");
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  {
+    auto store = store::open_world_store(dir.string(), {.seed = 3});
+    WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});
+    ASSERT_TRUE(p.submit(world::Explosion{{30, float(y), 30}, 6, 1.2f}).get().accepted);
+  }  // stop: checkpointed
+  run_sql(dir, "UPDATE chunks SET samples = x'0102'");
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});
+  const EditResult r = p.submit(world::Brush{{30, float(y), 30}, 3}).get();
+  EXPECT_FALSE(r.accepted);
+  EXPECT_EQ(r.reason, world::RefusalReason::kStorageUnavailable);
+  EXPECT_NE(r.message.find("cannot be read from the world store"), std::string::npos) << r.message;
+  // Elsewhere the world goes on.
+  EXPECT_TRUE(p.submit(world::Explosion{{900, float(y), 900}, 3, 1}).get().accepted);
+  p.stop();
+  std::filesystem::remove_all(dir);
+}
+
 // Edits keep coming while the writer encodes a checkpoint; they change chunks it has not
 // reached yet. Every checkpoint must hold its chunks as of its own sequence number: each
 // is read back the moment it landed and compared with a world that applied exactly the

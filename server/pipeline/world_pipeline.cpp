@@ -37,6 +37,10 @@ using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
 constexpr const char* kStorageMessage =
     "the world store cannot write now (disk full or database unreachable); the edit was not "
     "applied";
+// ... and one refused because a checkpointed chunk it needs could not be read back.
+constexpr const char* kStorageReadMessage =
+    "a chunk this edit needs cannot be read from the world store now (unreachable, or the "
+    "server's log names a damaged chunk); the edit was not applied";
 
 // A batch slower than this is logged: every edit queued behind it waited.
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
@@ -526,7 +530,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
           refused == world::RefusalReason::kServerBusy
               ? "the server's memory budget is full: edits needing new terrain are refused"
           : refused == world::RefusalReason::kStorageUnavailable
-              ? kStorageMessage
+              ? kStorageReadMessage
               : "your edits made the server generate too much terrain at once";
       ++delta.edits_refused;
       delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
