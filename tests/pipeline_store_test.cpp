@@ -298,7 +298,9 @@ TEST(PipelineStore, EditsWhileACheckpointIsWrittenDoNotReachIt) {
     p.stop();
   }
   ASSERT_GE(landed.size(), 2u) << "too few checkpoints to prove anything";
-  for (const auto& [seq, chunks] : landed) {
+  for (const auto& entry : landed) {  // not a structured binding: clang 14 cannot capture one
+    const uint64_t seq = entry.first;
+    const Snapshot& chunks = entry.second;
     WorldPipeline memory(PipelineConfig{.seed = 3, .threads = 2});
     for (uint64_t i = 0; i < seq; ++i) ASSERT_TRUE(memory.submit(edits[i]).get().accepted);
     size_t differ = 0;

@@ -132,6 +132,28 @@ TEST_P(WorldStoreTest, ABatchWithADuplicateSeqWritesNothing) {
   EXPECT_EQ(s->info().last_seq, 2u);
 }
 
+// One writing process per world: a second voxeld on it (or a restart while the old one
+// still writes its last checkpoint) is refused naming the reason, and nothing is written;
+// once the first is gone it opens. The same process's second connection is not a writer.
+TEST_P(WorldStoreTest, ASecondWriterIsRefusedWhileTheFirstLives) {
+  const std::string where = fresh_world();
+  {
+    auto first = open_world_store(where, {.seed = 1});
+    auto own = open_world_store(where, {.seed = 1, .record_start = false});
+    try {
+      open_world_store(where, {.seed = 1});
+      ADD_FAILURE() << "a second writer opened the world";
+    } catch (const StoreError& e) {
+      EXPECT_NE(std::string(e.what()).find("another voxeld is writing this world"),
+                std::string::npos)
+          << e.what();
+    }
+    EXPECT_EQ(first->info().starts, 1u);
+    EXPECT_NO_THROW(open_world_store(where, {.read_only = true}));  // tools still read
+  }
+  EXPECT_NO_THROW(open_world_store(where, {.seed = 1}));
+}
+
 // Appends whose outcome was in doubt (they failed, yet may have landed) and whose edits
 // the pipeline undid go from the log with the next append that works.
 TEST_P(WorldStoreTest, AnAppendForgetsTheDoubtfulOnesInItsTransaction) {

@@ -81,7 +81,7 @@ class PostgresStore final : public WorldStore {
                       std::to_string(options_.seed.value_or(options_.new_world_seed)));
         t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, "0");
       }
-      t.exec(schema::kDropUnfinishedChunks);
+      if (options_.record_start) t.exec(schema::kDropUnfinishedChunks);
       const uint64_t starts =
           meta.contains(schema::kMetaStarts)
               ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
@@ -147,6 +147,10 @@ class PostgresStore final : public WorldStore {
         t.commit();
       }
       pqxx::work t(c);  // the move: readers see the new rows from here on
+      const auto rows = t.exec1(std::string(schema::kCountRowsOfSeq) + std::to_string(seq));
+      if (rows[0].as<uint64_t>() != distinct_coords(chunks))
+        throw StoreError(name_ + ": checkpoint " + std::to_string(checkpoint_seq) +
+                         " lost rows while written (another writer?); not recorded");
       const uint64_t previous = info_from_meta(name_, read_meta(t)).checkpoint_seq;
       for (const ChunkRecord& r : chunks) {
         t.exec_params("DELETE FROM chunks WHERE x = $1 AND y = $2 AND z = $3 AND seq < $4",
@@ -219,7 +223,10 @@ class PostgresStore final : public WorldStore {
   template <class Fn>
   void run(Fn&& fn) {
     try {
-      if (!conn_ || !conn_->is_open()) conn_ = std::make_unique<pqxx::connection>(uri_);
+      if (!conn_ || !conn_->is_open()) {
+        conn_ = std::make_unique<pqxx::connection>(uri_);
+        if (!options_.read_only && options_.record_start) lock_world(*conn_);
+      }
       fn(*conn_);
     } catch (const StoreError&) {
       throw;
@@ -229,6 +236,18 @@ class PostgresStore final : public WorldStore {
     } catch (const std::exception& e) {
       conn_.reset();
       throw StoreError(name_ + ": " + first_line(e.what()));
+    }
+  }
+
+  // One writing process per world: a session advisory lock in this database, held by the
+  // writer's first connection (PostgreSQL drops it when the connection goes).
+  void lock_world(pqxx::connection& c) {
+    pqxx::nontransaction t(c);
+    if (!t.exec1("SELECT pg_try_advisory_lock(7008)")[0].as<bool>()) {
+      conn_.reset();
+      throw StoreError(name_ +
+                       ": another voxeld is writing this world (it holds its lock); "
+                       "stop it first");
     }
   }
 

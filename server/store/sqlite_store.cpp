@@ -1,8 +1,13 @@
 #include "server/store/sqlite_store.hpp"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/file.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
+#include <cstring>
 #include <system_error>
 
 #include "server/store/edit_codec.hpp"
@@ -101,6 +106,7 @@ class SqliteStore final : public WorldStore {
     // another seed is refused before anything is written (WAL mode writes the header).
     if (exists) open(SQLITE_OPEN_READONLY), check_existing(options);
     if (options.read_only) return;
+    if (options.record_start) lock_world();
     if (exists) sqlite3_close(conn_.db), conn_.db = nullptr;
     open(SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
     exec("PRAGMA journal_mode=WAL");
@@ -117,7 +123,7 @@ class SqliteStore final : public WorldStore {
       exec(kMigrateChunks);
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
     }
-    exec(schema::kDropUnfinishedChunks);
+    if (options.record_start) exec(schema::kDropUnfinishedChunks);
     const auto starts =
         meta.contains(schema::kMetaStarts)
             ? parse_meta_u64(name_, schema::kMetaStarts, meta.at(schema::kMetaStarts))
@@ -178,6 +184,11 @@ class SqliteStore final : public WorldStore {
       t.commit();
     }
     Transaction t(*this);  // the move: readers see the new rows from here on
+    Statement rows(conn_.db, (std::string(schema::kCountRowsOfSeq) + "?").c_str(), name_);
+    rows.bind(1, static_cast<int64_t>(checkpoint_seq));
+    if (!rows.step() || static_cast<size_t>(rows.int64(0)) != distinct_coords(chunks))
+      throw StoreError(name_ + ": checkpoint " + std::to_string(checkpoint_seq) +
+                       " lost rows while written (another writer?); not recorded");
     const uint64_t previous = info_from_meta(name_, read_meta()).checkpoint_seq;
     Statement old(conn_.db, "DELETE FROM chunks WHERE x = ? AND y = ? AND z = ? AND seq < ?",
                   name_);
@@ -308,13 +319,40 @@ class SqliteStore final : public WorldStore {
   std::filesystem::path file_;
   std::string name_;
   // Closed by its destructor, so also when the constructor throws (a refused file).
+  // One writing process per world: an exclusive flock on world.lock beside the file, held
+  // while this connection lives (the kernel drops it when the process dies, even kill -9).
+  void lock_world() {
+    const std::filesystem::path path = file_.parent_path() / "world.lock";
+    lock_fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (lock_fd_ < 0) throw StoreError(name_ + ": " + path.string() + ": " + std::strerror(errno));
+    if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
+      ::close(lock_fd_);
+      lock_fd_ = -1;
+      throw StoreError(name_ + ": " +
+                       (error == EWOULDBLOCK ? "another voxeld is writing this world (" +
+                                                   path.string() + " is locked); stop it first"
+                                             : path.string() + ": " + std::strerror(error)));
+    }
+  }
+
+  struct LockFile {
+    int& fd;
+    ~LockFile() {
+      if (fd >= 0) ::close(fd);
+    }
+  };
+
+  int lock_fd_ = -1;
+  LockFile lock_file_{lock_fd_};
+
   struct Connection {
     sqlite3* db = nullptr;
     Connection() = default;
     Connection(const Connection&) = delete;
     Connection& operator=(const Connection&) = delete;
     ~Connection() { sqlite3_close(db); }
-  } conn_;
+  } conn_;  // declared after the lock: closed before it is released
 };
 
 }  // namespace

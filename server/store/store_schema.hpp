@@ -31,6 +31,9 @@ inline constexpr const char* kVisibleChunkCoords =
     "SELECT x, y, z, seq FROM chunks WHERE seq <= " VOX_CHECKPOINT_SEQ;
 inline constexpr const char* kDropUnfinishedChunks =
     "DELETE FROM chunks WHERE seq > " VOX_CHECKPOINT_SEQ;
+// The move's check that every row it is about to make visible is there (a second writer,
+// were one to get in, could have deleted them as unfinished).
+inline constexpr const char* kCountRowsOfSeq = "SELECT COUNT(*) FROM chunks WHERE seq = ";
 #undef VOX_CHECKPOINT_SEQ
 
 inline constexpr const char* kMetaSchemaVersion = "schema_version";

@@ -1,5 +1,7 @@
 #include "server/store/world_store.hpp"
 
+#include <set>
+
 #include "server/store/edit_codec.hpp"
 #include "server/store/postgres_store.hpp"
 #include "server/store/sqlite_store.hpp"
@@ -58,6 +60,12 @@ WorldInfo info_from_meta(const std::string& store, const Meta& meta) {
     i.checkpoint_seq = parse_meta_u64(store, schema::kMetaCheckpointSeq, it->second);
   i.last_seq = i.checkpoint_seq;
   return i;
+}
+
+size_t distinct_coords(std::span<const ChunkRecord> chunks) {
+  std::set<world::ChunkCoord> coords;
+  for (const ChunkRecord& r : chunks) coords.insert(r.coord);
+  return coords.size();
 }
 
 world::Edit decode_logged_edit(const std::string& store, uint64_t seq,

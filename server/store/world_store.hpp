@@ -59,8 +59,10 @@ struct OpenOptions {
   std::optional<uint64_t> seed;
   uint64_t new_world_seed = 1;
   bool read_only = false;  // tools: no write, works beside a running voxeld
-  // Counts this open in WorldInfo::starts, and (SQLite) checks the whole file first
-  // (PRAGMA quick_check: it reads every page). False: a second connection of one process.
+  // The writer's first connection: counts this open in WorldInfo::starts, takes the
+  // world's one-writer lock (refused, naming it, while another process holds it), deletes
+  // an unfinished checkpoint's rows and (SQLite) checks the whole file first (PRAGMA
+  // quick_check: it reads every page). False: a second connection of the same process.
   bool record_start = true;
 };
 

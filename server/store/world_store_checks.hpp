@@ -17,6 +17,8 @@ uint64_t parse_meta_u64(const std::string& store, const char* key, const std::st
 // options.seed is set) one of another seed, naming both seeds.
 void check_meta(const std::string& store, const Meta& meta, const OpenOptions& options);
 WorldInfo info_from_meta(const std::string& store, const Meta& meta);
+// How many chunks `chunks` names (a coordinate listed twice is written once).
+size_t distinct_coords(std::span<const ChunkRecord> chunks);
 world::Edit decode_logged_edit(const std::string& store, uint64_t seq,
                                std::span<const uint8_t> bytes);
 
