@@ -206,17 +206,22 @@ void run_sql(const std::filesystem::path& dir, const char* query) {
   sqlite3_close(db);
 }
 
+// A world of seed 3 with one explosion at (30, surface, 30), checkpointed (the pipeline
+// stopped); returns the surface height there.
+int checkpointed_explosion(const std::filesystem::path& dir) {
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});
+  EXPECT_TRUE(p.submit(world::Explosion{{30, float(y), 30}, 6, 1.2f}).get().accepted);
+  return y;
+}
+
 // A stored chunk the store cannot give back for a while: the view load waiting for it is
 // tried again by itself once the store works (not only when something else wakes the
 // pipeline).
 TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
   const auto dir = temp_world("unreadable");
-  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
-  {
-    auto store = store::open_world_store(dir.string(), {.seed = 3});
-    WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});
-    ASSERT_TRUE(p.submit(world::Explosion{{30, float(y), 30}, 6, 1.2f}).get().accepted);
-  }  // stop: checkpointed
+  const int y = checkpointed_explosion(dir);
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   WorldPipeline p(PipelineConfig{
       .seed = 3, .threads = 2, .store = store.get(), .store_retry = std::chrono::milliseconds(50)});
@@ -233,12 +238,7 @@ TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
 // full"), and the world is not touched; the server goes on.
 TEST(PipelineStore, AnEditNeedingADamagedStoredChunkIsRefusedSayingSo) {
   const auto dir = temp_world("damaged");
-  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
-  {
-    auto store = store::open_world_store(dir.string(), {.seed = 3});
-    WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});
-    ASSERT_TRUE(p.submit(world::Explosion{{30, float(y), 30}, 6, 1.2f}).get().accepted);
-  }  // stop: checkpointed
+  const int y = checkpointed_explosion(dir);
   run_sql(dir, "UPDATE chunks SET samples = x'0102'");
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = store.get()});

@@ -53,6 +53,11 @@ class PostgresServer {
     return "postgresql:///" + db + "?host=" + dir_.string() + "&port=" + std::to_string(port_) +
            "&user=postgres";
   }
+  // Runs `sql` in database `db` with psql (tests that set a database up by hand).
+  void sql(const std::string& db, const std::string& sql) {
+    sh(bin_ + "/psql -q -v ON_ERROR_STOP=1 -h " + dir_.string() + " -p " + std::to_string(port_) +
+       " -U postgres -d " + db + " -c '" + escape(sql) + "' > /dev/null");
+  }
   // A new empty database; returns its URI.
   std::string create_database(const std::string& name) {
     sh(bin_ + "/psql -q -h " + dir_.string() + " -p " + std::to_string(port_) +

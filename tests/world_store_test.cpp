@@ -237,6 +237,30 @@ TEST(PostgresStore, AStoreThatWentAwayWorksAgainWhenItIsBack) {
   EXPECT_EQ(s->info().last_seq, 2u);
 }
 
+// The same migration of a schema-1 world as SQLite's, on PostgreSQL.
+TEST(PostgresStore, ASchemaOneWorldIsMigratedAndKeepsItsChunks) {
+  test::PostgresServer server;
+  const std::string uri = server.create_database("schema1");
+  server.sql("schema1",
+             "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);"
+             "CREATE TABLE edit_log (seq BIGINT PRIMARY KEY, at_ms BIGINT NOT NULL,"
+             " author TEXT NOT NULL, edit BYTEA NOT NULL);"
+             "CREATE TABLE chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,"
+             " seq BIGINT NOT NULL, samples BYTEA NOT NULL, PRIMARY KEY (x, y, z));"
+             "INSERT INTO meta VALUES ('schema_version', '1'), ('seed', '5'), ('starts', '1'),"
+             " ('checkpoint_seq', '3');"
+             "INSERT INTO chunks VALUES (1, 2, 3, 3, '\\x0100000000');");
+  EXPECT_TRUE(open_world_store(uri, {.read_only = true})->read_chunk({1, 2, 3}));
+  auto s = open_world_store(uri, {.seed = 5});
+  const auto r = s->read_chunk({1, 2, 3});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->seq, 3u);
+  const world::Chunk a = full_chunk(1);
+  s->write_checkpoint(std::vector<ChunkRecord>{{{1, 2, 3}, 8, encode_chunk(a)}}, 8, 8);
+  EXPECT_TRUE(*decode_chunk(s->read_chunk({1, 2, 3})->samples) == a);
+  EXPECT_EQ(s->info().modified_chunks, 1u);
+}
+
 TEST(PostgresStore, RedactsThePasswordInMessages) {
   EXPECT_EQ(redact_uri("postgresql://voxel:secret@db.example:5432/world"),
             "postgresql://voxel:***@db.example:5432/world");

@@ -19,17 +19,6 @@ CREATE TABLE IF NOT EXISTS chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INT
 CREATE INDEX IF NOT EXISTS chunks_seq ON chunks (seq);
 )sql";
 
-// Schema 1 -> 2: chunk rows keyed by (x, y, z, seq).
-constexpr const char* kMigrateChunks = R"sql(
-CREATE TABLE chunks_v2 (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
-                        seq BIGINT NOT NULL, samples BYTEA NOT NULL,
-                        PRIMARY KEY (x, y, z, seq));
-INSERT INTO chunks_v2 (x, y, z, seq, samples) SELECT x, y, z, seq, samples FROM chunks;
-DROP TABLE chunks;
-ALTER TABLE chunks_v2 RENAME TO chunks;
-CREATE INDEX chunks_seq ON chunks (seq);
-)sql";
-
 constexpr const char* kUpsertMeta =
     "INSERT INTO meta (key, value) VALUES ($1, $2) "
     "ON CONFLICT (key) DO UPDATE SET value = excluded.value";
@@ -70,7 +59,8 @@ class PostgresStore final : public WorldStore {
           parse_meta_u64(name_, schema::kMetaSchemaVersion, before.at(schema::kMetaSchemaVersion)) <
               schema::kVersionedChunks;
       if (migrate) {
-        t.exec(kMigrateChunks);
+        t.exec(schema::migrate_chunks("BIGINT", "BYTEA") +
+               "ALTER INDEX chunks_v2_pkey RENAME TO chunks_pkey;");  // as a new world names it
         t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
       }
       t.exec(kCreateTables);

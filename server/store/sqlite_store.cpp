@@ -27,17 +27,6 @@ CREATE TABLE IF NOT EXISTS chunks (x INTEGER NOT NULL, y INTEGER NOT NULL, z INT
 CREATE INDEX IF NOT EXISTS chunks_seq ON chunks (seq);
 )sql";
 
-// Schema 1 -> 2: chunk rows keyed by (x, y, z, seq).
-constexpr const char* kMigrateChunks = R"sql(
-CREATE TABLE chunks_v2 (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL,
-                        seq INTEGER NOT NULL, samples BLOB NOT NULL,
-                        PRIMARY KEY (x, y, z, seq));
-INSERT INTO chunks_v2 (x, y, z, seq, samples) SELECT x, y, z, seq, samples FROM chunks;
-DROP TABLE chunks;
-ALTER TABLE chunks_v2 RENAME TO chunks;
-CREATE INDEX chunks_seq ON chunks (seq);
-)sql";
-
 class Statement {
  public:
   Statement(sqlite3* db, const char* sql, const std::string& name) : name_(name) {
@@ -120,7 +109,7 @@ class SqliteStore final : public WorldStore {
       set_meta(schema::kMetaCheckpointSeq, "0");
     } else if (parse_meta_u64(name_, schema::kMetaSchemaVersion,
                               meta.at(schema::kMetaSchemaVersion)) < schema::kVersionedChunks) {
-      exec(kMigrateChunks);
+      exec(schema::migrate_chunks("INTEGER", "BLOB").c_str());
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
     }
     if (options.record_start) exec(schema::kDropUnfinishedChunks);

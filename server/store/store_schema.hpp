@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstddef>
+#include <string>
 
 namespace vox::store::schema {
 
@@ -35,6 +36,19 @@ inline constexpr const char* kDropUnfinishedChunks =
 // were one to get in, could have deleted them as unfinished).
 inline constexpr const char* kCountRowsOfSeq = "SELECT COUNT(*) FROM chunks WHERE seq = ";
 #undef VOX_CHECKPOINT_SEQ
+
+// Schema 1 -> 2: chunk rows keyed by (x, y, z, seq), in the backend's column types.
+inline std::string migrate_chunks(const std::string& int64_type, const std::string& blob_type) {
+  return "CREATE TABLE chunks_v2 (x INTEGER NOT NULL, y INTEGER NOT NULL, z INTEGER NOT NULL, "
+         "seq " +
+         int64_type + " NOT NULL, samples " + blob_type +
+         " NOT NULL, "
+         "PRIMARY KEY (x, y, z, seq));"
+         "INSERT INTO chunks_v2 (x, y, z, seq, samples) SELECT x, y, z, seq, samples FROM chunks;"
+         "DROP TABLE chunks;"
+         "ALTER TABLE chunks_v2 RENAME TO chunks;"
+         "CREATE INDEX chunks_seq ON chunks (seq);";
+}
 
 inline constexpr const char* kMetaSchemaVersion = "schema_version";
 inline constexpr const char* kMetaSeed = "seed";
