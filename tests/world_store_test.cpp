@@ -44,6 +44,20 @@ world::Chunk full_chunk(uint32_t seed) {
   return c;
 }
 
+// A schema-1 world holding chunk (1, 2, 3) at seq 3 (checkpoint 3, seed 5): readers read it
+// as it is; a writer migrates it, reads it, and checkpoints over it.
+void expect_schema_one_world_migrates(const std::string& where) {
+  EXPECT_TRUE(open_world_store(where, {.read_only = true})->read_chunk({1, 2, 3}));
+  auto s = open_world_store(where, {.seed = 5});
+  const auto r = s->read_chunk({1, 2, 3});
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->seq, 3u);
+  const world::Chunk a = full_chunk(1);
+  s->write_checkpoint(std::vector<ChunkRecord>{{{1, 2, 3}, 8, encode_chunk(a)}}, 8, 8);
+  EXPECT_TRUE(*decode_chunk(s->read_chunk({1, 2, 3})->samples) == a);
+  EXPECT_EQ(s->info().modified_chunks, 1u);
+}
+
 // One backend: SQLite in a fresh directory, or a fresh database on the shared server.
 class WorldStoreTest : public ::testing::TestWithParam<std::string> {
  protected:
@@ -250,15 +264,7 @@ TEST(PostgresStore, ASchemaOneWorldIsMigratedAndKeepsItsChunks) {
              "INSERT INTO meta VALUES ('schema_version', '1'), ('seed', '5'), ('starts', '1'),"
              " ('checkpoint_seq', '3');"
              "INSERT INTO chunks VALUES (1, 2, 3, 3, '\\x0100000000');");
-  EXPECT_TRUE(open_world_store(uri, {.read_only = true})->read_chunk({1, 2, 3}));
-  auto s = open_world_store(uri, {.seed = 5});
-  const auto r = s->read_chunk({1, 2, 3});
-  ASSERT_TRUE(r);
-  EXPECT_EQ(r->seq, 3u);
-  const world::Chunk a = full_chunk(1);
-  s->write_checkpoint(std::vector<ChunkRecord>{{{1, 2, 3}, 8, encode_chunk(a)}}, 8, 8);
-  EXPECT_TRUE(*decode_chunk(s->read_chunk({1, 2, 3})->samples) == a);
-  EXPECT_EQ(s->info().modified_chunks, 1u);
+  expect_schema_one_world_migrates(uri);
 }
 
 TEST(PostgresStore, RedactsThePasswordInMessages) {
@@ -397,15 +403,7 @@ TEST(SqliteStore, ASchemaOneWorldIsMigratedAndKeepsItsChunks) {
       "INSERT INTO meta VALUES ('schema_version', '1'), ('seed', '5'), ('starts', '1'),"
       " ('checkpoint_seq', '3');"
       "INSERT INTO chunks VALUES (1, 2, 3, 3, x'0100000000');");
-  EXPECT_TRUE(open_world_store(dir.string(), {.read_only = true})->read_chunk({1, 2, 3}));
-  auto s = open_world_store(dir.string(), {.seed = 5});
-  const auto r = s->read_chunk({1, 2, 3});
-  ASSERT_TRUE(r);
-  EXPECT_EQ(r->seq, 3u);
-  const world::Chunk a = full_chunk(1);
-  s->write_checkpoint(std::vector<ChunkRecord>{{{1, 2, 3}, 8, encode_chunk(a)}}, 8, 8);
-  EXPECT_TRUE(*decode_chunk(s->read_chunk({1, 2, 3})->samples) == a);
-  EXPECT_EQ(s->info().modified_chunks, 1u);
+  expect_schema_one_world_migrates(dir.string());
 }
 
 TEST(SqliteStore, ReadOnlyOpenOfAMissingWorldCreatesNothing) {
