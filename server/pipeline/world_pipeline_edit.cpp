@@ -1,0 +1,131 @@
+// The pipeline applying one edit to its world (apply_edit_task): what the edit needs
+// loaded, the memory budget's say, the undo record and the copy a checkpoint in flight
+// needs, then the change itself over the touched chunks in parallel. The batch around it
+// is in world_pipeline.cpp.
+#include <vector>
+
+#include "server/pipeline/world_pipeline.hpp"
+#include "server/pipeline/world_state.hpp"
+#include "server/world/edit_apply.hpp"
+#include "server/world/parallel.hpp"
+
+namespace vox::pipeline {
+
+using world::ChunkCoord;
+
+// Applies one valid edit: loads what it and the meshes it dirties need, changes the
+// touched chunks (in parallel), and appends the chunks whose meshes must be rebuilt.
+// Refuses it (nothing changed) when it would generate more than `max_generate` chunks, or
+// when what it may add (generated chunks, uniform chunks turned full) does not fit the
+// memory budget even after evicting unused chunks (once per batch: the scan is not free).
+world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
+                                                    size_t max_generate,
+                                                    std::vector<ChunkCoord>& dirtied,
+                                                    EditResult& result, Undo* undo) {
+  WorldState& st = *state_;
+  const world::VoxelBox box = world::touched_box(edit);
+  const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
+  // What must be loaded: the touched chunks (and what a smooth reads), and every meshed
+  // chunk the edit may dirty (the touched ones and their neighbours) with its neighbours,
+  // to re-mesh it. Chunks no one has a mesh of are not re-meshed (a view that loads them
+  // meshes them then), so an edit where nothing is meshed generates only what it touches.
+  std::vector<ChunkCoord> wanted = touched;
+  if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
+    wanted = world::chunks_overlapping(world::smooth_read_box(*smooth));
+  }
+  // Neighbours of meshed chunks, marked in the box touched +-2 (no sort, no duplicates).
+  const ChunkCoord lo = touched.front().offset(-2, -2, -2), hi = touched.back().offset(2, 2, 2);
+  const int nx = hi.x - lo.x + 1, ny = hi.y - lo.y + 1, nz = hi.z - lo.z + 1;
+  std::vector<char> marked(static_cast<size_t>(nx) * ny * nz, 0);
+  auto index = [&](int32_t x, int32_t y, int32_t z) {
+    return static_cast<size_t>(x - lo.x) +
+           static_cast<size_t>(nx) * ((y - lo.y) + static_cast<size_t>(ny) * (z - lo.z));
+  };
+  for (const ChunkCoord& c : wanted) {
+    if (c.x >= lo.x && c.x <= hi.x && c.y >= lo.y && c.y <= hi.y && c.z >= lo.z && c.z <= hi.z)
+      marked[index(c.x, c.y, c.z)] = 1;  // already wanted
+  }
+  for (int32_t z = lo.z + 1; z < hi.z; ++z)
+    for (int32_t y = lo.y + 1; y < hi.y; ++y)
+      for (int32_t x = lo.x + 1; x < hi.x; ++x) {
+        auto it = st.info.find({x, y, z});
+        if (it == st.info.end() || !it->second.meshed) continue;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              char& m = marked[index(x + dx, y + dy, z + dz)];
+              if (!m) wanted.push_back({x + dx, y + dy, z + dz});
+              m = 1;
+            }
+      }
+  size_t missing = 0;
+  for (const ChunkCoord& c : wanted) missing += st.info.count(c) ? 0 : 1;
+  if (missing > max_generate) return world::RefusalReason::kOverBudget;
+  size_t may_expand = 0;  // touched chunks that are (or may come out) uniform
+  for (const ChunkCoord& c : touched) {
+    const world::Chunk* chunk = st.chunks.find(c);
+    may_expand += !chunk || chunk->is_uniform() ? 1 : 0;
+  }
+  // What is resident: terrain on its way for loads (reserved) does not hold edits back.
+  if (!budget_.may_generate(resident_bytes(), missing + may_expand)) {
+    if (evicted_for_edits_) return world::RefusalReason::kServerBusy;
+    evicted_for_edits_ = true;
+    const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
+    const size_t target = budget_.evict_target(other_bytes_.load(std::memory_order_relaxed));
+    // Chunks this batch used (loaded or touched: last used `now`) always stay.
+    st.evict(
+        meshes_, now, config_.evict_after,
+        std::max<std::chrono::milliseconds>(std::min(config_.evict_min_age, config_.evict_after),
+                                            std::chrono::milliseconds(1)),
+        target > need ? target - need : 0, kPressureScan);
+    if (!budget_.may_generate(resident_bytes(), missing + may_expand))
+      return world::RefusalReason::kServerBusy;
+  }
+  try {
+    result.chunks_generated = st.ensure_loaded(wanted, generator_, now);
+  } catch (const store::StoreError& e) {  // a checkpointed chunk could not be read back
+    note_store_read(e.what());
+    return world::RefusalReason::kStorageUnavailable;
+  }
+
+  std::optional<world::SampleSnapshot> snapshot;
+  if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
+    snapshot = world::take_snapshot(st.chunks, world::smooth_read_box(*smooth));
+  }
+  std::vector<world::ChangedBox> changed(touched.size());
+  std::vector<ChunkCoord> dirty_here;  // chunks whose mesh reads a changed sample
+  std::vector<world::Chunk*> targets(touched.size());
+  std::vector<char> was_uniform(touched.size());
+  for (size_t i = 0; i < touched.size(); ++i) {
+    targets[i] = st.chunks.find(touched[i]);
+    was_uniform[i] = targets[i]->is_uniform();
+    const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
+    // A checkpoint in flight still needs it as it is: the writer gets a copy.
+    if (i_info.checkpointing) checkpointer_->preserve(touched[i], *targets[i]);
+    if (undo) undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
+  }
+  const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
+  if (touched.size() == 1) {
+    changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap);
+  } else {
+    parallel_for_index(st.arena, touched.size(), [&](size_t i) {
+      changed[i] = world::apply_edit(edit, touched[i], *targets[i], snap);
+    });
+  }
+  for (size_t i = 0; i < touched.size(); ++i) {
+    st.chunks.note_changed(was_uniform[i] != 0, *targets[i]);
+    result.chunks_expanded += was_uniform[i] && !targets[i]->is_uniform() ? 1 : 0;
+    if (!changed[i].changed) continue;
+    WorldState::ChunkInfo& info = st.info.at(touched[i]);
+    st.modified_count += info.modified ? 0 : 1;
+    info.modified = info.unsaved = true;
+    if (config_.store) unsaved_.insert(touched[i]);
+    world::append_dirty_chunks(touched[i], changed[i], dirty_here);
+  }
+  for (const ChunkCoord& c : dirty_here) {
+    if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) dirtied.push_back(c);
+  }
+  return world::RefusalReason::kNone;
+}
+
+}  // namespace vox::pipeline
