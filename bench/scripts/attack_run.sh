@@ -7,7 +7,7 @@
 # disconnects, refusals, voxeld's max RSS, the first full view p99 and the server's own
 # edit->publish and edit->delta-written p99 (bench/scripts/metrics_quantile.py).
 # EDIT_RATE=N: edits per second per player (default 0.5).
-# With the default world store it also prints commit p50/p99, the wait beyond re-meshing,
+# With the default world store it also prints commit p50/p99, how long the pipeline stood waiting for commits,
 # edits per commit and the world's size; VOXELD_ARGS=--in-memory runs without a store.
 # Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
 set -euo pipefail
@@ -59,7 +59,7 @@ if grep -q '^voxeld_store_commits_total [1-9]' "$out/$name.metrics"; then
   commits=$(awk '/^voxeld_store_commits_total /{print $2}' "$out/$name.metrics")
   edits=$(awk '/^voxeld_store_committed_edits_total /{print $2}' "$out/$name.metrics")
   echo "$name: store commit p50/p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_store_commit_seconds 0.5 0.99) ms," \
-    "waited beyond re-meshing p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_store_commit_wait_seconds) ms," \
+    "pipeline waited p99 $(/usr/bin/python3 "$q" "$out/$name.metrics" voxeld_store_commit_wait_seconds) ms," \
     "$(/usr/bin/python3 -c "print(f'{$edits/$commits:.1f}')") edits per commit ($commits commits)," \
     "world $(du -sb "$out/$name.world" | cut -f1) bytes"
 fi

@@ -107,7 +107,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
                             "A batch's append of its accepted edits to the world store (durable)",
                             c_.store_commit));
     out.push_back(histogram("voxeld_store_commit_wait_seconds",
-                            "How long a batch waited for its commit beyond its re-meshing",
+                            "How long the pipeline thread stood waiting for a commit (0 when it "
+                            "landed while other work went on)",
                             c_.store_commit_wait));
     counter(out, "voxeld_store_commits_total", "Batches appended to the world store",
             double(c_.store_commits.load()));

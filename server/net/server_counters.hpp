@@ -40,7 +40,7 @@ struct ServerCounters {
   LatencyHistogram batch_duration;
   LatencyHistogram remesh_duration;
   LatencyHistogram store_commit;       // a batch's append to the world store
-  LatencyHistogram store_commit_wait;  // what the batch waited for it beyond its re-meshing
+  LatencyHistogram store_commit_wait;  // how long the pipeline stood waiting for it
   Counter store_commits{0}, store_committed_edits{0}, store_failures{0};
   LatencyHistogram checkpoint_duration;  // a checkpoint's compression and transaction
   Counter checkpoint_bytes{0};           // chunk records written by checkpoints

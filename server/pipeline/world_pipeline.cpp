@@ -231,7 +231,7 @@ void WorldPipeline::run() {
     std::vector<OrderedTask> ordered;
     {
       std::unique_lock lock(queue_mutex_);
-      while (!stopping_ && !batch_ready()) {
+      while (!stopping_ && !batch_ready() && !append_landed_) {
         // Idle: wake now and then to evict idle chunks. Loads waiting for memory: retry
         // eviction more often (sessions release meshes). Loads waiting for their owners'
         // budgets: look again soon.
@@ -250,15 +250,22 @@ void WorldPipeline::run() {
         queue_cv_.wait_for(lock, wait);
         take_view_updates();
         lock.unlock();
+        finish_landed();
         manage_memory(Clock::now());
         checkpoint_if_due(Clock::now());
         lock.lock();
       }
       if (stopping_) break;
+      if (!batch_ready()) {  // only an append landed: answer its batch
+        lock.unlock();
+        finish_landed();
+        continue;
+      }
       take_view_updates();
       ordered = scheduler_.take_ordered();
       generated_ready_ = false;  // this batch installs what is ready
     }
+    const size_t ordered_count = ordered.size();
     const Clock::time_point now = Clock::now();
     {
       std::lock_guard lock(stats_mutex_);
@@ -278,7 +285,7 @@ void WorldPipeline::run() {
     manage_memory(Clock::now());
     checkpoint_if_due(Clock::now());
     const double took = seconds_since(now);
-    if (observer_.batch) observer_.batch(took, ordered.size(), plan.to_mesh.size());
+    if (observer_.batch) observer_.batch(took, ordered_count, plan.to_mesh.size());
     if (took > std::chrono::duration<double>(kSlowBatch).count()) {
       spdlog::warn(
           "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
@@ -287,8 +294,20 @@ void WorldPipeline::run() {
           counts.chunks_generated, counts.meshes_published);
     }
   }
+  PipelineStats counts;
+  finish_pending(counts, 0);  // what was applied is answered before anything is refused
   drain_after_stop();
   final_checkpoint();
+}
+
+// Answers the batches whose appends have landed (pipeline thread, outside queue_mutex_).
+void WorldPipeline::finish_landed() {
+  {
+    std::lock_guard lock(queue_mutex_);
+    append_landed_ = false;
+  }
+  PipelineStats counts;
+  finish_pending(counts, SIZE_MAX);
 }
 
 void WorldPipeline::drain_after_stop() {
@@ -326,7 +345,7 @@ WorldPipeline::FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty)
   dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
   FreshMeshes fresh(dirty.size());
   std::vector<MeshVersionPtr> previous(dirty.size());
-  for (size_t i = 0; i < dirty.size(); ++i) previous[i] = meshes_.get(dirty[i]);
+  for (size_t i = 0; i < dirty.size(); ++i) previous[i] = newest_mesh(dirty[i]);
   parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
     MeshWorker& w = *st.workers.local();
     auto version = std::make_shared<MeshVersion>();
@@ -351,7 +370,9 @@ std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& di
   }
   std::vector<ChunkCoord> published;
   for (size_t i = 0; i < dirty.size(); ++i) {
-    if (!fresh[i]) continue;
+    // Nothing new, or a chunk evicted while its batch waited for the store (its mesh is
+    // made again when it is next loaded).
+    if (!fresh[i] || !st.info.count(dirty[i])) continue;
     fresh[i]->version = st.next_version++;
     if (edited_at) {
       if (auto it = edited_at->find(dirty[i]); it != edited_at->end())
@@ -363,23 +384,32 @@ std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& di
   return published;
 }
 
-// Edits and inspections, in arrival order.
+// Edits and inspections, in arrival order. Without a store the batch is answered here;
+// with one, once its append has landed (finish_pending).
 void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
                                     PipelineStats& batch) {
-  PipelineStats delta;
+  Batch b = apply_batch(tasks, now);
+  if (!b.any_edit) return;
+  if (config_.store && !b.accepted.empty()) start_append(b);  // overlaps the re-meshing
+  b.fresh = remesh(b.dirty);
+  if (!config_.store) return answer(b, true, batch);
+  const Clock::time_point wait_until = b.appended_at + kAnswerWait;
+  pending_.push_back(std::move(b));
+  finish_pending(batch, kMaxPendingBatches, wait_until);
+}
+
+// Applies the batch's edits (validated, within the generation limits; refused untried
+// while the store rests after a failure) and runs its inspections.
+WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
+                                                Clock::time_point now) {
+  Batch b;
   evicted_for_edits_ = false;
-  std::vector<ChunkCoord> dirty;  // may repeat; deduplicated below
-  std::vector<std::vector<ChunkCoord>> edit_dirty(tasks.size());
-  std::vector<EditResult> results(tasks.size());
+  b.edit_dirty.resize(tasks.size());
+  b.results.resize(tasks.size());
   std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
-  EditTimes edited_at;                                 // per dirty chunk, its oldest edit
-  bool any_edit = false;
-  // With a store, accepted edits become durable before anything of the batch is published;
-  // after a failed append the store rests a while and edits are refused untried.
   const bool durable = config_.store != nullptr;
   const bool store_resting = durable && now < store_retry_at_;
-  Undo undo;
-  std::vector<const world::Edit*> accepted;  // in the order they applied
+  PipelineStats& delta = b.delta;
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
       // Sees every edit queued before it applied; the meshes of this batch are not
@@ -389,16 +419,17 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
     }
     const EditTask& task = std::get<EditTask>(tasks[t]);
     const world::Edit& edit = task.edit;
-    any_edit = true;
+    EditResult& result = b.results[t];
+    b.any_edit = true;
     if (auto refusal = world::validate(edit, config_.limits)) {
-      results[t].reason = refusal->reason;
-      results[t].message = refusal->message;
+      result.reason = refusal->reason;
+      result.message = refusal->message;
       ++delta.edits_refused;
       continue;
     }
     if (store_resting) {
-      results[t].reason = world::RefusalReason::kStorageUnavailable;
-      results[t].message = kStorageMessage;
+      result.reason = world::RefusalReason::kStorageUnavailable;
+      result.message = kStorageMessage;
       ++delta.edits_refused;
       continue;
     }
@@ -407,11 +438,11 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
                                     ? SIZE_MAX
                                     : config_.max_generated_per_owner -
                                           std::min(generated, config_.max_generated_per_owner);
-    const world::RefusalReason refused = apply_edit_task(edit, now, max_generate, edit_dirty[t],
-                                                         results[t], durable ? &undo : nullptr);
+    const world::RefusalReason refused = apply_edit_task(edit, now, max_generate, b.edit_dirty[t],
+                                                         result, durable ? &b.undo : nullptr);
     if (refused != world::RefusalReason::kNone) {
-      results[t].reason = refused;
-      results[t].message =
+      result.reason = refused;
+      result.message =
           refused == world::RefusalReason::kServerBusy
               ? "the server's memory budget is full: edits needing new terrain are refused"
           : refused == world::RefusalReason::kStorageUnavailable
@@ -421,49 +452,45 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
       delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
       continue;
     }
-    generated += results[t].chunks_generated;
-    results[t].accepted = true;
-    accepted.push_back(&edit);
+    generated += result.chunks_generated;
+    result.accepted = true;
+    b.accepted.push_back(&edit);
     ++delta.edits_applied;
-    delta.chunks_generated += results[t].chunks_generated;
-    dirty.insert(dirty.end(), edit_dirty[t].begin(), edit_dirty[t].end());
-    for (const ChunkCoord& c : edit_dirty[t])
-      edited_at.try_emplace(c, task.submitted);  // arrival order
+    delta.chunks_generated += result.chunks_generated;
+    b.dirty.insert(b.dirty.end(), b.edit_dirty[t].begin(), b.edit_dirty[t].end());
+    for (const ChunkCoord& c : b.edit_dirty[t])
+      b.edited_at.try_emplace(c, task.submitted);  // arrival order
   }
-  if (!any_edit) return;
-  FreshMeshes fresh;
-  const std::string store_error =
-      durable && !accepted.empty()
-          ? commit_while(accepted, [&] { fresh = remesh(dirty); })  // overlapped
-          : (fresh = remesh(dirty), std::string());
-  if (!store_error.empty()) {
-    // Not durable, so not applied: the world goes back to before the batch, nothing of it
-    // is published, and its accepted edits are refused.
-    roll_back(undo);
-    for (size_t t = 0; t < tasks.size(); ++t) {
-      if (!results[t].accepted) continue;
-      results[t].accepted = false;
-      results[t].reason = world::RefusalReason::kStorageUnavailable;
-      results[t].message = kStorageMessage;
-      edit_dirty[t].clear();
+  b.tasks = std::move(tasks);
+  return b;
+}
+
+void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
+  if (!durable) {
+    for (EditResult& r : b.results) {
+      if (!r.accepted) continue;
+      r.accepted = false;
+      r.reason = world::RefusalReason::kStorageUnavailable;
+      r.message = kStorageMessage;
     }
-    delta.edits_applied -= accepted.size();
-    delta.edits_refused += accepted.size();
-    dirty.clear();
-    fresh.clear();
+    for (auto& d : b.edit_dirty) d.clear();
+    b.delta.edits_applied -= b.accepted.size();
+    b.delta.edits_refused += b.accepted.size();
+    b.dirty.clear();
+    b.fresh.clear();
   } else {
-    unsaved_edits_ += accepted.size();
+    unsaved_edits_ += config_.store ? b.accepted.size() : 0;
   }
-  const std::vector<ChunkCoord> published = publish(dirty, fresh, &edited_at);
+  const std::vector<ChunkCoord> published = publish(b.dirty, b.fresh, &b.edited_at);
   const CoordSet published_set(published.begin(), published.end());
-  delta.meshes_published += published.size();
-  commit_stats(delta, batch);  // before the results: whoever waits on one sees its counts
+  b.delta.meshes_published += published.size();
+  commit_stats(b.delta, batch);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
-  for (size_t t = 0; t < tasks.size(); ++t) {
-    auto* task = std::get_if<EditTask>(&tasks[t]);
+  for (size_t t = 0; t < b.tasks.size(); ++t) {
+    auto* task = std::get_if<EditTask>(&b.tasks[t]);
     if (!task) continue;
-    auto& r = results[t];
-    for (const ChunkCoord& c : edit_dirty[t]) {
+    auto& r = b.results[t];
+    for (const ChunkCoord& c : b.edit_dirty[t]) {
       if (published_set.count(c)) r.changed_chunks.push_back(c);
     }
     std::sort(r.changed_chunks.begin(), r.changed_chunks.end());

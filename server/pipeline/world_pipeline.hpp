@@ -12,6 +12,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <future>
 #include <memory>
@@ -124,8 +125,9 @@ struct PipelineStats {
 struct PipelineObserver {
   std::function<void(double seconds, size_t edits, size_t load_chunks)> batch;
   std::function<void(double seconds, size_t chunks)> remesh;
-  // A batch's append to the store: how long the commit took, how much longer than the
-  // re-meshing it overlapped the batch waited for it, its edits, and whether it failed.
+  // A batch's append to the store: how long the commit took, how long the pipeline thread
+  // stood waiting for it (0 when it landed while later work went on), its edits, and
+  // whether it failed.
   std::function<void(double commit_s, double waited_s, size_t edits, bool ok)> commit;
   // A checkpoint written (or failed): how long, how many chunks, their bytes.
   std::function<void(double seconds, size_t chunks, size_t bytes, bool ok)> checkpoint;
@@ -237,10 +239,56 @@ class WorldPipeline {
   std::vector<world::ChunkCoord> publish(const std::vector<world::ChunkCoord>& dirty,
                                          FreshMeshes& fresh, const EditTimes* edited_at);
   void roll_back(Undo& undo);
-  // Appends the accepted edits of a batch (in order) to the store on another thread while
-  // `work` runs here; returns the store's error, empty when durable.
-  std::string commit_while(const std::vector<const world::Edit*>& accepted,
-                           const std::function<void()>& work);
+
+  // A batch of edits applied and re-meshed (pipeline thread). With a store its accepted
+  // edits are appended on another thread while the pipeline goes on (the next batches
+  // apply, load passes run); nothing of it is published and no edit of it answered until
+  // the store says the append is durable. Appends land in batch order (each waits for the
+  // one before); when one fails, it and every later batch are undone.
+  struct AppendOutcome {
+    std::string error;  // empty: durable
+    double seconds = 0;
+  };
+  struct Batch {
+    std::vector<OrderedTask> tasks;
+    std::vector<EditResult> results;                         // per task
+    std::vector<std::vector<world::ChunkCoord>> edit_dirty;  // per task; may repeat
+    std::vector<world::ChunkCoord> dirty;                    // sorted, unique once re-meshed
+    std::vector<const world::Edit*> accepted;                // in the order they applied
+    FreshMeshes fresh;
+    EditTimes edited_at;  // per dirty chunk, its oldest edit
+    Undo undo;
+    PipelineStats delta;
+    bool any_edit = false;
+    store::WorldStore::SeqRange seqs;           // of the accepted edits, when appended
+    std::shared_future<AppendOutcome> outcome;  // invalid: nothing to append
+    std::future<void> appender;                 // the append's thread, joined on destruction
+    Clock::time_point appended_at;              // when the append started
+  };
+  // Batches in flight are at most this many: past it, the pipeline waits for the oldest.
+  static constexpr size_t kMaxPendingBatches = 3;
+  // After re-meshing, a batch waits this long (from its append's start) for the append
+  // before the pipeline goes on: most appends land by then and are answered at once; a
+  // slow one no longer holds up the load pass and the next batches (answered after them).
+  static constexpr auto kAnswerWait = std::chrono::milliseconds(6);
+  Batch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
+  void start_append(Batch& b);
+  // Answers the batches whose appends landed, oldest first, waiting while more than `keep`
+  // are in flight (0: every batch is answered when it returns) and, for the oldest, until
+  // `wait_until` at most.
+  void finish_pending(PipelineStats& batch, size_t keep, Clock::time_point wait_until = {});
+  void fail_pending(PipelineStats& batch, const std::string& error);
+  void finish_landed();  // finish_pending without waiting, between batches
+  // Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was
+  // rolled back), then answers its edits and notifies the subscribers.
+  void answer(Batch& b, bool durable, PipelineStats& batch);
+  // The newest mesh of `c`: a pending batch's, else the published one.
+  MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
+  // Whether a pending batch changed samples that meshes of `chunks` read: a load pass
+  // meshing them waits for those batches first (a mesh never shows an edit not durable).
+  bool near_pending_edits(const std::vector<world::ChunkCoord>& chunks) const;
+  // Waits until no append is running (they share config_.store's connection with reads).
+  void wait_for_appends() const;
   // Constructor: learns which chunks are stored and replays the log after their
   // checkpoint (loading the chunks it touches).
   void restore_from_store();
@@ -308,6 +356,8 @@ class WorldPipeline {
   Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
   // Sequence numbers of failed appends since the last that worked (pipeline thread).
   std::optional<store::WorldStore::SeqRange> doubtful_;
+  std::deque<Batch> pending_;        // oldest first; pipeline thread
+  bool append_landed_ = false;       // under queue_mutex_: a pending batch may be answered
   bool store_failing_ = false;       // the last append failed (logged once); pipeline thread
   bool store_read_failing_ = false;  // the last chunk read failed (logged once); pipeline thread
   std::string last_read_error_;      // pipeline thread

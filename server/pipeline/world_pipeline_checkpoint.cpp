@@ -16,7 +16,12 @@ using world::ChunkCoord;
 void WorldPipeline::checkpoint_if_due(Clock::time_point now) {
   if (!checkpointer_) return;
   if (auto r = checkpointer_->take_result()) finish_checkpoint(*r, now);
-  if (checkpoint_policy_->due(now, unsaved_.size(), unsaved_edits_)) start_checkpoint(now);
+  if (!checkpoint_policy_->due(now, unsaved_.size(), unsaved_edits_)) return;
+  // A checkpoint holds every applied edit: the batches in flight are durable first (or
+  // undone).
+  PipelineStats counts;
+  finish_pending(counts, 0);
+  start_checkpoint(now);
 }
 
 void WorldPipeline::start_checkpoint(Clock::time_point now) {

@@ -70,7 +70,9 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
   take_view_updates();
   if (!scheduler_.has_loads()) return {};
   return scheduler_.take_loads(
-      load_work_allowed(scheduler_.has_ordered()),
+      // Edits waiting to apply, or applied and waiting for the store to be answered: a
+      // short pass, so that they are not held up behind it.
+      load_work_allowed(scheduler_.has_ordered() || !pending_.empty()),
       [&](ChunkCoord c) {
         if (plan.to_mesh.count(c) || waiting_set_.count(c)) return size_t{0};
         if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
@@ -179,6 +181,7 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
   std::vector<ChunkCoord> published;
   if (!waiting_meshes_.empty()) {
     std::vector<ChunkCoord> dirty = take_meshable(now, delta);
+    if (near_pending_edits(dirty)) finish_pending(batch, 0);
     published = remesh_and_publish(dirty);
     delta.meshes_published += published.size();
   }
@@ -205,6 +208,9 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
       budget_.should_evict(resident) && (last_eviction_freed_ || resident > resident_at_eviction_ ||
                                          now - st.last_eviction > kPressureRetry);
   if (periodic || pressure) {
+    // Chunks whose meshes wait for the store stay: the batches are answered first.
+    PipelineStats counts;
+    finish_pending(counts, 0);
     st.last_eviction = now;
     // The periodic pass drops only idle chunks; under pressure, down to the target.
     const size_t target =

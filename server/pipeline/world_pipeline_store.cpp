@@ -1,6 +1,6 @@
 // The pipeline's durable side (PipelineConfig::store): restoring the world at start,
-// appending each batch's edits while it re-meshes, and undoing a batch the store refused.
-// The batch loop itself is in world_pipeline.cpp.
+// reading checkpointed chunks back, and undoing a batch the store refused. Appending the
+// batches is in world_pipeline_commit.cpp, the batch loop in world_pipeline.cpp.
 #include <spdlog/spdlog.h>
 
 #include <future>
@@ -117,6 +117,7 @@ void WorldPipeline::preload_stored(const std::vector<store::LoggedEdit>& tail) {
 
 world::Chunk WorldPipeline::read_stored_chunk(ChunkCoord c) {
   store::WorldStore& store = *config_.store;
+  wait_for_appends();  // one connection: no read while an append is running
   const auto record = store.read_chunk(c);
   std::string why = "missing from the store";
   auto chunk = record ? store::decode_chunk(record->samples, &why) : std::nullopt;
@@ -148,57 +149,6 @@ bool WorldPipeline::try_load_stored(ChunkCoord c, Clock::time_point now) {
     note_store_read(e.what());
     return false;
   }
-}
-
-std::string WorldPipeline::commit_while(const std::vector<const world::Edit*>& accepted,
-                                        const std::function<void()>& work) {
-  const int64_t unix_ms = std::chrono::duration_cast<std::chrono::milliseconds>(
-                              std::chrono::system_clock::now().time_since_epoch())
-                              .count();
-  std::vector<store::LoggedEdit> log;
-  log.reserve(accepted.size());
-  // Sequence numbers are never reused, even after a failed append (its outcome may be in
-  // doubt): the log may have gaps, never two edits with one number.
-  for (const world::Edit* e : accepted) log.push_back({next_seq_++, unix_ms, "", *e});
-  store::WorldStore& store = *config_.store;
-  const Clock::time_point start = Clock::now();
-  double commit_s = 0;
-  // Appends that failed since the last that worked may have landed all the same: their
-  // edits were undone here, so they go from the log with this append.
-  std::vector<store::WorldStore::SeqRange> forget;
-  if (doubtful_) forget.push_back(*doubtful_);
-  auto append = std::async(std::launch::async, [&]() -> std::string {
-    std::string error;
-    try {
-      store.append_edits(log, forget);
-    } catch (const std::exception& e) {
-      error = e.what();
-    }
-    commit_s = seconds_since(start);
-    return error;
-  });
-  work();
-  const Clock::time_point worked = Clock::now();
-  std::string error = append.get();
-  if (observer_.commit) {
-    observer_.commit(commit_s, std::chrono::duration<double>(Clock::now() - worked).count(),
-                     log.size(), error.empty());
-  }
-  if (!error.empty()) {
-    // No append works in between, so one range covers every doubtful one.
-    if (!doubtful_) doubtful_ = store::WorldStore::SeqRange{log.front().seq, log.back().seq};
-    doubtful_->last = log.back().seq;
-    store_retry_at_ = Clock::now() + config_.store_retry;
-    if (!store_failing_) spdlog::error("world store: {}; edits are refused until it works", error);
-    store_failing_ = true;
-  } else {
-    doubtful_.reset();
-  }
-  if (error.empty() && store_failing_) {
-    store_failing_ = false;
-    spdlog::info("world store: writing again; edits are accepted");
-  }
-  return error;
 }
 
 void WorldPipeline::Undo::save(ChunkCoord c, const world::Chunk& chunk, const world::VoxelBox& box,
