@@ -6,10 +6,13 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <random>
+#include <thread>
 
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
@@ -387,6 +390,38 @@ TEST(SqliteStore, AnUnfinishedCheckpointIsInvisibleAndDroppedWhenAWriterOpens) {
   EXPECT_EQ(sqlite3_column_int(q, 0), 1) << "the unfinished checkpoint's rows are still there";
   sqlite3_finalize(q);
   sqlite3_close(db);
+}
+
+// Appends back to back on one connection (the pipeline under a flood of edits) and a
+// checkpoint on another: the checkpoint's transactions get SQLite's write lock between
+// the appends (the busy handler tries every 250 us) and the appends go on meanwhile.
+TEST(SqliteStore, ACheckpointIsNotStarvedByBackToBackAppends) {
+  const fs::path dir = temp_world("starved");
+  auto appender = open_world_store(dir.string(), {.seed = 1});
+  auto writer = open_world_store(dir.string(), {.seed = 1, .record_start = false});
+  std::atomic<bool> stop{false};
+  std::atomic<uint64_t> appended{0};
+  std::thread appends([&] {
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    for (uint64_t seq = 1; !stop && std::chrono::steady_clock::now() < give_up; ++seq) {
+      appender->append_edits(std::vector<LoggedEdit>{{seq, 0, "", world::Paint{{1, 2, 3}, 2, 4}}});
+      appended = seq;
+    }
+  });
+  while (appended < 20) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  std::vector<ChunkRecord> chunks;
+  const auto bytes = encode_chunk(full_chunk(7));
+  for (int i = 0; i < 256; ++i) chunks.push_back({{i, 0, 0}, 10, bytes});
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_NO_THROW(writer->write_checkpoint(chunks, 10, 0));
+  const double took =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const uint64_t during = appended;
+  stop = true;
+  appends.join();
+  EXPECT_LT(took, 4.0) << "the checkpoint waited for the write lock";
+  EXPECT_GT(during, 20u) << "the appends stopped while the checkpoint was written";
+  EXPECT_EQ(writer->info().checkpoint_seq, 10u);
 }
 
 // A world of schema 1 (one row per chunk, yesterday's voxeld) is migrated by a writer and

@@ -56,7 +56,7 @@ void WorldPipeline::start_append(Batch& b) {
           out.error = "not tried: an earlier append failed";
         } else {
           const Clock::time_point start = Clock::now();
-              try {
+          try {
             config_.store->append_edits(log, forget);
           } catch (const std::exception& e) {
             out.error = e.what();

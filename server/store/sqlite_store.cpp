@@ -101,9 +101,6 @@ class SqliteStore final : public WorldStore {
     open(SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
     exec("PRAGMA journal_mode=WAL");
     exec("PRAGMA synchronous=FULL");
-    // Copying the WAL into the database (and its fsyncs) is the checkpoint writer's, after
-    // each checkpoint (write_checkpoint); an append pays it only past this backstop.
-    exec("PRAGMA wal_autocheckpoint=16384");
     exec("BEGIN IMMEDIATE");
     exec(kCreateTables);
     const auto meta = read_meta();
@@ -171,8 +168,8 @@ class SqliteStore final : public WorldStore {
       Synchronous full{*this};
       write_rows_and_move(chunks, checkpoint_seq, trim_through);
     }
-    // Copies the WAL into the database without waiting for (or holding up) appends; when
-    // it cannot, the appender's backstop (wal_autocheckpoint) still bounds the WAL.
+    // Copies the WAL into the database now, without waiting for (or holding up) appends,
+    // rather than in the append that next crosses SQLite's auto-checkpoint threshold.
     sqlite3_exec(conn_.db, "PRAGMA wal_checkpoint(PASSIVE)", nullptr, nullptr, nullptr);
   }
 
