@@ -14,6 +14,7 @@
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/store/world_store.hpp"
+#include "tests/pipeline_test_util.hpp"
 #include "tests/postgres_server.hpp"
 
 namespace vox::pipeline {
@@ -77,15 +78,7 @@ class GatedStore final : public store::WorldStore {
   int entered_ = 0;
 };
 
-std::vector<world::Sample> samples_around(WorldPipeline& p, int x0, int y0, int z0, int r) {
-  std::vector<world::Sample> out;
-  p.inspect([&](const world::ChunkMap& map) {
-    for (int z = z0 - r; z <= z0 + r; ++z)
-      for (int y = y0 - r; y <= y0 + r; ++y)
-        for (int x = x0 - r; x <= x0 + r; ++x) out.push_back(map.sample_at(x, y, z));
-  });
-  return out;
-}
+using test::samples_around;
 
 std::filesystem::path temp_world(const std::string& tag) {
   const auto dir = std::filesystem::temp_directory_path() /

@@ -15,6 +15,7 @@
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/store/chunk_codec.hpp"
 #include "server/store/world_store.hpp"
+#include "tests/pipeline_test_util.hpp"
 #include "tests/postgres_server.hpp"
 
 namespace vox::pipeline {
@@ -22,15 +23,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
-std::vector<world::Sample> samples_around(WorldPipeline& p, int x0, int y0, int z0, int r) {
-  std::vector<world::Sample> out;
-  p.inspect([&](const world::ChunkMap& map) {
-    for (int z = z0 - r; z <= z0 + r; ++z)
-      for (int y = y0 - r; y <= y0 + r; ++y)
-        for (int x = x0 - r; x <= x0 + r; ++x) out.push_back(map.sample_at(x, y, z));
-  });
-  return out;
-}
+using test::samples_around;
 
 TEST(PipelineStore, EditsTheStoreCouldNotWriteAreUndoneAndRefusedUntilItIsBack) {
   test::PostgresServer server;
