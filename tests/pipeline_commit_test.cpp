@@ -22,24 +22,22 @@ namespace {
 
 using namespace std::chrono_literals;
 
-// A real store whose appends wait at a gate the test opens; counts the appends entered.
+// A real store whose appends (or checkpoints) wait at a gate the test opens; counts the
+// calls that reached it.
 class GatedStore final : public store::WorldStore {
  public:
-  explicit GatedStore(store::WorldStore& inner) : inner_(inner) {}
+  explicit GatedStore(store::WorldStore& inner, bool gate_checkpoints = false)
+      : inner_(inner), gate_checkpoints_(gate_checkpoints) {}
   const std::string& name() const override { return inner_.name(); }
   store::WorldInfo info() override { return inner_.info(); }
   void append_edits(std::span<const store::LoggedEdit> edits,
                     std::span<const SeqRange> forget) override {
-    {
-      std::unique_lock lock(mutex_);
-      ++entered_;
-      cv_.notify_all();
-      cv_.wait(lock, [&] { return open_; });
-    }
+    if (!gate_checkpoints_) pass_gate();
     inner_.append_edits(edits, forget);
   }
   void write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
                         uint64_t trim_through) override {
+    if (gate_checkpoints_) pass_gate();
     inner_.write_checkpoint(chunks, seq, trim_through);
   }
   std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {
@@ -71,13 +69,22 @@ class GatedStore final : public store::WorldStore {
   }
 
  private:
+  void pass_gate() {
+    std::unique_lock lock(mutex_);
+    ++entered_;
+    cv_.notify_all();
+    cv_.wait(lock, [&] { return open_; });
+  }
+
   store::WorldStore& inner_;
+  const bool gate_checkpoints_;
   std::mutex mutex_;
   std::condition_variable cv_;
   bool open_ = true;
   int entered_ = 0;
 };
 
+using test::eventually;
 using test::samples_around;
 
 std::filesystem::path temp_world(const std::string& tag) {
@@ -198,6 +205,58 @@ TEST(PipelinedCommit, AFailedAppendUndoesTheBatchesAppliedOnTopOfIt) {
   EXPECT_TRUE(again.accepted) << again.message;
   EXPECT_EQ(logged_seqs(*pg).size(), 1u) << "a refused edit is in the log";
   p.stop();
+}
+
+// A checkpoint fails while a batch on its chunks waits for its append, and then that
+// append fails too. Undoing the batch put back its chunks' flags from before it, when the
+// checkpoint held them ("saved"): the failed checkpoint's chunks were then never written,
+// and the final checkpoint trimmed their edits from the log.
+TEST(PipelinedCommit, AFailedCheckpointsChunksStayUnsavedWhenABatchOnThemIsUndone) {
+  test::PostgresServer server;
+  const std::string uri = server.create_database("checkpoint_then_append");
+  auto pg = store::open_world_store(uri, {.seed = 3});
+  auto pg_checkpoints = store::open_world_store(uri, {.seed = 3, .record_start = false});
+  GatedStore appends(*pg);
+  GatedStore checkpoints(*pg_checkpoints, /*gate_checkpoints=*/true);
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  const world::Edit kept = world::Explosion{{10, float(y), 10}, 4, 1};
+  std::vector<world::Sample> expected;
+  {
+    WorldPipeline memory(PipelineConfig{.seed = 3, .threads = 2});
+    memory.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+    ASSERT_TRUE(memory.submit(kept).get().accepted);
+    expected = samples_around(memory, 10, y, 10, 6);
+  }
+  {
+    WorldPipeline p(PipelineConfig{.seed = 3,
+                                   .threads = 2,
+                                   .store = &appends,
+                                   .checkpoint_store = &checkpoints,
+                                   .checkpoint = {.interval = 1h,
+                                                  .max_unsaved_chunks = 1,
+                                                  .retry = std::chrono::milliseconds(50)},
+                                   .store_retry = std::chrono::milliseconds(50)});
+    p.load(mesh::ChunkBox{{0, y / 32 - 1, 0}, {0, y / 32 + 1, 0}}).get();
+    checkpoints.close();
+    ASSERT_TRUE(p.submit(kept).get().accepted);
+    ASSERT_TRUE(checkpoints.wait_entered(1));  // its chunks' checkpoint, held
+    appends.close();
+    auto undone = p.submit(world::Explosion{{12, float(y), 10}, 4, 1});
+    ASSERT_TRUE(appends.wait_entered(2));  // on the same chunks, its append held
+    server.stop();
+    checkpoints.open();  // the checkpoint fails
+    eventually([&] { return p.stats().checkpoint_failures > 0; }, 1s);
+    appends.open();  // the append fails: the batch is undone
+    EXPECT_EQ(undone.get().reason, world::RefusalReason::kStorageUnavailable);
+    eventually([&] { return p.stats().checkpoint_failures > 0; }, 5s);
+    EXPECT_GT(p.stats().unsaved_chunks, 0u) << "no checkpoint would write the kept edit's chunks";
+    server.start();
+    p.stop();  // the final checkpoint
+  }
+  auto reopened = store::open_world_store(uri, {.seed = 3});
+  WorldPipeline q(PipelineConfig{.seed = 3, .threads = 2, .store = reopened.get()});
+  q.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  EXPECT_EQ(samples_around(q, 10, y, 10, 6), expected) << "an accepted edit was lost";
 }
 
 }  // namespace

@@ -23,6 +23,7 @@ namespace {
 
 using namespace std::chrono_literals;
 
+using test::eventually;
 using test::samples_around;
 
 TEST(PipelineStore, EditsTheStoreCouldNotWriteAreUndoneAndRefusedUntilItIsBack) {
@@ -62,16 +63,6 @@ TEST(PipelineStore, EditsTheStoreCouldNotWriteAreUndoneAndRefusedUntilItIsBack) 
   });
   ASSERT_EQ(seqs.size(), 2u);
   EXPECT_LT(seqs[0], seqs[1]);
-}
-
-// Polls `done` every 10 ms for up to `limit`.
-template <typename F>
-bool eventually(F done, std::chrono::milliseconds limit = 10s) {
-  for (auto end = std::chrono::steady_clock::now() + limit; std::chrono::steady_clock::now() < end;
-       std::this_thread::sleep_for(10ms)) {
-    if (done()) return true;
-  }
-  return done();
 }
 
 std::filesystem::path temp_world(const std::string& tag) {

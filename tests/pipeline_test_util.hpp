@@ -1,7 +1,9 @@
 // What the pipeline's store tests share: the samples of a cube around a point, read by an
-// inspection (so they include every edit queued before it).
+// inspection (so they include every edit queued before it), and polling for a condition.
 #pragma once
 
+#include <chrono>
+#include <thread>
 #include <vector>
 
 #include "server/pipeline/world_pipeline.hpp"
@@ -17,6 +19,16 @@ inline std::vector<world::Sample> samples_around(pipeline::WorldPipeline& p, int
         for (int x = x0 - r; x <= x0 + r; ++x) out.push_back(map.sample_at(x, y, z));
   });
   return out;
+}
+
+// Polls `done` every 10 ms for up to `limit`.
+template <typename F>
+bool eventually(F done, std::chrono::milliseconds limit = std::chrono::seconds(10)) {
+  for (auto end = std::chrono::steady_clock::now() + limit; std::chrono::steady_clock::now() < end;
+       std::this_thread::sleep_for(std::chrono::milliseconds(10))) {
+    if (done()) return true;
+  }
+  return done();
 }
 
 }  // namespace vox::test

@@ -284,6 +284,9 @@ void WorldPipeline::run() {
     }
     manage_memory(Clock::now());
     checkpoint_if_due(Clock::now());
+    // Appends that landed meanwhile: answered now, not when the loop next waits (while
+    // loads keep it busy it may not wait for a long time).
+    finish_landed();
     const double took = seconds_since(now);
     if (observer_.batch) observer_.batch(took, ordered_count, plan.to_mesh.size());
     if (took > std::chrono::duration<double>(kSlowBatch).count()) {
@@ -365,14 +368,18 @@ WorldPipeline::FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty)
 std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& dirty,
                                                FreshMeshes& fresh, const EditTimes* edited_at) {
   WorldState& st = *state_;
-  for (const ChunkCoord& c : dirty) {
-    if (auto it = st.info.find(c); it != st.info.end()) it->second.meshed = true;
+  // An edit batch re-meshed only meshed chunks: one not resident now, or not meshed, was
+  // evicted (and maybe loaded again) while the batch waited for the store, and its mesh
+  // is made again when it is next viewed.
+  std::vector<char> current(dirty.size());
+  for (size_t i = 0; i < dirty.size(); ++i) {
+    auto it = st.info.find(dirty[i]);
+    current[i] = it != st.info.end() && (!edited_at || it->second.meshed);
+    if (current[i]) it->second.meshed = true;
   }
   std::vector<ChunkCoord> published;
   for (size_t i = 0; i < dirty.size(); ++i) {
-    // Nothing new, or a chunk evicted while its batch waited for the store (its mesh is
-    // made again when it is next loaded).
-    if (!fresh[i] || !st.info.count(dirty[i])) continue;
+    if (!fresh[i] || !current[i]) continue;
     fresh[i]->version = st.next_version++;
     if (edited_at) {
       if (auto it = edited_at->find(dirty[i]); it != edited_at->end())

@@ -15,11 +15,16 @@ using world::ChunkCoord;
 
 void WorldPipeline::checkpoint_if_due(Clock::time_point now) {
   if (!checkpointer_) return;
-  if (auto r = checkpointer_->take_result()) finish_checkpoint(*r, now);
+  PipelineStats counts;
+  if (auto r = checkpointer_->take_result()) {
+    // Batches in flight first: one undone after a failed checkpoint was taken would put
+    // back its chunks' "saved" flags from before, and they would never be written.
+    finish_pending(counts, 0);
+    finish_checkpoint(*r, now);
+  }
   if (!checkpoint_policy_->due(now, unsaved_.size(), unsaved_edits_)) return;
   // A checkpoint holds every applied edit: the batches in flight are durable first (or
   // undone).
-  PipelineStats counts;
   finish_pending(counts, 0);
   start_checkpoint(now);
 }
