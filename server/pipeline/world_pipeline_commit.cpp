@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <future>
+#include <system_error>
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/pipeline/world_state.hpp"
@@ -48,29 +49,35 @@ void WorldPipeline::start_append(Batch& b) {
     before = it->outcome;
   std::promise<AppendOutcome> promise;
   b.outcome = promise.get_future().share();
-  b.appender =
-      std::async(std::launch::async, [this, log = std::move(log), forget = std::move(forget),
-                                      before, promise = std::move(promise)]() mutable {
-        AppendOutcome out;
-        if (before.valid() && !before.get().error.empty()) {
-          out.error = "not tried: an earlier append failed";
-        } else {
-          const Clock::time_point start = Clock::now();
-          try {
-            config_.store->append_edits(log, forget);
-          } catch (const std::exception& e) {
-            out.error = e.what();
-            if (out.error.empty()) out.error = "append failed";
+  try {
+    b.appender =
+        std::async(std::launch::async, [this, log = std::move(log), forget = std::move(forget),
+                                        before, promise = std::move(promise)]() mutable {
+          AppendOutcome out;
+          if (before.valid() && !before.get().error.empty()) {
+            out.error = "not tried: an earlier append failed";
+          } else {
+            const Clock::time_point start = Clock::now();
+            try {
+              config_.store->append_edits(log, forget);
+            } catch (const std::exception& e) {
+              out.error = e.what();
+              if (out.error.empty()) out.error = "append failed";
+            }
+            out.seconds = seconds_since(start);
           }
-          out.seconds = seconds_since(start);
-        }
-        promise.set_value(std::move(out));
-        {
-          std::lock_guard lock(queue_mutex_);
-          append_landed_ = true;
-        }
-        queue_cv_.notify_one();
-      });
+          promise.set_value(std::move(out));
+          {
+            std::lock_guard lock(queue_mutex_);
+            append_landed_ = true;
+          }
+          queue_cv_.notify_one();
+        });
+  } catch (const std::system_error& e) {  // no thread for it: refused like a failed append
+    std::promise<AppendOutcome> failed;
+    failed.set_value({.error = std::string("no thread to append with: ") + e.what()});
+    b.outcome = failed.get_future().share();
+  }
 }
 
 void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep,
