@@ -8,8 +8,11 @@ namespace {
 using namespace std::chrono_literals;
 using Clock = CheckpointPolicy::Clock;
 
-const CheckpointLimits kLimits{
-    .interval = 10s, .max_unsaved_chunks = 100, .max_unsaved_edits = 1000, .retry = 5s};
+const CheckpointLimits kLimits{.interval = 10s,
+                               .max_unsaved_chunks = 100,
+                               .max_unsaved_edits = 1000,
+                               .max_log_tail = 2000,
+                               .retry = 5s};
 
 TEST(CheckpointPolicy, NothingUnsavedIsNeverDue) {
   const Clock::time_point t0{};
@@ -53,6 +56,25 @@ TEST(CheckpointPolicy, AFailedCheckpointRestsTheStore) {
   p.finished(t0 + 11s, false);
   EXPECT_FALSE(p.due(t0 + 15s, 500, 5000));  // bounds reached, but resting
   EXPECT_TRUE(p.due(t0 + 16s, 500, 5000));
+}
+
+// A flood of 7,000 edits/s outran the checkpoints and grew the log to 80,791 edits (a
+// restart replayed them for 8.9 s): past the bound, edits are held back.
+TEST(CheckpointPolicy, TheLogTailIsFullAtItsBound) {
+  CheckpointPolicy p(kLimits, Clock::time_point{});
+  EXPECT_FALSE(p.log_full(1999));
+  EXPECT_TRUE(p.log_full(2000));
+}
+
+// A bound on the tail below the edit bound still makes a checkpoint due (or edits would be
+// held back until the interval).
+TEST(CheckpointPolicy, AFullLogTailMakesACheckpointDue) {
+  const Clock::time_point t0{};
+  CheckpointLimits limits = kLimits;
+  limits.max_log_tail = 50;
+  CheckpointPolicy p(limits, t0);
+  EXPECT_FALSE(p.due(t0 + 1s, 1, 49));
+  EXPECT_TRUE(p.due(t0 + 1s, 1, 50));
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <filesystem>
 #include <future>
@@ -101,6 +102,40 @@ std::vector<uint64_t> logged_seqs(store::WorldStore& s) {
     return true;
   });
   return seqs;
+}
+
+// The appender's thread lands appends in order, runs those still queued before it ends,
+// and does not try one queued behind a failed one.
+TEST(StoreAppender, AppendsLandInOrderAndNoneIsDroppedAtTheEnd) {
+  const auto dir = temp_world("appender");
+  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
+  GatedStore store(*sqlite);
+  std::atomic<int> landed{0};
+  std::shared_future<AppendOutcome> first, second;
+  {
+    StoreAppender appender(store, [&] { ++landed; });
+    store.close();
+    const world::Edit e = world::Explosion{{1, 2, 3}, 4, 1};
+    first = appender.append({{1, 0, "", e}}, {}, {});
+    second = appender.append({{2, 0, "", e}}, {}, first);
+    ASSERT_TRUE(store.wait_entered(1));
+    store.open();
+  }
+  EXPECT_EQ(first.get().error, "");
+  EXPECT_EQ(second.get().error, "");
+  EXPECT_EQ(landed, 2);
+  EXPECT_EQ(logged_seqs(*sqlite), (std::vector<uint64_t>{1, 2}));
+  std::promise<AppendOutcome> failed;
+  failed.set_value({.error = "disk full"});
+  StoreAppender appender(store, nullptr);
+  EXPECT_EQ(
+      appender
+          .append({{3, 0, "", world::Explosion{{1, 2, 3}, 4, 1}}}, {}, failed.get_future().share())
+          .get()
+          .error,
+      "not tried: an earlier append failed");
+  EXPECT_EQ(logged_seqs(*sqlite).size(), 2u);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(PipelinedCommit, TheNextBatchAppliesWhileAnAppendIsInFlightAndAnswersKeepTheirOrder) {
@@ -257,6 +292,38 @@ TEST(PipelinedCommit, AFailedCheckpointsChunksStayUnsavedWhenABatchOnThemIsUndon
   WorldPipeline q(PipelineConfig{.seed = 3, .threads = 2, .store = reopened.get()});
   q.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
   EXPECT_EQ(samples_around(q, 10, y, 10, 6), expected) << "an accepted edit was lost";
+}
+
+// A flood of 7,000 edits/s outran the checkpoints and grew the log to 80,791 edits, which
+// a restart replayed for 8.9 s: past its bound, the log takes no more edits (SERVER_BUSY)
+// until the checkpoint in progress trims it.
+TEST(PipelinedCommit, EditsAreHeldBackWhileTheLogTailIsAtItsBound) {
+  const auto dir = temp_world("tail");
+  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
+  auto second = store::open_world_store(dir.string(), {.seed = 3, .record_start = false});
+  GatedStore checkpoints(*second, /*gate_checkpoints=*/true);
+  WorldPipeline p(
+      PipelineConfig{.seed = 3,
+                     .threads = 2,
+                     .store = sqlite.get(),
+                     .checkpoint_store = &checkpoints,
+                     .checkpoint = {.interval = 1h, .max_unsaved_edits = 4, .max_log_tail = 6}});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  p.load(mesh::ChunkBox{{0, y / 32 - 1, 0}, {0, y / 32 + 1, 0}}).get();
+  checkpoints.close();
+  int x = 0;
+  auto explode = [&] { return p.submit(world::Explosion{{float(x++), float(y), 10}, 3, 1}).get(); };
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(explode().accepted);
+  ASSERT_TRUE(checkpoints.wait_entered(1));  // the checkpoint of those four, held
+  for (int i = 0; i < 2; ++i) ASSERT_TRUE(explode().accepted);
+  const EditResult held = explode();
+  EXPECT_EQ(held.reason, world::RefusalReason::kServerBusy) << held.message;
+  EXPECT_EQ(logged_seqs(*sqlite).size(), 6u);
+  checkpoints.open();
+  eventually([&] { return p.stats().checkpoints > 0; }, 5s);
+  EXPECT_TRUE(explode().accepted) << "the log stayed full after the checkpoint";
+  p.stop();
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -3,9 +3,13 @@
 // something unsaved (a chunk, or an edit in the log) and one of three bounds is reached: time since
 // the last one (what a restart must replay stays short), unsaved chunks (what a checkpoint copies
 // and writes stays bounded), or logged edits since the last one (the log stays short). One at a
-// time; after a failure the store rests `retry` before the next try. Pipeline thread only.
+// time; after a failure the store rests `retry` before the next try. And a hard bound on the
+// log's tail (the edits no finished checkpoint covers, which a restart replays): past it,
+// edits are held back until a checkpoint trims the log, so no flood makes a restart slow.
+// Pipeline thread only.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -16,6 +20,9 @@ struct CheckpointLimits {
   std::chrono::milliseconds interval{std::chrono::seconds(10)};
   size_t max_unsaved_chunks = 2048;
   uint64_t max_unsaved_edits = 20000;
+  // Edits the log may hold past the last finished checkpoint (in flight ones included);
+  // a checkpoint is due by then whatever max_unsaved_edits says.
+  uint64_t max_log_tail = 40000;
   std::chrono::milliseconds retry{std::chrono::seconds(5)};
 };
 
@@ -32,8 +39,11 @@ class CheckpointPolicy {
     if (in_flight_ || (unsaved_chunks == 0 && unsaved_edits == 0) || now < not_before_)
       return false;
     return now - last_ >= limits_.interval || unsaved_chunks >= limits_.max_unsaved_chunks ||
-           unsaved_edits >= limits_.max_unsaved_edits;
+           unsaved_edits >= std::min(limits_.max_unsaved_edits, limits_.max_log_tail);
   }
+  // `log_tail`: edits logged (or being appended) that no finished checkpoint covers. Full:
+  // the next edit is refused.
+  bool log_full(uint64_t log_tail) const { return log_tail >= limits_.max_log_tail; }
   bool in_flight() const { return in_flight_; }
   void started(Clock::time_point now) {
     in_flight_ = true;

@@ -41,6 +41,9 @@ constexpr const char* kStorageMessage =
 constexpr const char* kStorageReadMessage =
     "a chunk this edit needs cannot be read from the world store now (unreachable, or the "
     "server's log names a damaged chunk); the edit was not applied";
+constexpr const char* kLogFullMessage =
+    "the world store is behind: its log holds as many edits as a checkpoint may leave "
+    "unwritten; edits are taken again once the checkpoint in progress is written";
 
 // A batch slower than this is logged: every edit queued behind it waited.
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
@@ -72,6 +75,13 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
           queue_cv_.notify_one();
         });
     checkpoint_policy_.emplace(config_.checkpoint, Clock::now());
+    appender_ = std::make_unique<StoreAppender>(*config_.store, [this] {
+      {
+        std::lock_guard lock(queue_mutex_);
+        append_landed_ = true;
+      }
+      queue_cv_.notify_one();
+    });
   }
   const int generate_threads =
       config_.generate_threads >= 0
@@ -210,6 +220,7 @@ void WorldPipeline::stop() {
   queue_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
   checkpointer_.reset();  // after the final checkpoint; it notifies queue_cv_
+  appender_.reset();      // idle: every batch was answered before thread_ ended
   prefetcher_.reset();    // its threads notify queue_cv_: stopped before the members go
 }
 
@@ -398,6 +409,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   Batch b = apply_batch(tasks, now);
   if (!b.any_edit) return;
   if (config_.store && !b.accepted.empty()) start_append(b);  // overlaps the re-meshing
+  finish_landed();  // earlier batches whose appends landed while this one applied
   b.fresh = remesh(b.dirty);
   if (!config_.store) return answer(b, true, batch);
   const Clock::time_point wait_until = b.appended_at + kAnswerWait;
@@ -416,6 +428,7 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
   std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
   const bool durable = config_.store != nullptr;
   const bool store_resting = durable && now < store_retry_at_;
+  const uint64_t log_tail = durable ? logged_since_checkpoint() : 0;
   PipelineStats& delta = b.delta;
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
@@ -438,6 +451,13 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       result.reason = world::RefusalReason::kStorageUnavailable;
       result.message = kStorageMessage;
       ++delta.edits_refused;
+      continue;
+    }
+    if (durable && log_full(log_tail + b.accepted.size())) {
+      result.reason = world::RefusalReason::kServerBusy;
+      result.message = kLogFullMessage;
+      ++delta.edits_refused;
+      ++delta.edits_refused_busy;
       continue;
     }
     size_t& generated = generated_by[task.owner];

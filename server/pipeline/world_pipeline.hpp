@@ -29,6 +29,7 @@
 #include "server/pipeline/checkpoint_writer.hpp"
 #include "server/pipeline/memory_budget.hpp"
 #include "server/pipeline/mesh_store.hpp"
+#include "server/pipeline/store_appender.hpp"
 #include "server/pipeline/terrain_prefetcher.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/edit.hpp"
@@ -245,10 +246,6 @@ class WorldPipeline {
   // apply, load passes run); nothing of it is published and no edit of it answered until
   // the store says the append is durable. Appends land in batch order (each waits for the
   // one before); when one fails, it and every later batch are undone.
-  struct AppendOutcome {
-    std::string error;  // empty: durable
-    double seconds = 0;
-  };
   struct Batch {
     std::vector<OrderedTask> tasks;
     std::vector<EditResult> results;                         // per task
@@ -262,7 +259,6 @@ class WorldPipeline {
     bool any_edit = false;
     store::WorldStore::SeqRange seqs;           // of the accepted edits, when appended
     std::shared_future<AppendOutcome> outcome;  // invalid: nothing to append
-    std::future<void> appender;                 // the append's thread, joined on destruction
     Clock::time_point appended_at;              // when the append started
   };
   // Batches in flight are at most this many: past it, the pipeline waits for the oldest.
@@ -296,6 +292,11 @@ class WorldPipeline {
   // Pipeline thread: takes a finished checkpoint's result; starts the next one when due.
   void checkpoint_if_due(Clock::time_point now);
   void start_checkpoint(Clock::time_point now);
+  // The edits in the log no finished checkpoint covers, the pending batches' included.
+  uint64_t logged_since_checkpoint() const;
+  // Whether the log's tail is at its bound: edits are held back (logged when that starts
+  // and ends).
+  bool log_full(uint64_t log_tail);
   void finish_checkpoint(const CheckpointResult& r, Clock::time_point now);
   void final_checkpoint();  // at stop: everything unsaved, waited for
   // Reads a checkpointed chunk from the store (throws StoreError: unreadable, or does not
@@ -369,7 +370,9 @@ class WorldPipeline {
   uint64_t unsaved_edits_ = 0, checkpoint_edits_ = 0;
   std::optional<CheckpointPolicy> checkpoint_policy_;
   bool checkpoint_failing_ = false;
+  bool log_full_ = false;  // edits are held back for a checkpoint; pipeline thread
   std::unique_ptr<CheckpointWriter> checkpointer_;  // reset by stop() once thread_ has ended
+  std::unique_ptr<StoreAppender> appender_;         // with a store; reset by stop() likewise
   std::thread thread_;
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
 };

@@ -29,6 +29,26 @@ void WorldPipeline::checkpoint_if_due(Clock::time_point now) {
   start_checkpoint(now);
 }
 
+uint64_t WorldPipeline::logged_since_checkpoint() const {
+  uint64_t tail = checkpoint_edits_ + unsaved_edits_;
+  for (const Batch& b : pending_) tail += b.accepted.size();
+  return tail;
+}
+
+bool WorldPipeline::log_full(uint64_t log_tail) {
+  const bool full = checkpoint_policy_->log_full(log_tail);
+  if (full && !log_full_) {
+    spdlog::warn(
+        "world store: {} edits in the log await a checkpoint; edits are refused "
+        "(SERVER_BUSY) until it is written",
+        log_tail);
+  } else if (!full && log_full_) {
+    spdlog::info("world store: a checkpoint trimmed the log; edits are taken again");
+  }
+  log_full_ = full;
+  return full;
+}
+
 void WorldPipeline::start_checkpoint(Clock::time_point now) {
   WorldState& st = *state_;
   const uint64_t seq = next_seq_ - 1;  // every applied edit, and no other

@@ -1,13 +1,11 @@
-// Group commit, pipelined: each batch's accepted edits are appended to the store on their
-// own thread while the pipeline goes on with the next batches and load passes; a batch is
-// answered (meshes published, results sent) only once its append is durable, in batch
-// order. An append that fails undoes its batch and every later one (they were applied on
-// top of it), whose appends are then not tried.
+// Group commit, pipelined: each batch's accepted edits are appended to the store on the
+// StoreAppender's thread while the pipeline goes on with the next batches and load passes; a batch
+// is answered (meshes published, results sent) only once its append is durable, in batch order. An
+// append that fails undoes its batch and every later one (they were applied on top of it), whose
+// appends are then not tried.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <future>
-#include <system_error>
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/pipeline/world_state.hpp"
@@ -47,37 +45,7 @@ void WorldPipeline::start_append(Batch& b) {
   std::shared_future<AppendOutcome> before;  // the newest append in flight
   for (auto it = pending_.rbegin(); it != pending_.rend() && !before.valid(); ++it)
     before = it->outcome;
-  std::promise<AppendOutcome> promise;
-  b.outcome = promise.get_future().share();
-  try {
-    b.appender =
-        std::async(std::launch::async, [this, log = std::move(log), forget = std::move(forget),
-                                        before, promise = std::move(promise)]() mutable {
-          AppendOutcome out;
-          if (before.valid() && !before.get().error.empty()) {
-            out.error = "not tried: an earlier append failed";
-          } else {
-            const Clock::time_point start = Clock::now();
-            try {
-              config_.store->append_edits(log, forget);
-            } catch (const std::exception& e) {
-              out.error = e.what();
-              if (out.error.empty()) out.error = "append failed";
-            }
-            out.seconds = seconds_since(start);
-          }
-          promise.set_value(std::move(out));
-          {
-            std::lock_guard lock(queue_mutex_);
-            append_landed_ = true;
-          }
-          queue_cv_.notify_one();
-        });
-  } catch (const std::system_error& e) {  // no thread for it: refused like a failed append
-    std::promise<AppendOutcome> failed;
-    failed.set_value({.error = std::string("no thread to append with: ") + e.what()});
-    b.outcome = failed.get_future().share();
-  }
+  b.outcome = appender_->append(std::move(log), std::move(forget), std::move(before));
 }
 
 void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep,

@@ -181,6 +181,7 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
   std::vector<ChunkCoord> published;
   if (!waiting_meshes_.empty()) {
     std::vector<ChunkCoord> dirty = take_meshable(now, delta);
+    finish_landed();  // not held up by the meshing
     if (near_pending_edits(dirty)) finish_pending(batch, 0);
     published = remesh_and_publish(dirty);
     delta.meshes_published += published.size();

@@ -1,0 +1,63 @@
+// Appends the pipeline's batches of accepted edits to the world store on one long-lived
+// thread, in the order they are given, while the pipeline goes on. One thread that sleeps
+// between appends: the kernel wakes a sleeper ahead of busy threads, whereas a thread
+// started per append waited for a core up to 25 ms (p99) with 500 players on two cores.
+//
+// Bounded by its owner: the pipeline has at most a few batches in flight and waits for
+// the oldest past that (WorldPipeline::kMaxPendingBatches).
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <future>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "server/store/world_store.hpp"
+
+namespace vox::pipeline {
+
+struct AppendOutcome {
+  std::string error;   // empty: durable
+  double seconds = 0;  // the store's append (0 when not tried)
+};
+
+class StoreAppender {
+ public:
+  // `store` is used from the appender's thread only while an append runs; `landed` runs
+  // there after each append's outcome is set (no lock of ours held; must not block).
+  StoreAppender(store::WorldStore& store, std::function<void()> landed);
+  ~StoreAppender();  // runs the appends queued, then joins
+  StoreAppender(const StoreAppender&) = delete;
+  StoreAppender& operator=(const StoreAppender&) = delete;
+
+  // Pipeline thread. Appends `log` (and forgets `forget`) after every earlier append. If
+  // `before` (an earlier append's outcome) failed, this one is not tried and fails too.
+  std::shared_future<AppendOutcome> append(std::vector<store::LoggedEdit> log,
+                                           std::vector<store::WorldStore::SeqRange> forget,
+                                           std::shared_future<AppendOutcome> before);
+
+ private:
+  struct Job {
+    std::vector<store::LoggedEdit> log;
+    std::vector<store::WorldStore::SeqRange> forget;
+    std::shared_future<AppendOutcome> before;
+    std::promise<AppendOutcome> promise;
+  };
+  void work();
+  AppendOutcome run(Job& job);
+
+  store::WorldStore& store_;
+  const std::function<void()> landed_;
+  std::mutex mutex_;  // leaf lock; never held while appending
+  std::condition_variable cv_;
+  std::deque<Job> jobs_;
+  bool stopping_ = false;
+  std::thread thread_;
+};
+
+}  // namespace vox::pipeline
