@@ -2,8 +2,10 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdlib>
 #include <ostream>
 #include <stdexcept>
+#include <tuple>
 
 namespace vox::cli {
 
@@ -82,8 +84,21 @@ std::pair<std::string, uint16_t> parse_server(const std::string& text) {
 po::options_description network_options(const std::string& command) {
   po::options_description opts("voxel-cli " + command + " options");
   opts.add_options()("help,h", "show this help")(
-      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld");
+      "server", po::value<std::string>()->default_value(kDefaultServer), "HOST:PORT of voxeld")(
+      "token", po::value<std::string>(),
+      "a player token (voxel-cli token), for a server that checks them; default: $VOXEL_TOKEN");
   return opts;
+}
+
+ServerAccess server_access(const po::variables_map& vm) {
+  ServerAccess a;
+  std::tie(a.host, a.port) = parse_server(vm["server"].as<std::string>());
+  if (vm.count("token")) {
+    a.token = vm["token"].as<std::string>();
+  } else if (const char* env = std::getenv("VOXEL_TOKEN")) {
+    a.token = env;
+  }
+  return a;
 }
 
 void add_view_options(po::options_description& opts, const char* at_help, bool timeout) {

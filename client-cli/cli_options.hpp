@@ -30,8 +30,19 @@ std::pair<std::string, uint16_t> parse_server(const std::string& text);
 
 inline constexpr const char* kDefaultServer = "127.0.0.1:7777";
 
-// The options of a network command: --help and --server, under "voxel-cli NAME options".
+// The options of a network command: --help, --server and --token, under "voxel-cli NAME
+// options".
 po::options_description network_options(const std::string& command);
+
+// Where a network command connects, and as whom: --server, and --token or else the
+// environment variable VOXEL_TOKEN (a player token; empty: none). Throws
+// std::invalid_argument for a bad --server.
+struct ServerAccess {
+  std::string host;
+  uint16_t port = 0;
+  std::string token;
+};
+ServerAccess server_access(const po::variables_map& vm);
 // The options of a command that fetches a view: --at (meaning `at_help`), --radius in
 // chunks (default 2) and, with `timeout`, --timeout (seconds to wait for the whole view).
 void add_view_options(po::options_description& opts, const char* at_help, bool timeout);

@@ -21,6 +21,9 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 // world info|log|verify WORLD: the durable world, read-only.
 int world_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// keygen --out NAME: an Ed25519 key pair; token --key FILE ...: a signed player token.
+int keygen_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int token_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int slice_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace vox::cli

@@ -30,8 +30,8 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
     mesh_format_for(output);
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
     const auto region =
-        fetch_region(vm["server"].as<std::string>(), "voxel-cli-export", at,
-                     vm["radius"].as<uint32_t>(), timeout_of(vm["timeout"].as<double>()));
+        fetch_region(server_access(vm), "voxel-cli-export", at, vm["radius"].as<uint32_t>(),
+                     timeout_of(vm["timeout"].as<double>()));
     const client::Client& c = *region;
     // Decode every chunk into a dense grid over their bounding box, then weld.
     std::array<int, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};

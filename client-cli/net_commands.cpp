@@ -20,11 +20,10 @@ using Clock = std::chrono::steady_clock;
 constexpr auto kConnectTimeout = 3s;
 constexpr auto kReplyTimeout = 10s;
 
-std::unique_ptr<client::Client> open_session(const std::string& server, const std::string& name) {
-  const auto [host, port] = parse_server(server);
+std::unique_ptr<client::Client> open_session(const ServerAccess& server, const std::string& name) {
   auto c = std::make_unique<client::Client>();
-  c->connect(host, port, kConnectTimeout);
-  c->handshake(name, kReplyTimeout);
+  c->connect(server.host, server.port, kConnectTimeout);
+  c->handshake(name, kReplyTimeout, server.token);
   return c;
 }
 
@@ -157,10 +156,10 @@ int info_command(const std::vector<std::string>& args, std::ostream& out, std::o
                                vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
-    const auto [host, port] = parse_server(vm["server"].as<std::string>());
+    const ServerAccess server = server_access(vm);
     client::Client c;
-    c.connect(host, port, kConnectTimeout);
-    const wire::Welcome w = c.handshake("voxel-cli", kReplyTimeout);
+    c.connect(server.host, server.port, kConnectTimeout);
+    const wire::Welcome w = c.handshake("voxel-cli", kReplyTimeout, server.token);
     out << "server:          " << w.server_version() << "\n"
         << "protocol:        " << w.protocol_version() << " (mesh format " << w.mesh_format()
         << ")\n"
@@ -184,7 +183,7 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const wire::Envelope edit = edit_from_options(kind, vm, 1);
-    auto c = open_session(vm["server"].as<std::string>(), "voxel-cli");
+    auto c = open_session(server_access(vm), "voxel-cli");
     const auto t0 = Clock::now();
     c->send(edit);
     const auto result = wait_result(*c, 1);
@@ -249,7 +248,7 @@ int script_command(const std::vector<std::string>& args, std::ostream& out, std:
     }
   }
   return guarded(err, [&] {
-    auto c = open_session(vm["server"].as<std::string>(), "voxel-cli-script");
+    auto c = open_session(server_access(vm), "voxel-cli-script");
     const auto t0 = Clock::now();
     size_t sent = 0, done = 0, refused = 0;
     while (done < edits.size()) {
@@ -290,7 +289,7 @@ int watch_command(const std::vector<std::string>& args, std::ostream& out, std::
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
     const double seconds = vm.count("for") ? vm["for"].as<double>() : 1e12;
     if (!(seconds > 0)) throw std::invalid_argument("--for must be > 0");
-    auto c = open_session(vm["server"].as<std::string>(), "voxel-cli-watch");
+    auto c = open_session(server_access(vm), "voxel-cli-watch");
     c->send(client::make_set_view(at[0], at[1], at[2], vm["radius"].as<uint32_t>(), 1));
     g_interrupted = false;
     auto previous = std::signal(SIGINT, on_sigint);

@@ -6,13 +6,12 @@ namespace vox::cli {
 
 using namespace std::chrono_literals;
 
-std::unique_ptr<client::Client> fetch_region(const std::string& server, const std::string& name,
+std::unique_ptr<client::Client> fetch_region(const ServerAccess& server, const std::string& name,
                                              const std::array<float, 3>& at, uint32_t radius,
                                              std::chrono::milliseconds timeout) {
-  const auto [host, port] = parse_server(server);
   auto c = std::make_unique<client::Client>();
-  c->connect(host, port, 3s);
-  c->handshake(name, 10s);
+  c->connect(server.host, server.port, 3s);
+  c->handshake(name, 10s, server.token);
   constexpr uint64_t kViewId = 1;
   c->send(client::make_set_view(at[0], at[1], at[2], radius, kViewId));
   c->receive_view(kViewId, timeout);

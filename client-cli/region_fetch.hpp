@@ -6,15 +6,16 @@
 #include <memory>
 #include <string>
 
+#include "client-cli/cli_options.hpp"
 #include "client/voxel_client.hpp"
 
 namespace vox::cli {
 
-// Connects to `server` ("HOST:PORT"), asks for the view of `radius` chunks around `at`
+// Connects to `server`, asks for the view of `radius` chunks around `at`
 // and receives until the server says the view is complete (ViewReady), or `timeout`
 // (terrain is generated on demand). The returned client holds the chunks. Throws
 // std::invalid_argument for a bad server string, std::runtime_error for anything else.
-std::unique_ptr<client::Client> fetch_region(const std::string& server, const std::string& name,
+std::unique_ptr<client::Client> fetch_region(const ServerAccess& server, const std::string& name,
                                              const std::array<float, 3>& at, uint32_t radius,
                                              std::chrono::milliseconds timeout);
 

@@ -161,9 +161,8 @@ int slice_command(const std::vector<std::string>& args, std::ostream& out, std::
     if (levels < 1 || levels > 64) throw std::invalid_argument("--levels must be 1..64");
     const std::string output = vm["out"].as<std::string>();
     const auto radius = vm["radius"].as<uint32_t>();
-    const auto region =
-        fetch_region(vm["server"].as<std::string>(), "voxel-cli-slice", {xz[0], y, xz[1]}, radius,
-                     timeout_of(vm["timeout"].as<double>()));
+    const auto region = fetch_region(server_access(vm), "voxel-cli-slice", {xz[0], y, xz[1]},
+                                     radius, timeout_of(vm["timeout"].as<double>()));
     const client::Client& c = *region;
     HeightMap map;
     map.size = static_cast<int>(2 * radius + 1) * 32 + 1;

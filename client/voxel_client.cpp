@@ -36,8 +36,9 @@ void Client::connect(const std::string& host, uint16_t port, std::chrono::millis
   socket_.set_option(asio::ip::tcp::no_delay(true), ec);
 }
 
-wire::Welcome Client::handshake(const std::string& name, std::chrono::milliseconds timeout) {
-  send(make_hello(name));
+wire::Welcome Client::handshake(const std::string& name, std::chrono::milliseconds timeout,
+                                const std::string& token) {
+  send(make_hello(name, 1, token));
   const auto deadline = Clock::now() + timeout;
   while (Clock::now() < deadline) {
     auto m =
@@ -120,10 +121,11 @@ wire::ViewReady Client::receive_view(uint64_t view_id, std::chrono::milliseconds
                                    : "the view was not complete in time");
 }
 
-wire::Envelope make_hello(const std::string& name, uint32_t version) {
+wire::Envelope make_hello(const std::string& name, uint32_t version, const std::string& token) {
   wire::Envelope m;
   m.mutable_hello()->set_protocol_version(version);
   m.mutable_hello()->set_player_name(name);
+  if (!token.empty()) m.mutable_hello()->set_token(token);
   return m;
 }
 

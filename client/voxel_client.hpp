@@ -29,7 +29,9 @@ class Client {
   // Throws std::runtime_error with a one-line reason on failure.
   void connect(const std::string& host, uint16_t port, std::chrono::milliseconds timeout);
   // Sends Hello and waits for Welcome (throws on Error, close or timeout).
-  wire::Welcome handshake(const std::string& name, std::chrono::milliseconds timeout);
+  // `token`: a signed player token, for a server that checks them (docs/PROTOCOL.md 4.8).
+  wire::Welcome handshake(const std::string& name, std::chrono::milliseconds timeout,
+                          const std::string& token = {});
 
   void send(const wire::Envelope& message);
   void send_raw(std::span<const uint8_t> bytes);  // for tests of hostile input
@@ -59,7 +61,8 @@ class Client {
   ChunkCache cache_;
 };
 
-wire::Envelope make_hello(const std::string& name, uint32_t version = 1);
+wire::Envelope make_hello(const std::string& name, uint32_t version = 1,
+                          const std::string& token = {});
 wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id = 0);
 wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords);
 // An Edit carrying a Brush at (x, y, z) that keeps the existing material (material 0).

@@ -10,6 +10,7 @@
 #include <thread>
 #include <utility>
 
+#include "server/auth/player_token.hpp"
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
 #include "server/store/world_store.hpp"
@@ -57,12 +58,36 @@ size_t default_max_memory() {
   return std::min(half, size_t{4} << 30);
 }
 
+// --auth-public-key / --open-role into `net`; false (with a one-line error) when unusable.
+bool configure_identity(const std::string& key_file, const std::string& open_role,
+                        vox::net::ServerConfig& net) {
+  const auto role = vox::auth::parse_role(open_role);
+  if (!role) {
+    std::cerr << "voxeld: --open-role must be viewer, player or admin\n";
+    return false;
+  }
+  net.open_role = *role;
+  if (key_file.empty()) return true;
+  std::ifstream in(key_file, std::ios::binary);
+  std::string text(256, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<size_t>(in.gcount()));
+  net.auth_key = in || in.eof() ? vox::auth::key_from_text(text) : std::nullopt;
+  if (!net.auth_key) {
+    std::cerr << "voxeld: --auth-public-key " << key_file
+              << ": not a public key file (one line of base64url, 32 bytes; voxel-cli keygen)\n";
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   vox::net::ServerConfig net;
   vox::pipeline::PipelineConfig world;
   std::string port_file, log_level, max_memory, metrics_port_file, world_dir, store_uri;
+  std::string auth_key_file, open_role;
   bool in_memory = false;
   int metrics_port = -1;
   int io_threads = 1, stats_seconds = 10;
@@ -138,7 +163,11 @@ int main(int argc, char** argv) {
       "stats-interval", po::value<int>(&stats_seconds)->default_value(10),
       "seconds between stats lines (0: none)")(
       "log-level", po::value<std::string>(&log_level)->default_value("info"),
-      "trace, debug, info, warn, error");
+      "trace, debug, info, warn, error")(
+      "auth-public-key", po::value<std::string>(&auth_key_file),
+      "players must present a token signed by this key (voxel-cli keygen writes NAME.pub)")(
+      "open-role", po::value<std::string>(&open_role)->default_value("player"),
+      "without --auth-public-key: every player's role (viewer, player or admin)");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, opts), vm);
@@ -183,6 +212,7 @@ int main(int argc, char** argv) {
               << " samples (the largest edit)\n";
     return 2;
   }
+  if (!configure_identity(auth_key_file, open_role, net)) return 2;
   if (max_memory.empty()) {
     world.max_memory = default_max_memory();
   } else if (auto bytes = parse_bytes(max_memory); bytes && *bytes >= (size_t{64} << 20)) {
@@ -200,6 +230,12 @@ int main(int argc, char** argv) {
   world.checkpoint.interval = std::chrono::milliseconds(static_cast<long>(checkpoint_s * 1000));
   if (net.max_per_address == 0)
     spdlog::warn("--max-per-address 0: one address may fill the server");
+  if (!net.auth_key) {
+    spdlog::warn(
+        "no --auth-public-key: the server is open; anyone may join under any name as "
+        "'{}' (development mode)",
+        vox::auth::to_string(net.open_role));
+  }
 #ifdef VOXEL_JEMALLOC
   constexpr const char* kAllocator = "jemalloc";
 #else

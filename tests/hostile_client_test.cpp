@@ -179,7 +179,8 @@ TEST(HostileClients, PlayerNamesAreEscapedInTheLog) {
     std::this_thread::sleep_for(20ms);  // the server logs the leave
     log = read_file(server.log_path());
   }
-  EXPECT_NE(log.find("player 'eve\\x0a[2026-01-01] forged' joined"), std::string::npos) << log;
+  EXPECT_NE(log.find("player 'eve\\x0a[2026-01-01] forged' (player) joined"), std::string::npos)
+      << log;
   EXPECT_NE(log.find("player 'eve\\x0a[2026-01-01] forged' left"), std::string::npos) << log;
   EXPECT_EQ(log.find("\n[2026-01-01] forged"), std::string::npos) << log;
 }

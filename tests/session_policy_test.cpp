@@ -4,6 +4,7 @@
 
 #include "server/net/admission_control.hpp"
 #include "server/net/log_hygiene.hpp"
+#include "server/net/player_registry.hpp"
 #include "server/net/result_order.hpp"
 #include "server/pipeline/token_bucket.hpp"
 
@@ -14,6 +15,28 @@ using pipeline::TokenBucket;
 
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
+
+// A player who connects again replaces the old connection; the old one ending later must
+// not remove the new one's entry.
+TEST(PlayerRegistry, ANewConnectionReplacesTheOldAndTheOldOneEndingKeepsIt) {
+  struct Session {};
+  PlayerRegistry<Session> players;
+  auto first = std::make_shared<Session>(), second = std::make_shared<Session>();
+  EXPECT_EQ(players.claim("alice", first), nullptr);
+  EXPECT_EQ(players.claim("alice", first), nullptr);  // the same connection again
+  EXPECT_EQ(players.claim("alice", second), first);
+  players.release("alice", first.get());
+  EXPECT_EQ(players.size(), 1u);
+  EXPECT_EQ(players.claim("bob", first), nullptr);
+  players.release("alice", second.get());
+  players.release("bob", first.get());
+  EXPECT_EQ(players.size(), 0u);
+  // An entry whose connection is gone is replaced without a word.
+  auto gone = std::make_shared<Session>();
+  players.claim("carol", gone);
+  gone.reset();
+  EXPECT_EQ(players.claim("carol", second), nullptr);
+}
 
 TEST(TokenBucket, TakesWithinTheBurstThenSaysHowLongToWait) {
   const auto t0 = Clock::now();

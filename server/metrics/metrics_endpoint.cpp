@@ -134,7 +134,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     add(conns, value_of(c_.players), {{"state", "player"}});
     auto refused = family("voxeld_connections_refused_total", "Connections or Hellos refused",
                           MetricType::Counter);
-    const char* reasons[] = {"handshakes_full", "address_full", "server_full"};
+    const char* reasons[] = {"handshakes_full", "address_full", "server_full", "token"};
+    static_assert(std::size(reasons) == static_cast<size_t>(net::RefusedBy::kCount));
     for (size_t i = 0; i < c_.refused.size(); ++i)
       add(refused, value_of(c_.refused[i]), {{"reason", reasons[i]}});
     auto disconnects = family("voxeld_disconnects_total",

@@ -60,6 +60,7 @@ ClientSession::~ClientSession() {
   (player_ ? counters_.players : counters_.handshaking).fetch_sub(1);
   counters_.session_bytes.fetch_sub(memory_bytes_.load(), std::memory_order_relaxed);
   services_.admission->release(address_, player_);
+  if (!player_id_.empty()) services_.players->release(player_id_, this);
   pipeline_.drop_view(id_);
 }
 
@@ -393,6 +394,7 @@ void ClientSession::shutdown() {
       }
     }
   }
+  if (!player_id_.empty()) services_.players->release(player_id_, this);
   scheduler_.clear();
   control_.clear();
   control_bytes_ = 0;

@@ -10,12 +10,15 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "proto/framing.hpp"
+#include "server/auth/player_token.hpp"
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
 #include "server/net/log_hygiene.hpp"
+#include "server/net/player_registry.hpp"
 #include "server/net/result_order.hpp"
 #include "server/net/send_scheduler.hpp"
 #include "server/net/server_counters.hpp"
@@ -56,7 +59,13 @@ struct ServerConfig {
   double protocol_error_rate = 5;  // kept-connection errors per second; over it: closed
   double protocol_error_burst = 20;
   std::string server_version = "voxeld 0.2.0";
+  // Identity (docs/PROTOCOL.md 4.8): with a key, Hello must carry a token it signed;
+  // without one the server is open and every player has `open_role`.
+  std::optional<auth::PublicKey> auth_key;
+  auth::Role open_role = auth::Role::kPlayer;
 };
+
+class ClientSession;
 
 // What every session shares with the server. Any thread. A session holds nothing of the
 // Server itself: sessions still queued when the Server is destroyed are destroyed with
@@ -68,6 +77,7 @@ struct SessionServices {
   std::shared_ptr<const ServerConfig> config;
   std::shared_ptr<AdmissionGate> admission;
   std::shared_ptr<SharedLogRateLimit> logs;
+  std::shared_ptr<PlayerRegistry<ClientSession>> players;  // authenticated player ids
 };
 
 class ClientSession : public std::enable_shared_from_this<ClientSession> {
@@ -101,6 +111,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void watch_partial_frame();
   void on_frame(const std::vector<uint8_t>& body);
   void handle_hello(const wire::Hello& hello);
+  // With a key: the token's claims, or nullopt after refusing the connection.
+  std::optional<auth::PlayerClaims> verify_hello_token(const wire::Hello& hello);
+  void join_as(const auth::PlayerClaims& claims);  // replaces a connection of the same id
   void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
   void apply_view(world::ChunkCoord center, int radius, uint64_t view_id);
@@ -139,8 +152,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::optional<std::chrono::steady_clock::time_point> partial_since_;
   bool frame_watch_ = false;     // frame_timer_ is armed for a partial frame
   bool reading_paused_ = false;  // over the message rate: read_pause_timer_ resumes
-  std::string name_;             // as the client sent it
+  std::string name_;             // as the client sent it, or the token's display name
   std::string log_name_;         // escaped, for logs
+  std::string player_id_;        // the token's (empty: open server); edits are logged under it
+  auth::Role role_ = auth::Role::kPlayer;
   bool closing_ = false;
   bool writing_ = false;
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued

@@ -36,7 +36,8 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
       admission_(std::make_shared<AdmissionGate>(
           AdmissionLimits{config_.max_clients, config_.max_handshaking, config_.max_per_address,
                           config_.max_handshaking_per_address})),
-      logs_(std::make_shared<SharedLogRateLimit>()) {}
+      logs_(std::make_shared<SharedLogRateLimit>()),
+      players_(std::make_shared<PlayerRegistry<ClientSession>>()) {}
 
 Server::~Server() {
   if (subscription_ != 0) pipeline_.unsubscribe(subscription_);
@@ -109,7 +110,7 @@ void Server::admit(asio::ip::tcp::socket socket) {
   socket.set_option(asio::ip::tcp::no_delay(true), ec);
   auto session = std::make_shared<ClientSession>(
       std::move(socket), address, next_session_++, pipeline_,
-      SessionServices{counters_, shared_config_, admission_, logs_});
+      SessionServices{counters_, shared_config_, admission_, logs_, players_});
   {
     std::lock_guard lock(sessions_mutex_);
     std::erase_if(sessions_, [](const auto& p) { return p.second.expired(); });

@@ -55,6 +55,7 @@ class Server {
   ServerCounters& counters_;
   std::shared_ptr<AdmissionGate> admission_;  // shared with the sessions
   std::shared_ptr<SharedLogRateLimit> logs_;
+  std::shared_ptr<PlayerRegistry<ClientSession>> players_;
   uint64_t subscription_ = 0;
   uint64_t next_session_ = 1;  // strand_ only
 

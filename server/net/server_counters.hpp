@@ -10,13 +10,13 @@
 
 namespace vox::net {
 
-enum class RefusedBy : uint8_t { kHandshakesFull, kAddressFull, kServerFull, kCount };
+enum class RefusedBy : uint8_t { kHandshakesFull, kAddressFull, kServerFull, kToken, kCount };
 enum class DroppedBy : uint8_t { kSlowReader, kWriteTimeout, kCount };
 
 struct ServerCounters {
   using Counter = std::atomic<uint64_t>;
   static constexpr size_t kStatuses = 16;    // EditResult.Status values
-  static constexpr size_t kErrorCodes = 16;  // Error.Code values
+  static constexpr size_t kErrorCodes = 20;  // Error.Code values
 
   Counter players{0};      // gauge: sessions past Hello
   Counter handshaking{0};  // gauge: connections before Hello

@@ -52,7 +52,11 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
                true);
     return;
   }
-  if (hello.player_name().empty() || hello.player_name().size() > 32) {
+  std::optional<auth::PlayerClaims> claims;
+  if (config_.auth_key) {
+    claims = verify_hello_token(hello);
+    if (!claims) return;
+  } else if (hello.player_name().empty() || hello.player_name().size() > 32) {
     send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
     return;
   }
@@ -62,16 +66,46 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
                "the server is full (" + std::to_string(config_.max_clients) + " players)", true);
     return;
   }
-  name_ = hello.player_name();
+  name_ = claims ? claims->display_name : hello.player_name();
   log_name_ = escape_for_log(name_);
+  role_ = claims ? claims->role : config_.open_role;
+  if (claims) join_as(*claims);
   player_ = true;
   counters_.handshaking.fetch_sub(1);
   const uint64_t players = counters_.players.fetch_add(1) + 1;
   handshake_timer_.cancel();
   send_welcome(players);
   if (auto suppressed = services_.logs->allow("joined", 20)) {
-    spdlog::info("session {}: player '{}' joined from {}{}", id_, log_name_, address_,
+    spdlog::info("session {}: player '{}' ({}{}) joined from {}{}", id_, log_name_,
+                 player_id_.empty() ? "" : "id " + escape_for_log(player_id_) + ", ",
+                 auth::to_string(role_), address_,
                  *suppressed ? fmt::format(" [{} more joined]", *suppressed) : std::string());
+  }
+}
+
+std::optional<auth::PlayerClaims> ClientSession::verify_hello_token(const wire::Hello& hello) {
+  const int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();
+  auth::VerifiedToken v = auth::verify_token(hello.token(), *config_.auth_key, now);
+  if (v.claims) return std::move(v.claims);
+  ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kToken)]);
+  send_error(v.error == auth::TokenError::kMissing   ? wire::Error::AUTH_REQUIRED
+             : v.error == auth::TokenError::kExpired ? wire::Error::TOKEN_EXPIRED
+                                                     : wire::Error::BAD_TOKEN,
+             v.message, true);
+  return std::nullopt;
+}
+
+void ClientSession::join_as(const auth::PlayerClaims& claims) {
+  player_id_ = claims.player_id;
+  auto previous = services_.players->claim(player_id_, shared_from_this());
+  if (!previous) return;
+  previous->close_with_error(wire::Error::REPLACED, "another connection joined as this player");
+  if (auto suppressed = services_.logs->allow("replaced", 20)) {
+    spdlog::info("session {}: player '{}' ({}) replaces session {}{}", id_, log_name_,
+                 escape_for_log(player_id_), previous->id(),
+                 *suppressed ? fmt::format(" [{} more replaced]", *suppressed) : std::string());
   }
 }
 
@@ -208,6 +242,10 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
     queue_result(request, converted.status, converted.reason);
     return;
   }
+  if (role_ == auth::Role::kViewer) {
+    queue_result(request, wire::EditResult::FORBIDDEN, "a viewer may not edit");
+    return;
+  }
   if (auto refusal = world::validate(*converted.edit, pipeline_.config().limits)) {
     queue_result(request, status_of(refusal->reason), refusal->message);
     return;
@@ -252,7 +290,7 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
           self->on_edit_result(ticket, std::move(result), work);
         });
       },
-      id_);
+      id_, player_id_);
 }
 
 // Strand: the pipeline's answer. Terrain the edit made the server generate (and uniform

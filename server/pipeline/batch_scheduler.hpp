@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <string>
 #include <unordered_map>
 #include <variant>
 #include <vector>
@@ -38,6 +39,7 @@ struct EditTask {
   std::function<void(const EditResult&)> done;
   LoadOwner owner = 0;  // the session that sent it (0: none, e.g. a test or the CLI)
   std::chrono::steady_clock::time_point submitted{};  // set by WorldPipeline::submit
+  std::string author;  // the player id the edit is logged under (empty: none)
 };
 struct InspectTask {
   // Runs on the pipeline thread between edits; with `cancelled` when the pipeline stopped

@@ -117,8 +117,9 @@ void WorldPipeline::enqueue(OrderedTask task) {
   }
 }
 
-void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner) {
-  enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now()});
+void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner,
+                           std::string author) {
+  enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now(), std::move(author)});
 }
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
@@ -481,7 +482,7 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
     }
     generated += result.chunks_generated;
     result.accepted = true;
-    b.accepted.push_back(&edit);
+    b.accepted.push_back(&task);
     ++delta.edits_applied;
     delta.chunks_generated += result.chunks_generated;
     b.dirty.insert(b.dirty.end(), b.edit_dirty[t].begin(), b.edit_dirty[t].end());

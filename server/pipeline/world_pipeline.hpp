@@ -148,7 +148,7 @@ class WorldPipeline {
   // (or it was refused); it must not block. Every queued edit is in the next batch.
   // `owner` (a session id; 0 for none) bounds the terrain its edits may make the pipeline
   // generate in one batch.
-  void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0);
+  void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0, std::string author = {});
   std::future<EditResult> submit(world::Edit edit);
   // Any thread. Generates and meshes whatever of the box is missing; `done` runs on the
   // pipeline thread once every chunk of the box has a published mesh.
@@ -251,7 +251,7 @@ class WorldPipeline {
     std::vector<EditResult> results;                         // per task
     std::vector<std::vector<world::ChunkCoord>> edit_dirty;  // per task; may repeat
     std::vector<world::ChunkCoord> dirty;                    // sorted, unique once re-meshed
-    std::vector<const world::Edit*> accepted;                // in the order they applied
+    std::vector<const EditTask*> accepted;                   // in the order they applied
     FreshMeshes fresh;
     EditTimes edited_at;  // per dirty chunk, its oldest edit
     Undo undo;

@@ -35,7 +35,7 @@ void WorldPipeline::start_append(Batch& b) {
   log.reserve(b.accepted.size());
   // Sequence numbers are never reused, even after a failed append (its outcome may be in
   // doubt): the log may have gaps, never two edits with one number.
-  for (const world::Edit* e : b.accepted) log.push_back({next_seq_++, unix_ms, "", *e});
+  for (const EditTask* t : b.accepted) log.push_back({next_seq_++, unix_ms, t->author, t->edit});
   b.seqs = {log.front().seq, log.back().seq};
   b.appended_at = Clock::now();
   // Appends that failed since the last that worked may have landed all the same: their
