@@ -33,9 +33,9 @@ auth::SecretSeed read_private_key(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::runtime_error(path + ": cannot be read");
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const auto key = auth::key_from_text(text);
+  const auto key = auth::private_key_from_text(text);
   if (!key)
-    throw std::runtime_error(path + ": not a private key (one line of base64url, 32 bytes)");
+    throw std::runtime_error(path + ": not a private key (voxel-cli keygen writes NAME.key)");
   return *key;
 }
 
@@ -53,7 +53,8 @@ int keygen_command(const std::vector<std::string>& args, std::ostream& out, std:
   return guarded(err, [&] {
     const std::string base = vm["out"].as<std::string>();
     const auth::KeyPair k = auth::generate_key_pair();
-    write_new_file(base + ".key", auth::key_to_text(k.seed), 0600);
+    write_new_file(base + ".key", std::string(auth::kPrivateKeyComment) + auth::key_to_text(k.seed),
+                   0600);
     write_new_file(base + ".pub", auth::key_to_text(k.public_key), 0644);
     out << "wrote " << base << ".key (private: keep it on the backend) and " << base
         << ".pub (voxeld --auth-public-key)\n";

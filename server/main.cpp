@@ -68,14 +68,20 @@ bool configure_identity(const std::string& key_file, const std::string& open_rol
   }
   net.open_role = *role;
   if (key_file.empty()) return true;
+  vox::auth::init_crypto();
   std::ifstream in(key_file, std::ios::binary);
+  if (!in) {
+    std::cerr << "voxeld: --auth-public-key " << key_file << ": cannot be read\n";
+    return false;
+  }
   std::string text(256, '\0');
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   text.resize(static_cast<size_t>(in.gcount()));
   net.auth_key = in || in.eof() ? vox::auth::key_from_text(text) : std::nullopt;
   if (!net.auth_key) {
     std::cerr << "voxeld: --auth-public-key " << key_file
-              << ": not a public key file (one line of base64url, 32 bytes; voxel-cli keygen)\n";
+              << ": not a public key file (one line of base64url, 32 bytes: voxel-cli keygen "
+                 "writes NAME.pub; NAME.key is the private key and stays on the backend)\n";
     return false;
   }
   return true;

@@ -34,6 +34,7 @@ class GatedStore final : public store::WorldStore {
   void append_edits(std::span<const store::LoggedEdit> edits,
                     std::span<const SeqRange> forget) override {
     if (!gate_checkpoints_) pass_gate();
+    if (failing_) throw store::StoreError("test: the disk is full");
     inner_.append_edits(edits, forget);
   }
   void write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
@@ -63,6 +64,11 @@ class GatedStore final : public store::WorldStore {
     }
     cv_.notify_all();
   }
+  void set_failing(bool failing) { failing_ = failing; }  // appends throw after the gate
+  int entered() {
+    std::lock_guard lock(mutex_);
+    return entered_;
+  }
   // Waits (up to 10 s) until `n` appends have reached the gate.
   bool wait_entered(int n) {
     std::unique_lock lock(mutex_);
@@ -83,6 +89,7 @@ class GatedStore final : public store::WorldStore {
   std::condition_variable cv_;
   bool open_ = true;
   int entered_ = 0;
+  std::atomic<bool> failing_{false};
 };
 
 using test::eventually;
@@ -292,6 +299,39 @@ TEST(PipelinedCommit, AFailedCheckpointsChunksStayUnsavedWhenABatchOnThemIsUndon
   WorldPipeline q(PipelineConfig{.seed = 3, .threads = 2, .store = reopened.get()});
   q.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
   EXPECT_EQ(samples_around(q, 10, y, 10, 6), expected) << "an accepted edit was lost";
+}
+
+// A failed append undoes the batches applied on top of it, newest first, also where they
+// overlap. The pipeline once took a failure between applying a batch and holding it as
+// pending: the failed batch was undone under it, then the later batch's own undo put the
+// refused edit back into the world.
+TEST(PipelinedCommit, AFailedAppendUnderAnOverlappingBatchLeavesTheWorldAsItWas) {
+  const auto dir = temp_world("overlap");
+  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
+  GatedStore store(*sqlite);
+  WorldPipeline p(PipelineConfig{
+      .seed = 3, .threads = 2, .store = &store, .store_retry = std::chrono::milliseconds(20)});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  const auto before = samples_around(p, 10, y, 10, 8);
+  for (int round = 0; round < 8; ++round) {
+    store.close();
+    store.set_failing(true);
+    const int entered = store.entered();
+    auto first = p.submit(world::Explosion{{10, float(y), 10}, 5, 1});
+    ASSERT_TRUE(store.wait_entered(entered + 1));
+    auto second = p.submit(world::Explosion{{12, float(y) + 1, 11}, 5, 1});
+    std::this_thread::sleep_for(std::chrono::microseconds(250 * round));
+    store.open();
+    EXPECT_EQ(first.get().reason, world::RefusalReason::kStorageUnavailable);
+    EXPECT_EQ(second.get().reason, world::RefusalReason::kStorageUnavailable);
+    EXPECT_EQ(samples_around(p, 10, y, 10, 8), before) << "a refused edit stayed, round " << round;
+    store.set_failing(false);
+    std::this_thread::sleep_for(std::chrono::milliseconds(30));  // the store's rest
+  }
+  EXPECT_TRUE(p.submit(world::Explosion{{10, float(y), 10}, 5, 1}).get().accepted);
+  p.stop();
+  std::filesystem::remove_all(dir);
 }
 
 // A flood of 7,000 edits/s outran the checkpoints and grew the log to 80,791 edits, which

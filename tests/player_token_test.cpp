@@ -123,6 +123,16 @@ TEST(PlayerToken, KeysRoundTripAsText) {
   EXPECT_FALSE(key_from_text(std::string(43, '!')).has_value());
 }
 
+// A private key file given as --auth-public-key would put the backend's key on the game
+// server (and refuse every token): its comment line makes it no public key file.
+TEST(PlayerToken, APrivateKeyFileIsNoPublicKeyFile) {
+  const KeyPair k = generate_key_pair();
+  const std::string file = std::string(kPrivateKeyComment) + key_to_text(k.seed);
+  EXPECT_FALSE(key_from_text(file).has_value());
+  EXPECT_EQ(private_key_from_text(file), k.seed);
+  EXPECT_EQ(private_key_from_text(key_to_text(k.seed)), k.seed);
+}
+
 TEST(PlayerToken, RolesHaveNames) {
   for (Role r : {Role::kViewer, Role::kPlayer, Role::kAdmin})
     EXPECT_EQ(parse_role(to_string(r)), r);

@@ -16,11 +16,6 @@ constexpr size_t kHeaderBytes = 18;  // version, expires_at, role, edit_rate, ed
 constexpr size_t kSignatureBytes = crypto_sign_BYTES;
 constexpr size_t kMaxIdBytes = 64, kMaxNameBytes = 32;
 
-void ensure_sodium() {
-  static const bool ready = sodium_init() >= 0;
-  if (!ready) throw std::runtime_error("libsodium could not be initialised");
-}
-
 // Well-formed UTF-8 (no overlong forms, surrogates or code points past U+10FFFF), no
 // control characters: a claim is printed in logs and tools.
 bool printable_utf8(std::string_view s) {
@@ -68,6 +63,15 @@ std::vector<uint8_t> signed_message(const uint8_t* body, size_t size) {
   m.insert(m.end(), body, body + size);
   return m;
 }
+
+}  // namespace
+
+void init_crypto() {
+  static const bool ready = sodium_init() >= 0;
+  if (!ready) throw std::runtime_error("libsodium could not be initialised");
+}
+
+namespace {
 
 std::string to_base64url(const uint8_t* bytes, size_t size) {
   constexpr int kVariant = sodium_base64_VARIANT_URLSAFE_NO_PADDING;
@@ -135,7 +139,7 @@ const char* to_string(TokenError e) {
 }
 
 KeyPair generate_key_pair() {
-  ensure_sodium();
+  init_crypto();
   KeyPair k;
   randombytes_buf(k.seed.data(), k.seed.size());
   k.public_key = public_key_of(k.seed);
@@ -143,7 +147,7 @@ KeyPair generate_key_pair() {
 }
 
 PublicKey public_key_of(const SecretSeed& seed) {
-  ensure_sodium();
+  init_crypto();
   PublicKey pk;
   std::array<uint8_t, crypto_sign_SECRETKEYBYTES> sk;
   crypto_sign_seed_keypair(pk.data(), sk.data(), seed.data());
@@ -152,12 +156,12 @@ PublicKey public_key_of(const SecretSeed& seed) {
 }
 
 std::string key_to_text(const std::array<uint8_t, 32>& key) {
-  ensure_sodium();
+  init_crypto();
   return to_base64url(key.data(), key.size()) + "\n";
 }
 
 std::optional<std::array<uint8_t, 32>> key_from_text(std::string_view text) {
-  ensure_sodium();
+  init_crypto();
   while (!text.empty() && (text.back() == '\n' || text.back() == '\r' || text.back() == ' '))
     text.remove_suffix(1);
   const auto bytes = from_base64url(text);
@@ -167,8 +171,16 @@ std::optional<std::array<uint8_t, 32>> key_from_text(std::string_view text) {
   return key;
 }
 
+std::optional<SecretSeed> private_key_from_text(std::string_view text) {
+  while (!text.empty() && text.front() == '#') {
+    const size_t end = text.find('\n');
+    text.remove_prefix(end == std::string_view::npos ? text.size() : end + 1);
+  }
+  return key_from_text(text);
+}
+
 std::string mint_token(const PlayerClaims& c, const SecretSeed& seed) {
-  ensure_sodium();
+  init_crypto();
   if (!valid_text(c.player_id, kMaxIdBytes))
     throw std::invalid_argument("the player id must be 1..64 bytes of printable UTF-8");
   if (!valid_text(c.display_name, kMaxNameBytes))
@@ -195,7 +207,7 @@ std::string mint_token(const PlayerClaims& c, const SecretSeed& seed) {
 }
 
 VerifiedToken verify_token(std::string_view token, const PublicKey& key, int64_t now_unix) {
-  ensure_sodium();
+  init_crypto();
   if (token.empty()) return refused(TokenError::kMissing, "a token is required");
   if (token.size() > kMaxTokenChars)
     return refused(TokenError::kTooLarge, "the token is over 512 characters");
@@ -204,7 +216,8 @@ VerifiedToken verify_token(std::string_view token, const PublicKey& key, int64_t
   const std::vector<uint8_t>& b = *bytes;
   if (b.empty()) return refused(TokenError::kMalformed, "the token is empty");
   if (b[0] != kTokenVersion)
-    return refused(TokenError::kUnsupported, "the token's version byte is not 1");
+    return refused(TokenError::kUnsupported,
+                   "unsupported version: the token's version byte is not 1");
   // Lengths first: the signature covers every byte before it, wherever it ends.
   size_t at = kHeaderBytes;
   if (b.size() < at + 1) return refused(TokenError::kMalformed, "the token is truncated");

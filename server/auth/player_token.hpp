@@ -37,9 +37,18 @@ struct KeyPair {
 KeyPair generate_key_pair();
 PublicKey public_key_of(const SecretSeed& seed);
 
-// Key files hold one key as unpadded base64url text and a newline.
+// Key files hold one key as unpadded base64url text and a newline. A private key file
+// starts with a comment line (kPrivateKeyComment), so that it is never taken for a public
+// key: key_from_text refuses it, private_key_from_text skips it.
+inline constexpr std::string_view kPrivateKeyComment =
+    "# voxeld player-token PRIVATE key: keep it on the game's backend, never give it to voxeld\n";
 std::string key_to_text(const std::array<uint8_t, 32>& key);
 std::optional<std::array<uint8_t, 32>> key_from_text(std::string_view text);  // nullopt: malformed
+std::optional<SecretSeed> private_key_from_text(std::string_view text);  // lines '#...' skipped
+
+// Once at start (voxeld with --auth-public-key): throws std::runtime_error if libsodium
+// cannot start. Every function here also starts it on first use.
+void init_crypto();
 
 enum class TokenError : uint8_t {
   kNone = 0,

@@ -1,5 +1,5 @@
 // Which connection holds each authenticated player id: a second connection with the same
-// id replaces the first (docs/PROTOCOL.md §4.2), so one player cannot be in the world
+// id replaces the first (docs/PROTOCOL.md §4.8), so one player cannot be in the world
 // twice nor keep a stale connection that a reconnect would have to wait out. One entry
 // per player (bounded by --max-clients); the holder removes its entry when it ends.
 // Any thread (one leaf mutex; no callback runs under it).

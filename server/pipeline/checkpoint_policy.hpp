@@ -31,7 +31,7 @@ class CheckpointPolicy {
   using Clock = std::chrono::steady_clock;
 
   CheckpointPolicy(CheckpointLimits limits, Clock::time_point now)
-      : limits_(limits), last_(now), not_before_(now) {}
+      : limits_(checked(limits)), last_(now), not_before_(now) {}
 
   // `unsaved_edits`: accepted since the last checkpoint, whether or not they changed a
   // chunk (one that changed nothing is in the log all the same, and is trimmed by one).
@@ -55,6 +55,10 @@ class CheckpointPolicy {
   }
 
  private:
+  static CheckpointLimits checked(CheckpointLimits l) {
+    l.max_log_tail = std::max<uint64_t>(l.max_log_tail, 1);  // 0 would refuse every edit
+    return l;
+  }
   const CheckpointLimits limits_;
   Clock::time_point last_;        // the last checkpoint started (or the policy was made)
   Clock::time_point not_before_;  // after a failure, the store rests until then

@@ -407,10 +407,13 @@ std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& di
 // with one, once its append has landed (finish_pending).
 void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
                                     PipelineStats& batch) {
+  // Earlier batches whose appends landed: answered now, and before this batch applies (a
+  // failed one is undone with every pending batch on top of it, newest first; this one
+  // must not be on top of it yet, outside pending_).
+  finish_landed();
   Batch b = apply_batch(tasks, now);
   if (!b.any_edit) return;
   if (config_.store && !b.accepted.empty()) start_append(b);  // overlaps the re-meshing
-  finish_landed();  // earlier batches whose appends landed while this one applied
   b.fresh = remesh(b.dirty);
   if (!config_.store) return answer(b, true, batch);
   const Clock::time_point wait_until = b.appended_at + kAnswerWait;

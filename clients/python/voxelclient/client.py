@@ -79,9 +79,11 @@ class Client:
     def send_message(self, **body):
         self.send(self.pb.Envelope(**body))
 
-    def hello(self, name="pyclient", version=PROTOCOL_VERSION, timeout=10):
-        """Sends Hello and returns the Welcome (raises ServerError on an Error)."""
-        self.send_message(hello=self.pb.Hello(protocol_version=version, player_name=name))
+    def hello(self, name="pyclient", version=PROTOCOL_VERSION, timeout=10, token=""):
+        """Sends Hello and returns the Welcome (raises ServerError on an Error). `token`:
+        a signed player token, for a server started with --auth-public-key (PROTOCOL 4.8)."""
+        self.send_message(hello=self.pb.Hello(protocol_version=version, player_name=name,
+                                              token=token))
         self.pump(lambda: self.welcome is not None or self.errors, timeout)
         if self.welcome is None:
             raise self.error_exception(self.errors[0])
