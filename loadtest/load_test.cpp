@@ -8,6 +8,7 @@
 
 #include "client/voxel_client.hpp"
 #include "loadtest/attacker.hpp"
+#include "loadtest/player_tokens.hpp"
 #include "loadtest/sim_player.hpp"
 
 namespace vox::loadtest {
@@ -18,6 +19,25 @@ using namespace std::chrono_literals;
 namespace {
 constexpr double kDrainS = 3.0;    // after the editing stops: results and meshes of the last edits
 constexpr double kViewWaitS = 60;  // --verify: longest wait for a view to complete
+constexpr int64_t kTokenSlackS = 3600;  // tokens expire this long after the planned end
+
+// --token-key: the players' tokens, then the verifier's (its own player id, so that it
+// does not replace a player's connection); none without a key.
+std::vector<std::string> tokens_for(const LoadConfig& config) {
+  if (!config.token_key) return {};
+  const int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();
+  const int64_t expires_at =
+      now + static_cast<int64_t>(std::ceil(config.ramp_s + config.duration_s)) + kTokenSlackS;
+  auto tokens = mint_player_tokens(*config.token_key, config.players, expires_at);
+  tokens.push_back(auth::mint_token({.player_id = "sim-verifier",
+                                     .display_name = "verifier",
+                                     .role = auth::Role::kViewer,
+                                     .expires_at = expires_at},
+                                    *config.token_key));
+  return tokens;
+}
 
 // The pid whose RSS to sample: --server-pid, else the owner of the listening socket when
 // the server is on loopback (best effort: 0, no sampling, when it cannot be found).
@@ -38,10 +58,16 @@ LoadTest::LoadTest(LoadConfig config)
     : config_(std::move(config)),
       half_width_(spawn_half_width(config_)),
       rss_(server_pid_of(config_)),
+      tokens_(tokens_for(config_)),
       bytes_per_second_(static_cast<size_t>(config_.ramp_s + config_.duration_s + kDrainS) + 16) {
   stats_.players = config_.players;
 }
 LoadTest::~LoadTest() = default;
+
+const std::string& LoadTest::player_token(int id) const {
+  static const std::string kNone;
+  return tokens_.empty() ? kNone : tokens_.at(static_cast<size_t>(id));
+}
 
 double LoadTest::now_s() const {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -281,7 +307,7 @@ void LoadTest::verify_all() {
     if (!p->connected()) continue;
     client::Client fresh;
     fresh.connect(config_.host, config_.port, 5s);
-    fresh.handshake("verifier", 10s);
+    fresh.handshake("verifier", 10s, tokens_.empty() ? std::string() : tokens_.back());
     const auto at = p->view_position();
     if (!p->view_ready()) {  // the server never completed this player's view
       ++stats_.verify_mismatches;

@@ -11,6 +11,7 @@
 #include <iosfwd>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@
 #include "loadtest/decode_memo.hpp"
 #include "loadtest/load_stats.hpp"
 #include "loadtest/rss_sampler.hpp"
+#include "server/auth/player_token.hpp"
 
 namespace vox::loadtest {
 
@@ -58,6 +60,10 @@ struct LoadConfig {
   // per-address caps and budgets see them as the distinct machines they stand for.
   // Needs a server on 127.0.0.1.
   bool spread_addresses = false;
+  // --token-key: each player's Hello carries its own signed token ("sim-<n>", role
+  // player; loadtest/player_tokens.hpp), minted before the run, for a server started with
+  // --auth-public-key. nullopt: no tokens (an open server). Attackers never send one.
+  std::optional<auth::SecretSeed> token_key;
   // The terrain's heights for a seed; empty: players walk at height 0.
   GroundForSeed ground;
 };
@@ -96,6 +102,8 @@ class LoadTest {
   // LoadConfig::ground); a different one later is an error (returns false).
   bool set_world_seed(uint64_t seed);
   DecodeMemo* decode_memo() { return config_.decode_all ? nullptr : &memo_; }
+  // Player `id`'s token for its Hello; empty without LoadConfig::token_key.
+  const std::string& player_token(int id) const;
 
   // Tallies (thread-safe).
   void record_connected();
@@ -131,6 +139,7 @@ class LoadTest {
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> editing_{false}, stopping_{false};
   DecodeMemo memo_;
+  std::vector<std::string> tokens_;  // per player, and the verifier's last; set before run()
 
   mutable std::mutex mutex_;  // guards stats_ (but the counters below) and ground_ creation
   LoadStats stats_;

@@ -8,6 +8,7 @@
 
 #include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
+#include "loadtest/player_tokens.hpp"
 #include "loadtest/sweep.hpp"
 #include "server/world/terrain_generator.hpp"
 
@@ -23,7 +24,7 @@ int run(int argc, char** argv) {
   namespace po = boost::program_options;
   vox::loadtest::LoadConfig config;
   config.ground = ground_for_seed;
-  std::string server, json, svg, sweep, attack;
+  std::string server, json, svg, sweep, attack, token_key;
   double sweep_limit_ms = 100;
   po::options_description opts("voxel-loadtest options");
   opts.add_options()("help,h", "show this help")(
@@ -65,7 +66,10 @@ int run(int argc, char** argv) {
       "127.2.x.y and up by kind), as separate machines would; the server must be on 127.0.0.1")(
       "server-pid", po::value<int>(&config.server_pid)->default_value(0),
       "voxeld's pid, to sample its RSS every second (0: find the process listening on the "
-      "port when the server is on loopback; -1: do not sample)");
+      "port when the server is on loopback; -1: do not sample)")(
+      "token-key", po::value<std::string>(&token_key),
+      "PRIVATE_KEY_FILE (voxel-cli keygen's NAME.key): each player sends its own signed token "
+      "(player id sim-N, role player), for a voxeld started with --auth-public-key");
   po::variables_map vm;
   try {
     po::store(po::parse_command_line(argc, argv, opts), vm);
@@ -103,6 +107,14 @@ int run(int argc, char** argv) {
   if (config.server_pid < -1) {
     std::cerr << "voxel-loadtest: --server-pid is a pid, 0 or -1\n";
     return 2;
+  }
+  if (vm.count("token-key")) {
+    try {
+      config.token_key = vox::loadtest::read_private_key_file(token_key);
+    } catch (const std::exception& e) {
+      std::cerr << "voxel-loadtest: --token-key: " << e.what() << "\n";
+      return 2;
+    }
   }
   config.progress_tty = ::isatty(STDERR_FILENO) != 0;
   if (vm.count("sweep")) {

@@ -94,6 +94,8 @@ void SimPlayer::connect() {
     wire::Envelope hello;
     hello.mutable_hello()->set_protocol_version(1);
     hello.mutable_hello()->set_player_name("sim" + std::to_string(self->id_));
+    const std::string& token = self->test_.player_token(self->id_);
+    if (!token.empty()) hello.mutable_hello()->set_token(token);
     self->send(hello);
     self->read_more();
   });

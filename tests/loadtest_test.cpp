@@ -1,6 +1,7 @@
 // A short load test (20 players, 5 s) against a real voxeld: no errors, and every
 // player's meshes equal what a fresh client receives (--verify). Then --attack: its MIX
-// parser, the RSS sampler, and a short run with every kind of attacker.
+// parser, the RSS sampler, and a short run with every kind of attacker. And the players'
+// signed tokens (--token-key).
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -9,11 +10,14 @@
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 
 #include "client/asio.hpp"
 #include "loadtest/attack_mix.hpp"
+#include "loadtest/player_tokens.hpp"
 #include "loadtest/rss_sampler.hpp"
 #include "loadtest/sweep.hpp"
+#include "server/auth/player_token.hpp"
 #include "tests/server_process.hpp"
 
 namespace {
@@ -316,6 +320,43 @@ TEST(AttackLoadTest, PlayersBesideEveryKindOfAttackerExitZeroWithSeparateFigures
   std::smatch m;
   ASSERT_TRUE(std::regex_search(text, m, std::regex("\"heavy\":\\{.*?\"edits_sent\":(\\d+)")));
   EXPECT_GT(std::stoul(m[1]), 0u);
+}
+
+}  // namespace
+
+// ---- --token-key: the players' signed tokens ---------------------------------------------
+
+namespace {
+
+// The key file as voxel-cli keygen writes it reads back, and the tokens minted with it
+// verify with the public key, as players sim-0..sim-N-1 (distinct: one would replace another).
+TEST(PlayerTokens, VerifyWithThePublicKeyAndNameDistinctPlayers) {
+  namespace auth = vox::auth;
+  const auth::KeyPair keys = auth::generate_key_pair();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("lt_key_" + std::to_string(::getpid()))).string();
+  std::ofstream(path) << auth::kPrivateKeyComment << auth::key_to_text(keys.seed) << "\n";
+  const auth::SecretSeed seed = vox::loadtest::read_private_key_file(path);
+  std::filesystem::remove(path);
+  EXPECT_EQ(seed, keys.seed);
+  EXPECT_THROW(vox::loadtest::read_private_key_file(path), std::runtime_error);
+
+  const int64_t now = 1'800'000'000;
+  const auto tokens = vox::loadtest::mint_player_tokens(seed, 3, now + 60);
+  ASSERT_EQ(tokens.size(), 3u);
+  std::set<std::string> ids;
+  for (size_t i = 0; i < tokens.size(); ++i) {
+    const auth::VerifiedToken v = auth::verify_token(tokens[i], keys.public_key, now);
+    ASSERT_EQ(v.error, auth::TokenError::kNone) << v.message;
+    EXPECT_EQ(v.claims->player_id, "sim-" + std::to_string(i));
+    EXPECT_EQ(v.claims->display_name, "sim" + std::to_string(i));
+    EXPECT_EQ(v.claims->role, auth::Role::kPlayer);
+    ids.insert(v.claims->player_id);
+  }
+  EXPECT_EQ(ids.size(), tokens.size());
+  const auth::KeyPair other = auth::generate_key_pair();
+  EXPECT_EQ(auth::verify_token(tokens[0], other.public_key, now).error,
+            auth::TokenError::kBadSignature);
 }
 
 }  // namespace
