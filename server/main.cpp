@@ -147,9 +147,14 @@ int main(int argc, char** argv) {
       "load work per second for all players from one address together, burst 8x that; kept after "
       "they leave until refilled (0: unlimited)")(
       "edit-budget", po::value<double>(&net.edit_budget_rate)->default_value(300000),
-      "samples per second a player's edits may touch (0: unlimited)")(
+      "samples per second a player's edits may touch, all its connections together (0: "
+      "unlimited; a token's edit_rate overrides it)")(
       "edit-burst", po::value<double>(&net.edit_budget_burst)->default_value(600000),
       "samples a player's edits may touch at once")(
+      "admin-edit-budget", po::value<double>(&net.admin_edit_budget_rate)->default_value(0),
+      "the same for admins (0: unlimited)")(
+      "admin-edit-burst", po::value<double>(&net.admin_edit_budget_burst)->default_value(0),
+      "samples an admin's edits may touch at once")(
       "set-view-rate", po::value<double>(&net.set_view_rate)->default_value(2),
       "SetViews per second per player; more are coalesced (0: unlimited)")(
       "message-rate", po::value<double>(&net.message_rate)->default_value(200),
@@ -213,9 +218,10 @@ int main(int argc, char** argv) {
   // The largest edit (a box of side 2 * max radius, off the integer grid) must fit in the
   // budget's burst.
   const double largest_edit = vox::world::max_touched_samples(world.limits);
-  if (net.edit_budget_rate > 0 && net.edit_budget_burst < largest_edit) {
-    std::cerr << "voxeld: --edit-burst must be at least " << static_cast<uint64_t>(largest_edit)
-              << " samples (the largest edit)\n";
+  if ((net.edit_budget_rate > 0 && net.edit_budget_burst < largest_edit) ||
+      (net.admin_edit_budget_rate > 0 && net.admin_edit_budget_burst < largest_edit)) {
+    std::cerr << "voxeld: --edit-burst and --admin-edit-burst must be at least "
+              << static_cast<uint64_t>(largest_edit) << " samples (the largest edit)\n";
     return 2;
   }
   if (!configure_identity(auth_key_file, open_role, net)) return 2;

@@ -31,12 +31,13 @@ class GatedStore final : public store::WorldStore {
       : inner_(inner), gate_checkpoints_(gate_checkpoints) {}
   const std::string& name() const override { return inner_.name(); }
   store::WorldInfo info() override { return inner_.info(); }
-  void append_edits(std::span<const store::LoggedEdit> edits,
-                    std::span<const SeqRange> forget) override {
+  void append_edits(std::span<const store::LoggedEdit> edits, std::span<const SeqRange> forget,
+                    const std::vector<world::Region>* regions) override {
     if (!gate_checkpoints_) pass_gate();
     if (failing_) throw store::StoreError("test: the disk is full");
-    inner_.append_edits(edits, forget);
+    inner_.append_edits(edits, forget, regions);
   }
+  std::vector<world::Region> read_regions() override { return inner_.read_regions(); }
   void write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
                         uint64_t trim_through) override {
     if (gate_checkpoints_) pass_gate();

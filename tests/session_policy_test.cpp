@@ -22,20 +22,77 @@ TEST(PlayerRegistry, ANewConnectionReplacesTheOldAndTheOldOneEndingKeepsIt) {
   struct Session {};
   PlayerRegistry<Session> players;
   auto first = std::make_shared<Session>(), second = std::make_shared<Session>();
-  EXPECT_EQ(players.claim("alice", first), nullptr);
-  EXPECT_EQ(players.claim("alice", first), nullptr);  // the same connection again
-  EXPECT_EQ(players.claim("alice", second), first);
+  auto claim = [&players](const std::string& id, const std::shared_ptr<Session>& s) {
+    return players.claim(id, s, BudgetLimits{}).previous;
+  };
+  EXPECT_EQ(claim("alice", first), nullptr);
+  EXPECT_EQ(claim("alice", first), nullptr);  // the same connection again
+  EXPECT_EQ(claim("alice", second), first);
   players.release("alice", first.get());
   EXPECT_EQ(players.size(), 1u);
-  EXPECT_EQ(players.claim("bob", first), nullptr);
+  EXPECT_EQ(claim("bob", first), nullptr);
   players.release("alice", second.get());
   players.release("bob", first.get());
   EXPECT_EQ(players.size(), 0u);
   // An entry whose connection is gone is replaced without a word.
   auto gone = std::make_shared<Session>();
-  players.claim("carol", gone);
+  claim("carol", gone);
   gone.reset();
-  EXPECT_EQ(players.claim("carol", second), nullptr);
+  EXPECT_EQ(claim("carol", second), nullptr);
+}
+
+// Every connection of one player spends one budget: a reconnect brings no fresh burst,
+// and the budget outlives the connection until it has refilled.
+TEST(PlayerRegistry, AllConnectionsOfAPlayerShareOneEditBudgetUntilItRefills) {
+  struct Session {};
+  PlayerRegistry<Session> players;
+  const auto t0 = Clock::now();
+  const BudgetLimits limits{1000, 2000};
+  auto first = std::make_shared<Session>();
+  auto a = players.claim("alice", first, limits, t0).budget;
+  EXPECT_EQ(a->take(2000, t0).count(), 0);
+  players.release("alice", first.get(), t0);
+  first.reset();
+  EXPECT_EQ(players.size(), 1u) << "kept: not refilled";
+  auto second = std::make_shared<Session>();
+  auto b = players.claim("alice", second, limits, t0 + 500ms).budget;
+  EXPECT_EQ(a, b);
+  EXPECT_EQ(b->take(1000, t0 + 500ms), 500ms) << "only 500 samples back after 0.5 s";
+  auto bob = players.claim("bob", first = std::make_shared<Session>(), limits, t0).budget;
+  EXPECT_NE(bob, b) << "another player, another budget";
+  players.release("alice", second.get(), t0 + 10s);
+  EXPECT_EQ(players.size(), 1u) << "a refilled budget goes with its last connection";
+}
+
+// Idle entries (players gone, budgets not yet refilled) are bounded.
+TEST(PlayerRegistry, IdleBudgetsAreSweptOnceRefilledAndCappedInNumber) {
+  struct Session {};
+  PlayerRegistry<Session> players(/*max_idle=*/100);
+  const auto t0 = Clock::now();
+  for (int i = 0; i < 1000; ++i) {
+    auto s = std::make_shared<Session>();
+    const std::string id = "p" + std::to_string(i);
+    players.claim(id, s, {1000, 2000}, t0).budget->take(1500, t0);  // leaves it not full
+    players.release(id, s.get(), t0);
+  }
+  EXPECT_LE(players.size(), 2 * 100u + 64) << "past max_idle, idle entries are dropped";
+  auto s = std::make_shared<Session>();
+  for (int i = 0; i < 300; ++i) players.claim("q" + std::to_string(i), s, {1000, 2000}, t0 + 10s);
+  EXPECT_LE(players.size(), 300u + 64) << "refilled ones are swept";
+}
+
+TEST(EditBudgetPolicy, RoleDefaultsAndTokenOverrides) {
+  const EditBudgetPolicy policy({300000, 600000}, {0, 0});
+  using auth::Role;
+  EXPECT_EQ(policy.limits_for(Role::kPlayer, 0, 0, 1e5), (BudgetLimits{300000, 600000}));
+  EXPECT_EQ(policy.limits_for(Role::kAdmin, 0, 0, 1e5), (BudgetLimits{0, 0})) << "unlimited";
+  EXPECT_EQ(policy.limits_for(Role::kPlayer, 50000, 0, 1e5), (BudgetLimits{50000, 100000}));
+  EXPECT_EQ(policy.limits_for(Role::kPlayer, 10000, 0, 1e5), (BudgetLimits{10000, 1e5}))
+      << "a burst never below the largest edit";
+  EXPECT_EQ(policy.limits_for(Role::kPlayer, 10000, 400000, 1e5), (BudgetLimits{10000, 400000}));
+  EXPECT_EQ(policy.limits_for(Role::kPlayer, 0, 900000, 1e5), (BudgetLimits{300000, 900000}));
+  EXPECT_EQ(policy.limits_for(Role::kAdmin, 0, 900000, 1e5), (BudgetLimits{0, 0}))
+      << "a burst alone does not limit an unlimited role";
 }
 
 TEST(TokenBucket, TakesWithinTheBurstThenSaysHowLongToWait) {

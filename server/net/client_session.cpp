@@ -49,7 +49,6 @@ ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, 
       pipeline_(pipeline),
       counters_(services_.counters),
       decoder_(config_.max_frame_bytes),
-      edit_budget_(config_.edit_budget_rate, config_.edit_budget_burst),
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
       error_budget_(config_.protocol_error_rate, config_.protocol_error_burst) {
@@ -191,6 +190,9 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
       break;
     case wire::Envelope::kResync:
       handle_resync(message.resync());
+      break;
+    case wire::Envelope::kRegionCommand:
+      handle_region_command(message.region_command());
       break;
     case wire::Envelope::kPing: {
       wire::Envelope pong;

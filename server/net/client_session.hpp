@@ -48,11 +48,15 @@ struct ServerConfig {
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect
   std::chrono::milliseconds frame_timeout{10000};  // a started frame not finished in this time
-  // Per-session budgets (token buckets; rate <= 0: unlimited). An edit costs the samples
-  // its box touches (a 64^3 stamp: 274,625).
+  // Budgets (token buckets; rate <= 0: unlimited). An edit costs the samples its box
+  // touches (a 64^3 stamp: 274,625). The edit budget is per player id (shared by its
+  // connections; per connection on an open server); these are the player role's limits,
+  // an admin's below, and a token may carry its own.
   double edit_budget_rate = 300000;   // samples per second
   double edit_budget_burst = 600000;  // samples
-  double set_view_rate = 2;           // per second; more are coalesced into the newest
+  double admin_edit_budget_rate = 0;  // 0: unlimited
+  double admin_edit_budget_burst = 0;
+  double set_view_rate = 2;  // per second; more are coalesced into the newest
   double set_view_burst = 4;
   double message_rate = 200;  // messages per second; over it the session stops reading
   double message_burst = 400;
@@ -114,15 +118,19 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   // With a key: the token's claims, or nullopt after refusing the connection.
   std::optional<auth::PlayerClaims> verify_hello_token(const wire::Hello& hello);
   void join_as(const auth::PlayerClaims& claims);  // replaces a connection of the same id
+  BudgetLimits edit_limits(const auth::PlayerClaims* claims) const;
   void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
   void apply_view(world::ChunkCoord center, int radius, uint64_t view_id);
   void handle_resync(const wire::Resync& resync);
+  void handle_region_command(const wire::RegionCommand& command);  // region_commands.cpp
+  void list_regions(uint64_t after_id, wire::Envelope& reply);
   void handle_edit(const wire::Edit& edit);
   void on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks);
   void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
                     uint32_t retry_after_ms = 0);
   void send_error(wire::Error::Code code, const std::string& message, bool close);
+  void log_refusal(wire::EditResult::Status status, const std::string& reason);
   void queue_control(const wire::Envelope& message);
   void pump();
   bool append_next_mesh(std::vector<uint8_t>& out);
@@ -159,7 +167,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   bool closing_ = false;
   bool writing_ = false;
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued
-  pipeline::TokenBucket edit_budget_, view_budget_, message_budget_, error_budget_;
+  static constexpr size_t kMaxRegionCommandsInFlight = 16;
+  size_t region_commands_in_flight_ = 0;           // sent to the pipeline, not yet answered
+  std::shared_ptr<SharedEditBudget> edit_budget_;  // the player's (shared) or this session's
+  pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
   ResultOrder results_;
   struct PendingView {
     world::ChunkCoord center;

@@ -69,7 +69,10 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   name_ = claims ? claims->display_name : hello.player_name();
   log_name_ = escape_for_log(name_);
   role_ = claims ? claims->role : config_.open_role;
-  if (claims) join_as(*claims);
+  if (claims)
+    join_as(*claims);
+  else
+    edit_budget_ = std::make_shared<SharedEditBudget>(edit_limits(nullptr));
   player_ = true;
   counters_.handshaking.fetch_sub(1);
   const uint64_t players = counters_.players.fetch_add(1) + 1;
@@ -99,7 +102,9 @@ std::optional<auth::PlayerClaims> ClientSession::verify_hello_token(const wire::
 
 void ClientSession::join_as(const auth::PlayerClaims& claims) {
   player_id_ = claims.player_id;
-  auto previous = services_.players->claim(player_id_, shared_from_this());
+  auto [previous, budget] =
+      services_.players->claim(player_id_, shared_from_this(), edit_limits(&claims));
+  edit_budget_ = std::move(budget);
   if (!previous) return;
   previous->close_with_error(wire::Error::REPLACED, "another connection joined as this player");
   if (auto suppressed = services_.logs->allow("replaced", 20)) {
@@ -107,6 +112,13 @@ void ClientSession::join_as(const auth::PlayerClaims& claims) {
                  escape_for_log(player_id_), previous->id(),
                  *suppressed ? fmt::format(" [{} more replaced]", *suppressed) : std::string());
   }
+}
+
+BudgetLimits ClientSession::edit_limits(const auth::PlayerClaims* claims) const {
+  const EditBudgetPolicy policy({config_.edit_budget_rate, config_.edit_budget_burst},
+                                {config_.admin_edit_budget_rate, config_.admin_edit_budget_burst});
+  return policy.limits_for(role_, claims ? claims->edit_rate : 0, claims ? claims->edit_burst : 0,
+                           world::max_touched_samples(pipeline_.config().limits));
 }
 
 void ClientSession::send_welcome(uint64_t players) {
@@ -123,8 +135,9 @@ void ClientSession::send_welcome(uint64_t players) {
   w->set_mesh_format(proto::kMeshFormat);
   w->set_players(static_cast<uint32_t>(players));
   w->set_max_edits_in_flight(static_cast<uint32_t>(config_.max_edits_in_flight));
-  w->set_edit_budget_per_second(std::max(0.0, config_.edit_budget_rate));
-  w->set_edit_budget_burst(config_.edit_budget_rate > 0 ? config_.edit_budget_burst : 0);
+  const BudgetLimits budget = edit_budget_->limits();
+  w->set_edit_budget_per_second(std::max(0.0, budget.rate));
+  w->set_edit_budget_burst(budget.rate > 0 ? budget.burst : 0);
   w->set_max_set_views_per_second(std::max(0.0, config_.set_view_rate));
   w->set_max_connections_per_address(static_cast<uint32_t>(config_.max_per_address));
   w->set_max_resync_chunks(static_cast<uint32_t>(config_.max_resync_chunks));
@@ -230,6 +243,7 @@ void ClientSession::queue_result(uint64_t request, wire::EditResult::Status stat
   r->set_retry_after_ms(retry_after_ms);
   ServerCounters::bump(
       counters_.edit_results[static_cast<size_t>(status) % ServerCounters::kStatuses]);
+  log_refusal(status, reason);
   results_.push_ready(std::move(result));
   results_.drain([this](const wire::Envelope& e) { queue_control(e); });
 }
@@ -258,7 +272,7 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
     return;
   }
   const double cost = edit_cost(*converted.edit);
-  if (const auto wait = edit_budget_.take(cost, Clock::now()); wait.count() > 0) {
+  if (const auto wait = edit_budget_->take(cost, Clock::now()); wait.count() > 0) {
     queue_result(
         request, wire::EditResult::RATE_LIMITED,
         "over the edit budget (" + std::to_string(static_cast<uint64_t>(cost)) + " samples)",
@@ -285,12 +299,13 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
             r.reason == world::RefusalReason::kStorageUnavailable)
           w->set_retry_after_ms(kBusyRetryMs);
         for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
+        for (const uint64_t region : r.clipped_by) w->add_clipped_by(region);
         asio::post(self->strand_, [self, ticket, result = std::move(result),
                                    work = r.chunks_generated + r.chunks_expanded]() mutable {
           self->on_edit_result(ticket, std::move(result), work);
         });
       },
-      id_, player_id_);
+      id_, player_id_, role_ == auth::Role::kAdmin);
 }
 
 // Strand: the pipeline's answer. Terrain the edit made the server generate (and uniform
@@ -300,20 +315,35 @@ void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_
   --edits_in_flight_;
   const auto now = Clock::now();
   if (work_chunks > 0) {
-    edit_budget_.charge(static_cast<double>(work_chunks) * kSamplesPerChunk, now);
+    edit_budget_->charge(static_cast<double>(work_chunks) * kSamplesPerChunk, now);
   }
   auto* r = result.mutable_edit_result();
   if (r->status() == wire::EditResult::RATE_LIMITED) {
-    r->set_retry_after_ms(clamp_ms(edit_budget_.wait_for(kSamplesPerChunk, now)));
+    r->set_retry_after_ms(clamp_ms(edit_budget_->wait_for(kSamplesPerChunk, now)));
   }
   ServerCounters::bump(
       counters_.edit_results[static_cast<size_t>(r->status()) % ServerCounters::kStatuses]);
+  log_refusal(r->status(), r->reason());
   results_.fill(ticket, std::move(result));
   results_.drain([this](const wire::Envelope& e) { queue_control(e); });
   // The result is queued ahead of any mesh: versions held back for it may go now.
   if (scheduler_.deferred_count() > 0) {
     scheduler_.release_deferred();
     pump();
+  }
+}
+
+// A refused edit, naming its player: a few lines per second per status, with a count of
+// the others.
+void ClientSession::log_refusal(wire::EditResult::Status status, const std::string& reason) {
+  if (status == wire::EditResult::ACCEPTED) return;
+  const std::string& name = wire::EditResult::Status_Name(status);
+  if (auto suppressed = services_.logs->allow("refused:" + name, 5)) {
+    spdlog::info(
+        "session {}: player '{}' ({}): edit refused {}: {}{}", id_, log_name_,
+        player_id_.empty() ? "no id" : escape_for_log(player_id_), name,
+        escape_for_log(reason, 160),
+        *suppressed ? fmt::format(" [{} more refused {}]", *suppressed, name) : std::string());
   }
 }
 

@@ -104,6 +104,8 @@ wire::EditResult::Status status_of(world::RefusalReason r) {
       return wire::EditResult::RATE_LIMITED;
     case world::RefusalReason::kStorageUnavailable:
       return wire::EditResult::STORAGE_UNAVAILABLE;
+    case world::RefusalReason::kForbidden:
+      return wire::EditResult::FORBIDDEN;
   }
   return wire::EditResult::ACCEPTED;
 }
@@ -124,6 +126,51 @@ bool has_unknown_fields(const google::protobuf::Message& m) {
     }
   }
   return false;
+}
+
+wire::Region to_wire(const world::Region& r) {
+  wire::Region w;
+  w.set_id(r.id);
+  w.set_name(r.name);
+  auto* b = w.mutable_box();
+  b->set_min_x(r.box.lo[0]), b->set_min_y(r.box.lo[1]), b->set_min_z(r.box.lo[2]);
+  b->set_max_x(r.box.hi[0]), b->set_max_y(r.box.hi[1]), b->set_max_z(r.box.hi[2]);
+  w.set_protect_build((r.flags & world::kProtectBuild) != 0);
+  w.set_protect_explode((r.flags & world::kProtectExplode) != 0);
+  for (const std::string& o : r.owners) w.add_owners(o);
+  w.set_created_by(r.created_by);
+  w.set_created_unix_ms(r.created_unix_ms);
+  return w;
+}
+
+world::Region region_from_wire(const wire::Region& w) {
+  world::Region r;
+  r.name = w.name();
+  const auto& b = w.box();
+  r.box = {{b.min_x(), b.min_y(), b.min_z()}, {b.max_x(), b.max_y(), b.max_z()}};
+  r.flags = static_cast<uint8_t>((w.protect_build() ? world::kProtectBuild : 0) |
+                                 (w.protect_explode() ? world::kProtectExplode : 0));
+  r.owners.assign(w.owners().begin(), w.owners().end());
+  return r;
+}
+
+wire::RegionResult::Status status_of(pipeline::RegionOutcome::Status s) {
+  using S = pipeline::RegionOutcome::Status;
+  switch (s) {
+    case S::kOk:
+      return wire::RegionResult::OK;
+    case S::kBadValue:
+      return wire::RegionResult::BAD_VALUE;
+    case S::kNotFound:
+      return wire::RegionResult::NOT_FOUND;
+    case S::kTooMany:
+      return wire::RegionResult::TOO_MANY;
+    case S::kStorageUnavailable:
+      return wire::RegionResult::STORAGE_UNAVAILABLE;
+    case S::kShuttingDown:
+      return wire::RegionResult::SHUTTING_DOWN;
+  }
+  return wire::RegionResult::BAD_VALUE;
 }
 
 }  // namespace vox::net

@@ -10,6 +10,7 @@
 
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/region.hpp"
 #include "voxel.pb.h"
 
 namespace vox::net {
@@ -29,6 +30,11 @@ struct WireEdit {
 WireEdit edit_from_wire(const wire::Edit& e);
 
 wire::EditResult::Status status_of(world::RefusalReason r);
+
+wire::Region to_wire(const world::Region& r);
+// The region a RegionCommand asks to add (not validated: the pipeline does that).
+world::Region region_from_wire(const wire::Region& r);
+wire::RegionResult::Status status_of(pipeline::RegionOutcome::Status s);
 
 // True when the message or any message inside it carries fields this protocol version
 // does not define.

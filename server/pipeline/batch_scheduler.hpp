@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <optional>
 #include <string>
 #include <unordered_map>
 #include <variant>
@@ -27,10 +28,12 @@
 #include "server/pipeline/token_bucket.hpp"
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/region.hpp"
 
 namespace vox::pipeline {
 
 struct EditResult;
+struct RegionOutcome;
 
 using LoadOwner = uint64_t;
 
@@ -39,15 +42,25 @@ struct EditTask {
   std::function<void(const EditResult&)> done;
   LoadOwner owner = 0;  // the session that sent it (0: none, e.g. a test or the CLI)
   std::chrono::steady_clock::time_point submitted{};  // set by WorldPipeline::submit
-  std::string author;  // the player id the edit is logged under (empty: none)
+  std::string author;           // the player id the edit is logged under (empty: none)
+  bool bypass_regions = false;  // an admin's: protected regions do not hold it back
+};
+// Adds a protected region (`add`, its id chosen by the pipeline) or removes one
+// (`remove_id`), in order with the edits around it; durable with their batch.
+struct RegionTask {
+  std::optional<world::Region> add;
+  uint64_t remove_id = 0;
+  std::string by;  // the admin's player id, for the log
+  std::function<void(const RegionOutcome&)> done;
 };
 struct InspectTask {
   // Runs on the pipeline thread between edits; with `cancelled` when the pipeline stopped
   // before it could run (then on whichever thread found it).
   std::function<void(bool cancelled)> run;
 };
-// Edits and inspections share one queue: an inspection sees every edit queued before it.
-using OrderedTask = std::variant<EditTask, InspectTask>;
+// Edits, region changes and inspections share one queue: each sees every edit queued
+// before it.
+using OrderedTask = std::variant<EditTask, InspectTask, RegionTask>;
 
 // Part of an owner's request taken into a batch. `done` is set on the request's last
 // slice: run it once the slice's chunks are published.

@@ -16,8 +16,8 @@ StoreAppender::~StoreAppender() {
 
 std::shared_future<AppendOutcome> StoreAppender::append(
     std::vector<store::LoggedEdit> log, std::vector<store::WorldStore::SeqRange> forget,
-    std::shared_future<AppendOutcome> before) {
-  Job job{std::move(log), std::move(forget), std::move(before), {}};
+    std::shared_future<AppendOutcome> before, std::optional<std::vector<world::Region>> regions) {
+  Job job{std::move(log), std::move(forget), std::move(regions), std::move(before), {}};
   std::shared_future<AppendOutcome> outcome = job.promise.get_future().share();
   {
     std::lock_guard lock(mutex_);
@@ -49,7 +49,7 @@ AppendOutcome StoreAppender::run(Job& job) {
   }
   const auto start = std::chrono::steady_clock::now();
   try {
-    store_.append_edits(job.log, job.forget);
+    store_.append_edits(job.log, job.forget, job.regions ? &*job.regions : nullptr);
   } catch (const std::exception& e) {
     out.error = e.what();
     if (out.error.empty()) out.error = "append failed";

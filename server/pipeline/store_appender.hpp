@@ -13,6 +13,7 @@
 #include <functional>
 #include <future>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -35,16 +36,19 @@ class StoreAppender {
   StoreAppender(const StoreAppender&) = delete;
   StoreAppender& operator=(const StoreAppender&) = delete;
 
-  // Pipeline thread. Appends `log` (and forgets `forget`) after every earlier append. If
-  // `before` (an earlier append's outcome) failed, this one is not tried and fails too.
-  std::shared_future<AppendOutcome> append(std::vector<store::LoggedEdit> log,
-                                           std::vector<store::WorldStore::SeqRange> forget,
-                                           std::shared_future<AppendOutcome> before);
+  // Pipeline thread. Appends `log` (and forgets `forget`, and with `regions` makes them
+  // the stored protected regions) after every earlier append. If `before` (an earlier
+  // append's outcome) failed, this one is not tried and fails too.
+  std::shared_future<AppendOutcome> append(
+      std::vector<store::LoggedEdit> log, std::vector<store::WorldStore::SeqRange> forget,
+      std::shared_future<AppendOutcome> before,
+      std::optional<std::vector<world::Region>> regions = std::nullopt);
 
  private:
   struct Job {
     std::vector<store::LoggedEdit> log;
     std::vector<store::WorldStore::SeqRange> forget;
+    std::optional<std::vector<world::Region>> regions;
     std::shared_future<AppendOutcome> before;
     std::promise<AppendOutcome> promise;
   };

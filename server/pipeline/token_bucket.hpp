@@ -47,6 +47,17 @@ class TokenBucket {
     refill(now);
     tokens_ -= cost;
   }
+  // New limits from `now` on; the tokens held are kept, up to the new burst.
+  void set_limits(double rate, double burst, Clock::time_point now) {
+    refill(now);
+    rate_ = rate;
+    burst_ = std::max(burst, 0.0);
+    tokens_ = std::min(tokens_, burst_);
+  }
+  bool full(Clock::time_point now) {
+    refill(now);
+    return unlimited() || tokens_ >= burst_;
+  }
   double tokens(Clock::time_point now) {
     refill(now);
     return tokens_;

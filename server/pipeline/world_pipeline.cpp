@@ -21,11 +21,23 @@ bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
          a.materials == b.materials;
 }
 
-void refuse_shutting_down(EditTask& task) {
-  EditResult r;
-  r.reason = world::RefusalReason::kShuttingDown;
-  r.message = "shutting down: the world pipeline has stopped";
-  if (task.done) task.done(r);
+constexpr const char* kStoppedMessage = "shutting down: the world pipeline has stopped";
+
+// A task the stopped pipeline will not run: refused (an inspection runs, `cancelled`).
+void refuse_shutting_down(OrderedTask& task, bool cancelled) {
+  if (auto* e = std::get_if<EditTask>(&task)) {
+    EditResult r;
+    r.reason = world::RefusalReason::kShuttingDown;
+    r.message = kStoppedMessage;
+    if (e->done) e->done(r);
+  } else if (auto* region = std::get_if<RegionTask>(&task)) {
+    RegionOutcome r;
+    r.status = RegionOutcome::Status::kShuttingDown;
+    r.message = kStoppedMessage;
+    if (region->done) region->done(r);
+  } else {
+    std::get<InspectTask>(task).run(cancelled);
+  }
 }
 
 double seconds_since(Clock::time_point t) {
@@ -109,17 +121,20 @@ void WorldPipeline::enqueue(OrderedTask task) {
       return;
     }
   }
-  // Stopped: answer on the caller's thread.
-  if (auto* e = std::get_if<EditTask>(&task)) {
-    refuse_shutting_down(*e);
-  } else {
-    std::get<InspectTask>(task).run(true);
-  }
+  refuse_shutting_down(task, true);  // stopped: answered on the caller's thread
 }
 
-void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner,
-                           std::string author) {
-  enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now(), std::move(author)});
+void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner, std::string author,
+                           bool bypass_regions) {
+  enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now(), std::move(author),
+                   bypass_regions});
+}
+
+void WorldPipeline::change_regions(RegionTask task) { enqueue(std::move(task)); }
+
+std::shared_ptr<const std::vector<world::Region>> WorldPipeline::regions() const {
+  std::lock_guard lock(regions_mutex_);
+  return published_regions_;
 }
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
@@ -333,13 +348,8 @@ void WorldPipeline::drain_after_stop() {
     ordered = scheduler_.take_ordered();
     loads = scheduler_.take_all_load_callbacks();
   }
-  for (OrderedTask& t : ordered) {
-    if (auto* e = std::get_if<EditTask>(&t)) {
-      refuse_shutting_down(*e);
-    } else {
-      std::get<InspectTask>(t).run(false);  // on the pipeline thread: state is still ours
-    }
-  }
+  // An inspection runs (not cancelled): on the pipeline thread, state is still ours.
+  for (OrderedTask& t : ordered) refuse_shutting_down(t, false);
   for (auto& done : loads) done();
   for (auto& [pass, done] : waiting_done_) done();
   waiting_done_.clear();
@@ -403,8 +413,8 @@ std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& di
   return published;
 }
 
-// Edits and inspections, in arrival order. Without a store the batch is answered here;
-// with one, once its append has landed (finish_pending).
+// Edits, region changes and inspections, in arrival order. Without a store the batch is answered
+// here; with one, once its append has landed (finish_pending).
 void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
                                     PipelineStats& batch) {
   // Earlier batches whose appends landed: answered now, and before this batch applies (a
@@ -413,7 +423,8 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   finish_landed();
   Batch b = apply_batch(tasks, now);
   if (!b.any_edit) return;
-  if (config_.store && !b.accepted.empty()) start_append(b);  // overlaps the re-meshing
+  if (config_.store && (!b.accepted.empty() || b.regions_before))
+    start_append(b);  // overlaps the re-meshing
   b.fresh = remesh(b.dirty);
   if (!config_.store) return answer(b, true, batch);
   const Clock::time_point wait_until = b.appended_at + kAnswerWait;
@@ -441,6 +452,11 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       insp->run(false);
       continue;
     }
+    if (auto* region = std::get_if<RegionTask>(&tasks[t])) {
+      b.any_edit = true;  // answered with the batch
+      apply_region_task(*region, t, store_resting, b);
+      continue;
+    }
     const EditTask& task = std::get<EditTask>(tasks[t]);
     const world::Edit& edit = task.edit;
     EditResult& result = b.results[t];
@@ -464,13 +480,24 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       ++delta.edits_refused_busy;
       continue;
     }
+    world::Protection protection;
+    if (!task.bypass_regions && !regions_.empty())
+      protection = world::protection_for(regions_, edit, task.author);
+    if (protection.forbidden_by) {
+      result.reason = world::RefusalReason::kForbidden;
+      result.message =
+          "it lies wholly inside protected region " + std::to_string(*protection.forbidden_by);
+      ++delta.edits_refused;
+      continue;
+    }
     size_t& generated = generated_by[task.owner];
     const size_t max_generate = task.owner == 0
                                     ? SIZE_MAX
                                     : config_.max_generated_per_owner -
                                           std::min(generated, config_.max_generated_per_owner);
-    const world::RefusalReason refused = apply_edit_task(edit, now, max_generate, b.edit_dirty[t],
-                                                         result, durable ? &b.undo : nullptr);
+    const world::RefusalReason refused =
+        apply_edit_task(edit, now, max_generate, b.edit_dirty[t], result,
+                        durable ? &b.undo : nullptr, protection.keep);
     if (refused != world::RefusalReason::kNone) {
       result.reason = refused;
       result.message =
@@ -485,7 +512,9 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
     }
     generated += result.chunks_generated;
     result.accepted = true;
+    result.clipped_by = std::move(protection.regions);
     b.accepted.push_back(&task);
+    b.keep.push_back(std::move(protection.keep));
     ++delta.edits_applied;
     delta.chunks_generated += result.chunks_generated;
     b.dirty.insert(b.dirty.end(), b.edit_dirty[t].begin(), b.edit_dirty[t].end());
@@ -493,7 +522,43 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       b.edited_at.try_emplace(c, task.submitted);  // arrival order
   }
   b.tasks = std::move(tasks);
+  if (b.regions_before)
+    b.regions_after = std::make_shared<const std::vector<world::Region>>(regions_);
   return b;
+}
+
+void WorldPipeline::apply_region_task(const RegionTask& task, size_t index, bool store_resting,
+                                      Batch& b) {
+  using Status = RegionOutcome::Status;
+  RegionOutcome out;
+  auto refuse = [&](Status status, std::string message) {
+    out.status = status;
+    out.message = std::move(message);
+    b.region_outcomes.emplace_back(index, std::move(out));
+  };
+  if (store_resting) return refuse(Status::kStorageUnavailable, kStorageMessage);
+  std::vector<world::Region> next = regions_;
+  if (task.add) {
+    const world::RegionLimits limits;
+    if (regions_.size() >= limits.max_regions)
+      return refuse(Status::kTooMany, "the world has " + std::to_string(limits.max_regions) +
+                                          " protected regions, the most it may have");
+    if (auto why = world::validate_region(*task.add, config_.limits, limits))
+      return refuse(Status::kBadValue, *why);
+    out.region = *task.add;
+    out.region.id = next_region_id_++;
+    next.push_back(out.region);
+  } else {
+    auto it = std::find_if(next.begin(), next.end(),
+                           [&task](const world::Region& r) { return r.id == task.remove_id; });
+    if (it == next.end())
+      return refuse(Status::kNotFound, "no protected region " + std::to_string(task.remove_id));
+    out.region = *it;
+    next.erase(it);
+  }
+  if (!b.regions_before) b.regions_before = regions_;
+  regions_ = std::move(next);
+  b.region_outcomes.emplace_back(index, std::move(out));
 }
 
 void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
@@ -517,6 +582,17 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
   b.delta.meshes_published += published.size();
   commit_stats(b.delta, batch);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
+  for (auto& [t, outcome] : b.region_outcomes) {
+    if (!durable && outcome.status == RegionOutcome::Status::kOk) {
+      outcome.status = RegionOutcome::Status::kStorageUnavailable;
+      outcome.message = kStorageMessage;
+    }
+    if (auto& done = std::get<RegionTask>(b.tasks[t]).done) done(outcome);
+  }
+  if (durable && b.regions_after) {
+    std::lock_guard lock(regions_mutex_);
+    published_regions_ = b.regions_after;
+  }
   for (size_t t = 0; t < b.tasks.size(); ++t) {
     auto* task = std::get_if<EditTask>(&b.tasks[t]);
     if (!task) continue;

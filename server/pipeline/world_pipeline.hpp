@@ -18,6 +18,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <span>
 #include <thread>
 #include <unordered_map>
 #include <unordered_set>
@@ -33,6 +34,7 @@
 #include "server/pipeline/terrain_prefetcher.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/region.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace vox::pipeline {
@@ -98,9 +100,26 @@ struct EditResult {
   world::RefusalReason reason = world::RefusalReason::kNone;
   std::string message;                            // why it was refused
   std::vector<world::ChunkCoord> changed_chunks;  // chunks given a new mesh version
+  // Protected regions whose samples it left as they were (it was clipped; world/region.hpp).
+  std::vector<uint64_t> clipped_by;
   // What the edit cost the server beyond its samples, charged to its sender: chunks of
   // terrain generated for it, and uniform chunks it turned into full ones.
   size_t chunks_generated = 0, chunks_expanded = 0;
+};
+
+// The answer to a RegionTask, once durable (or refused).
+struct RegionOutcome {
+  enum class Status : uint8_t {
+    kOk,
+    kBadValue,
+    kNotFound,
+    kTooMany,
+    kStorageUnavailable,
+    kShuttingDown
+  };
+  Status status = Status::kOk;
+  std::string message;   // why it was refused
+  world::Region region;  // the region added or removed
 };
 
 struct PipelineStats {
@@ -148,8 +167,16 @@ class WorldPipeline {
   // (or it was refused); it must not block. Every queued edit is in the next batch.
   // `owner` (a session id; 0 for none) bounds the terrain its edits may make the pipeline
   // generate in one batch.
-  void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0, std::string author = {});
+  // `author`: the player id the edit is logged under; `bypass_regions`: an admin's edit,
+  // which protected regions do not hold back.
+  void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0, std::string author = {},
+              bool bypass_regions = false);
   std::future<EditResult> submit(world::Edit edit);
+  // Any thread. Adds or removes a protected region in order with the edits around it;
+  // `task.done` runs on the pipeline thread once the change is durable (or refused).
+  void change_regions(RegionTask task);
+  // Any thread: the protected regions in force, as of the last durable change.
+  std::shared_ptr<const std::vector<world::Region>> regions() const;
   // Any thread. Generates and meshes whatever of the box is missing; `done` runs on the
   // pipeline thread once every chunk of the box has a published mesh.
   void load(mesh::ChunkBox box, std::function<void()> done);
@@ -228,7 +255,8 @@ class WorldPipeline {
   void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                        size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
-                                       EditResult& result, Undo* undo = nullptr);
+                                       EditResult& result, Undo* undo = nullptr,
+                                       std::span<const world::VoxelBox> keep = {});
   // `edited_at`: per chunk, when the oldest edit that dirtied it was submitted (none: a load).
   using EditTimes = std::unordered_map<world::ChunkCoord, Clock::time_point, world::ChunkCoordHash>;
   using FreshMeshes = std::vector<std::shared_ptr<MeshVersion>>;  // null: mesh unchanged
@@ -252,6 +280,13 @@ class WorldPipeline {
     std::vector<std::vector<world::ChunkCoord>> edit_dirty;  // per task; may repeat
     std::vector<world::ChunkCoord> dirty;                    // sorted, unique once re-meshed
     std::vector<const EditTask*> accepted;                   // in the order they applied
+    std::vector<std::vector<world::VoxelBox>> keep;          // per accepted edit: clipped
+    // Region tasks' outcomes, by task index; the regions before the batch's first region
+    // change (restored when it is undone) and after its last (published when durable).
+    std::vector<std::pair<size_t, RegionOutcome>> region_outcomes;
+    std::optional<std::vector<world::Region>> regions_before;
+    std::shared_ptr<const std::vector<world::Region>> regions_after;
+    bool carries_regions = false;  // its append writes the region table
     FreshMeshes fresh;
     EditTimes edited_at;  // per dirty chunk, its oldest edit
     Undo undo;
@@ -268,6 +303,8 @@ class WorldPipeline {
   // slow one no longer holds up the load pass and the next batches (answered after them).
   static constexpr auto kAnswerWait = std::chrono::milliseconds(6);
   Batch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
+  // A region change inside apply_batch (pipeline thread).
+  void apply_region_task(const RegionTask& task, size_t index, bool store_resting, Batch& b);
   void start_append(Batch& b);
   // Answers the batches whose appends landed, oldest first, waiting while more than `keep`
   // are in flight (0: every batch is answered when it returns) and, for the oldest, until
@@ -357,7 +394,16 @@ class WorldPipeline {
   Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
   // Sequence numbers of failed appends since the last that worked (pipeline thread).
   std::optional<store::WorldStore::SeqRange> doubtful_;
-  std::deque<Batch> pending_;        // oldest first; pipeline thread
+  std::deque<Batch> pending_;  // oldest first; pipeline thread
+  // Protected regions in force (pipeline thread; pending batches' changes included), the
+  // next id, and whether a failed append carried region changes (the next append writes
+  // the region table whole, whether it landed or not).
+  std::vector<world::Region> regions_;
+  uint64_t next_region_id_ = 1;
+  bool regions_doubtful_ = false;
+  mutable std::mutex regions_mutex_;  // leaf lock, guards published_regions_
+  std::shared_ptr<const std::vector<world::Region>> published_regions_ =
+      std::make_shared<const std::vector<world::Region>>();
   bool append_landed_ = false;       // under queue_mutex_: a pending batch may be answered
   bool store_failing_ = false;       // the last append failed (logged once); pipeline thread
   bool store_read_failing_ = false;  // the last chunk read failed (logged once); pipeline thread

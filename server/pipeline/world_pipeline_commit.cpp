@@ -35,8 +35,18 @@ void WorldPipeline::start_append(Batch& b) {
   log.reserve(b.accepted.size());
   // Sequence numbers are never reused, even after a failed append (its outcome may be in
   // doubt): the log may have gaps, never two edits with one number.
-  for (const EditTask* t : b.accepted) log.push_back({next_seq_++, unix_ms, t->author, t->edit});
-  b.seqs = {log.front().seq, log.back().seq};
+  for (size_t i = 0; i < b.accepted.size(); ++i) {
+    const EditTask& t = *b.accepted[i];
+    log.push_back({next_seq_++, unix_ms, t.author, t.edit, b.keep[i]});
+  }
+  if (!log.empty()) b.seqs = {log.front().seq, log.back().seq};  // else {0, 0}: regions only
+  // The region table is written whole by the batch that changes it, and after a failed
+  // append that carried it (that one may have landed or not).
+  std::optional<std::vector<world::Region>> regions;
+  if (b.regions_before || regions_doubtful_) {
+    regions = regions_;
+    b.carries_regions = true;
+  }
   b.appended_at = Clock::now();
   // Appends that failed since the last that worked may have landed all the same: their
   // edits were undone here, so they go from the log with this append.
@@ -45,7 +55,8 @@ void WorldPipeline::start_append(Batch& b) {
   std::shared_future<AppendOutcome> before;  // the newest append in flight
   for (auto it = pending_.rbegin(); it != pending_.rend() && !before.valid(); ++it)
     before = it->outcome;
-  b.outcome = appender_->append(std::move(log), std::move(forget), std::move(before));
+  b.outcome =
+      appender_->append(std::move(log), std::move(forget), std::move(before), std::move(regions));
 }
 
 void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep,
@@ -65,6 +76,7 @@ void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep,
         observer_.commit(out.seconds, waited, b.accepted.size(), out.error.empty());
       if (!out.error.empty()) return fail_pending(batch, out.error);
       doubtful_.reset();
+      if (b.carries_regions) regions_doubtful_ = false;
       if (store_failing_) {
         store_failing_ = false;
         spdlog::info("world store: writing again; edits are accepted");
@@ -81,11 +93,15 @@ void WorldPipeline::fail_pending(PipelineStats& batch, const std::string& error)
   for (Batch& b : pending_) {
     if (b.outcome.valid()) b.outcome.wait();  // the later ones return without trying
   }
-  for (auto it = pending_.rbegin(); it != pending_.rend(); ++it) roll_back(it->undo);
+  for (auto it = pending_.rbegin(); it != pending_.rend(); ++it) {
+    roll_back(it->undo);
+    if (it->regions_before) regions_ = std::move(*it->regions_before);
+    regions_doubtful_ = regions_doubtful_ || it->carries_regions;
+  }
   // No append works in between, so one range covers every doubtful one (the later
   // batches' were not tried; forgetting them too is harmless).
   for (const Batch& b : pending_) {
-    if (!b.outcome.valid()) continue;
+    if (!b.outcome.valid() || b.seqs.first == 0) continue;  // not tried, or regions only
     if (!doubtful_) doubtful_ = b.seqs;
     doubtful_->last = b.seqs.last;
   }

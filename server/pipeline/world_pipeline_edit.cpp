@@ -21,7 +21,8 @@ using world::ChunkCoord;
 world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                                     size_t max_generate,
                                                     std::vector<ChunkCoord>& dirtied,
-                                                    EditResult& result, Undo* undo) {
+                                                    EditResult& result, Undo* undo,
+                                                    std::span<const world::VoxelBox> keep) {
   WorldState& st = *state_;
   const world::VoxelBox box = world::touched_box(edit);
   const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
@@ -106,10 +107,10 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
   if (touched.size() == 1) {
-    changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap);
+    changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap, keep);
   } else {
     parallel_for_index(st.arena, touched.size(), [&](size_t i) {
-      changed[i] = world::apply_edit(edit, touched[i], *targets[i], snap);
+      changed[i] = world::apply_edit(edit, touched[i], *targets[i], snap, keep);
     });
   }
   for (size_t i = 0; i < touched.size(); ++i) {

@@ -33,6 +33,9 @@ void WorldPipeline::restore_from_store() {
   const Clock::time_point start = Clock::now();
   const store::WorldInfo info = store.info();
   store.for_each_chunk([&st](ChunkCoord c, uint64_t) { st.stored.insert(c); });
+  regions_ = store.read_regions();
+  for (const world::Region& r : regions_) next_region_id_ = std::max(next_region_id_, r.id + 1);
+  published_regions_ = std::make_shared<const std::vector<world::Region>>(regions_);
   // The log's tail is bounded by the checkpoints (CheckpointLimits::max_unsaved_edits, plus
   // what one interval accepts).
   std::vector<store::LoggedEdit> tail;
@@ -45,7 +48,8 @@ void WorldPipeline::restore_from_store() {
   for (const store::LoggedEdit& e : tail) {
     std::vector<ChunkCoord> dirtied;  // nothing is meshed yet
     EditResult ignored;
-    const auto refused = apply_edit_task(e.edit, start, SIZE_MAX, dirtied, ignored);
+    const auto refused =
+        apply_edit_task(e.edit, start, SIZE_MAX, dirtied, ignored, nullptr, e.keep);
     if (refused == world::RefusalReason::kStorageUnavailable) {
       throw store::StoreError(fmt::format("{}: replaying edit {}: a checkpointed chunk: {}",
                                           store.name(), e.seq, last_read_error_));
@@ -68,8 +72,9 @@ void WorldPipeline::restore_from_store() {
   stats_.unsaved_chunks = unsaved_.size();
   stats_.checkpoint_seq = info.checkpoint_seq;
   spdlog::info(
-      "world: {} (seed {}, start {}): {} stored chunks, {} logged edits replayed in {:.0f} ms",
-      store.name(), info.seed, info.starts, st.stored.size(), replayed,
+      "world: {} (seed {}, start {}): {} stored chunks, {} protected regions, {} logged edits "
+      "replayed in {:.0f} ms",
+      store.name(), info.seed, info.starts, st.stored.size(), regions_.size(), replayed,
       seconds_since(start) * 1000);
 }
 

@@ -1,5 +1,6 @@
 #include "server/store/edit_codec.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 #include <sstream>
@@ -11,6 +12,7 @@ enum Kind : uint8_t { kBrush = 0, kExplosion = 1, kSmooth = 2, kPaint = 3, kStam
 
 class Writer {
  public:
+  Writer() = default;  // no header
   explicit Writer(Kind kind) : out_{kEditFormat, kind} {}
   Writer& u8(uint8_t v) {
     out_.push_back(v);
@@ -22,6 +24,11 @@ class Writer {
     return *this;
   }
   Writer& vec(const world::Vec3& v) { return f32(v.x).f32(v.y).f32(v.z); }
+  Writer& i32(int32_t v) {
+    const auto bits = static_cast<uint32_t>(v);
+    for (int i = 0; i < 4; ++i) out_.push_back(static_cast<uint8_t>(bits >> (8 * i)));
+    return *this;
+  }
   std::vector<uint8_t> take() { return std::move(out_); }
 
  private:
@@ -45,6 +52,11 @@ class Reader {
   world::Vec3 vec() {
     const float x = f32(), y = f32(), z = f32();
     return {x, y, z};
+  }
+  int32_t i32() { return static_cast<int32_t>(std::bit_cast<uint32_t>(f32())); }
+  uint16_t u16() {
+    const uint8_t lo = u8(), hi = u8();
+    return static_cast<uint16_t>(lo | (hi << 8));
   }
   bool ok_at_end() const { return ok_ && pos_ == bytes_.size(); }
 
@@ -150,20 +162,52 @@ std::string fmt_vec(const world::Vec3& v) {
 
 }  // namespace
 
-std::vector<uint8_t> encode_edit(const world::Edit& edit) { return std::visit(Encode{}, edit); }
+std::vector<uint8_t> encode_edit(const world::Edit& edit, std::span<const world::VoxelBox> keep) {
+  std::vector<uint8_t> out = std::visit(Encode{}, edit);
+  if (keep.empty()) return out;
+  out[0] = kClippedEditFormat;
+  const size_t n = std::min(keep.size(), kMaxKeepBoxes);  // callers stay below it
+  Writer w;
+  w.u8(static_cast<uint8_t>(n & 0xff)).u8(static_cast<uint8_t>(n >> 8));
+  for (size_t i = 0; i < n; ++i)
+    for (const auto& corner : {keep[i].lo, keep[i].hi})
+      for (const int32_t v : corner) w.i32(v);
+  const std::vector<uint8_t> tail = w.take();
+  out.insert(out.end(), tail.begin(), tail.end());
+  return out;
+}
 
-std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes, std::string* error) {
-  auto fail = [error](const char* why) -> std::optional<world::Edit> {
+std::optional<EditRecord> decode_edit_record(std::span<const uint8_t> bytes, std::string* error) {
+  auto fail = [error](const char* why) -> std::optional<EditRecord> {
     if (error) *error = why;
     return std::nullopt;
   };
   if (bytes.size() < 2) return fail("edit record shorter than its header");
-  if (bytes[0] != kEditFormat) return fail("edit record of an unknown format");
+  if (bytes[0] != kEditFormat && bytes[0] != kClippedEditFormat)
+    return fail("edit record of an unknown format");
   Reader r(bytes.subspan(2));
   auto edit = decode_body(bytes[1], r);
   if (!edit) return fail("edit record of an unknown kind or with a bad field");
+  EditRecord record{std::move(*edit), {}};
+  if (bytes[0] == kClippedEditFormat) {
+    const uint16_t n = r.u16();
+    if (n == 0 || n > kMaxKeepBoxes) return fail("clipped edit record with a bad box count");
+    record.keep.resize(n);
+    for (world::VoxelBox& box : record.keep) {
+      for (int32_t& v : box.lo) v = r.i32();
+      for (int32_t& v : box.hi) v = r.i32();
+      for (int a = 0; a < 3; ++a)
+        if (box.lo[a] > box.hi[a]) return fail("clipped edit record with an inverted box");
+    }
+  }
   if (!r.ok_at_end()) return fail("edit record of the wrong length");
-  return edit;
+  return record;
+}
+
+std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes, std::string* error) {
+  auto record = decode_edit_record(bytes, error);
+  if (!record) return std::nullopt;
+  return std::move(record->edit);
 }
 
 std::string describe_edit(const world::Edit& edit) {

@@ -11,6 +11,9 @@
 //   paint      f32 cx cy cz, f32 radius, u8 material                             (17 bytes)
 //   stamp      u8 shape (0 box, 1 sphere), u8 solid, u8 material, then a box's f32 min xyz,
 //              max xyz, or a sphere's f32 cx cy cz, radius                  (27 or 19 bytes)
+// Format 2 is an edit clipped by protected regions: format 1's bytes (with format 2 in
+// the first byte), then u16 n (1..4096) and n boxes of samples it left as they were, each
+// i32 min xyz, max xyz (inclusive).
 #pragma once
 
 #include <cstdint>
@@ -24,9 +27,21 @@
 namespace vox::store {
 
 inline constexpr uint8_t kEditFormat = 1;
+inline constexpr uint8_t kClippedEditFormat = 2;
+inline constexpr size_t kMaxKeepBoxes = 4096;  // world::RegionLimits::max_regions
 
-std::vector<uint8_t> encode_edit(const world::Edit& edit);
+struct EditRecord {
+  world::Edit edit;
+  std::vector<world::VoxelBox> keep;  // samples the edit left as they were (regions)
+};
+
+// Format 1, or 2 when `keep` is not empty (at most kMaxKeepBoxes of it).
+std::vector<uint8_t> encode_edit(const world::Edit& edit,
+                                 std::span<const world::VoxelBox> keep = {});
 // nullopt and `error` set when the bytes are not a record this version writes.
+std::optional<EditRecord> decode_edit_record(std::span<const uint8_t> bytes,
+                                             std::string* error = nullptr);
+// The edit of a record, without what it was clipped by (tests, descriptions).
 std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes,
                                        std::string* error = nullptr);
 

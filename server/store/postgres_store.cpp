@@ -64,7 +64,12 @@ class PostgresStore final : public WorldStore {
         t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
       }
       t.exec(kCreateTables);
+      t.exec(schema::kCreateRegions);
       const Meta meta = read_meta(t);
+      if (meta.contains(schema::kMetaSchemaVersion) &&
+          parse_meta_u64(name_, schema::kMetaSchemaVersion, meta.at(schema::kMetaSchemaVersion)) <
+              schema::kRegions)
+        t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
       if (!meta.contains(schema::kMetaSchemaVersion)) {
         t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
         t.exec_params(kUpsertMeta, schema::kMetaSeed,
@@ -93,18 +98,19 @@ class PostgresStore final : public WorldStore {
       i.logged_edits = log[0].as<uint64_t>();
       i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
       i.modified_chunks = t.exec1(schema::kCountVisibleChunks)[0].as<uint64_t>();
-      i.size_bytes =
-          t.exec1(
-               "SELECT pg_total_relation_size('meta') + "
-               "pg_total_relation_size('edit_log') + pg_total_relation_size('chunks')")[0]
-              .as<uint64_t>();
+      i.size_bytes = t.exec1(
+                          "SELECT pg_total_relation_size('meta') + "
+                          "pg_total_relation_size('edit_log') + pg_total_relation_size('chunks') + "
+                          "pg_total_relation_size('regions')")[0]
+                         .as<uint64_t>();
     });
     return i;
   }
 
-  void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget) override {
+  void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget,
+                    const std::vector<world::Region>* regions) override {
     refuse_if_read_only();
-    if (edits.empty() && forget.empty()) return;
+    if (edits.empty() && forget.empty() && !regions) return;
     run([&](pqxx::connection& c) {
       pqxx::work t(c);
       for (const SeqRange& r : forget) {
@@ -112,9 +118,17 @@ class PostgresStore final : public WorldStore {
                       static_cast<int64_t>(r.first), static_cast<int64_t>(r.last));
       }
       for (const LoggedEdit& e : edits) {
-        const auto bytes = encode_edit(e.edit);
+        const auto bytes = encode_edit(e.edit, e.keep);
         t.exec_params("INSERT INTO edit_log (seq, at_ms, author, edit) VALUES ($1, $2, $3, $4)",
                       static_cast<int64_t>(e.seq), e.unix_ms, e.author, binary(bytes));
+      }
+      if (regions) {
+        t.exec("DELETE FROM regions");
+        for (const world::Region& r : *regions) {
+          t.exec_params(schema::kInsertRegion, static_cast<int64_t>(r.id), r.name, r.box.lo[0],
+                        r.box.lo[1], r.box.lo[2], r.box.hi[0], r.box.hi[1], r.box.hi[2],
+                        int{r.flags}, join_owners(r.owners), r.created_by, r.created_unix_ms);
+        }
       }
       t.commit();
     });
@@ -185,6 +199,30 @@ class PostgresStore final : public WorldStore {
     });
   }
 
+  std::vector<world::Region> read_regions() override {
+    std::vector<world::Region> out;
+    run([&](pqxx::connection& c) {
+      out.clear();
+      pqxx::read_transaction t(c);
+      for (const auto& row : t.exec(schema::kSelectRegions)) {
+        world::Region r;
+        r.id = row[0].as<uint64_t>();
+        r.name = row[1].as<std::string>();
+        for (int a = 0; a < 3; ++a) {
+          r.box.lo[a] = row[2 + a].as<int32_t>();
+          r.box.hi[a] = row[5 + a].as<int32_t>();
+        }
+        const auto flags = row[8].as<int64_t>();
+        r.flags = flags >= 0 && flags <= 255 ? static_cast<uint8_t>(flags) : 0xff;
+        r.owners = split_owners(row[9].as<std::string>());
+        r.created_by = row[10].as<std::string>();
+        r.created_unix_ms = row[11].as<int64_t>();
+        out.push_back(check_stored_region(name_, std::move(r)));
+      }
+    });
+    return out;
+  }
+
   void for_each_edit(uint64_t after_seq,
                      const std::function<bool(const LoggedEdit&)>& fn) override {
     run([&](pqxx::connection& c) {
@@ -201,7 +239,7 @@ class PostgresStore final : public WorldStore {
           e.unix_ms = row[1].as<int64_t>();
           e.author = row[2].as<std::string>();
           const pqxx::binarystring bytes(row[3]);
-          e.edit = decode_logged_edit(name_, e.seq, {bytes.data(), bytes.size()});
+          decode_logged_edit(name_, {bytes.data(), bytes.size()}, e);
           if (!fn(e)) return;
           from = e.seq;
         }

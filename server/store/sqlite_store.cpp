@@ -103,6 +103,7 @@ class SqliteStore final : public WorldStore {
     exec("PRAGMA synchronous=FULL");
     exec("BEGIN IMMEDIATE");
     exec(kCreateTables);
+    exec(schema::kCreateRegions);
     const auto meta = read_meta();
     if (!meta.contains(schema::kMetaSchemaVersion)) {
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
@@ -112,6 +113,9 @@ class SqliteStore final : public WorldStore {
                               meta.at(schema::kMetaSchemaVersion)) < schema::kVersionedChunks) {
       exec(schema::migrate_chunks("INTEGER", "BLOB").c_str());
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
+    } else if (parse_meta_u64(name_, schema::kMetaSchemaVersion,
+                              meta.at(schema::kMetaSchemaVersion)) < schema::kRegions) {
+      set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));  // regions made above
     }
     if (options.record_start) exec(schema::kDropUnfinishedChunks);
     const auto starts =
@@ -141,8 +145,9 @@ class SqliteStore final : public WorldStore {
     return i;
   }
 
-  void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget) override {
-    if (edits.empty() && forget.empty()) return;
+  void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget,
+                    const std::vector<world::Region>* regions) override {
+    if (edits.empty() && forget.empty() && !regions) return;
     Transaction t(*this);
     Statement drop(conn_.db, "DELETE FROM edit_log WHERE seq >= ? AND seq <= ?", name_);
     for (const SeqRange& r : forget)
@@ -150,11 +155,33 @@ class SqliteStore final : public WorldStore {
     Statement ins(conn_.db, "INSERT INTO edit_log (seq, at_ms, author, edit) VALUES (?, ?, ?, ?)",
                   name_);
     for (const LoggedEdit& e : edits) {
-      const auto bytes = encode_edit(e.edit);
+      const auto bytes = encode_edit(e.edit, e.keep);
       ins.bind(1, static_cast<int64_t>(e.seq)).bind(2, e.unix_ms).bind(3, e.author).bind(4, bytes);
       ins.run();
     }
+    if (regions) write_regions(*regions);
     t.commit();
+  }
+
+  std::vector<world::Region> read_regions() override {
+    std::vector<world::Region> out;
+    Statement q(conn_.db, schema::kSelectRegions, name_);
+    while (q.step()) {
+      world::Region r;
+      r.id = static_cast<uint64_t>(q.int64(0));
+      r.name = q.text(1);
+      for (int a = 0; a < 3; ++a) {
+        r.box.lo[a] = static_cast<int32_t>(q.int64(2 + a));
+        r.box.hi[a] = static_cast<int32_t>(q.int64(5 + a));
+      }
+      r.flags = static_cast<uint8_t>(q.int64(8));
+      if (q.int64(8) != r.flags) r.flags = 0xff;  // refused below
+      r.owners = split_owners(q.text(9));
+      r.created_by = q.text(10);
+      r.created_unix_ms = q.int64(11);
+      out.push_back(check_stored_region(name_, std::move(r)));
+    }
+    return out;
   }
 
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
@@ -204,7 +231,7 @@ class SqliteStore final : public WorldStore {
       e.seq = static_cast<uint64_t>(q.int64(0));
       e.unix_ms = q.int64(1);
       e.author = q.text(2);
-      e.edit = decode_logged_edit(name_, e.seq, q.blob(3));
+      decode_logged_edit(name_, q.blob(3), e);
       if (!fn(e)) return;
     }
   }
@@ -318,6 +345,17 @@ class SqliteStore final : public WorldStore {
       return;  // an empty database file: made into a world
     }
     check_meta(name_, read_meta(), options);
+  }
+
+  void write_regions(const std::vector<world::Region>& regions) {
+    exec("DELETE FROM regions");
+    Statement ins(conn_.db, schema::kInsertRegion, name_);
+    for (const world::Region& r : regions) {
+      ins.bind(1, static_cast<int64_t>(r.id)).bind(2, r.name);
+      for (int a = 0; a < 3; ++a) ins.bind(3 + a, r.box.lo[a]).bind(6 + a, r.box.hi[a]);
+      ins.bind(9, int64_t{r.flags}).bind(10, join_owners(r.owners)).bind(11, r.created_by);
+      ins.bind(12, r.created_unix_ms).run();
+    }
   }
 
   void exec(const char* sql) {

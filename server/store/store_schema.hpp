@@ -5,6 +5,10 @@
 //   meta      key TEXT PRIMARY KEY, value TEXT: schema_version, seed, starts, checkpoint_seq
 //   edit_log  seq PRIMARY KEY, at_ms, author TEXT, edit (edit_codec.hpp)
 //   chunks    (x, y, z, seq) PRIMARY KEY, samples (chunk_codec.hpp); index on seq
+//   regions   id PRIMARY KEY, name, x0 y0 z0 x1 y1 z1 (inclusive), flags, owners (player
+//             ids joined by '\n'; ids hold no control characters), created_by, created_ms
+//             (schema 3: protected regions, world/region.hpp; written whole by the append
+//             that changes them)
 //
 // Chunk rows are versioned (schema 2): a checkpoint at sequence S writes its chunks as rows
 // of seq S in several short transactions, then one short transaction moves checkpoint_seq
@@ -21,6 +25,21 @@
 namespace vox::store::schema {
 
 inline constexpr int kVersionedChunks = 2;  // the schema that made chunk rows versioned
+inline constexpr int kRegions = 3;          // the schema that added protected regions
+
+// Portable as it is: SQLite gives BIGINT columns integer affinity.
+inline constexpr const char* kCreateRegions =
+    "CREATE TABLE IF NOT EXISTS regions (id BIGINT PRIMARY KEY, name TEXT NOT NULL, "
+    "x0 INTEGER NOT NULL, y0 INTEGER NOT NULL, z0 INTEGER NOT NULL, "
+    "x1 INTEGER NOT NULL, y1 INTEGER NOT NULL, z1 INTEGER NOT NULL, flags INTEGER NOT NULL, "
+    "owners TEXT NOT NULL, created_by TEXT NOT NULL, created_ms BIGINT NOT NULL);";
+// Both backends number parameters $1..$12 (SQLite binds them by position).
+inline constexpr const char* kInsertRegion =
+    "INSERT INTO regions (id, name, x0, y0, z0, x1, y1, z1, flags, owners, created_by, "
+    "created_ms) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)";
+inline constexpr const char* kSelectRegions =
+    "SELECT id, name, x0, y0, z0, x1, y1, z1, flags, owners, created_by, created_ms FROM regions "
+    "ORDER BY id";
 // Chunk rows per transaction while a checkpoint writes (about 0.8 MB).
 inline constexpr size_t kCheckpointPart = 64;
 

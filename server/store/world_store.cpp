@@ -68,12 +68,38 @@ size_t distinct_coords(std::span<const ChunkRecord> chunks) {
   return coords.size();
 }
 
-world::Edit decode_logged_edit(const std::string& store, uint64_t seq,
-                               std::span<const uint8_t> bytes) {
+std::string join_owners(const std::vector<std::string>& owners) {
+  std::string out;
+  for (const std::string& o : owners) {
+    if (!out.empty()) out += '\n';
+    out += o;
+  }
+  return out;
+}
+
+std::vector<std::string> split_owners(const std::string& column) {
+  std::vector<std::string> owners;
+  size_t from = 0;
+  while (from < column.size()) {
+    const size_t end = std::min(column.find('\n', from), column.size());
+    owners.push_back(column.substr(from, end - from));
+    from = end + 1;
+  }
+  return owners;
+}
+
+world::Region check_stored_region(const std::string& store, world::Region r) {
+  if (auto why = world::validate_region(r, world::EditLimits{}, world::RegionLimits{}))
+    throw StoreError(store + ": region " + std::to_string(r.id) + ": " + *why);
+  return r;
+}
+
+void decode_logged_edit(const std::string& store, std::span<const uint8_t> bytes, LoggedEdit& e) {
   std::string why;
-  auto edit = decode_edit(bytes, &why);
-  if (!edit) throw StoreError(store + ": logged edit " + std::to_string(seq) + ": " + why);
-  return *edit;
+  auto record = decode_edit_record(bytes, &why);
+  if (!record) throw StoreError(store + ": logged edit " + std::to_string(e.seq) + ": " + why);
+  e.edit = std::move(record->edit);
+  e.keep = std::move(record->keep);
 }
 
 }  // namespace vox::store

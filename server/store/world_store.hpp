@@ -20,6 +20,7 @@
 
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/region.hpp"
 
 namespace vox::store {
 
@@ -28,13 +29,17 @@ struct StoreError : std::runtime_error {
 };
 
 // The schema this code writes; a store of a newer one is refused, never written.
-inline constexpr int kSchemaVersion = 2;
+inline constexpr int kSchemaVersion = 3;
 
 struct LoggedEdit {
   uint64_t seq = 0;     // global sequence number, from 1, in the order the edits applied
   int64_t unix_ms = 0;  // when it was accepted
-  std::string author;   // the player (empty until identity exists)
+  std::string author;   // the player id (empty: an open server)
   world::Edit edit;
+  // The samples it left as they were: protected regions its author could not change
+  // (world/region.hpp). Replay leaves them too, so it is bit-identical whatever the
+  // regions are by then.
+  std::vector<world::VoxelBox> keep;
 };
 
 struct ChunkRecord {
@@ -79,8 +84,12 @@ class WorldStore {
   struct SeqRange {
     uint64_t first = 0, last = 0;
   };
+  // With `regions`, the stored protected regions become those, in the same transaction.
   virtual void append_edits(std::span<const LoggedEdit> edits,
-                            std::span<const SeqRange> forget = {}) = 0;
+                            std::span<const SeqRange> forget = {},
+                            const std::vector<world::Region>* regions = nullptr) = 0;
+  // The protected regions, by id. A row that is not a valid region throws StoreError.
+  virtual std::vector<world::Region> read_regions() = 0;
   // Writes (replaces) the chunks, records that the chunks include every edit up to
   // `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it): all or
   // nothing for readers, in several short transactions (another connection's appends are

@@ -19,7 +19,12 @@ void check_meta(const std::string& store, const Meta& meta, const OpenOptions& o
 WorldInfo info_from_meta(const std::string& store, const Meta& meta);
 // How many chunks `chunks` names (a coordinate listed twice is written once).
 size_t distinct_coords(std::span<const ChunkRecord> chunks);
-world::Edit decode_logged_edit(const std::string& store, uint64_t seq,
-                               std::span<const uint8_t> bytes);
+// A region's owners in one column, and back.
+std::string join_owners(const std::vector<std::string>& owners);
+std::vector<std::string> split_owners(const std::string& column);
+// A region read back: refused (StoreError naming it) unless it is valid.
+world::Region check_stored_region(const std::string& store, world::Region r);
+// Fills e.edit and e.keep from a log record (e.seq names it in the error).
+void decode_logged_edit(const std::string& store, std::span<const uint8_t> bytes, LoggedEdit& e);
 
 }  // namespace vox::store

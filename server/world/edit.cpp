@@ -87,6 +87,8 @@ const char* to_string(RefusalReason r) {
       return "over budget";
     case RefusalReason::kStorageUnavailable:
       return "storage unavailable";
+    case RefusalReason::kForbidden:
+      return "forbidden";
   }
   return "unknown";
 }

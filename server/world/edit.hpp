@@ -69,6 +69,7 @@ enum class RefusalReason : uint8_t {
   kServerBusy,          // it needs chunks loaded while the memory budget is full
   kOverBudget,          // its sender's edits made the server generate too much terrain at once
   kStorageUnavailable,  // the world store could not make it durable: it was not applied
+  kForbidden,           // its shape lies wholly inside a protected region (region.hpp)
 };
 const char* to_string(RefusalReason r);
 

@@ -3,8 +3,18 @@
 #include <algorithm>
 #include <cmath>
 
+#include "server/world/region.hpp"
+
 namespace vox::world {
 namespace {
+
+// Where one edit applies: its touched box, the chunk, and what it must leave as it is.
+struct Target {
+  VoxelBox box;
+  ChunkCoord c;
+  Chunk& chunk;
+  std::span<const VoxelBox> keep;
+};
 
 constexpr Material kDefaultFill = 2;  // dirt, for a brush adding without a material
 constexpr float kStampRamp = 0.5f;    // density per voxel across a stamp's boundary
@@ -20,28 +30,50 @@ float dist2(const Vec3& c, int x, int y, int z) {
   return dx * dx + dy * dy + dz * dz;
 }
 
-// Calls fn(x, y, z, sample) -> new sample for every sample of chunk c inside box; writes
-// and records the changes.
-template <class Fn>
-ChangedBox for_each_sample(const VoxelBox& box, ChunkCoord c, Chunk& chunk, Fn&& fn) {
+// Calls fn(x, y, z, sample) -> new sample for every sample of chunk c inside box, but
+// those inside a `keep` box; writes and records the changes. kKeep: some keep box meets
+// the chunk (a per-sample test; edits that reach no protected region skip it).
+template <bool kKeep, class Fn>
+ChangedBox map_samples(const int (&lo)[3], const int (&hi)[3], const int32_t (&o)[3],
+                       std::span<const VoxelBox> keep, Chunk& chunk, Fn&& fn) {
   ChangedBox changed;
-  const int32_t o[3] = {c.x * kChunkSize, c.y * kChunkSize, c.z * kChunkSize};
-  int lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = std::max(0, box.lo[a] - o[a]);
-    hi[a] = std::min(kChunkSize - 1, box.hi[a] - o[a]);
-    if (lo[a] > hi[a]) return changed;
-  }
   for (int z = lo[2]; z <= hi[2]; ++z)
     for (int y = lo[1]; y <= hi[1]; ++y)
       for (int x = lo[0]; x <= hi[0]; ++x) {
+        if constexpr (kKeep) {
+          const int32_t p[3] = {o[0] + x, o[1] + y, o[2] + z};
+          const bool kept = std::any_of(keep.begin(), keep.end(), [&p](const VoxelBox& k) {
+            return p[0] >= k.lo[0] && p[0] <= k.hi[0] && p[1] >= k.lo[1] && p[1] <= k.hi[1] &&
+                   p[2] >= k.lo[2] && p[2] <= k.hi[2];
+          });
+          if (kept) continue;
+        }
         const Sample old = chunk.at(x, y, z);
         const Sample now = fn(o[0] + x, o[1] + y, o[2] + z, old);
         if (now == old) continue;
         chunk.set(x, y, z, now);
         changed.add(x, y, z);
       }
-  if (changed.changed) chunk.compact();
+  return changed;
+}
+
+template <class Fn>
+ChangedBox for_each_sample(const Target& t, Fn&& fn) {
+  const int32_t o[3] = {t.c.x * kChunkSize, t.c.y * kChunkSize, t.c.z * kChunkSize};
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::max(0, t.box.lo[a] - o[a]);
+    hi[a] = std::min(kChunkSize - 1, t.box.hi[a] - o[a]);
+    if (lo[a] > hi[a]) return {};
+  }
+  const VoxelBox here{{o[0] + lo[0], o[1] + lo[1], o[2] + lo[2]},
+                      {o[0] + hi[0], o[1] + hi[1], o[2] + hi[2]}};
+  const bool keep_here = std::any_of(t.keep.begin(), t.keep.end(), [&here](const VoxelBox& k) {
+    return boxes_intersect(k, here);
+  });
+  ChangedBox changed = keep_here ? map_samples<true>(lo, hi, o, t.keep, t.chunk, fn)
+                                 : map_samples<false>(lo, hi, o, t.keep, t.chunk, fn);
+  if (changed.changed) t.chunk.compact();
   return changed;
 }
 
@@ -105,9 +137,9 @@ void ChangedBox::add(int x, int y, int z) {
 namespace {
 
 // One function per edit kind: each maps every sample of chunk c inside the edit's box.
-ChangedBox apply_brush(const Brush& b, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
+ChangedBox apply_brush(const Brush& b, const Target& t) {
   const float r2 = b.radius * b.radius, sign = b.remove ? -1.0f : 1.0f;
-  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+  return for_each_sample(t, [&](int x, int y, int z, Sample old) {
     const float d2 = dist2(b.center, x, y, z);
     if (d2 >= r2) return old;
     Sample s = with_density(
@@ -122,8 +154,8 @@ ChangedBox apply_brush(const Brush& b, const VoxelBox& box, ChunkCoord c, Chunk&
   });
 }
 
-ChangedBox apply_explosion(const Explosion& e, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
-  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+ChangedBox apply_explosion(const Explosion& e, const Target& t) {
+  return for_each_sample(t, [&](int x, int y, int z, Sample old) {
     const float d = std::sqrt(dist2(e.center, x, y, z));
     if (d >= e.radius) return old;
     const float u = 1.0f - d / e.radius;
@@ -132,10 +164,9 @@ ChangedBox apply_explosion(const Explosion& e, const VoxelBox& box, ChunkCoord c
 }
 
 // Reads the pre-edit `snapshot`, so the result does not depend on the chunks' order.
-ChangedBox apply_smooth(const Smooth& sm, const VoxelBox& box, ChunkCoord c, Chunk& chunk,
-                        const SampleSnapshot& snapshot) {
+ChangedBox apply_smooth(const Smooth& sm, const Target& t, const SampleSnapshot& snapshot) {
   const float r2 = sm.radius * sm.radius;
-  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+  return for_each_sample(t, [&](int x, int y, int z, Sample old) {
     const float d2 = dist2(sm.center, x, y, z);
     if (d2 >= r2) return old;
     float sum = 0;
@@ -156,16 +187,16 @@ ChangedBox apply_smooth(const Smooth& sm, const VoxelBox& box, ChunkCoord c, Chu
   });
 }
 
-ChangedBox apply_paint(const Paint& p, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
+ChangedBox apply_paint(const Paint& p, const Target& t) {
   const float r2 = p.radius * p.radius;
-  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+  return for_each_sample(t, [&](int x, int y, int z, Sample old) {
     if (!is_solid(old.density) || dist2(p.center, x, y, z) >= r2) return old;
     return Sample{old.density, p.material};
   });
 }
 
-ChangedBox apply_stamp(const Stamp& st, const VoxelBox& box, ChunkCoord c, Chunk& chunk) {
-  return for_each_sample(box, c, chunk, [&](int x, int y, int z, Sample old) {
+ChangedBox apply_stamp(const Stamp& st, const Target& t) {
+  return for_each_sample(t, [&](int x, int y, int z, Sample old) {
     const float sdf = st.shape == Stamp::Shape::kSphere
                           ? std::sqrt(dist2(st.center, x, y, z)) - st.radius
                           : box_sdf(st, x, y, z);
@@ -184,23 +215,19 @@ ChangedBox apply_stamp(const Stamp& st, const VoxelBox& box, ChunkCoord c, Chunk
 
 }  // namespace
 
-ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk,
-                      const SampleSnapshot* snapshot) {
-  const VoxelBox box = touched_box(edit);
+ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot,
+                      std::span<const VoxelBox> keep) {
+  const Target t{touched_box(edit), c, chunk, keep};
   struct Dispatch {
-    const VoxelBox& box;
-    ChunkCoord c;
-    Chunk& chunk;
+    const Target& t;
     const SampleSnapshot* snapshot;
-    ChangedBox operator()(const Brush& b) const { return apply_brush(b, box, c, chunk); }
-    ChangedBox operator()(const Explosion& e) const { return apply_explosion(e, box, c, chunk); }
-    ChangedBox operator()(const Smooth& s) const {
-      return apply_smooth(s, box, c, chunk, *snapshot);
-    }
-    ChangedBox operator()(const Paint& p) const { return apply_paint(p, box, c, chunk); }
-    ChangedBox operator()(const Stamp& s) const { return apply_stamp(s, box, c, chunk); }
+    ChangedBox operator()(const Brush& b) const { return apply_brush(b, t); }
+    ChangedBox operator()(const Explosion& e) const { return apply_explosion(e, t); }
+    ChangedBox operator()(const Smooth& s) const { return apply_smooth(s, t, *snapshot); }
+    ChangedBox operator()(const Paint& p) const { return apply_paint(p, t); }
+    ChangedBox operator()(const Stamp& s) const { return apply_stamp(s, t); }
   };
-  return std::visit(Dispatch{box, c, chunk, snapshot}, edit);
+  return std::visit(Dispatch{t, snapshot}, edit);
 }
 
 void append_dirty_chunks(ChunkCoord c, const ChangedBox& changed, std::vector<ChunkCoord>& out) {

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <span>
 #include <vector>
 
 #include "server/world/chunk.hpp"
@@ -30,9 +31,12 @@ struct ChangedBox {
   void add(int x, int y, int z);
 };
 
-// Applies `edit` to the samples of chunk `c` that it touches. `snapshot` is required for
-// Smooth (pre-edit values around the edit) and ignored otherwise.
-ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot);
+// Applies `edit` to the samples of chunk `c` that it touches, but those inside a `keep`
+// box (world coordinates: protected regions it may not change; see region.hpp), which
+// keep their values. `snapshot` is required for Smooth (pre-edit values around the edit)
+// and ignored otherwise.
+ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot,
+                      std::span<const VoxelBox> keep = {});
 
 // The chunks whose meshes read a changed sample of chunk c: c itself, and a neighbour
 // across each face, edge or corner within 2 samples (its cells reach our samples 0, 1)

@@ -7,7 +7,7 @@
 namespace vox::world {
 
 std::vector<ChunkCoord> replay_edit(ChunkMap& map, const TerrainGenerator& generator,
-                                    const Edit& edit) {
+                                    const Edit& edit, std::span<const VoxelBox> keep) {
   const std::vector<ChunkCoord> touched = chunks_overlapping(touched_box(edit));
   const auto* smooth = std::get_if<Smooth>(&edit);
   const std::vector<ChunkCoord> read =
@@ -20,7 +20,8 @@ std::vector<ChunkCoord> replay_edit(ChunkMap& map, const TerrainGenerator& gener
   for (const ChunkCoord& c : touched) {
     Chunk& chunk = *map.find(c);
     const bool was_uniform = chunk.is_uniform();
-    if (apply_edit(edit, c, chunk, snapshot ? &*snapshot : nullptr).changed) changed.push_back(c);
+    if (apply_edit(edit, c, chunk, snapshot ? &*snapshot : nullptr, keep).changed)
+      changed.push_back(c);
     map.note_changed(was_uniform, chunk);
   }
   return changed;

@@ -2,6 +2,7 @@
 // the same steps as the pipeline, so the samples come out bit-identical to the server's.
 #pragma once
 
+#include <span>
 #include <vector>
 
 #include "server/world/chunk_map.hpp"
@@ -11,9 +12,10 @@
 namespace vox::world {
 
 // Generates the chunks `edit` touches (and, for a smooth, reads) that `map` lacks, then
-// applies it to every touched chunk. Returns the chunks whose samples changed. Call only
-// on a valid edit. Single-threaded.
+// applies it to every touched chunk but the samples inside `keep` (the protected regions
+// it was clipped by). Returns the chunks whose samples changed. Call only on a valid edit.
+// Single-threaded.
 std::vector<ChunkCoord> replay_edit(ChunkMap& map, const TerrainGenerator& generator,
-                                    const Edit& edit);
+                                    const Edit& edit, std::span<const VoxelBox> keep = {});
 
 }  // namespace vox::world
