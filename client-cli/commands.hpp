@@ -24,6 +24,7 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
 // keygen --out NAME: an Ed25519 key pair; token --key FILE ...: a signed player token.
 int keygen_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int token_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int region_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int slice_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace vox::cli

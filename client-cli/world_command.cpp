@@ -37,6 +37,7 @@ int world_info(store::WorldStore& s, std::ostream& out) {
       << "logged edits:   " << i.logged_edits << "\n"
       << "checkpoint:     every edit through " << i.checkpoint_seq << " in " << i.modified_chunks
       << " modified chunks\n"
+      << "regions:        " << s.read_regions().size() << " protected\n"
       << "size on disk:   " << i.size_bytes << " bytes\n";
   return 0;
 }
@@ -44,7 +45,11 @@ int world_info(store::WorldStore& s, std::ostream& out) {
 int world_log(store::WorldStore& s, uint64_t since, std::ostream& out) {
   s.for_each_edit(since, [&](const store::LoggedEdit& e) {
     out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
-        << "  " << store::describe_edit(e.edit) << "\n";
+        << "  " << store::describe_edit(e.edit);
+    if (!e.keep.empty())
+      out << "  (clipped: " << e.keep.size() << " protected box" << (e.keep.size() == 1 ? "" : "es")
+          << " kept)";
+    out << "\n";
     return static_cast<bool>(out);
   });
   return 0;
@@ -108,7 +113,7 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
     if (auto refusal = world::validate(e.edit, limits))
       throw std::runtime_error("logged edit " + std::to_string(e.seq) +
                                " is not valid: " + refusal->message);
-    world::replay_edit(map, generator, e.edit);
+    world::replay_edit(map, generator, e.edit, e.keep);
     ++replayed;
     return true;
   });

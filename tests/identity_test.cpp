@@ -2,14 +2,18 @@
 // signed lets a player in under its name and role; a missing, malformed, foreign,
 // altered or expired one is refused with its own Error and the connection closes; a
 // second connection of a player replaces the first; a viewer may not edit; edits are
-// logged under their author's player id.
+// logged under their author's player id. Only an admin manages protected regions; a
+// player's explosion from outside one is clipped and a stamp inside it refused; regions
+// survive a restart; a player's edit budget is shared by its connections.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 
+#include "client-cli/commands.hpp"
 #include "client/voxel_client.hpp"
 #include "server/auth/player_token.hpp"
 #include "server/store/world_store.hpp"
@@ -44,13 +48,55 @@ class Identity : public ::testing::Test {
     return {"--auth-public-key", (dir_ / "game.pub").string(), "--keep-log", "--world",
             (dir_ / "world").string()};
   }
-  std::string token(const std::string& id, auth::Role role = auth::Role::kPlayer,
-                    int64_t ttl = 600) const {
+  std::string token(const std::string& id, auth::Role role = auth::Role::kPlayer, int64_t ttl = 600,
+                    uint32_t edit_rate = 0, uint32_t edit_burst = 0) const {
     return auth::mint_token({.player_id = id,
                              .display_name = "Name of " + id,
                              .role = role,
-                             .expires_at = unix_now() + ttl},
+                             .expires_at = unix_now() + ttl,
+                             .edit_rate = edit_rate,
+                             .edit_burst = edit_burst},
                             key_.seed);
+  }
+  // A connected client that joined with `token`.
+  std::unique_ptr<Client> join(uint16_t port, const std::string& token) {
+    auto c = std::make_unique<Client>();
+    c->connect("127.0.0.1", port, 5s);
+    EXPECT_TRUE(hello(*c, token).has_welcome());
+    return c;
+  }
+  // Sends `m` and returns the answer with the same request id (EditResult or RegionResult).
+  static wire::Envelope ask(Client& c, const wire::Envelope& m) {
+    c.send(m);
+    for (;;) {
+      auto r = c.receive(20s);
+      if (!r) return {};
+      if (r->has_edit_result() || r->has_region_result() || r->has_error()) return *r;
+    }
+  }
+  static wire::Envelope explosion_at(float x, float y, float z, float radius, uint64_t request) {
+    wire::Envelope m;
+    m.mutable_edit()->set_request_id(request);
+    auto* e = m.mutable_edit()->mutable_explosion();
+    e->mutable_center()->set_x(x), e->mutable_center()->set_y(y), e->mutable_center()->set_z(z);
+    e->set_radius(radius);
+    e->set_power(2);
+    return m;
+  }
+  static wire::Envelope list_regions() {
+    wire::Envelope m;
+    m.mutable_region_command()->set_request_id(7);
+    m.mutable_region_command()->mutable_list();
+    return m;
+  }
+  int cli(std::vector<std::string> args, uint16_t port, const std::string& token,
+          std::string* out = nullptr) {
+    args.push_back("--server=127.0.0.1:" + std::to_string(port));
+    args.push_back("--token=" + token);
+    std::ostringstream o, e;
+    const int rc = cli::run_cli(args, o, e);
+    if (out) *out = o.str() + e.str();
+    return rc;
   }
   // Sends Hello with `token`; returns the first Welcome or Error the server answers.
   static wire::Envelope hello(Client& c, const std::string& token) {
@@ -156,6 +202,109 @@ TEST_F(Identity, AViewerMayNotEditAndEditsAreLoggedUnderTheirAuthor) {
     return true;
   });
   EXPECT_EQ(authors, std::vector<std::string>{"alice"});
+}
+
+TEST_F(Identity, OnlyAnAdminManagesRegionsAndTheyClipOtherPlayersEditsAcrossARestart) {
+  const float y = static_cast<float>(world::TerrainGenerator(1).height_at(0, 0));
+  const int iy = static_cast<int>(y);
+  uint64_t id = 0;
+  {
+    test::ServerProcess server(server_args());
+    auto admin = join(server.port(), token("root", auth::Role::kAdmin));
+    auto alice = join(server.port(), token("alice"));
+    auto mallory = join(server.port(), token("mallory"));
+    auto vera = join(server.port(), token("vera", auth::Role::kViewer));
+    EXPECT_EQ(ask(*mallory, list_regions()).region_result().status(),
+              wire::RegionResult::FORBIDDEN);
+    wire::Envelope add;
+    add.mutable_region_command()->set_request_id(8);
+    auto* r = add.mutable_region_command()->mutable_add();
+    r->set_name("spawn");
+    auto* b = r->mutable_box();
+    b->set_min_x(-8), b->set_min_y(iy - 8), b->set_min_z(-8);
+    b->set_max_x(8), b->set_max_y(iy + 4), b->set_max_z(8);
+    r->set_protect_build(true), r->set_protect_explode(true);
+    r->add_owners("alice");
+    EXPECT_EQ(ask(*vera, add).region_result().status(), wire::RegionResult::FORBIDDEN);
+    const wire::Envelope added = ask(*admin, add);
+    ASSERT_EQ(added.region_result().status(), wire::RegionResult::OK)
+        << added.region_result().reason();
+    ASSERT_EQ(added.region_result().regions_size(), 1);
+    id = added.region_result().regions(0).id();
+    EXPECT_EQ(added.region_result().regions(0).created_by(), "root");
+
+    const wire::Envelope clipped = ask(*mallory, explosion_at(-12, y, 0, 8, 1));
+    EXPECT_EQ(clipped.edit_result().status(), wire::EditResult::ACCEPTED);
+    ASSERT_EQ(clipped.edit_result().clipped_by_size(), 1);
+    EXPECT_EQ(clipped.edit_result().clipped_by(0), id);
+    wire::Envelope stamp;
+    stamp.mutable_edit()->set_request_id(2);
+    auto* s = stamp.mutable_edit()->mutable_stamp();
+    s->set_shape(wire::Stamp::BOX);
+    s->mutable_min()->set_x(-4), s->mutable_min()->set_y(y - 4), s->mutable_min()->set_z(-4);
+    s->mutable_max()->set_x(4), s->mutable_max()->set_y(y), s->mutable_max()->set_z(4);
+    s->set_solid(false);
+    EXPECT_EQ(ask(*mallory, stamp).edit_result().status(), wire::EditResult::FORBIDDEN);
+    const wire::Envelope owned = ask(*alice, stamp);
+    EXPECT_EQ(owned.edit_result().status(), wire::EditResult::ACCEPTED);
+    EXPECT_EQ(owned.edit_result().clipped_by_size(), 0);
+    EXPECT_EQ(server.terminate(), 0);
+  }
+  test::ServerProcess server(server_args());
+  auto mallory = join(server.port(), token("mallory"));
+  EXPECT_EQ(ask(*mallory, explosion_at(12, y, 0, 8, 3)).edit_result().clipped_by_size(), 1)
+      << "the region did not survive the restart";
+  const std::string admin = token("root", auth::Role::kAdmin);
+  std::string out;
+  EXPECT_EQ(cli({"region", "list"}, server.port(), token("mallory"), &out), 1);
+  EXPECT_NE(out.find("FORBIDDEN"), std::string::npos) << out;
+  EXPECT_EQ(cli({"region", "list"}, server.port(), admin, &out), 0) << out;
+  EXPECT_NE(out.find("'spawn'"), std::string::npos) << out;
+  EXPECT_NE(out.find("owners: alice"), std::string::npos) << out;
+  EXPECT_EQ(cli({"region", "remove", std::to_string(id)}, server.port(), admin, &out), 0) << out;
+  EXPECT_EQ(cli({"region", "remove", std::to_string(id)}, server.port(), admin, &out), 1);
+  EXPECT_NE(out.find("NOT_FOUND"), std::string::npos) << out;
+  EXPECT_EQ(cli({"region", "add", "--min", "0,0,0", "--max", "4,4,4", "--owner", "alice",
+                 "--protect", "build"},
+                server.port(), admin, &out),
+            0)
+      << out;
+  EXPECT_EQ(cli({"region", "list"}, server.port(), admin, &out), 0);
+  EXPECT_NE(out.find("1 protected region"), std::string::npos) << out;
+  EXPECT_EQ(ask(*mallory, explosion_at(12, y, 0, 8, 4)).edit_result().clipped_by_size(), 0)
+      << "removed, and the new region protects against building only";
+}
+
+TEST_F(Identity, APlayersEditBudgetIsSharedByItsConnectionsAndATokenMayOverrideIt) {
+  auto args = server_args();
+  for (const char* a : {"--edit-budget", "1000", "--edit-burst", "350000"}) args.push_back(a);
+  test::ServerProcess server(args);
+  const float y = static_cast<float>(world::TerrainGenerator(1).height_at(0, 0));
+  {
+    auto alice = join(server.port(), token("alice"));
+    // A radius-28 explosion touches 57^3 = 185,193 samples: one fits the burst, two do not.
+    EXPECT_EQ(ask(*alice, explosion_at(0, y, 0, 28, 1)).edit_result().status(),
+              wire::EditResult::ACCEPTED);
+  }
+  auto again = join(server.port(), token("alice"));
+  const wire::Envelope refused = ask(*again, explosion_at(0, y, 0, 28, 2));
+  EXPECT_EQ(refused.edit_result().status(), wire::EditResult::RATE_LIMITED)
+      << "reconnecting brought a fresh budget";
+  EXPECT_GT(refused.edit_result().retry_after_ms(), 0u);
+  auto bob = join(server.port(), token("bob"));
+  EXPECT_EQ(ask(*bob, explosion_at(0, y, 0, 28, 3)).edit_result().status(),
+            wire::EditResult::ACCEPTED)
+      << "another player's budget was spent";
+  Client rich;
+  rich.connect("127.0.0.1", server.port(), 5s);
+  const wire::Envelope welcome =
+      hello(rich, token("carol", auth::Role::kPlayer, 600, 2000000, 4000000));
+  ASSERT_TRUE(welcome.has_welcome());
+  EXPECT_EQ(welcome.welcome().edit_budget_per_second(), 2000000);
+  EXPECT_EQ(welcome.welcome().edit_budget_burst(), 4000000);
+  for (uint64_t r = 10; r < 13; ++r)
+    EXPECT_EQ(ask(rich, explosion_at(0, y, 0, 28, r)).edit_result().status(),
+              wire::EditResult::ACCEPTED);
 }
 
 }  // namespace

@@ -36,6 +36,35 @@ TEST(EditCodec, RefusesEveryTruncationAndAnyTrailingByte) {
   }
 }
 
+// An edit clipped by protected regions keeps its boxes (format 2); every truncation and
+// a bad count or an inverted box are refused.
+TEST(EditCodec, AClippedEditKeepsItsBoxesAndEveryDamageIsRefused) {
+  const std::vector<world::VoxelBox> keep{{{-5, 0, 7}, {3, 9, 70000}}, {{1, 1, 1}, {1, 1, 1}}};
+  for (const world::Edit& e : test::one_edit_of_each_kind()) {
+    const auto bytes = encode_edit(e, keep);
+    EXPECT_EQ(bytes[0], kClippedEditFormat);
+    EXPECT_EQ(bytes.size(), encode_edit(e).size() + 2 + 2 * 24);
+    std::string why;
+    const auto back = decode_edit_record(bytes, &why);
+    ASSERT_TRUE(back) << why;
+    ASSERT_EQ(back->keep.size(), 2u);
+    EXPECT_EQ(back->keep[0].lo, keep[0].lo);
+    EXPECT_EQ(back->keep[0].hi, keep[0].hi);
+    EXPECT_EQ(encode_edit(back->edit, back->keep), bytes) << describe_edit(e);
+    for (size_t n = 0; n < bytes.size(); ++n)
+      EXPECT_FALSE(decode_edit_record({bytes.data(), n})) << describe_edit(e) << " cut at " << n;
+  }
+  auto bytes = encode_edit(world::Explosion{}, keep);
+  const size_t count_at = encode_edit(world::Explosion{}).size();
+  auto zero = bytes;
+  zero[count_at] = 0, zero[count_at + 1] = 0;
+  EXPECT_FALSE(decode_edit_record(zero)) << "a clipped record without a box";
+  auto inverted = bytes;
+  inverted[count_at + 2 + 3] = 0x7f;  // box 0's min x becomes larger than its max
+  EXPECT_FALSE(decode_edit_record(inverted));
+  EXPECT_TRUE(decode_edit_record(encode_edit(world::Explosion{}))->keep.empty());
+}
+
 TEST(EditCodec, RefusesUnknownFormatsKindsAndFlags) {
   auto bytes = encode_edit(world::Brush{});
   auto bad = bytes;

@@ -138,6 +138,48 @@ TEST_P(WorldStoreTest, AppendedEditsComeBackInOrderBitForBit) {
   EXPECT_EQ(s->info().logged_edits, batch.size());
 }
 
+// Protected regions are written whole with an append (in its transaction) and read back
+// as they were; a clipped edit's boxes come back with it.
+TEST_P(WorldStoreTest, RegionsAreWrittenWholeWithAnAppendAndReadBack) {
+  const std::string where = fresh_world();
+  auto s = open_world_store(where, {.seed = 1});
+  EXPECT_TRUE(s->read_regions().empty());
+  world::Region a{.id = 3,
+                  .name = "spawn",
+                  .box = {{-10, -5, -10}, {10, 20, 10}},
+                  .flags = world::kProtectBuild | world::kProtectExplode,
+                  .owners = {"alice", "bob"},
+                  .created_by = "admin-1",
+                  .created_unix_ms = 1700000000123};
+  world::Region b{.id = 9, .box = {{100, 0, 100}, {131, 31, 131}}, .flags = world::kProtectExplode};
+  const std::vector<world::VoxelBox> keep{{{-10, -5, -10}, {-8, 0, -9}}};
+  const std::vector<world::Region> both{a, b};
+  s->append_edits(
+      std::vector<LoggedEdit>{{1, 0, "mallory", world::Explosion{{-12, 0, -12}, 4, 1}, keep}}, {},
+      &both);
+  auto back = s->read_regions();
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_EQ(back[0].name, "spawn");
+  EXPECT_EQ(back[0].box.lo, a.box.lo);
+  EXPECT_EQ(back[0].box.hi, a.box.hi);
+  EXPECT_EQ(back[0].owners, a.owners);
+  EXPECT_EQ(back[0].created_by, "admin-1");
+  EXPECT_EQ(back[0].created_unix_ms, a.created_unix_ms);
+  EXPECT_EQ(back[1].flags, world::kProtectExplode);
+  EXPECT_TRUE(back[1].owners.empty());
+  s->for_each_edit(0, [&](const LoggedEdit& e) {
+    EXPECT_EQ(e.keep.size(), 1u);
+    EXPECT_EQ(e.keep[0].hi, keep[0].hi);
+    return true;
+  });
+  const std::vector<world::Region> only_b{b};
+  s->append_edits({}, {}, &only_b);  // a region change alone
+  s.reset();
+  back = open_world_store(where, {.read_only = true})->read_regions();
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].id, 9u);
+}
+
 TEST_P(WorldStoreTest, ABatchWithADuplicateSeqWritesNothing) {
   auto s = open_world_store(fresh_world(), {.seed = 1});
   const world::Edit e = world::Explosion{{0, 0, 0}, 3, 1};

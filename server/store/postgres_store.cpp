@@ -204,6 +204,7 @@ class PostgresStore final : public WorldStore {
     run([&](pqxx::connection& c) {
       out.clear();
       pqxx::read_transaction t(c);
+      if (t.exec1("SELECT to_regclass('regions') IS NULL")[0].as<bool>()) return;  // schema 2
       for (const auto& row : t.exec(schema::kSelectRegions)) {
         world::Region r;
         r.id = row[0].as<uint64_t>();

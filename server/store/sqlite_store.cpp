@@ -165,6 +165,10 @@ class SqliteStore final : public WorldStore {
 
   std::vector<world::Region> read_regions() override {
     std::vector<world::Region> out;
+    Statement t(conn_.db,
+                "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'regions'",
+                name_);
+    if (!t.step() || t.int64(0) == 0) return out;  // a schema-2 world opened read-only
     Statement q(conn_.db, schema::kSelectRegions, name_);
     while (q.step()) {
       world::Region r;
