@@ -1,8 +1,13 @@
-// World benchmarks: terrain generation per chunk kind, and chunk memory.
+// World benchmarks: terrain generation per chunk kind, chunk memory, and an explosion
+// next to protected regions (their cost per edit).
 // Run: build/bin/bench_world (see docs/PERFORMANCE.md).
 #include <benchmark/benchmark.h>
 
+#include <cmath>
+
 #include "server/world/chunk_map.hpp"
+#include "server/world/edit_apply.hpp"
+#include "server/world/region.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace {
@@ -67,6 +72,47 @@ void BM_ChunkMemory(benchmark::State& state) {
   state.counters["map_bytes"] = static_cast<double>(map.memory_bytes());
 }
 BENCHMARK(BM_ChunkMemory)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// A radius-16 explosion at the surface with `range(0)` protected regions in a grid over
+// the 40-voxel cube around it (0: none; 1: one box over an octant; more: smaller boxes
+// with gaps). Each iteration finds the edit's protection and applies it to every chunk it
+// touches (after the first, the explosion changes nothing, but every sample is visited).
+void BM_ExplosionNearRegions(benchmark::State& state) {
+  const TerrainGenerator gen(1);
+  const int y = static_cast<int>(gen.height_at(16, 16));
+  const Edit boom = Explosion{{16, static_cast<float>(y), 16}, 16, 2};
+  const std::vector<ChunkCoord> touched = chunks_overlapping(touched_box(boom));
+  ChunkMap map;
+  for (const ChunkCoord& c : touched) map.insert(c, gen.generate(c));
+  const int n = static_cast<int>(state.range(0));
+  std::vector<Region> regions;
+  const int k = std::max(1, static_cast<int>(std::lround(std::cbrt(n))));
+  const int cell = n == 1 ? 20 : 40 / k;
+  for (int i = 0; i < n; ++i) {
+    Region r;
+    r.id = static_cast<uint64_t>(i + 1);
+    const int ix = i % k, iy = (i / k) % k, iz = i / (k * k);
+    r.box.lo = {-4 + ix * cell, y - 20 + iy * cell, -4 + iz * cell};
+    r.box.hi = {r.box.lo[0] + std::max(0, cell - 2), r.box.lo[1] + std::max(0, cell - 2),
+                r.box.lo[2] + std::max(0, cell - 2)};
+    regions.push_back(r);
+  }
+  size_t kept = 0;
+  for (auto _ : state) {
+    const Protection p = protection_for(regions, boom, "mallory");
+    kept = p.keep.size();
+    for (const ChunkCoord& c : touched)
+      benchmark::DoNotOptimize(apply_edit(boom, c, *map.find(c), nullptr, p.keep));
+  }
+  state.counters["keep_boxes"] = static_cast<double>(kept);
+  state.SetItemsProcessed(state.iterations());
+}
+BENCHMARK(BM_ExplosionNearRegions)
+    ->Arg(0)
+    ->Arg(1)
+    ->Arg(64)
+    ->Arg(4096)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 

@@ -29,16 +29,6 @@ void write_new_file(const std::string& path, const std::string& text, mode_t mod
   if (!ok) throw std::runtime_error(path + ": could not be written");
 }
 
-auth::SecretSeed read_private_key(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot be read");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const auto key = auth::private_key_from_text(text);
-  if (!key)
-    throw std::runtime_error(path + ": not a private key (voxel-cli keygen writes NAME.key)");
-  return *key;
-}
-
 }  // namespace
 
 int keygen_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -94,7 +84,7 @@ int token_command(const std::vector<std::string>& args, std::ostream& out, std::
                                     .expires_at = now + ttl,
                                     .edit_rate = vm["edit-rate"].as<uint32_t>(),
                                     .edit_burst = vm["edit-burst"].as<uint32_t>()};
-    const auth::SecretSeed seed = read_private_key(vm["key"].as<std::string>());
+    const auth::SecretSeed seed = auth::read_private_key_file(vm["key"].as<std::string>());
     out << auth::mint_token(claims, seed) << "\n";  // invalid_argument: a claim out of range
     return 0;
   });

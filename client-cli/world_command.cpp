@@ -37,7 +37,7 @@ int world_info(store::WorldStore& s, std::ostream& out) {
       << "logged edits:   " << i.logged_edits << "\n"
       << "checkpoint:     every edit through " << i.checkpoint_seq << " in " << i.modified_chunks
       << " modified chunks\n"
-      << "regions:        " << s.read_regions().size() << " protected\n"
+      << "regions:        " << s.read_regions().regions.size() << " protected\n"
       << "size on disk:   " << i.size_bytes << " bytes\n";
   return 0;
 }

@@ -110,7 +110,7 @@ int run(int argc, char** argv) {
   }
   if (vm.count("token-key")) {
     try {
-      config.token_key = vox::loadtest::read_private_key_file(token_key);
+      config.token_key = vox::auth::read_private_key_file(token_key);
     } catch (const std::exception& e) {
       std::cerr << "voxel-loadtest: --token-key: " << e.what() << "\n";
       return 2;

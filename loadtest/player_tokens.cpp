@@ -1,21 +1,8 @@
 #include "loadtest/player_tokens.hpp"
 
 #include <algorithm>
-#include <fstream>
-#include <iterator>
-#include <stdexcept>
 
 namespace vox::loadtest {
-
-auth::SecretSeed read_private_key_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot be read");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  const auto key = auth::private_key_from_text(text);
-  if (!key)
-    throw std::runtime_error(path + ": not a private key (voxel-cli keygen writes NAME.key)");
-  return *key;
-}
 
 auth::PlayerClaims sim_player_claims(int n, int64_t expires_at) {
   return {.player_id = "sim-" + std::to_string(n),

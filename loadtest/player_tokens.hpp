@@ -11,10 +11,6 @@
 
 namespace vox::loadtest {
 
-// A private key file as `voxel-cli keygen` writes it (NAME.key); throws
-// std::runtime_error with the path when it cannot be read or holds no private key.
-auth::SecretSeed read_private_key_file(const std::string& path);
-
 // Player `n`'s claims: id "sim-<n>", name "sim<n>", role player, the role's edit budget.
 auth::PlayerClaims sim_player_claims(int n, int64_t expires_at);
 

@@ -336,10 +336,10 @@ TEST(PlayerTokens, VerifyWithThePublicKeyAndNameDistinctPlayers) {
   const std::string path =
       (std::filesystem::temp_directory_path() / ("lt_key_" + std::to_string(::getpid()))).string();
   std::ofstream(path) << auth::kPrivateKeyComment << auth::key_to_text(keys.seed) << "\n";
-  const auth::SecretSeed seed = vox::loadtest::read_private_key_file(path);
+  const auth::SecretSeed seed = vox::auth::read_private_key_file(path);
   std::filesystem::remove(path);
   EXPECT_EQ(seed, keys.seed);
-  EXPECT_THROW(vox::loadtest::read_private_key_file(path), std::runtime_error);
+  EXPECT_THROW(vox::auth::read_private_key_file(path), std::runtime_error);
 
   const int64_t now = 1'800'000'000;
   const auto tokens = vox::loadtest::mint_player_tokens(seed, 3, now + 60);

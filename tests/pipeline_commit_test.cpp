@@ -32,12 +32,13 @@ class GatedStore final : public store::WorldStore {
   const std::string& name() const override { return inner_.name(); }
   store::WorldInfo info() override { return inner_.info(); }
   void append_edits(std::span<const store::LoggedEdit> edits, std::span<const SeqRange> forget,
-                    const std::vector<world::Region>* regions) override {
+                    const store::RegionWrite* regions) override {
     if (!gate_checkpoints_) pass_gate();
     if (failing_) throw store::StoreError("test: the disk is full");
     inner_.append_edits(edits, forget, regions);
+    if (fail_after_write_) throw store::StoreError("test: the connection dropped at COMMIT");
   }
-  std::vector<world::Region> read_regions() override { return inner_.read_regions(); }
+  store::RegionTable read_regions() override { return inner_.read_regions(); }
   void write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
                         uint64_t trim_through) override {
     if (gate_checkpoints_) pass_gate();
@@ -66,6 +67,8 @@ class GatedStore final : public store::WorldStore {
     cv_.notify_all();
   }
   void set_failing(bool failing) { failing_ = failing; }  // appends throw after the gate
+  // Appends land, then throw: their outcome is in doubt for the pipeline.
+  void set_fail_after_write(bool fail) { fail_after_write_ = fail; }
   int entered() {
     std::lock_guard lock(mutex_);
     return entered_;
@@ -90,7 +93,7 @@ class GatedStore final : public store::WorldStore {
   std::condition_variable cv_;
   bool open_ = true;
   int entered_ = 0;
-  std::atomic<bool> failing_{false};
+  std::atomic<bool> failing_{false}, fail_after_write_{false};
 };
 
 using test::eventually;
@@ -363,6 +366,42 @@ TEST(PipelinedCommit, EditsAreHeldBackWhileTheLogTailIsAtItsBound) {
   checkpoints.open();
   eventually([&] { return p.stats().checkpoints > 0; }, 5s);
   EXPECT_TRUE(explode().accepted) << "the log stayed full after the checkpoint";
+  p.stop();
+  std::filesystem::remove_all(dir);
+}
+
+// A region change whose append failed yet landed (the connection dropped at COMMIT) was
+// answered STORAGE_UNAVAILABLE: once the store works, the pipeline writes the regions as
+// they are by itself, with no edit to carry it, so a restart does not bring it back.
+TEST(PipelinedCommit, ARegionChangeInDoubtIsWrittenBackByItselfOnceTheStoreWorks) {
+  const auto dir = temp_world("region_doubt");
+  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
+  GatedStore store(*sqlite);
+  WorldPipeline p(PipelineConfig{.seed = 3,
+                                 .threads = 2,
+                                 .store = &store,
+                                 .checkpoint = {.interval = std::chrono::hours(1)},
+                                 .store_retry = 50ms});
+  // Read on a connection of the test's own (the pipeline's is used on its threads).
+  auto reader = store::open_world_store(dir.string(), {.read_only = true});
+  world::Region r;
+  r.box = {{0, 0, 0}, {9, 9, 9}};
+  std::promise<RegionOutcome> done;
+  store.set_fail_after_write(true);
+  p.change_regions(RegionTask{r, 0, "admin", [&](const RegionOutcome& o) { done.set_value(o); }});
+  EXPECT_EQ(done.get_future().get().status, RegionOutcome::Status::kStorageUnavailable);
+  EXPECT_EQ(reader->read_regions().regions.size(), 1u) << "the test's append did not land";
+  EXPECT_TRUE(p.regions()->empty());
+  store.set_fail_after_write(false);
+  EXPECT_TRUE(eventually([&] { return reader->read_regions().regions.empty(); }))
+      << "the region refused stayed in the store";
+  const uint64_t next = reader->read_regions().next_id;
+  EXPECT_GE(next, 2u) << "its id is not given again";
+  std::promise<RegionOutcome> again;
+  p.change_regions(RegionTask{r, 0, "admin", [&](const RegionOutcome& o) { again.set_value(o); }});
+  const RegionOutcome added = again.get_future().get();
+  ASSERT_EQ(added.status, RegionOutcome::Status::kOk);
+  EXPECT_GE(added.region.id, 2u);
   p.stop();
   std::filesystem::remove_all(dir);
 }

@@ -15,6 +15,7 @@
 #include "server/store/world_store.hpp"
 #include "server/world/edit_replay.hpp"
 #include "tests/pipeline_test_util.hpp"
+#include "tests/postgres_server.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -268,6 +269,41 @@ TEST(ProtectedRegion, RegionsAndClippedEditsSurviveARestartAndReplayBitForBit) {
   EXPECT_EQ(samples_in(p, box), inside);
   p.stop();
   std::filesystem::remove_all(dir);
+}
+
+// With no checkpoint since (the store went away at stop, as in a crash), the next start
+// replays the clipped edit from the log: the region's samples are still as they were, in
+// PostgreSQL as in SQLite, and the region itself was read back.
+TEST(ProtectedRegion, AClippedEditReplayedFromTheLogLeavesTheRegionAsItWas) {
+  test::PostgresServer server;
+  auto store = store::open_world_store(server.create_database("regions"), {.seed = 3});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(32, 32));
+  const VoxelBox box{{24, y - 10, 24}, {40, y + 6, 40}};
+  const mesh::ChunkBox loaded{{0, (y - 16) / 32 - 1, 0}, {1, (y + 16) / 32 + 1, 1}};
+  const PipelineConfig config{.seed = 3,
+                              .threads = 2,
+                              .store = store.get(),
+                              .checkpoint = {.interval = std::chrono::hours(1)}};
+  std::vector<world::Sample> inside, after;
+  {
+    WorldPipeline p(config);
+    p.load(loaded).get();
+    inside = samples_in(p, box);
+    ASSERT_EQ(add(p, region(box, world::kProtectExplode)).status, RegionOutcome::Status::kOk);
+    for (const float x : {22.0f, 42.0f})
+      ASSERT_FALSE(submit_as(p, world::Explosion{{x, static_cast<float>(y), x}, 9, 3}, "m")
+                       .clipped_by.empty());
+    after = samples_in(p, grown(box, 4));
+    server.stop();
+    p.stop();
+    EXPECT_EQ(p.stats().checkpoint_failures, 1u);
+  }
+  server.start();
+  WorldPipeline p(config);
+  p.load(loaded).get();
+  EXPECT_EQ(p.regions()->size(), 1u);
+  EXPECT_EQ(samples_in(p, grown(box, 4)), after);
+  EXPECT_EQ(samples_in(p, box), inside);
 }
 
 }  // namespace

@@ -71,13 +71,13 @@ TEST(PlayerRegistry, IdleBudgetsAreSweptOnceRefilledAndCappedInNumber) {
   const auto t0 = Clock::now();
   for (int i = 0; i < 1000; ++i) {
     auto s = std::make_shared<Session>();
-    const std::string id = "p" + std::to_string(i);
+    const std::string id = std::to_string(i) + "p";  // (GCC 12 -Wrestrict misfires on "p" + ...)
     players.claim(id, s, {1000, 2000}, t0).budget->take(1500, t0);  // leaves it not full
     players.release(id, s.get(), t0);
   }
   EXPECT_LE(players.size(), 2 * 100u + 64) << "past max_idle, idle entries are dropped";
   auto s = std::make_shared<Session>();
-  for (int i = 0; i < 300; ++i) players.claim("q" + std::to_string(i), s, {1000, 2000}, t0 + 10s);
+  for (int i = 0; i < 300; ++i) players.claim(std::to_string(i) + "q", s, {1000, 2000}, t0 + 10s);
   EXPECT_LE(players.size(), 300u + 64) << "refilled ones are swept";
 }
 
@@ -90,6 +90,8 @@ TEST(EditBudgetPolicy, RoleDefaultsAndTokenOverrides) {
   EXPECT_EQ(policy.limits_for(Role::kPlayer, 10000, 0, 1e5), (BudgetLimits{10000, 1e5}))
       << "a burst never below the largest edit";
   EXPECT_EQ(policy.limits_for(Role::kPlayer, 10000, 400000, 1e5), (BudgetLimits{10000, 400000}));
+  EXPECT_EQ(policy.limits_for(Role::kPlayer, 10000, 5000, 1e5), (BudgetLimits{10000, 1e5}))
+      << "a token's burst below the largest edit would refuse it for ever";
   EXPECT_EQ(policy.limits_for(Role::kPlayer, 0, 900000, 1e5), (BudgetLimits{300000, 900000}));
   EXPECT_EQ(policy.limits_for(Role::kAdmin, 0, 900000, 1e5), (BudgetLimits{0, 0}))
       << "a burst alone does not limit an unlimited role";

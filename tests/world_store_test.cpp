@@ -48,10 +48,17 @@ world::Chunk full_chunk(uint32_t seed) {
 }
 
 // A schema-1 world holding chunk (1, 2, 3) at seq 3 (checkpoint 3, seed 5): readers read it
-// as it is; a writer migrates it, reads it, and checkpoints over it.
+// as it is (a world from before regions has none); a writer migrates it, reads it, and
+// checkpoints over it.
 void expect_schema_one_world_migrates(const std::string& where) {
-  EXPECT_TRUE(open_world_store(where, {.read_only = true})->read_chunk({1, 2, 3}));
+  {
+    auto reader = open_world_store(where, {.read_only = true});
+    EXPECT_TRUE(reader->read_chunk({1, 2, 3}));
+    EXPECT_EQ(reader->info().checkpoint_seq, 3u);
+    EXPECT_TRUE(reader->read_regions().regions.empty());
+  }
   auto s = open_world_store(where, {.seed = 5});
+  EXPECT_TRUE(s->read_regions().regions.empty());
   const auto r = s->read_chunk({1, 2, 3});
   ASSERT_TRUE(r);
   EXPECT_EQ(r->seq, 3u);
@@ -138,12 +145,14 @@ TEST_P(WorldStoreTest, AppendedEditsComeBackInOrderBitForBit) {
   EXPECT_EQ(s->info().logged_edits, batch.size());
 }
 
-// Protected regions are written whole with an append (in its transaction) and read back
-// as they were; a clipped edit's boxes come back with it.
-TEST_P(WorldStoreTest, RegionsAreWrittenWholeWithAnAppendAndReadBack) {
+// Protected regions are written with an append (in its transaction), as changes or a
+// whole table, and read back as they were with the next id; a clipped edit's boxes come
+// back with it.
+TEST_P(WorldStoreTest, RegionsAreWrittenWithAnAppendAndReadBack) {
   const std::string where = fresh_world();
   auto s = open_world_store(where, {.seed = 1});
-  EXPECT_TRUE(s->read_regions().empty());
+  EXPECT_TRUE(s->read_regions().regions.empty());
+  EXPECT_EQ(s->read_regions().next_id, 1u);
   world::Region a{.id = 3,
                   .name = "spawn",
                   .box = {{-10, -5, -10}, {10, 20, 10}},
@@ -153,11 +162,13 @@ TEST_P(WorldStoreTest, RegionsAreWrittenWholeWithAnAppendAndReadBack) {
                   .created_unix_ms = 1700000000123};
   world::Region b{.id = 9, .box = {{100, 0, 100}, {131, 31, 131}}, .flags = world::kProtectExplode};
   const std::vector<world::VoxelBox> keep{{{-10, -5, -10}, {-8, 0, -9}}};
-  const std::vector<world::Region> both{a, b};
+  const RegionWrite both{.upsert = {a, b}, .next_id = 10};
   s->append_edits(
       std::vector<LoggedEdit>{{1, 0, "mallory", world::Explosion{{-12, 0, -12}, 4, 1}, keep}}, {},
       &both);
-  auto back = s->read_regions();
+  const RegionTable table = s->read_regions();
+  EXPECT_EQ(table.next_id, 10u);
+  const auto& back = table.regions;
   ASSERT_EQ(back.size(), 2u);
   EXPECT_EQ(back[0].name, "spawn");
   EXPECT_EQ(back[0].box.lo, a.box.lo);
@@ -172,12 +183,18 @@ TEST_P(WorldStoreTest, RegionsAreWrittenWholeWithAnAppendAndReadBack) {
     EXPECT_EQ(e.keep[0].hi, keep[0].hi);
     return true;
   });
-  const std::vector<world::Region> only_b{b};
-  s->append_edits({}, {}, &only_b);  // a region change alone
+  const RegionWrite remove_a{.remove = {3}, .next_id = 12};
+  s->append_edits({}, {}, &remove_a);  // a region change alone
   s.reset();
-  back = open_world_store(where, {.read_only = true})->read_regions();
-  ASSERT_EQ(back.size(), 1u);
-  EXPECT_EQ(back[0].id, 9u);
+  const RegionTable after = open_world_store(where, {.read_only = true})->read_regions();
+  ASSERT_EQ(after.regions.size(), 1u);
+  EXPECT_EQ(after.regions[0].id, 9u);
+  EXPECT_EQ(after.next_id, 12u) << "ids are never given twice, even after removals";
+  s = open_world_store(where, {.seed = 1});
+  const RegionWrite repair{.whole = true, .upsert = {a}, .next_id = 12};
+  s->append_edits({}, {}, &repair);
+  ASSERT_EQ(s->read_regions().regions.size(), 1u);
+  EXPECT_EQ(s->read_regions().regions[0].id, 3u) << "a whole write replaces the table";
 }
 
 TEST_P(WorldStoreTest, ABatchWithADuplicateSeqWritesNothing) {

@@ -3,6 +3,8 @@
 #include <sodium.h>
 
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <vector>
 
@@ -172,11 +174,24 @@ std::optional<std::array<uint8_t, 32>> key_from_text(std::string_view text) {
 }
 
 std::optional<SecretSeed> private_key_from_text(std::string_view text) {
+  if (text.empty() || text.front() != '#') return std::nullopt;  // a public key file
   while (!text.empty() && text.front() == '#') {
     const size_t end = text.find('\n');
     text.remove_prefix(end == std::string_view::npos ? text.size() : end + 1);
   }
   return key_from_text(text);
+}
+
+SecretSeed read_private_key_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot be read");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto key = private_key_from_text(text);
+  if (!key)
+    throw std::runtime_error(path +
+                             ": not a private key file (voxel-cli keygen writes NAME.key; NAME.pub "
+                             "is the public key)");
+  return *key;
 }
 
 std::string mint_token(const PlayerClaims& c, const SecretSeed& seed) {

@@ -39,12 +39,16 @@ PublicKey public_key_of(const SecretSeed& seed);
 
 // Key files hold one key as unpadded base64url text and a newline. A private key file
 // starts with a comment line (kPrivateKeyComment), so that it is never taken for a public
-// key: key_from_text refuses it, private_key_from_text skips it.
+// key: key_from_text refuses it; private_key_from_text skips it and requires it (a public
+// key file given as a private key is refused, not turned into tokens no server accepts).
 inline constexpr std::string_view kPrivateKeyComment =
     "# voxeld player-token PRIVATE key: keep it on the game's backend, never give it to voxeld\n";
 std::string key_to_text(const std::array<uint8_t, 32>& key);
 std::optional<std::array<uint8_t, 32>> key_from_text(std::string_view text);  // nullopt: malformed
-std::optional<SecretSeed> private_key_from_text(std::string_view text);  // lines '#...' skipped
+std::optional<SecretSeed> private_key_from_text(std::string_view text);       // after '#...' lines
+// A private key file (voxel-cli keygen's NAME.key); throws std::runtime_error naming the
+// path when it cannot be read or holds no private key.
+SecretSeed read_private_key_file(const std::string& path);
 
 // Once at start (voxeld with --auth-public-key): throws std::runtime_error if libsodium
 // cannot start. Every function here also starts it on first use.

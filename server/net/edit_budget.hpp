@@ -4,6 +4,7 @@
 // token when the game's backend put limits in it (docs/PROTOCOL.md 4.8).
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <mutex>
@@ -25,16 +26,17 @@ class EditBudgetPolicy {
   // Per-role defaults (a viewer never edits).
   EditBudgetPolicy(BudgetLimits player, BudgetLimits admin) : player_(player), admin_(admin) {}
   // A token's edit_rate overrides its role's rate (and edit_burst its burst; without one,
-  // two seconds of the token's rate, but never less than `min_burst`: the largest edit).
+  // two seconds of the token's rate). A burst is never below `min_burst`: the largest edit.
   BudgetLimits limits_for(auth::Role role, uint32_t token_rate, uint32_t token_burst,
                           double min_burst) const {
     BudgetLimits l = role == auth::Role::kAdmin ? admin_ : player_;
     if (token_rate > 0) {
       l.rate = token_rate;
-      l.burst = token_burst > 0 ? token_burst : std::max(2.0 * token_rate, min_burst);
+      l.burst = token_burst > 0 ? token_burst : 2.0 * token_rate;
     } else if (token_burst > 0 && l.rate > 0) {
       l.burst = token_burst;
     }
+    if (l.rate > 0) l.burst = std::max(l.burst, min_burst);  // the largest edit always fits
     return l;
   }
 

@@ -117,7 +117,10 @@ void ClientSession::join_as(const auth::PlayerClaims& claims) {
 BudgetLimits ClientSession::edit_limits(const auth::PlayerClaims* claims) const {
   const EditBudgetPolicy policy({config_.edit_budget_rate, config_.edit_budget_burst},
                                 {config_.admin_edit_budget_rate, config_.admin_edit_budget_burst});
-  return policy.limits_for(role_, claims ? claims->edit_rate : 0, claims ? claims->edit_burst : 0,
+  // Without a token (an open server) every client has the player's budget, whatever
+  // --open-role says: anyone may connect.
+  return policy.limits_for(claims ? role_ : auth::Role::kPlayer, claims ? claims->edit_rate : 0,
+                           claims ? claims->edit_burst : 0,
                            world::max_touched_samples(pipeline_.config().limits));
 }
 

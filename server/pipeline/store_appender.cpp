@@ -16,7 +16,7 @@ StoreAppender::~StoreAppender() {
 
 std::shared_future<AppendOutcome> StoreAppender::append(
     std::vector<store::LoggedEdit> log, std::vector<store::WorldStore::SeqRange> forget,
-    std::shared_future<AppendOutcome> before, std::optional<std::vector<world::Region>> regions) {
+    std::shared_future<AppendOutcome> before, std::optional<store::RegionWrite> regions) {
   Job job{std::move(log), std::move(forget), std::move(regions), std::move(before), {}};
   std::shared_future<AppendOutcome> outcome = job.promise.get_future().share();
   {

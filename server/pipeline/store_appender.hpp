@@ -42,13 +42,13 @@ class StoreAppender {
   std::shared_future<AppendOutcome> append(
       std::vector<store::LoggedEdit> log, std::vector<store::WorldStore::SeqRange> forget,
       std::shared_future<AppendOutcome> before,
-      std::optional<std::vector<world::Region>> regions = std::nullopt);
+      std::optional<store::RegionWrite> regions = std::nullopt);
 
  private:
   struct Job {
     std::vector<store::LoggedEdit> log;
     std::vector<store::WorldStore::SeqRange> forget;
-    std::optional<std::vector<world::Region>> regions;
+    std::optional<store::RegionWrite> regions;
     std::shared_future<AppendOutcome> before;
     std::promise<AppendOutcome> promise;
   };

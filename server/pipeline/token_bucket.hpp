@@ -49,10 +49,11 @@ class TokenBucket {
   }
   // New limits from `now` on; the tokens held are kept, up to the new burst.
   void set_limits(double rate, double burst, Clock::time_point now) {
+    const bool was_unlimited = unlimited();
     refill(now);
     rate_ = rate;
     burst_ = std::max(burst, 0.0);
-    tokens_ = std::min(tokens_, burst_);
+    tokens_ = was_unlimited ? burst_ : std::min(tokens_, burst_);  // unlimited held "all"
   }
   bool full(Clock::time_point now) {
     refill(now);

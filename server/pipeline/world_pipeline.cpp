@@ -270,8 +270,8 @@ void WorldPipeline::run() {
         // Unsaved chunks: wake for their checkpoint (and a finished one wakes us).
         if (!unsaved_.empty() || unsaved_edits_ > 0)
           wait = std::min(wait, config_.checkpoint.interval);
-        // A chunk the store could not give back: try again then.
-        if (store_read_failing_ && !waiting_meshes_.empty())
+        // A chunk the store could not give back, or a region table in doubt: try again then.
+        if ((store_read_failing_ && !waiting_meshes_.empty()) || regions_doubtful_)
           wait = std::min(
               wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
         queue_cv_.wait_for(lock, wait);
@@ -280,6 +280,7 @@ void WorldPipeline::run() {
         finish_landed();
         manage_memory(Clock::now());
         checkpoint_if_due(Clock::now());
+        repair_regions(Clock::now());
         lock.lock();
       }
       if (stopping_) break;
@@ -311,6 +312,7 @@ void WorldPipeline::run() {
     }
     manage_memory(Clock::now());
     checkpoint_if_due(Clock::now());
+    repair_regions(Clock::now());
     // Appends that landed meanwhile: answered now, not when the loop next waits (while
     // loads keep it busy it may not wait for a long time).
     finish_landed();
@@ -326,6 +328,8 @@ void WorldPipeline::run() {
   }
   PipelineStats counts;
   finish_pending(counts, 0);  // what was applied is answered before anything is refused
+  repair_regions(Clock::now(), true);
+  finish_pending(counts, 0);
   drain_after_stop();
   final_checkpoint();
 }
@@ -548,6 +552,8 @@ void WorldPipeline::apply_region_task(const RegionTask& task, size_t index, bool
     out.region = *task.add;
     out.region.id = next_region_id_++;
     next.push_back(out.region);
+    if (!b.region_write) b.region_write.emplace();
+    b.region_write->upsert.push_back(out.region);
   } else {
     auto it = std::find_if(next.begin(), next.end(),
                            [&task](const world::Region& r) { return r.id == task.remove_id; });
@@ -555,6 +561,8 @@ void WorldPipeline::apply_region_task(const RegionTask& task, size_t index, bool
       return refuse(Status::kNotFound, "no protected region " + std::to_string(task.remove_id));
     out.region = *it;
     next.erase(it);
+    if (!b.region_write) b.region_write.emplace();
+    b.region_write->remove.push_back(out.region.id);
   }
   if (!b.regions_before) b.regions_before = regions_;
   regions_ = std::move(next);
@@ -582,16 +590,16 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
   b.delta.meshes_published += published.size();
   commit_stats(b.delta, batch);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
+  if (durable && b.regions_after) {  // before the answers: a list after one sees it
+    std::lock_guard lock(regions_mutex_);
+    published_regions_ = b.regions_after;
+  }
   for (auto& [t, outcome] : b.region_outcomes) {
     if (!durable && outcome.status == RegionOutcome::Status::kOk) {
       outcome.status = RegionOutcome::Status::kStorageUnavailable;
       outcome.message = kStorageMessage;
     }
     if (auto& done = std::get<RegionTask>(b.tasks[t]).done) done(outcome);
-  }
-  if (durable && b.regions_after) {
-    std::lock_guard lock(regions_mutex_);
-    published_regions_ = b.regions_after;
   }
   for (size_t t = 0; t < b.tasks.size(); ++t) {
     auto* task = std::get_if<EditTask>(&b.tasks[t]);

@@ -286,7 +286,8 @@ class WorldPipeline {
     std::vector<std::pair<size_t, RegionOutcome>> region_outcomes;
     std::optional<std::vector<world::Region>> regions_before;
     std::shared_ptr<const std::vector<world::Region>> regions_after;
-    bool carries_regions = false;  // its append writes the region table
+    std::optional<store::RegionWrite> region_write;  // its changes, for the store
+    bool carries_regions = false;                    // its append writes regions
     FreshMeshes fresh;
     EditTimes edited_at;  // per dirty chunk, its oldest edit
     Undo undo;
@@ -305,6 +306,10 @@ class WorldPipeline {
   Batch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
   // A region change inside apply_batch (pipeline thread).
   void apply_region_task(const RegionTask& task, size_t index, bool store_resting, Batch& b);
+  // After a failed append that carried region changes (it may have landed or not): an
+  // append of the whole region table alone, once the store may be tried again (or, with
+  // `now_anyway`, at stop). Pipeline thread.
+  void repair_regions(Clock::time_point now, bool now_anyway = false);
   void start_append(Batch& b);
   // Answers the batches whose appends landed, oldest first, waiting while more than `keep`
   // are in flight (0: every batch is answered when it returns) and, for the oldest, until

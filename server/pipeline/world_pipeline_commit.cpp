@@ -40,11 +40,16 @@ void WorldPipeline::start_append(Batch& b) {
     log.push_back({next_seq_++, unix_ms, t.author, t.edit, b.keep[i]});
   }
   if (!log.empty()) b.seqs = {log.front().seq, log.back().seq};  // else {0, 0}: regions only
-  // The region table is written whole by the batch that changes it, and after a failed
-  // append that carried it (that one may have landed or not).
-  std::optional<std::vector<world::Region>> regions;
-  if (b.regions_before || regions_doubtful_) {
-    regions = regions_;
+  // The batch's region changes; after a failed append that carried some (it may have
+  // landed or not), the whole table.
+  std::optional<store::RegionWrite> regions = std::move(b.region_write);
+  if (regions_doubtful_) {
+    regions.emplace();
+    regions->whole = true;
+    regions->upsert = regions_;
+  }
+  if (regions) {
+    regions->next_id = next_region_id_;
     b.carries_regions = true;
   }
   b.appended_at = Clock::now();
@@ -57,6 +62,14 @@ void WorldPipeline::start_append(Batch& b) {
     before = it->outcome;
   b.outcome =
       appender_->append(std::move(log), std::move(forget), std::move(before), std::move(regions));
+}
+
+void WorldPipeline::repair_regions(Clock::time_point now, bool now_anyway) {
+  if (!regions_doubtful_ || !appender_ || !pending_.empty()) return;
+  if (!now_anyway && now < store_retry_at_) return;
+  Batch b;  // no tasks: the append carries the region table (and forgets doubtful edits)
+  start_append(b);
+  pending_.push_back(std::move(b));
 }
 
 void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep,

@@ -33,8 +33,9 @@ void WorldPipeline::restore_from_store() {
   const Clock::time_point start = Clock::now();
   const store::WorldInfo info = store.info();
   store.for_each_chunk([&st](ChunkCoord c, uint64_t) { st.stored.insert(c); });
-  regions_ = store.read_regions();
-  for (const world::Region& r : regions_) next_region_id_ = std::max(next_region_id_, r.id + 1);
+  store::RegionTable regions = store.read_regions();
+  regions_ = std::move(regions.regions);
+  next_region_id_ = regions.next_id;
   published_regions_ = std::make_shared<const std::vector<world::Region>>(regions_);
   // The log's tail is bounded by the checkpoints (CheckpointLimits::max_unsaved_edits, plus
   // what one interval accepts).

@@ -53,7 +53,13 @@ class Reader {
     const float x = f32(), y = f32(), z = f32();
     return {x, y, z};
   }
-  int32_t i32() { return static_cast<int32_t>(std::bit_cast<uint32_t>(f32())); }
+  int32_t i32() {
+    if (pos_ + 4 > bytes_.size()) return fail();
+    uint32_t bits = 0;
+    for (int i = 0; i < 4; ++i) bits |= uint32_t{bytes_[pos_ + i]} << (8 * i);
+    pos_ += 4;
+    return static_cast<int32_t>(bits);
+  }
   uint16_t u16() {
     const uint8_t lo = u8(), hi = u8();
     return static_cast<uint16_t>(lo | (hi << 8));

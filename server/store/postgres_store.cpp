@@ -101,14 +101,14 @@ class PostgresStore final : public WorldStore {
       i.size_bytes = t.exec1(
                           "SELECT pg_total_relation_size('meta') + "
                           "pg_total_relation_size('edit_log') + pg_total_relation_size('chunks') + "
-                          "pg_total_relation_size('regions')")[0]
+                          "COALESCE(pg_total_relation_size(to_regclass('regions')), 0)")[0]
                          .as<uint64_t>();
     });
     return i;
   }
 
   void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget,
-                    const std::vector<world::Region>* regions) override {
+                    const RegionWrite* regions) override {
     refuse_if_read_only();
     if (edits.empty() && forget.empty() && !regions) return;
     run([&](pqxx::connection& c) {
@@ -122,14 +122,7 @@ class PostgresStore final : public WorldStore {
         t.exec_params("INSERT INTO edit_log (seq, at_ms, author, edit) VALUES ($1, $2, $3, $4)",
                       static_cast<int64_t>(e.seq), e.unix_ms, e.author, binary(bytes));
       }
-      if (regions) {
-        t.exec("DELETE FROM regions");
-        for (const world::Region& r : *regions) {
-          t.exec_params(schema::kInsertRegion, static_cast<int64_t>(r.id), r.name, r.box.lo[0],
-                        r.box.lo[1], r.box.lo[2], r.box.hi[0], r.box.hi[1], r.box.hi[2],
-                        int{r.flags}, join_owners(r.owners), r.created_by, r.created_unix_ms);
-        }
-      }
+      if (regions) write_regions(t, *regions);
       t.commit();
     });
   }
@@ -199,12 +192,16 @@ class PostgresStore final : public WorldStore {
     });
   }
 
-  std::vector<world::Region> read_regions() override {
+  RegionTable read_regions() override {
     std::vector<world::Region> out;
+    uint64_t next = 1;
     run([&](pqxx::connection& c) {
       out.clear();
       pqxx::read_transaction t(c);
       if (t.exec1("SELECT to_regclass('regions') IS NULL")[0].as<bool>()) return;  // schema 2
+      const Meta meta = read_meta(t);
+      if (auto it = meta.find(schema::kMetaNextRegionId); it != meta.end())
+        next = parse_meta_u64(name_, schema::kMetaNextRegionId, it->second);
       for (const auto& row : t.exec(schema::kSelectRegions)) {
         world::Region r;
         r.id = row[0].as<uint64_t>();
@@ -221,7 +218,7 @@ class PostgresStore final : public WorldStore {
         out.push_back(check_stored_region(name_, std::move(r)));
       }
     });
-    return out;
+    return check_region_table(name_, std::move(out), next);
   }
 
   void for_each_edit(uint64_t after_seq,
@@ -250,6 +247,18 @@ class PostgresStore final : public WorldStore {
   }
 
  private:
+  // Inside an append's transaction: one statement per change; a repair, the whole table.
+  static void write_regions(pqxx::work& t, const RegionWrite& w) {
+    if (w.whole) t.exec("DELETE FROM regions");
+    for (const world::Region& r : w.upsert) {
+      t.exec_params(schema::kInsertRegion, static_cast<int64_t>(r.id), r.name, r.box.lo[0],
+                    r.box.lo[1], r.box.lo[2], r.box.hi[0], r.box.hi[1], r.box.hi[2], int{r.flags},
+                    join_owners(r.owners), r.created_by, r.created_unix_ms);
+    }
+    for (const uint64_t id : w.remove)
+      t.exec_params("DELETE FROM regions WHERE id = $1", static_cast<int64_t>(id));
+    t.exec_params(kUpsertMeta, schema::kMetaNextRegionId, std::to_string(w.next_id));
+  }
   // Runs fn on the connection (opened, or reopened after a failure); every libpqxx
   // failure becomes a StoreError naming the store, and drops the connection.
   template <class Fn>

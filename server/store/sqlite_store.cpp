@@ -146,7 +146,7 @@ class SqliteStore final : public WorldStore {
   }
 
   void append_edits(std::span<const LoggedEdit> edits, std::span<const SeqRange> forget,
-                    const std::vector<world::Region>* regions) override {
+                    const RegionWrite* regions) override {
     if (edits.empty() && forget.empty() && !regions) return;
     Transaction t(*this);
     Statement drop(conn_.db, "DELETE FROM edit_log WHERE seq >= ? AND seq <= ?", name_);
@@ -163,12 +163,12 @@ class SqliteStore final : public WorldStore {
     t.commit();
   }
 
-  std::vector<world::Region> read_regions() override {
+  RegionTable read_regions() override {
     std::vector<world::Region> out;
     Statement t(conn_.db,
                 "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'regions'",
                 name_);
-    if (!t.step() || t.int64(0) == 0) return out;  // a schema-2 world opened read-only
+    if (!t.step() || t.int64(0) == 0) return {};  // a schema-2 world opened read-only
     Statement q(conn_.db, schema::kSelectRegions, name_);
     while (q.step()) {
       world::Region r;
@@ -185,7 +185,11 @@ class SqliteStore final : public WorldStore {
       r.created_unix_ms = q.int64(11);
       out.push_back(check_stored_region(name_, std::move(r)));
     }
-    return out;
+    const Meta meta = read_meta();
+    const auto next = meta.find(schema::kMetaNextRegionId);
+    return check_region_table(
+        name_, std::move(out),
+        next == meta.end() ? 1 : parse_meta_u64(name_, schema::kMetaNextRegionId, next->second));
   }
 
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
@@ -351,15 +355,18 @@ class SqliteStore final : public WorldStore {
     check_meta(name_, read_meta(), options);
   }
 
-  void write_regions(const std::vector<world::Region>& regions) {
-    exec("DELETE FROM regions");
+  void write_regions(const RegionWrite& w) {
+    if (w.whole) exec("DELETE FROM regions");
     Statement ins(conn_.db, schema::kInsertRegion, name_);
-    for (const world::Region& r : regions) {
+    for (const world::Region& r : w.upsert) {
       ins.bind(1, static_cast<int64_t>(r.id)).bind(2, r.name);
       for (int a = 0; a < 3; ++a) ins.bind(3 + a, r.box.lo[a]).bind(6 + a, r.box.hi[a]);
       ins.bind(9, int64_t{r.flags}).bind(10, join_owners(r.owners)).bind(11, r.created_by);
       ins.bind(12, r.created_unix_ms).run();
     }
+    Statement del(conn_.db, "DELETE FROM regions WHERE id = ?", name_);
+    for (const uint64_t id : w.remove) del.bind(1, static_cast<int64_t>(id)).run();
+    set_meta(schema::kMetaNextRegionId, std::to_string(w.next_id));
   }
 
   void exec(const char* sql) {

@@ -73,5 +73,6 @@ inline constexpr const char* kMetaSchemaVersion = "schema_version";
 inline constexpr const char* kMetaSeed = "seed";
 inline constexpr const char* kMetaStarts = "starts";
 inline constexpr const char* kMetaCheckpointSeq = "checkpoint_seq";
+inline constexpr const char* kMetaNextRegionId = "next_region_id";
 
 }  // namespace vox::store::schema

@@ -94,6 +94,16 @@ world::Region check_stored_region(const std::string& store, world::Region r) {
   return r;
 }
 
+RegionTable check_region_table(const std::string& store, std::vector<world::Region> regions,
+                               uint64_t next_id_meta) {
+  if (regions.size() > world::RegionLimits{}.max_regions)
+    throw StoreError(store + ": " + std::to_string(regions.size()) +
+                     " protected regions, more than a world may have");
+  RegionTable t{std::move(regions), std::max<uint64_t>(next_id_meta, 1)};
+  for (const world::Region& r : t.regions) t.next_id = std::max(t.next_id, r.id + 1);
+  return t;
+}
+
 void decode_logged_edit(const std::string& store, std::span<const uint8_t> bytes, LoggedEdit& e) {
   std::string why;
   auto record = decode_edit_record(bytes, &why);

@@ -42,6 +42,18 @@ struct LoggedEdit {
   std::vector<world::VoxelBox> keep;
 };
 
+// A change of the stored protected regions, written in an append's transaction.
+struct RegionWrite {
+  bool whole = false;                 // the table becomes `upsert` (a repair), else:
+  std::vector<world::Region> upsert;  // regions added
+  std::vector<uint64_t> remove;       // ids removed (after the additions)
+  uint64_t next_id = 1;               // the next id the server will give (ids are never reused)
+};
+struct RegionTable {
+  std::vector<world::Region> regions;  // by id
+  uint64_t next_id = 1;                // above every id ever given
+};
+
 struct ChunkRecord {
   world::ChunkCoord coord;
   uint64_t seq = 0;              // the samples include every edit up to this one
@@ -84,12 +96,13 @@ class WorldStore {
   struct SeqRange {
     uint64_t first = 0, last = 0;
   };
-  // With `regions`, the stored protected regions become those, in the same transaction.
+  // With `regions`, the stored protected regions change so, in the same transaction.
   virtual void append_edits(std::span<const LoggedEdit> edits,
                             std::span<const SeqRange> forget = {},
-                            const std::vector<world::Region>* regions = nullptr) = 0;
-  // The protected regions, by id. A row that is not a valid region throws StoreError.
-  virtual std::vector<world::Region> read_regions() = 0;
+                            const RegionWrite* regions = nullptr) = 0;
+  // The protected regions. A row that is not a valid region, or more of them than a
+  // world may have, throws StoreError; a world from before regions has none.
+  virtual RegionTable read_regions() = 0;
   // Writes (replaces) the chunks, records that the chunks include every edit up to
   // `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it): all or
   // nothing for readers, in several short transactions (another connection's appends are

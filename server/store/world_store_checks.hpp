@@ -24,6 +24,9 @@ std::string join_owners(const std::vector<std::string>& owners);
 std::vector<std::string> split_owners(const std::string& column);
 // A region read back: refused (StoreError naming it) unless it is valid.
 world::Region check_stored_region(const std::string& store, world::Region r);
+// The table read back: at most RegionLimits::max_regions, next_id above every id.
+RegionTable check_region_table(const std::string& store, std::vector<world::Region> regions,
+                               uint64_t next_id_meta);
 // Fills e.edit and e.keep from a log record (e.seq names it in the error).
 void decode_logged_edit(const std::string& store, std::span<const uint8_t> bytes, LoggedEdit& e);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "server/world/region.hpp"
 
@@ -68,11 +69,13 @@ ChangedBox for_each_sample(const Target& t, Fn&& fn) {
   }
   const VoxelBox here{{o[0] + lo[0], o[1] + lo[1], o[2] + lo[2]},
                       {o[0] + hi[0], o[1] + hi[1], o[2] + hi[2]}};
-  const bool keep_here = std::any_of(t.keep.begin(), t.keep.end(), [&here](const VoxelBox& k) {
-    return boxes_intersect(k, here);
-  });
-  ChangedBox changed = keep_here ? map_samples<true>(lo, hi, o, t.keep, t.chunk, fn)
-                                 : map_samples<false>(lo, hi, o, t.keep, t.chunk, fn);
+  // The per-sample test looks only at the keep boxes that meet this chunk's part (an edit
+  // next to many small regions meets few of them per chunk).
+  std::vector<VoxelBox> keep_here;
+  for (const VoxelBox& k : t.keep)
+    if (boxes_intersect(k, here)) keep_here.push_back(box_intersection(k, here));
+  ChangedBox changed = keep_here.empty() ? map_samples<false>(lo, hi, o, {}, t.chunk, fn)
+                                         : map_samples<true>(lo, hi, o, keep_here, t.chunk, fn);
   if (changed.changed) t.chunk.compact();
   return changed;
 }
