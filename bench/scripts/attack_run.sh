@@ -14,6 +14,7 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${VOXEL_BIN:-$root/build/bin}"
 name="$1" players="$2" duration="$3" attack="${4:-}"
+[ "$attack" = "--" ] && attack=""  # no attack mix, extra args follow
 shift 3; [ $# -gt 0 ] && shift
 [ "${1:-}" = "--" ] && shift
 out=/tmp/voxeld_bench; mkdir -p "$out"

@@ -31,24 +31,17 @@ float dist2(const Vec3& c, int x, int y, int z) {
   return dx * dx + dy * dy + dz * dz;
 }
 
-// Calls fn(x, y, z, sample) -> new sample for every sample of chunk c inside box, but
-// those inside a `keep` box; writes and records the changes. kKeep: some keep box meets
-// the chunk (a per-sample test; edits that reach no protected region skip it).
-template <bool kKeep, class Fn>
-ChangedBox map_samples(const int (&lo)[3], const int (&hi)[3], const int32_t (&o)[3],
-                       std::span<const VoxelBox> keep, Chunk& chunk, Fn&& fn) {
+// Calls fn(x, y, z, sample) -> new sample for every sample of chunk c from lo to hi
+// (local) for which kept(x, y, z) is false; writes and records the changes. Edits that
+// reach no protected region pass a constant false, which the compiler drops.
+template <class Kept, class Fn>
+ChangedBox map_samples(const int (&lo)[3], const int (&hi)[3], const int32_t (&o)[3], Chunk& chunk,
+                       Kept&& kept, Fn&& fn) {
   ChangedBox changed;
   for (int z = lo[2]; z <= hi[2]; ++z)
     for (int y = lo[1]; y <= hi[1]; ++y)
       for (int x = lo[0]; x <= hi[0]; ++x) {
-        if constexpr (kKeep) {
-          const int32_t p[3] = {o[0] + x, o[1] + y, o[2] + z};
-          const bool kept = std::any_of(keep.begin(), keep.end(), [&p](const VoxelBox& k) {
-            return p[0] >= k.lo[0] && p[0] <= k.hi[0] && p[1] >= k.lo[1] && p[1] <= k.hi[1] &&
-                   p[2] >= k.lo[2] && p[2] <= k.hi[2];
-          });
-          if (kept) continue;
-        }
+        if (kept(x, y, z)) continue;
         const Sample old = chunk.at(x, y, z);
         const Sample now = fn(o[0] + x, o[1] + y, o[2] + z, old);
         if (now == old) continue;
@@ -57,6 +50,10 @@ ChangedBox map_samples(const int (&lo)[3], const int (&hi)[3], const int32_t (&o
       }
   return changed;
 }
+
+// Up to this many keep boxes meet a chunk, each sample is tested against each; more (a
+// field of small regions), they are drawn into a bit per sample first.
+constexpr size_t kKeepBoxesTested = 8;
 
 template <class Fn>
 ChangedBox for_each_sample(const Target& t, Fn&& fn) {
@@ -69,13 +66,45 @@ ChangedBox for_each_sample(const Target& t, Fn&& fn) {
   }
   const VoxelBox here{{o[0] + lo[0], o[1] + lo[1], o[2] + lo[2]},
                       {o[0] + hi[0], o[1] + hi[1], o[2] + hi[2]}};
-  // The per-sample test looks only at the keep boxes that meet this chunk's part (an edit
-  // next to many small regions meets few of them per chunk).
-  std::vector<VoxelBox> keep_here;
-  for (const VoxelBox& k : t.keep)
-    if (boxes_intersect(k, here)) keep_here.push_back(box_intersection(k, here));
-  ChangedBox changed = keep_here.empty() ? map_samples<false>(lo, hi, o, {}, t.chunk, fn)
-                                         : map_samples<true>(lo, hi, o, keep_here, t.chunk, fn);
+  // The keep boxes that meet this chunk's part, in local coordinates.
+  std::vector<VoxelBox> keep;
+  for (const VoxelBox& k : t.keep) {
+    if (!boxes_intersect(k, here)) continue;
+    VoxelBox local = box_intersection(k, here);
+    for (int a = 0; a < 3; ++a) local.lo[a] -= o[a], local.hi[a] -= o[a];
+    keep.push_back(local);
+  }
+  ChangedBox changed;
+  if (keep.empty()) {
+    changed = map_samples(
+        lo, hi, o, t.chunk, [](int, int, int) { return false; }, fn);
+  } else if (keep.size() <= kKeepBoxesTested) {
+    changed = map_samples(
+        lo, hi, o, t.chunk,
+        [&keep](int x, int y, int z) {
+          return std::any_of(keep.begin(), keep.end(), [&](const VoxelBox& k) {
+            return x >= k.lo[0] && x <= k.hi[0] && y >= k.lo[1] && y <= k.hi[1] && z >= k.lo[2] &&
+                   z <= k.hi[2];
+          });
+        },
+        fn);
+  } else {
+    std::vector<uint64_t> mask(kChunkVolume / 64, 0);  // bit x + 32 (y + 32 z)
+    for (const VoxelBox& k : keep)
+      for (int z = k.lo[2]; z <= k.hi[2]; ++z)
+        for (int y = k.lo[1]; y <= k.hi[1]; ++y)
+          for (int x = k.lo[0]; x <= k.hi[0]; ++x) {
+            const int i = x + kChunkSize * (y + kChunkSize * z);
+            mask[i >> 6] |= uint64_t{1} << (i & 63);
+          }
+    changed = map_samples(
+        lo, hi, o, t.chunk,
+        [&mask](int x, int y, int z) {
+          const int i = x + kChunkSize * (y + kChunkSize * z);
+          return ((mask[i >> 6] >> (i & 63)) & 1) != 0;
+        },
+        fn);
+  }
   if (changed.changed) t.chunk.compact();
   return changed;
 }

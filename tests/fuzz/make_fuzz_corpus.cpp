@@ -159,6 +159,26 @@ void envelope_corpus(const CorpusDir& out) {
   }
   out.write(t, "resync", serialized(e));
   e.Clear();
+  auto* add = e.mutable_region_command();
+  add->set_request_id(20);
+  auto* region = add->mutable_add();
+  region->set_name("spawn");
+  auto* b = region->mutable_box();
+  b->set_min_x(-16), b->set_min_y(0), b->set_min_z(-16);
+  b->set_max_x(16), b->set_max_y(64), b->set_max_z(16);
+  region->set_protect_build(true);
+  region->set_protect_explode(true);
+  region->add_owners("alice");
+  out.write(t, "region_add", serialized(e));
+  e.Clear();
+  e.mutable_region_command()->set_request_id(21);
+  e.mutable_region_command()->mutable_list()->set_after_id(3);
+  out.write(t, "region_list", serialized(e));
+  e.Clear();
+  e.mutable_region_command()->set_request_id(22);
+  e.mutable_region_command()->set_remove(7);
+  out.write(t, "region_remove", serialized(e));
+  e.Clear();
   e.mutable_ping()->set_nonce(99);
   out.write(t, "ping", serialized(e));
   e.Clear();
