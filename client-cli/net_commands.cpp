@@ -141,6 +141,11 @@ std::string describe(const wire::EditResult& r) {
     << (r.changed_chunks_size() == 1 ? "" : "s") << " changed";
   for (const auto& c : r.changed_chunks())
     s << " (" << c.x() << "," << c.y() << "," << c.z() << ")";
+  if (r.clipped_by_size() > 0) {
+    s << "; clipped: protected region" << (r.clipped_by_size() == 1 ? "" : "s");
+    for (const uint64_t id : r.clipped_by()) s << " " << id;
+    s << " kept as it was";
+  }
   return s.str();
 }
 

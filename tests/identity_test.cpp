@@ -256,6 +256,10 @@ TEST_F(Identity, OnlyAnAdminManagesRegionsAndTheyClipOtherPlayersEditsAcrossARes
       << "the region did not survive the restart";
   const std::string admin = token("root", auth::Role::kAdmin);
   std::string out;
+  EXPECT_EQ(cli({"explode", "--at", "-12," + std::to_string(iy) + ",0", "--radius", "8"},
+                server.port(), token("mallory"), &out),
+            0);
+  EXPECT_NE(out.find("clipped: protected region " + std::to_string(id)), std::string::npos) << out;
   EXPECT_EQ(cli({"region", "list"}, server.port(), token("mallory"), &out), 1);
   EXPECT_NE(out.find("FORBIDDEN"), std::string::npos) << out;
   EXPECT_EQ(cli({"region", "list"}, server.port(), admin, &out), 0) << out;
