@@ -6,6 +6,8 @@
 #include <ostream>
 #include <string>
 
+#include "loadtest/timeline.hpp"
+
 namespace vox::loadtest {
 
 Percentiles percentiles(std::vector<double> v) {
@@ -15,10 +17,11 @@ Percentiles percentiles(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   // Nearest rank: the smallest sample that at least q of them do not exceed, rank
   // ceil(q * n), in integers (q * n in floating point can land just above a whole number).
-  auto at = [&v](size_t per_mille) { return v[(per_mille * v.size() + 999) / 1000 - 1]; };
-  p.p50 = at(500);
-  p.p95 = at(950);
-  p.p99 = at(990);
+  auto at = [&v](size_t per_10k) { return v[(per_10k * v.size() + 9999) / 10000 - 1]; };
+  p.p50 = at(5000);
+  p.p95 = at(9500);
+  p.p99 = at(9900);
+  p.p999 = at(9990);
   p.max = v.back();
   return p;
 }
@@ -41,8 +44,9 @@ uint64_t total(const std::map<std::string, uint64_t>& m) {
 void json_percentiles(std::ostream& out, const char* name, const Percentiles& p) {
   char buf[256];
   std::snprintf(buf, sizeof buf,
-                "\"%s\":{\"p50\":%.3f,\"p95\":%.3f,\"p99\":%.3f,\"max\":%.3f,\"count\":%zu}", name,
-                p.p50, p.p95, p.p99, p.max, p.count);
+                "\"%s\":{\"p50\":%.3f,\"p95\":%.3f,\"p99\":%.3f,\"p999\":%.3f,\"max\":%.3f,"
+                "\"count\":%zu}",
+                name, p.p50, p.p95, p.p99, p.p999, p.max, p.count);
   out << buf;
 }
 
@@ -56,19 +60,6 @@ void json_map(std::ostream& out, const char* key, const std::map<std::string, ui
   out << "}";
 }
 
-// Percentiles of the samples that fall in each second of the test.
-std::vector<Percentiles> per_second(const std::vector<LatencySample>& samples, size_t seconds) {
-  std::vector<std::vector<double>> buckets(std::max<size_t>(1, seconds));
-  for (const auto& x : samples) {
-    buckets[std::min(buckets.size() - 1, static_cast<size_t>(std::max(0.0, x.at_s)))].push_back(
-        x.ms);
-  }
-  std::vector<Percentiles> out;
-  out.reserve(buckets.size());
-  for (auto& b : buckets) out.push_back(percentiles(std::move(b)));
-  return out;
-}
-
 // "server_rss": the sampled pid, max and final KiB, and every sample (one a second).
 void write_rss_json(const LoadStats& s, std::ostream& out) {
   if (s.server_rss_kib.empty()) return;
@@ -79,6 +70,74 @@ void write_rss_json(const LoadStats& s, std::ostream& out) {
   for (size_t i = 0; i < s.server_rss_kib.size(); ++i)
     out << (i ? "," : "") << kib(s.server_rss_kib[i]);
   out << "]}";
+}
+
+// "%.1f", or null when the figure was not sampled.
+std::string optional_json(const std::optional<double>& v) {
+  if (!v) return "null";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f", *v);
+  return buf;
+}
+
+// Over time: per second and per minute of the run, edit -> delta percentiles, bytes
+// received and voxeld's RSS and CPU; the worst second.
+void write_timeline_json(const Timeline& t, std::ostream& out) {
+  char buf[320];
+  out << ",\"per_second\":[";
+  for (size_t i = 0; i < t.seconds.size(); ++i) {
+    const SecondStats& s = t.seconds[i];
+    std::snprintf(buf, sizeof buf,
+                  "%s{\"t\":%zu,\"deltas\":%zu,\"p50_ms\":%.3f,\"p99_ms\":%.3f,\"p999_ms\":%.3f,"
+                  "\"max_ms\":%.3f,\"bytes\":%.0f,",
+                  i ? "," : "", i, s.delta.count, s.delta.p50, s.delta.p99, s.delta.p999,
+                  s.delta.max, s.bytes);
+    out << buf << "\"rss_mib\":" << optional_json(s.rss_mib)
+        << ",\"cpu_percent\":" << optional_json(s.cpu_percent) << "}";
+  }
+  out << "],\"per_minute\":[";
+  for (size_t i = 0; i < t.minutes.size(); ++i) {
+    const MinuteStats& m = t.minutes[i];
+    std::snprintf(buf, sizeof buf,
+                  "%s{\"minute\":%zu,\"deltas\":%zu,\"p50_ms\":%.3f,\"p99_ms\":%.3f,"
+                  "\"p999_ms\":%.3f,\"max_ms\":%.3f,\"worst_second\":%zu,"
+                  "\"worst_second_p99_ms\":%.3f,",
+                  i ? "," : "", m.minute + 1, m.delta.count, m.delta.p50, m.delta.p99, m.delta.p999,
+                  m.delta.max, m.worst_second, m.worst_second_p99);
+    out << buf << "\"rss_min_mib\":" << optional_json(m.rss_min_mib)
+        << ",\"rss_max_mib\":" << optional_json(m.rss_max_mib)
+        << ",\"cpu_mean_percent\":" << optional_json(m.cpu_mean_percent) << "}";
+  }
+  std::snprintf(buf, sizeof buf, "],\"worst_second\":{\"t\":%zu,\"p99_ms\":%.3f}", t.worst_second,
+                t.worst_second_p99);
+  out << buf;
+}
+
+// Per minute, for runs of more than one: what a soak is judged by.
+void write_minutes_table(const Timeline& t, std::ostream& out) {
+  char buf[256];
+  if (t.minutes.size() > 1) {
+    out << "  per minute (edit -> deltas decoded, ms; voxeld RSS MiB, CPU % of a core)\n"
+           "    min  edits    p50     p99   p99.9     max  worst s p99    RSS min..max  CPU\n";
+    for (const MinuteStats& m : t.minutes) {
+      std::snprintf(buf, sizeof buf, "    %3zu %6zu %6.1f %7.1f %7.1f %7.1f %5zu %7.1f",
+                    m.minute + 1, m.delta.count, m.delta.p50, m.delta.p99, m.delta.p999,
+                    m.delta.max, m.worst_second, m.worst_second_p99);
+      out << buf;
+      if (m.rss_min_mib) {
+        std::snprintf(buf, sizeof buf, "  %6.0f..%6.0f", *m.rss_min_mib, *m.rss_max_mib);
+        out << buf;
+      }
+      if (m.cpu_mean_percent) {
+        std::snprintf(buf, sizeof buf, " %4.0f", *m.cpu_mean_percent);
+        out << buf;
+      }
+      out << "\n";
+    }
+  }
+  std::snprintf(buf, sizeof buf, "  worst second: %zu s into the run, edit->delta p99 %.1f ms\n",
+                t.worst_second, t.worst_second_p99);
+  out << buf;
 }
 
 }  // namespace
@@ -99,12 +158,12 @@ void write_table(const LoadStats& s, std::ostream& out) {
                 s.players_connected, s.duration_s, static_cast<unsigned long long>(s.edits_sent),
                 static_cast<unsigned long long>(s.refused));
   out << buf;
-  out << "  latency (ms)               p50      p95      p99      max    count\n";
+  out << "  latency (ms)               p50      p95      p99    p99.9      max    count\n";
   for (const auto& [name, p] : {std::pair{"edit -> EditResult   ", result},
                                 {"edit -> deltas decoded", delta},
                                 {"first full view      ", view}}) {
-    std::snprintf(buf, sizeof buf, "  %s %8.2f %8.2f %8.2f %8.2f %8zu\n", name, p.p50, p.p95, p.p99,
-                  p.max, p.count);
+    std::snprintf(buf, sizeof buf, "  %s %8.2f %8.2f %8.2f %8.2f %8.2f %8zu\n", name, p.p50, p.p95,
+                  p.p99, p.p999, p.max, p.count);
     out << buf;
   }
   std::snprintf(
@@ -129,6 +188,7 @@ void write_table(const LoadStats& s, std::ostream& out) {
                   s.server_rss_kib.back() / 1024);
     out << buf;
   }
+  write_minutes_table(timeline(s), out);
   write_attack_table(s.attack, out);
 }
 
@@ -170,108 +230,8 @@ void write_json(const LoadStats& s, std::ostream& out) {
     out << ",";
     write_attack_json(s.attack, out);
   }
-  // Over time: per second of the test, edit -> delta percentiles and bytes received.
-  const auto seconds = per_second(s.edit_to_delta, s.bytes_per_second.size());
-  out << ",\"per_second\":[";
-  for (size_t i = 0; i < seconds.size(); ++i) {
-    std::snprintf(buf, sizeof buf,
-                  "%s{\"t\":%zu,\"deltas\":%zu,\"p50_ms\":%.3f,\"p99_ms\":%.3f,\"bytes\":%.0f}",
-                  i ? "," : "", i, seconds[i].count, seconds[i].p50, seconds[i].p99,
-                  i < s.bytes_per_second.size() ? s.bytes_per_second[i] : 0.0);
-    out << buf;
-  }
-  out << "]}\n";
-}
-
-// Panels over time: edit -> delta latency (p50, p99 per second), bytes received per second
-// and, when it was sampled, voxeld's RSS.
-void write_svg(const LoadStats& s, std::ostream& out) {
-  const auto buckets = per_second(s.edit_to_delta, s.bytes_per_second.size());
-  std::vector<double> p50, p99, rss_mib;
-  double max_ms = 1, max_bytes = 1, max_mib = 1;
-  for (const auto& p : buckets) {
-    p50.push_back(p.p50);
-    p99.push_back(p.p99);
-    max_ms = std::max(max_ms, p.p99);
-  }
-  for (double b : s.bytes_per_second) max_bytes = std::max(max_bytes, b);
-  for (double kib : s.server_rss_kib) rss_mib.push_back(kib / 1024);
-  for (double mib : rss_mib) max_mib = std::max(max_mib, mib);
-  const int panels = rss_mib.empty() ? 2 : 3;
-  const double w = 800, h = 220, left = 60, gap = 60;
-  // Each series spreads over the full width: one point a second, from the start.
-  auto polyline = [&](const std::vector<double>& v, double top, double scale, const char* colour) {
-    out << "<polyline fill=\"none\" stroke=\"" << colour << "\" stroke-width=\"1.5\" points=\"";
-    const double n = static_cast<double>(v.size());
-    for (size_t i = 0; i < v.size(); ++i)
-      out << left + (w - left - 20) * (n > 1 ? static_cast<double>(i) / (n - 1) : 0.0) << ","
-          << top + h - v[i] / scale * h << " ";
-    out << "\"/>\n";
-  };
-  auto number = [](double v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g", v);
-    return std::string(buf);
-  };
-  auto title = [&](int panel, const std::string& text) {
-    out << "<text x=\"" << left << "\" y=\"" << panel * (h + gap) + 40
-        << "\" font-family=\"sans-serif\" font-size=\"14\">" << text << "</text>\n";
-  };
-  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\""
-      << panels * (h + gap) + gap << "\">\n"
-      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
-  title(0, "voxel-loadtest: " + std::to_string(s.players) +
-               (s.attack.mix.empty() ? "" : " honest") +
-               " players, edit to decoded delta (ms): p50 blue, p99 red; max " + number(max_ms) +
-               " ms");
-  title(1, "bytes received per second, all players; max " + number(max_bytes));
-  if (panels == 3) title(2, "voxeld RSS (MiB); max " + number(max_mib));
-  for (int panel = 0; panel < panels; ++panel) {
-    const double top = gap + panel * (h + gap);
-    out << "<line x1=\"" << left << "\" y1=\"" << top + h << "\" x2=\"" << w - 20 << "\" y2=\""
-        << top + h << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\""
-        << left << "\" y2=\"" << top + h << "\" stroke=\"black\"/>\n";
-  }
-  polyline(p50, gap, max_ms, "#2060c0");
-  polyline(p99, gap, max_ms, "#c02020");
-  polyline(s.bytes_per_second, h + 2 * gap, max_bytes, "#208040");
-  if (panels == 3) polyline(rss_mib, 2 * h + 3 * gap, max_mib, "#8040a0");
-  out << "</svg>\n";
-}
-
-void write_sweep_svg(const std::vector<SweepPoint>& points, double limit_ms, std::ostream& out) {
-  const double w = 800, h = 400, left = 70, bottom = 50, top = 40;
-  double max_players = 1, max_ms = limit_ms * 1.2;
-  for (const auto& p : points) {
-    max_players = std::max(max_players, static_cast<double>(p.players));
-    max_ms = std::max(max_ms, p.p99_ms * 1.1);
-  }
-  auto x_of = [&](double players) { return left + (w - left - 30) * players / max_players; };
-  auto y_of = [&](double ms) { return h - bottom - (h - bottom - top) * ms / max_ms; };
-  out << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h << "\">\n"
-      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      << "<text x=\"" << left
-      << "\" y=\"24\" font-family=\"sans-serif\" font-size=\"14\">voxel-loadtest sweep: "
-      << "edit to decoded delta p99 (ms) against players; dashed: " << limit_ms << " ms</text>\n"
-      << "<line x1=\"" << left << "\" y1=\"" << h - bottom << "\" x2=\"" << w - 30 << "\" y2=\""
-      << h - bottom << "\" stroke=\"black\"/><line x1=\"" << left << "\" y1=\"" << top << "\" x2=\""
-      << left << "\" y2=\"" << h - bottom << "\" stroke=\"black\"/>\n"
-      << "<line x1=\"" << left << "\" y1=\"" << y_of(limit_ms) << "\" x2=\"" << w - 30 << "\" y2=\""
-      << y_of(limit_ms)
-      << "\" stroke=\"#c02020\" stroke-dasharray=\"6 4\"/>\n<polyline fill=\"none\" "
-         "stroke=\"#2060c0\" stroke-width=\"2\" points=\"";
-  for (const auto& p : points) out << x_of(p.players) << "," << y_of(p.p99_ms) << " ";
-  out << "\"/>\n";
-  for (const auto& p : points) {
-    out << "<circle cx=\"" << x_of(p.players) << "\" cy=\"" << y_of(p.p99_ms)
-        << "\" r=\"4\" fill=\"" << (p.errors == 0 ? "#2060c0" : "#c02020") << "\"/><text x=\""
-        << x_of(p.players) - 10 << "\" y=\"" << h - bottom + 18
-        << "\" font-family=\"sans-serif\" font-size=\"11\">" << p.players << "</text><text x=\""
-        << x_of(p.players) + 6 << "\" y=\"" << y_of(p.p99_ms) - 6
-        << "\" font-family=\"sans-serif\" font-size=\"11\">" << static_cast<int>(p.p99_ms)
-        << "</text>\n";
-  }
-  out << "</svg>\n";
+  write_timeline_json(timeline(s), out);
+  out << "}\n";
 }
 
 }  // namespace vox::loadtest

@@ -1,6 +1,6 @@
-// What the load test measures, and its reports: a human-readable table, JSON, and an SVG
-// of latency percentiles and throughput over time. Every figure but `attack` and the
-// server's RSS is the honest players' alone.
+// What the load test measures, and its reports: a human-readable table and JSON (over time:
+// loadtest/timeline.hpp; the SVG charts: loadtest/report_svg.hpp). Every figure but `attack` and
+// the server's RSS is the honest players' alone.
 #pragma once
 
 #include <cstdint>
@@ -14,7 +14,7 @@
 namespace vox::loadtest {
 
 struct Percentiles {
-  double p50 = 0, p95 = 0, p99 = 0, max = 0;
+  double p50 = 0, p95 = 0, p99 = 0, p999 = 0, max = 0;
   size_t count = 0;
 };
 // Nearest rank: pXX is the smallest sample that at least XX % of them do not exceed. No
@@ -41,9 +41,10 @@ struct LoadStats {
   std::vector<double> bytes_per_second;         // received by all players, per second of the test
   uint64_t verify_mismatches = 0;
   bool verified = false;
-  AttackStats attack;                  // the hostile clients (--attack); mix empty: none
-  int server_pid = 0;                  // whose RSS was sampled; 0: none
-  std::vector<double> server_rss_kib;  // voxeld's VmRSS, one sample a second from the start
+  AttackStats attack;                      // the hostile clients (--attack); mix empty: none
+  int server_pid = 0;                      // whose RSS was sampled; 0: none
+  std::vector<double> server_rss_kib;      // voxeld's VmRSS, one sample a second from the start
+  std::vector<double> server_cpu_percent;  // voxeld's CPU in each second, % of one core
 
   uint64_t error_count() const;
   uint64_t disconnect_count() const;
@@ -51,15 +52,6 @@ struct LoadStats {
 
 void write_table(const LoadStats& s, std::ostream& out);
 void write_json(const LoadStats& s, std::ostream& out);
-void write_svg(const LoadStats& s, std::ostream& out);
-
-// A sweep over player counts: edit -> delta p99 for each, drawn against the count with
-// the limit line.
-struct SweepPoint {
-  int players;
-  double p99_ms;
-  uint64_t errors;
-};
-void write_sweep_svg(const std::vector<SweepPoint>& points, double limit_ms, std::ostream& out);
+// The SVG reports are in loadtest/report_svg.hpp.
 
 }  // namespace vox::loadtest

@@ -57,7 +57,7 @@ double spawn_half_width(const LoadConfig& config) {
 LoadTest::LoadTest(LoadConfig config)
     : config_(std::move(config)),
       half_width_(spawn_half_width(config_)),
-      rss_(server_pid_of(config_)),
+      server_(server_pid_of(config_)),
       tokens_(tokens_for(config_)),
       bytes_per_second_(static_cast<size_t>(config_.ramp_s + config_.duration_s + kDrainS) + 16) {
   stats_.players = config_.players;
@@ -156,8 +156,9 @@ void LoadTest::collect_counters() {
   stats_.chunks_streamed = chunks_.load();
   stats_.decode_failures = decode_failures_.load();
   stats_.attack = attack_tally_.snapshot(config_.attack);
-  stats_.server_pid = rss_.pid();
-  stats_.server_rss_kib = rss_.kib();
+  stats_.server_pid = server_.pid();
+  stats_.server_rss_kib = server_.kib();
+  stats_.server_cpu_percent = server_.cpu_percent();
   const auto seconds = static_cast<size_t>(std::ceil(now_s()));
   stats_.bytes_per_second.assign(std::min(seconds, bytes_per_second_.size()), 0);
   for (size_t i = 0; i < stats_.bytes_per_second.size(); ++i) {
@@ -171,8 +172,11 @@ void LoadTest::tick_progress(std::ostream& progress) {
   int connected = 0;
   {
     std::lock_guard lock(mutex_);
-    delta_ms.reserve(stats_.edit_to_delta.size());
-    for (const auto& s : stats_.edit_to_delta) delta_ms.push_back(s.ms);
+    // The last second's: a soak's progress line shows now, not the run so far (and does
+    // not copy every sample of an hour each second).
+    for (size_t i = last_progress_delta_; i < stats_.edit_to_delta.size(); ++i)
+      delta_ms.push_back(stats_.edit_to_delta[i].ms);
+    last_progress_delta_ = stats_.edit_to_delta.size();
     edits = stats_.edits_sent;
     errors = stats_.error_count() + stats_.disconnect_count();
     connected = stats_.players_connected;
@@ -180,14 +184,18 @@ void LoadTest::tick_progress(std::ostream& progress) {
   char line[256];
   std::snprintf(
       line, sizeof line,
-      "[%5.1f s] players %d/%d connected, %llu edits/s, edit->delta p99 %.1f ms, errors %llu",
+      "[%5.1f s] players %d/%d connected, %llu edits/s, edit->delta p99 %.1f ms (last s), "
+      "errors %llu",
       now_s(), connected, config_.players,
       static_cast<unsigned long long>(edits - last_progress_edits_),
       percentiles(std::move(delta_ms)).p99, static_cast<unsigned long long>(errors));
   last_progress_edits_ = edits;
   std::string extra;
-  if (!rss_.kib().empty())
-    extra += ", voxeld RSS " + std::to_string(static_cast<int>(rss_.kib().back() / 1024)) + " MiB";
+  if (!server_.kib().empty())
+    extra +=
+        ", voxeld RSS " + std::to_string(static_cast<int>(server_.kib().back() / 1024)) + " MiB";
+  if (!server_.cpu_percent().empty())
+    extra += ", CPU " + std::to_string(static_cast<int>(server_.cpu_percent().back())) + " %";
   if (!config_.attack.empty()) {
     const AttackStats a = attack_tally_.snapshot(config_.attack);
     uint64_t connects = 0, closed = 0;
@@ -251,7 +259,7 @@ LoadStats LoadTest::run(std::ostream& progress) {
   editing_ = true;
   start_players();
   start_attackers();
-  rss_.sample();
+  server_.sample();
   auto work = asio::make_work_guard(io_);
   const int thread_count = config_.threads > 0
                                ? config_.threads
@@ -262,7 +270,7 @@ LoadStats LoadTest::run(std::ostream& progress) {
   for (double next = 1; now_s() < end; next += 1) {
     std::this_thread::sleep_for(
         std::chrono::duration<double>(std::max(0.0, std::min(next, end) - now_s())));
-    rss_.sample();
+    server_.sample();
     tick_progress(progress);
   }
   editing_ = false;
@@ -273,7 +281,7 @@ LoadStats LoadTest::run(std::ostream& progress) {
   }
   for (double slept = 0; slept < kDrainS; slept += 1) {
     std::this_thread::sleep_for(std::chrono::duration<double>(std::min(1.0, kDrainS - slept)));
-    rss_.sample();
+    server_.sample();
   }
   // The players stand still now: before verifying, every view must be complete (the
   // server says so with ViewReady), however slowly the server streams.

@@ -22,7 +22,7 @@
 #include "loadtest/attack_stats.hpp"
 #include "loadtest/decode_memo.hpp"
 #include "loadtest/load_stats.hpp"
-#include "loadtest/rss_sampler.hpp"
+#include "loadtest/server_sampler.hpp"
 #include "server/auth/player_token.hpp"
 
 namespace vox::loadtest {
@@ -135,7 +135,7 @@ class LoadTest {
   std::vector<std::shared_ptr<SimPlayer>> players_;
   std::vector<std::shared_ptr<Attacker>> attackers_;  // fixed once started, like players_
   AttackTally attack_tally_;
-  RssSampler rss_;  // main thread only
+  ServerSampler server_;  // main thread only
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> editing_{false}, stopping_{false};
   DecodeMemo memo_;
@@ -149,6 +149,7 @@ class LoadTest {
   std::atomic<uint64_t> messages_{0}, bytes_{0}, chunks_{0}, decode_failures_{0};
   std::vector<std::atomic<uint64_t>> bytes_per_second_;  // sized for the whole run up front
   uint64_t last_progress_edits_ = 0;
+  size_t last_progress_delta_ = 0;  // edit_to_delta samples already in a progress line
 };
 
 }  // namespace vox::loadtest

@@ -9,7 +9,9 @@
 #include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
 #include "loadtest/player_tokens.hpp"
+#include "loadtest/report_svg.hpp"
 #include "loadtest/sweep.hpp"
+#include "loadtest/timeline.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace {
@@ -25,7 +27,7 @@ int run(int argc, char** argv) {
   vox::loadtest::LoadConfig config;
   config.ground = ground_for_seed;
   std::string server, json, svg, sweep, attack, token_key;
-  double sweep_limit_ms = 100;
+  double sweep_limit_ms = 100, max_p99_ms = 0, max_rss_mib = 0;
   po::options_description opts("voxel-loadtest options");
   opts.add_options()("help,h", "show this help")(
       "server", po::value<std::string>(&server)->default_value("127.0.0.1:7777"),
@@ -67,6 +69,12 @@ int run(int argc, char** argv) {
       "server-pid", po::value<int>(&config.server_pid)->default_value(0),
       "voxeld's pid, to sample its RSS every second (0: find the process listening on the "
       "port when the server is on loopback; -1: do not sample)")(
+      "max-p99-ms", po::value<double>(&max_p99_ms),
+      "exit 1 when the edit -> delta p99 of any minute of the run is above this (a soak's "
+      "goal; drawn in the --svg chart)")(
+      "max-rss", po::value<double>(&max_rss_mib),
+      "exit 1 when voxeld's RSS (sampled every second, see --server-pid) is above this many "
+      "MiB in any minute")(
       "token-key", po::value<std::string>(&token_key),
       "PRIVATE_KEY_FILE (voxel-cli keygen's NAME.key): each player sends its own signed token "
       "(player id sim-N, role player), for a voxeld started with --auth-public-key");
@@ -103,6 +111,22 @@ int run(int argc, char** argv) {
       return 2;
     }
     config.attack = *mix;
+  }
+  vox::loadtest::Limits limits;
+  if (vm.count("max-p99-ms")) {
+    if (!(max_p99_ms > 0)) {
+      std::cerr << "voxel-loadtest: --max-p99-ms must be > 0\n";
+      return 2;
+    }
+    limits.max_p99_ms = max_p99_ms;
+  }
+  if (vm.count("max-rss")) {
+    if (!(max_rss_mib > 0) || config.server_pid == -1) {
+      std::cerr << "voxel-loadtest: --max-rss must be > 0 MiB, and needs voxeld's RSS (not "
+                   "--server-pid -1)\n";
+      return 2;
+    }
+    limits.max_rss_mib = max_rss_mib;
   }
   if (config.server_pid < -1) {
     std::cerr << "voxel-loadtest: --server-pid is a pid, 0 or -1\n";
@@ -144,11 +168,18 @@ int run(int argc, char** argv) {
   }
   if (!svg.empty()) {
     std::ofstream out(svg);
-    vox::loadtest::write_svg(stats, out);
+    vox::loadtest::write_svg(stats, limits.max_p99_ms, out);
+  }
+  const auto breaches = vox::loadtest::limit_breaches(vox::loadtest::timeline(stats), limits);
+  for (const auto& line : breaches) std::cerr << "voxel-loadtest: " << line << "\n";
+  if (limits.max_rss_mib && stats.server_rss_kib.empty()) {
+    std::cerr << "voxel-loadtest: --max-rss: voxeld's RSS could not be sampled (give "
+                 "--server-pid)\n";
+    return 1;
   }
   const bool ok = stats.error_count() == 0 && stats.disconnect_count() == 0 &&
                   stats.decode_failures == 0 && stats.verify_mismatches == 0 &&
-                  stats.players_connected == config.players;
+                  stats.players_connected == config.players && breaches.empty();
   return ok ? 0 : 1;
 }
 }  // namespace

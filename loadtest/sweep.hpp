@@ -6,8 +6,8 @@
 #include <string_view>
 #include <vector>
 
-#include "loadtest/load_stats.hpp"
 #include "loadtest/load_test.hpp"
+#include "loadtest/report_svg.hpp"
 #include "proto/result.hpp"
 
 namespace vox::loadtest {

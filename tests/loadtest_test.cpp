@@ -15,7 +15,7 @@
 #include "client/asio.hpp"
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/player_tokens.hpp"
-#include "loadtest/rss_sampler.hpp"
+#include "loadtest/server_sampler.hpp"
 #include "loadtest/sweep.hpp"
 #include "server/auth/player_token.hpp"
 #include "tests/server_process.hpp"
@@ -80,8 +80,9 @@ TEST(LoadTest, TwentyPlayersFiveSecondsWithoutErrorsAndVerified) {
   ASSERT_TRUE(
       std::regex_search(text, m,
                         std::regex("\"edit_to_delta_ms\":\\{\"p50\":([0-9.]+),\"p95\":([0-9.]+),"
-                                   "\"p99\":([0-9.]+),\"max\":([0-9.]+),\"count\":(\\d+)")));
-  EXPECT_GT(std::stoul(m[5]), 0u) << "some edits' deltas were measured";
+                                   "\"p99\":([0-9.]+),\"p999\":([0-9.]+),\"max\":([0-9.]+),"
+                                   "\"count\":(\\d+)")));
+  EXPECT_GT(std::stoul(m[6]), 0u) << "some edits' deltas were measured";
 }
 
 }  // namespace
@@ -180,10 +181,49 @@ TEST(RssSampler, FindsThisProcessListeningOnLoopback) {
   boost::asio::io_context io;
   boost::asio::ip::tcp::acceptor acceptor(io, {boost::asio::ip::make_address("127.0.0.1"), 0});
   EXPECT_EQ(vox::loadtest::find_listening_pid(acceptor.local_endpoint().port()), ::getpid());
-  vox::loadtest::RssSampler sampler(::getpid());
+  vox::loadtest::ServerSampler sampler(::getpid());
   sampler.sample();
   ASSERT_EQ(sampler.kib().size(), 1u);
   EXPECT_GT(sampler.kib().front(), 0.0);
+  EXPECT_TRUE(sampler.cpu_percent().empty());  // a rate needs two readings
+  // Burn some CPU, then the second reading gives a share of one core.
+  volatile double x = 0;
+  for (int i = 0; i < 20'000'000; ++i) x = x + 1e-9 * i;
+  sampler.sample();
+  ASSERT_EQ(sampler.cpu_percent().size(), 1u);
+  EXPECT_GT(sampler.cpu_percent().front(), 0.0);
+}
+
+TEST(CpuSampler, ReadsUtimePlusStimeEvenWhenTheCommandHoldsSpacesAndParentheses) {
+  // Fields from 3 on: state ppid pgrp session tty tpgid flags minflt cminflt majflt
+  // cmajflt utime stime ...
+  const std::string tail = " S 1 2 3 4 5 6 7 8 9 10 1200 34 0 0 20 0 9 0 100\n";
+  EXPECT_EQ(vox::loadtest::parse_cpu_ticks("4242 (voxeld)" + tail), 1234u);
+  EXPECT_EQ(vox::loadtest::parse_cpu_ticks("4242 (a) b (c) d)" + tail), 1234u);
+  EXPECT_FALSE(vox::loadtest::parse_cpu_ticks("4242 voxeld S 1 2"));
+  EXPECT_FALSE(vox::loadtest::parse_cpu_ticks("4242 (voxeld) S 1 2 3"));
+  EXPECT_FALSE(vox::loadtest::parse_cpu_ticks(""));
+}
+
+TEST(Soak, AMinuteAboveMaxP99OrMaxRssExitsOneAndGenerousLimitsExitZero) {
+  vox::test::ServerProcess server;
+  const std::string run = "--players 4 --duration 2 --ramp 0.5 --edit-rate 2 --view-radius 2";
+  const TesterRun tight = run_tester(server, run + " --max-p99-ms 0.001");
+  EXPECT_EQ(tight.exit_code, 1);
+  EXPECT_NE(tight.json.find("\"per_minute\":[{\"minute\":1,"), std::string::npos) << tight.json;
+  EXPECT_NE(tight.json.find("\"worst_second\":{"), std::string::npos);
+  EXPECT_NE(tight.json.find("\"cpu_percent\":"), std::string::npos);
+  EXPECT_EQ(run_tester(server, run + " --max-rss 1").exit_code, 1);
+  EXPECT_EQ(run_tester(server, run + " --max-p99-ms 100000 --max-rss 100000").exit_code, 0);
+}
+
+TEST(Soak, LimitsThatAreNotPositiveAreUsageErrors) {
+  for (const char* args : {" --max-p99-ms 0", " --max-rss -5", " --max-rss 10 --server-pid -1"}) {
+    const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + args + " > /dev/null 2>&1";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << args;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << args;
+  }
 }
 
 TEST(AttackLoadTest, BadMixIsAUsageErrorWithExitCode2) {

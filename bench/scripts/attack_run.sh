@@ -64,3 +64,4 @@ if grep -q '^voxeld_store_commits_total [1-9]' "$out/$name.metrics"; then
     "$(/usr/bin/python3 -c "print(f'{$edits/$commits:.1f}')") edits per commit ($commits commits)," \
     "world $(du -sb "$out/$name.world" | cut -f1) bytes"
 fi
+exit "$code"

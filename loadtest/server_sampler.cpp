@@ -1,10 +1,11 @@
-#include "loadtest/rss_sampler.hpp"
+#include "loadtest/server_sampler.hpp"
 
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <charconv>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -58,6 +59,18 @@ std::optional<uint64_t> parse_vm_rss_kib(std::string_view status) {
   return std::nullopt;
 }
 
+std::optional<uint64_t> parse_cpu_ticks(std::string_view stat) {
+  const size_t close = stat.rfind(')');
+  if (close == std::string_view::npos) return std::nullopt;
+  std::string_view rest = stat.substr(close + 1);
+  // Fields 3 (state) onwards; utime and stime are fields 14 and 15 (proc(5)).
+  std::array<std::string_view, 13> f;
+  for (auto& field : f) field = next_field(rest);
+  const auto utime = number<uint64_t>(f[11], 10), stime = number<uint64_t>(f[12], 10);
+  if (!utime || !stime) return std::nullopt;
+  return *utime + *stime;
+}
+
 // Lines: "sl local_address rem_address st ... uid timeout inode ...", the local address
 // as HEXADDR:HEXPORT and st 0A for LISTEN (see proc(5)).
 std::optional<uint64_t> find_listening_inode(std::string_view text, uint16_t port) {
@@ -99,10 +112,24 @@ std::optional<int> find_listening_pid(uint16_t port) {
   return std::nullopt;
 }
 
-void RssSampler::sample() {
+void ServerSampler::sample() {
   if (pid_ <= 0 || kib_.size() >= kMaxSamples) return;
-  if (const auto kib = parse_vm_rss_kib(read_file("/proc/" + std::to_string(pid_) + "/status")))
-    kib_.push_back(static_cast<double>(*kib));
+  const std::string proc = "/proc/" + std::to_string(pid_);
+  const auto kib = parse_vm_rss_kib(read_file(proc + "/status"));
+  if (!kib) return;
+  kib_.push_back(static_cast<double>(*kib));
+  const auto ticks = parse_cpu_ticks(read_file(proc + "/stat"));
+  const double at_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+  static const double kTicksPerSecond = static_cast<double>(::sysconf(_SC_CLK_TCK));
+  if (ticks && last_ticks_ && *ticks >= *last_ticks_ && at_s > last_at_s_) {
+    cpu_percent_.push_back(100.0 * static_cast<double>(*ticks - *last_ticks_) / kTicksPerSecond /
+                           (at_s - last_at_s_));
+  }
+  if (ticks) {
+    last_ticks_ = ticks;
+    last_at_s_ = at_s;
+  }
 }
 
 }  // namespace vox::loadtest

@@ -1,0 +1,100 @@
+#include "loadtest/timeline.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace vox::loadtest {
+
+namespace {
+
+constexpr size_t kSecondsPerMinute = 60;
+
+// The samples that fall in each second of the run, clamped into [0, seconds).
+std::vector<std::vector<double>> by_second(const std::vector<LatencySample>& samples,
+                                           size_t seconds) {
+  std::vector<std::vector<double>> buckets(seconds);
+  for (const auto& x : samples) {
+    const auto i = static_cast<size_t>(std::max(0.0, x.at_s));
+    buckets[std::min(seconds - 1, i)].push_back(x.ms);
+  }
+  return buckets;
+}
+
+MinuteStats minute_of(const Timeline& t, const std::vector<std::vector<double>>& buckets,
+                      size_t minute) {
+  MinuteStats m;
+  m.minute = minute;
+  const size_t first = minute * kSecondsPerMinute,
+               end = std::min(t.seconds.size(), first + kSecondsPerMinute);
+  std::vector<double> all;
+  double cpu_sum = 0;
+  size_t cpu_n = 0;
+  bool any_edits = false;
+  for (size_t i = first; i < end; ++i) {
+    all.insert(all.end(), buckets[i].begin(), buckets[i].end());
+    const SecondStats& s = t.seconds[i];
+    if (s.delta.count > 0 && (!any_edits || s.delta.p99 > m.worst_second_p99)) {
+      m.worst_second = i;
+      m.worst_second_p99 = s.delta.p99;
+      any_edits = true;
+    }
+    if (s.rss_mib) {
+      m.rss_min_mib = std::min(m.rss_min_mib.value_or(*s.rss_mib), *s.rss_mib);
+      m.rss_max_mib = std::max(m.rss_max_mib.value_or(*s.rss_mib), *s.rss_mib);
+    }
+    if (s.cpu_percent) {
+      cpu_sum += *s.cpu_percent;
+      ++cpu_n;
+    }
+  }
+  m.delta = percentiles(std::move(all));
+  if (cpu_n > 0) m.cpu_mean_percent = cpu_sum / static_cast<double>(cpu_n);
+  return m;
+}
+
+std::string format(const char* pattern, size_t minute, double value, double limit) {
+  char line[160];
+  std::snprintf(line, sizeof line, pattern, minute, value, limit);
+  return line;
+}
+
+}  // namespace
+
+Timeline timeline(const LoadStats& s) {
+  Timeline t;
+  const size_t seconds = std::max<size_t>(
+      {1, s.bytes_per_second.size(), s.server_rss_kib.size(), s.server_cpu_percent.size()});
+  auto buckets = by_second(s.edit_to_delta, seconds);
+  t.seconds.resize(seconds);
+  for (size_t i = 0; i < seconds; ++i) {
+    SecondStats& second = t.seconds[i];
+    second.delta = percentiles(buckets[i]);
+    if (i < s.bytes_per_second.size()) second.bytes = s.bytes_per_second[i];
+    if (i < s.server_rss_kib.size()) second.rss_mib = s.server_rss_kib[i] / 1024;
+    if (i < s.server_cpu_percent.size()) second.cpu_percent = s.server_cpu_percent[i];
+    if (second.delta.count > 0 && second.delta.p99 > t.worst_second_p99) {
+      t.worst_second = i;
+      t.worst_second_p99 = second.delta.p99;
+    }
+  }
+  for (size_t m = 0; m * kSecondsPerMinute < seconds; ++m)
+    t.minutes.push_back(minute_of(t, buckets, m));
+  return t;
+}
+
+std::vector<std::string> limit_breaches(const Timeline& t, const Limits& limits) {
+  std::vector<std::string> lines;
+  for (const MinuteStats& m : t.minutes) {
+    if (limits.max_p99_ms && m.delta.count > 0 && m.delta.p99 > *limits.max_p99_ms) {
+      lines.push_back(format("minute %zu: edit->delta p99 %.1f ms > --max-p99-ms %.1f",
+                             m.minute + 1, m.delta.p99, *limits.max_p99_ms));
+    }
+    if (limits.max_rss_mib && m.rss_max_mib && *m.rss_max_mib > *limits.max_rss_mib) {
+      lines.push_back(format("minute %zu: voxeld RSS %.1f MiB > --max-rss %.1f MiB", m.minute + 1,
+                             *m.rss_max_mib, *limits.max_rss_mib));
+    }
+  }
+  return lines;
+}
+
+}  // namespace vox::loadtest

@@ -1,0 +1,146 @@
+// The load test over time (loadtest/timeline.hpp) and its charts (svg_chart, report_svg):
+// per-second and per-minute figures, the worst second, the soak limits, and charts an
+// operator can read (axes with round ticks and units, a legend, a goal line).
+#include "loadtest/timeline.hpp"
+
+#include <gtest/gtest.h>
+
+#include <regex>
+#include <sstream>
+
+#include "loadtest/report_svg.hpp"
+#include "loadtest/svg_chart.hpp"
+
+namespace {
+
+using vox::loadtest::LoadStats;
+
+// A run of `seconds`, one edit answered in `ms` every 10 ms of it, but the stalls.
+LoadStats steady_run(size_t seconds, double ms) {
+  LoadStats s;
+  s.players = 300;
+  s.duration_s = static_cast<double>(seconds);
+  s.bytes_per_second.assign(seconds, 2.5e6);
+  for (size_t i = 0; i < seconds * 100; ++i) s.edit_to_delta.push_back({i * 0.01, ms});
+  for (size_t i = 0; i < seconds; ++i) {
+    s.server_rss_kib.push_back(400.0 * 1024 + static_cast<double>(i));
+    s.server_cpu_percent.push_back(120);
+  }
+  return s;
+}
+
+TEST(Timeline, GivesEachSecondAndMinuteItsOwnPercentilesAndFindsTheWorstSecond) {
+  LoadStats s = steady_run(150, 20);
+  for (int i = 0; i < 10; ++i) s.edit_to_delta.push_back({95.5, 3000});  // a stall in second 95
+  const auto t = vox::loadtest::timeline(s);
+  ASSERT_EQ(t.seconds.size(), 150u);
+  ASSERT_EQ(t.minutes.size(), 3u);  // the last minute is the 30 s left
+  EXPECT_EQ(t.seconds[10].delta.count, 100u);
+  EXPECT_EQ(t.seconds[95].delta.count, 110u);
+  EXPECT_EQ(t.seconds[95].delta.p99, 3000);
+  EXPECT_EQ(t.worst_second, 95u);
+  EXPECT_EQ(t.worst_second_p99, 3000);
+  EXPECT_EQ(t.minutes[0].delta.p99, 20);
+  EXPECT_EQ(t.minutes[1].delta.count, 6010u);
+  EXPECT_EQ(t.minutes[1].delta.max, 3000);
+  EXPECT_EQ(t.minutes[1].delta.p999, 3000);  // 10 in 6,010 is more than 0.1 %
+  EXPECT_EQ(t.minutes[1].delta.p99, 20);
+  EXPECT_EQ(t.minutes[1].worst_second, 95u);
+  EXPECT_EQ(t.minutes[2].delta.count, 3000u);
+  EXPECT_DOUBLE_EQ(*t.minutes[0].rss_min_mib, 400.0);
+  EXPECT_DOUBLE_EQ(*t.minutes[0].rss_max_mib, 400.0 + 59.0 / 1024);
+  EXPECT_DOUBLE_EQ(*t.minutes[2].cpu_mean_percent, 120);
+}
+
+TEST(Timeline, ARunWithoutServerSamplesHasNoRssOrCpuFigures) {
+  LoadStats s = steady_run(5, 10);
+  s.server_rss_kib.clear();
+  s.server_cpu_percent.clear();
+  const auto t = vox::loadtest::timeline(s);
+  EXPECT_FALSE(t.seconds[0].rss_mib);
+  EXPECT_FALSE(t.minutes[0].rss_max_mib);
+  EXPECT_FALSE(t.minutes[0].cpu_mean_percent);
+  EXPECT_TRUE(vox::loadtest::limit_breaches(t, {.max_p99_ms = 50, .max_rss_mib = 1}).empty());
+}
+
+TEST(Timeline, LimitsAreCheckedMinuteByMinuteAndNameTheMinute) {
+  LoadStats s = steady_run(180, 20);
+  for (int i = 0; i < 100; ++i) s.edit_to_delta.push_back({130.0, 400});  // 1.7 % of minute 3
+  const auto t = vox::loadtest::timeline(s);
+  EXPECT_TRUE(vox::loadtest::limit_breaches(t, {}).empty());
+  EXPECT_TRUE(vox::loadtest::limit_breaches(t, {.max_p99_ms = 400, .max_rss_mib = 401}).empty());
+  const auto p99 = vox::loadtest::limit_breaches(t, {.max_p99_ms = 150});
+  ASSERT_EQ(p99.size(), 1u);
+  EXPECT_NE(p99[0].find("minute 3: edit->delta p99 400.0 ms > --max-p99-ms 150.0"),
+            std::string::npos)
+      << p99[0];
+  const auto rss = vox::loadtest::limit_breaches(t, {.max_rss_mib = 400.1});
+  ASSERT_EQ(rss.size(), 2u);  // minutes 2 and 3 grew past 400.1 MiB
+  EXPECT_NE(rss[0].find("minute 2: voxeld RSS"), std::string::npos) << rss[0];
+}
+
+TEST(SvgChart, TicksAreRoundNumbersCoveringTheRange) {
+  EXPECT_EQ(vox::loadtest::nice_ticks(0, 100), (std::vector<double>{0, 20, 40, 60, 80, 100}));
+  EXPECT_EQ(vox::loadtest::nice_ticks(0, 30, 6), (std::vector<double>{0, 5, 10, 15, 20, 25, 30}));
+  EXPECT_EQ(vox::loadtest::nice_ticks(0, 1), (std::vector<double>{0, 0.2, 0.4, 0.6, 0.8, 1}));
+  EXPECT_EQ(vox::loadtest::nice_ticks(0, 12.5, 5), (std::vector<double>{0, 2.5, 5, 7.5, 10, 12.5}));
+  EXPECT_EQ(vox::loadtest::nice_ticks(3, 3), (std::vector<double>{3}));
+}
+
+TEST(SvgChart, NumbersAreWrittenAsPeopleWriteThem) {
+  EXPECT_EQ(vox::loadtest::human_number(0), "0");
+  EXPECT_EQ(vox::loadtest::human_number(0.25), "0.25");
+  EXPECT_EQ(vox::loadtest::human_number(12.5), "12.5");
+  EXPECT_EQ(vox::loadtest::human_number(950), "950");
+  EXPECT_EQ(vox::loadtest::human_number(1200), "1,200");
+  EXPECT_EQ(vox::loadtest::human_number(35'360'600), "35.4 M");
+  EXPECT_EQ(vox::loadtest::human_number(-4500), "-4,500");
+}
+
+// What the issue found in the old charts: no axes' numbers, "max 3.53606e+07", no units.
+TEST(SvgChart, ARunsChartHasAxesWithUnitsALegendAGoalAndNoScientificNumbers) {
+  LoadStats s = steady_run(240, 30);
+  s.bytes_per_second.assign(240, 3.53606e7);
+  std::ostringstream out;
+  vox::loadtest::write_svg(s, 150.0, out);
+  const std::string svg = out.str();
+  for (const char* text :
+       {"latency (ms)", "throughput (MB/s)", "RSS (MiB)", "CPU (% of one core)",
+        "time since the start (minutes)", "p99 per second", "p99 per minute", "p99.9 per minute",
+        "goal: p99 150 ms", "stroke-dasharray", ">40<", ">4<", "#f2f2f2"}) {
+    EXPECT_NE(svg.find(text), std::string::npos) << text;
+  }
+  EXPECT_FALSE(std::regex_search(svg, std::regex(">[^<]*[0-9]e[+-][0-9]")));
+}
+
+TEST(SvgChart, AShortRunIsInSecondsAndStallsSwitchTheLatencyAxisToLog) {
+  LoadStats s = steady_run(20, 15);
+  for (int i = 0; i < 5; ++i) s.edit_to_delta.push_back({7.5, 4000});
+  std::ostringstream out;
+  vox::loadtest::write_svg(s, std::nullopt, out);
+  const std::string svg = out.str();
+  EXPECT_NE(svg.find("time since the start (s)"), std::string::npos);
+  EXPECT_NE(svg.find("latency (ms, log scale)"), std::string::npos);
+  EXPECT_NE(svg.find(">1,000<"), std::string::npos);  // a decade tick
+  EXPECT_EQ(svg.find("goal"), std::string::npos);
+  EXPECT_EQ(svg.find("per minute"), std::string::npos);
+}
+
+// The sweep chart clipped its last label: every point and label lies inside the plot.
+TEST(SvgChart, TheSweepsLastPointAndItsLabelAreInsideThePlot) {
+  std::ostringstream out;
+  vox::loadtest::write_sweep_svg({{100, 20, 0}, {400, 60, 0}, {800, 140, 2}}, 100, out);
+  const std::string svg = out.str();
+  const std::regex circle("<circle cx=\"([0-9.]+)\"");
+  double rightmost = 0;
+  for (std::sregex_iterator it(svg.begin(), svg.end(), circle), end; it != end; ++it)
+    rightmost = std::max(rightmost, std::stod((*it)[1]));
+  EXPECT_GT(rightmost, 600);
+  EXPECT_LT(rightmost + 20, 920 - 190);  // the plot's right edge, before the legend
+  for (const char* text :
+       {"players", "p99 latency (ms)", "limit: 100 ms", "a run with errors", ">800<", ">140<"}) {
+    EXPECT_NE(svg.find(text), std::string::npos) << text;
+  }
+}
+
+}  // namespace
