@@ -1,6 +1,8 @@
 #include "server/store/postgres_store.hpp"
 
+#include <chrono>
 #include <pqxx/pqxx>
+#include <thread>
 
 #include "server/store/edit_codec.hpp"
 #include "server/store/store_schema.hpp"
@@ -281,10 +283,18 @@ class PostgresStore final : public WorldStore {
   }
 
   // One writing process per world: a session advisory lock in this database, held by the
-  // writer's first connection (PostgreSQL drops it when the connection goes).
+  // writer's first connection (PostgreSQL drops it when the connection goes, but only once
+  // the backend has seen the close: a writer that has just stopped may still hold it for
+  // a moment, so we wait up to kWriterLockWait for it).
   void lock_world(pqxx::connection& c) {
     pqxx::nontransaction t(c);
-    if (!t.exec1("SELECT pg_try_advisory_lock(7008)")[0].as<bool>()) {
+    const auto give_up = std::chrono::steady_clock::now() + kWriterLockWait;
+    bool locked = false;
+    while (!(locked = t.exec1("SELECT pg_try_advisory_lock(7008)")[0].as<bool>()) &&
+           std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    if (!locked) {
       conn_.reset();
       throw StoreError(name_ +
                        ": another voxeld is writing this world (it holds its lock); "

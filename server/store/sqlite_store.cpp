@@ -399,11 +399,18 @@ class SqliteStore final : public WorldStore {
   // Closed by its destructor, so also when the constructor throws (a refused file).
   // One writing process per world: an exclusive flock on world.lock beside the file, held
   // while this connection lives (the kernel drops it when the process dies, even kill -9).
+  // A writer still closing gets kWriterLockWait to let go, as with PostgreSQL.
   void lock_world() {
     const std::filesystem::path path = file_.parent_path() / "world.lock";
     lock_fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     if (lock_fd_ < 0) throw StoreError(name_ + ": " + path.string() + ": " + std::strerror(errno));
-    if (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+    const auto give_up = std::chrono::steady_clock::now() + kWriterLockWait;
+    int locked = -1;
+    while ((locked = ::flock(lock_fd_, LOCK_EX | LOCK_NB)) != 0 && errno == EWOULDBLOCK &&
+           std::chrono::steady_clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    if (locked != 0) {
       const int error = errno;
       ::close(lock_fd_);
       lock_fd_ = -1;

@@ -9,6 +9,7 @@
 // message naming the store; a later call tries again (PostgreSQL reconnects).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -69,6 +70,11 @@ struct WorldInfo {
   uint64_t modified_chunks = 0;
   uint64_t size_bytes = 0;  // on disk, as the backend counts it
 };
+
+// How long opening a world as its writer waits for another writer's lock before refusing:
+// a writer that has just stopped may hold it a moment longer (PostgreSQL drops a session's
+// lock only once its backend has seen the connection close).
+inline constexpr std::chrono::milliseconds kWriterLockWait{3000};
 
 struct OpenOptions {
   // An existing world must have this seed (else StoreError naming both); nullopt: open it
