@@ -135,6 +135,10 @@ void write_minutes_table(const Timeline& t, std::ostream& out) {
       out << "\n";
     }
   }
+  if (!t.any_deltas) {
+    out << "  worst second: none (no edit was answered with its delta)\n";
+    return;
+  }
   std::snprintf(buf, sizeof buf, "  worst second: %zu s into the run, edit->delta p99 %.1f ms\n",
                 t.worst_second, t.worst_second_p99);
   out << buf;

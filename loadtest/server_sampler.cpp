@@ -8,6 +8,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace vox::loadtest {
@@ -122,9 +123,11 @@ void ServerSampler::sample() {
   const double at_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
   static const double kTicksPerSecond = static_cast<double>(::sysconf(_SC_CLK_TCK));
-  if (ticks && last_ticks_ && *ticks >= *last_ticks_ && at_s > last_at_s_) {
-    cpu_percent_.push_back(100.0 * static_cast<double>(*ticks - *last_ticks_) / kTicksPerSecond /
-                           (at_s - last_at_s_));
+  if (kib_.size() > 1) {  // one CPU figure per second after the first, NaN when unknown
+    cpu_percent_.push_back(ticks && last_ticks_ && *ticks >= *last_ticks_ && at_s > last_at_s_
+                               ? 100.0 * static_cast<double>(*ticks - *last_ticks_) /
+                                     kTicksPerSecond / (at_s - last_at_s_)
+                               : std::numeric_limits<double>::quiet_NaN());
   }
   if (ticks) {
     last_ticks_ = ticks;

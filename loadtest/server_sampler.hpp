@@ -33,7 +33,8 @@ class ServerSampler {
   void sample();
   const std::vector<double>& kib() const { return kib_; }
   // Per sample after the first: the CPU the server used since the one before, in percent
-  // of one core (200 = two cores busy). One element fewer than kib() at most.
+  // of one core (200 = two cores busy); NaN when /proc/PID/stat could not be read. One
+  // element fewer than kib() (none before the second sample), so element i covers second i.
   const std::vector<double>& cpu_percent() const { return cpu_percent_; }
 
  private:

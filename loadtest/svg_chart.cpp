@@ -95,7 +95,8 @@ std::vector<double> y_ticks(const ChartPanel& p, double& y_top) {
     }
     return ticks;
   }
-  const double wanted = std::max(top * (p.y_max ? 1.0 : 1.08), 1e-9);  // headroom
+  // Headroom above the data; an all-zero panel (an idle server, no edits) spans 0..1.
+  const double wanted = top > 0 ? top * (p.y_max ? 1.0 : 1.08) : 1;
   auto ticks = nice_ticks(0, wanted);
   if (ticks.size() > 1 && ticks.back() < wanted * 0.999)  // one more round tick above the data
     ticks.push_back(nice_ticks(0, ticks.back() + (ticks[1] - ticks[0]), 6).back());
@@ -213,7 +214,9 @@ std::string human_number(double v) {
   if (a >= 1e6) return fixed(v / 1e6, a >= 1e8 ? 0 : 1) + " M";
   if (a >= 1000) return with_commas(std::llround(v));
   if (a == std::floor(a)) return fixed(v, 0);
-  std::string s = fixed(v, a >= 100 ? 0 : a >= 10 ? 1 : a >= 1 ? 2 : 3);
+  // Below 1: two significant digits at least (0.25, 0.125, 0.0002), not "0".
+  const int small = static_cast<int>(std::ceil(-std::log10(a))) + 2;
+  std::string s = fixed(v, a >= 100 ? 0 : a >= 10 ? 1 : a >= 1 ? 2 : std::min(small, 12));
   while (s.find('.') != std::string::npos && (s.back() == '0' || s.back() == '.')) {
     const bool dot = s.back() == '.';
     s.pop_back();

@@ -1,6 +1,7 @@
 #include "loadtest/timeline.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace vox::loadtest {
@@ -62,6 +63,8 @@ std::string format(const char* pattern, size_t minute, double value, double limi
 
 Timeline timeline(const LoadStats& s) {
   Timeline t;
+  t.any_deltas = !s.edit_to_delta.empty();
+  t.editing_s = s.duration_s;
   const size_t seconds = std::max<size_t>(
       {1, s.bytes_per_second.size(), s.server_rss_kib.size(), s.server_cpu_percent.size()});
   auto buckets = by_second(s.edit_to_delta, seconds);
@@ -70,8 +73,11 @@ Timeline timeline(const LoadStats& s) {
     SecondStats& second = t.seconds[i];
     second.delta = percentiles(buckets[i]);
     if (i < s.bytes_per_second.size()) second.bytes = s.bytes_per_second[i];
-    if (i < s.server_rss_kib.size()) second.rss_mib = s.server_rss_kib[i] / 1024;
-    if (i < s.server_cpu_percent.size()) second.cpu_percent = s.server_cpu_percent[i];
+    // NaN: a sample the sampler could not take (it keeps the others in their seconds).
+    if (i < s.server_rss_kib.size() && !std::isnan(s.server_rss_kib[i]))
+      second.rss_mib = s.server_rss_kib[i] / 1024;
+    if (i < s.server_cpu_percent.size() && !std::isnan(s.server_cpu_percent[i]))
+      second.cpu_percent = s.server_cpu_percent[i];
     if (second.delta.count > 0 && second.delta.p99 > t.worst_second_p99) {
       t.worst_second = i;
       t.worst_second_p99 = second.delta.p99;
@@ -88,6 +94,12 @@ std::vector<std::string> limit_breaches(const Timeline& t, const Limits& limits)
     if (limits.max_p99_ms && m.delta.count > 0 && m.delta.p99 > *limits.max_p99_ms) {
       lines.push_back(format("minute %zu: edit->delta p99 %.1f ms > --max-p99-ms %.1f",
                              m.minute + 1, m.delta.p99, *limits.max_p99_ms));
+    }
+    // A minute that began at least 10 s before the editing stopped, without one answer.
+    const double begins_s = static_cast<double>(m.minute * kSecondsPerMinute);
+    if (limits.max_p99_ms && m.delta.count == 0 && begins_s + 10 < t.editing_s) {
+      lines.push_back("minute " + std::to_string(m.minute + 1) +
+                      ": no edit was answered with its delta (--max-p99-ms)");
     }
     if (limits.max_rss_mib && m.rss_max_mib && *m.rss_max_mib > *limits.max_rss_mib) {
       lines.push_back(format("minute %zu: voxeld RSS %.1f MiB > --max-rss %.1f MiB", m.minute + 1,

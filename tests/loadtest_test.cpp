@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -151,7 +152,7 @@ TEST(AttackMix, RefusesEveryMalformedMix) {
   EXPECT_NE(parse_attack_mix("flood:1,flood:2").error().find("twice"), std::string::npos);
 }
 
-TEST(RssSampler, ParsesVmRssAndRefusesWhatIsNotIt) {
+TEST(ServerSampler, ParsesVmRssAndRefusesWhatIsNotIt) {
   EXPECT_EQ(
       vox::loadtest::parse_vm_rss_kib("Name:\tvoxeld\nVmPeak:\t  900 kB\nVmRSS:\t   12345 kB\n"
                                       "RssAnon:\t 100 kB\n"),
@@ -161,7 +162,7 @@ TEST(RssSampler, ParsesVmRssAndRefusesWhatIsNotIt) {
   EXPECT_FALSE(vox::loadtest::parse_vm_rss_kib(""));
 }
 
-TEST(RssSampler, FindsOnlyTheListeningSocketOfThePort) {
+TEST(ServerSampler, FindsOnlyTheListeningSocketOfThePort) {
   const std::string table =
       "  sl  local_address rem_address   st tx_queue rx_queue tr tm->when retrnsmt   uid  timeout "
       "inode\n"
@@ -177,7 +178,7 @@ TEST(RssSampler, FindsOnlyTheListeningSocketOfThePort) {
   EXPECT_FALSE(vox::loadtest::find_listening_inode("garbage\nmore garbage\n", 0x1E61));
 }
 
-TEST(RssSampler, FindsThisProcessListeningOnLoopback) {
+TEST(ServerSampler, FindsThisProcessListeningOnLoopback) {
   boost::asio::io_context io;
   boost::asio::ip::tcp::acceptor acceptor(io, {boost::asio::ip::make_address("127.0.0.1"), 0});
   EXPECT_EQ(vox::loadtest::find_listening_pid(acceptor.local_endpoint().port()), ::getpid());
@@ -186,9 +187,10 @@ TEST(RssSampler, FindsThisProcessListeningOnLoopback) {
   ASSERT_EQ(sampler.kib().size(), 1u);
   EXPECT_GT(sampler.kib().front(), 0.0);
   EXPECT_TRUE(sampler.cpu_percent().empty());  // a rate needs two readings
-  // Burn some CPU, then the second reading gives a share of one core.
+  // Burn 200 ms of CPU (20 clock ticks), then the second reading gives a share of a core.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(200);
   volatile double x = 0;
-  for (int i = 0; i < 20'000'000; ++i) x = x + 1e-9 * i;
+  while (std::chrono::steady_clock::now() < until) x = x + 1e-9;
   sampler.sample();
   ASSERT_EQ(sampler.cpu_percent().size(), 1u);
   EXPECT_GT(sampler.cpu_percent().front(), 0.0);
@@ -218,7 +220,8 @@ TEST(Soak, AMinuteAboveMaxP99OrMaxRssExitsOneAndGenerousLimitsExitZero) {
 }
 
 TEST(Soak, LimitsThatAreNotPositiveAreUsageErrors) {
-  for (const char* args : {" --max-p99-ms 0", " --max-rss -5", " --max-rss 10 --server-pid -1"}) {
+  for (const char* args : {" --max-p99-ms 0", " --max-rss -5", " --max-rss 10 --server-pid -1",
+                           " --sweep 1,2 --max-p99-ms 100"}) {
     const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + args + " > /dev/null 2>&1";
     const int status = std::system(cmd.c_str());
     ASSERT_TRUE(WIFEXITED(status)) << args;

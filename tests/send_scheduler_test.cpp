@@ -189,6 +189,44 @@ TEST(SendScheduler, ANewerVersionOfAHeldChunkGoesBeforeNewTerrain) {
   EXPECT_EQ(send->coord, (ChunkCoord{0, 0, 0})) << "then new terrain, nearest first";
 }
 
+// Within each class the order stays nearest first: updates of held chunks, then new ones.
+TEST(SendScheduler, UpdatesGoNearestFirstAmongThemselvesThenNewChunksNearestFirst) {
+  FakeStore store;
+  auto publish_ball = [&store](ChunkCoord centre, int r) {
+    for (int z = -r; z <= r; ++z)
+      for (int y = -r; y <= r; ++y)
+        for (int x = -r; x <= r; ++x)
+          if (x * x + y * y + z * z <= r * r && !store.meshes.count(centre.offset(x, y, z)))
+            store.publish(centre.offset(x, y, z));
+  };
+  publish_ball({0, 0, 0}, 3);
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 3);
+  while (s.next(store.lookup())) {
+  }
+  // The player steps to (1,0,0): the far side is new terrain (all of it loaded), and edits
+  // change the held (3,0,0) and (0,0,0) (now 2 and 1 chunks away).
+  publish_ball({1, 0, 0}, 3);
+  s.set_view({1, 0, 0}, 3);
+  store.publish({3, 0, 0});
+  store.publish({0, 0, 0});
+  s.mark_stale({3, 0, 0});
+  s.mark_stale({0, 0, 0});
+  std::vector<ChunkCoord> order;
+  while (auto send = s.next(store.lookup())) order.push_back(send->coord);
+  ASSERT_GE(order.size(), 3u);
+  EXPECT_EQ(order[0], (ChunkCoord{0, 0, 0}));
+  EXPECT_EQ(order[1], (ChunkCoord{3, 0, 0}));
+  int64_t last = 0;
+  for (size_t i = 2; i < order.size(); ++i) {
+    const int64_t d = d2(order[i], {1, 0, 0});
+    EXPECT_GT(d2(order[i], {0, 0, 0}), 9) << "only new chunks after the updates";
+    EXPECT_GE(d, last) << "new chunks nearest first";
+    last = d;
+  }
+  EXPECT_EQ(d2(order[2], {1, 0, 0}), 5);  // (3,1,0) and its like: the nearest new ones
+}
+
 TEST(SendScheduler, MovingTheViewUnloadsHeldChunksThatLeftIt) {
   FakeStore store;
   for (int x = -2; x <= 6; ++x) store.publish({x, 0, 0});

@@ -79,6 +79,21 @@ TEST(Timeline, LimitsAreCheckedMinuteByMinuteAndNameTheMinute) {
   EXPECT_NE(rss[0].find("minute 2: voxeld RSS"), std::string::npos) << rss[0];
 }
 
+// Found in review: a server that hung gave minutes without a single answer, and a minute
+// without answers had no p99 to break the limit with.
+TEST(Timeline, AMinuteOfEditingWithoutOneAnswerBreaksTheLatencyLimit) {
+  LoadStats s = steady_run(150, 20);
+  s.edit_to_delta.resize(5000);  // answers stop 50 s into the run; editing went on to 150 s
+  const auto t = vox::loadtest::timeline(s);
+  EXPECT_TRUE(vox::loadtest::limit_breaches(t, {.max_rss_mib = 1000}).empty());
+  const auto lines = vox::loadtest::limit_breaches(t, {.max_p99_ms = 150});
+  ASSERT_EQ(lines.size(), 2u);  // minutes 2 and 3 (3 begins 120 s in, editing stopped at 150)
+  EXPECT_EQ(lines[0], "minute 2: no edit was answered with its delta (--max-p99-ms)");
+  s.duration_s = 125;  // the third minute began just before the end: not judged
+  EXPECT_EQ(vox::loadtest::limit_breaches(vox::loadtest::timeline(s), {.max_p99_ms = 150}).size(),
+            1u);
+}
+
 TEST(SvgChart, TicksAreRoundNumbersCoveringTheRange) {
   EXPECT_EQ(vox::loadtest::nice_ticks(0, 100), (std::vector<double>{0, 20, 40, 60, 80, 100}));
   EXPECT_EQ(vox::loadtest::nice_ticks(0, 30, 6), (std::vector<double>{0, 5, 10, 15, 20, 25, 30}));
@@ -90,6 +105,8 @@ TEST(SvgChart, TicksAreRoundNumbersCoveringTheRange) {
 TEST(SvgChart, NumbersAreWrittenAsPeopleWriteThem) {
   EXPECT_EQ(vox::loadtest::human_number(0), "0");
   EXPECT_EQ(vox::loadtest::human_number(0.25), "0.25");
+  EXPECT_EQ(vox::loadtest::human_number(0.125), "0.125");
+  EXPECT_EQ(vox::loadtest::human_number(0.0002), "0.0002");
   EXPECT_EQ(vox::loadtest::human_number(12.5), "12.5");
   EXPECT_EQ(vox::loadtest::human_number(950), "950");
   EXPECT_EQ(vox::loadtest::human_number(1200), "1,200");
@@ -124,6 +141,20 @@ TEST(SvgChart, AShortRunIsInSecondsAndStallsSwitchTheLatencyAxisToLog) {
   EXPECT_NE(svg.find(">1,000<"), std::string::npos);  // a decade tick
   EXPECT_EQ(svg.find("goal"), std::string::npos);
   EXPECT_EQ(svg.find("per minute"), std::string::npos);
+}
+
+// Found in review: a panel whose values are all 0 (an idle server's CPU) had ticks 0,
+// 2e-10, ... all labelled "0".
+TEST(SvgChart, AnAllZeroPanelStillHasDistinctTicks) {
+  LoadStats s = steady_run(10, 5);
+  s.server_cpu_percent.assign(10, 0.0);
+  std::ostringstream out;
+  vox::loadtest::write_svg(s, std::nullopt, out);
+  const std::string svg = out.str();
+  const size_t cpu = svg.find("voxeld CPU");
+  ASSERT_NE(cpu, std::string::npos);
+  for (const char* tick : {">0.2<", ">1<"})
+    EXPECT_NE(svg.find(tick, cpu), std::string::npos) << tick;
 }
 
 // The sweep chart clipped its last label: every point and label lies inside the plot.

@@ -44,6 +44,21 @@ class PostgresStore final : public WorldStore {
  public:
   PostgresStore(std::string uri, const OpenOptions& options)
       : uri_(std::move(uri)), name_("PostgreSQL " + redact_uri(uri_)), options_(options) {
+    open();
+  }
+  // The writer lets go of the world's lock before closing: the next writer need not wait
+  // for the backend to notice the close (best effort; the close drops it anyway).
+  ~PostgresStore() override {
+    if (!conn_ || !conn_->is_open() || options_.read_only || !options_.record_start) return;
+    try {
+      pqxx::nontransaction t(*conn_);
+      t.exec("SELECT pg_advisory_unlock_all()");
+    } catch (const std::exception&) {
+    }
+  }
+
+ private:
+  void open() {
     run([&](pqxx::connection& c) {
       if (options_.read_only) {
         pqxx::read_transaction t(c);
@@ -89,6 +104,7 @@ class PostgresStore final : public WorldStore {
     });
   }
 
+ public:
   const std::string& name() const override { return name_; }
 
   WorldInfo info() override {
