@@ -93,7 +93,9 @@ void write_timeline_json(const Timeline& t, std::ostream& out) {
                   i ? "," : "", i, s.delta.count, s.delta.p50, s.delta.p99, s.delta.p999,
                   s.delta.max, s.bytes);
     out << buf << "\"rss_mib\":" << optional_json(s.rss_mib)
-        << ",\"cpu_percent\":" << optional_json(s.cpu_percent) << "}";
+        << ",\"cpu_percent\":" << optional_json(s.cpu_percent)
+        << ",\"tester_cpu_percent\":" << optional_json(s.tester_cpu_percent)
+        << ",\"steal_percent\":" << optional_json(s.steal_percent) << "}";
   }
   out << "],\"per_minute\":[";
   for (size_t i = 0; i < t.minutes.size(); ++i) {
@@ -106,7 +108,9 @@ void write_timeline_json(const Timeline& t, std::ostream& out) {
                   m.delta.max, m.worst_second, m.worst_second_p99);
     out << buf << "\"rss_min_mib\":" << optional_json(m.rss_min_mib)
         << ",\"rss_max_mib\":" << optional_json(m.rss_max_mib)
-        << ",\"cpu_mean_percent\":" << optional_json(m.cpu_mean_percent) << "}";
+        << ",\"cpu_mean_percent\":" << optional_json(m.cpu_mean_percent)
+        << ",\"tester_cpu_mean_percent\":" << optional_json(m.tester_cpu_mean_percent)
+        << ",\"steal_mean_percent\":" << optional_json(m.steal_mean_percent) << "}";
   }
   std::snprintf(buf, sizeof buf, "],\"worst_second\":{\"t\":%zu,\"p99_ms\":%.3f}", t.worst_second,
                 t.worst_second_p99);
@@ -117,22 +121,25 @@ void write_timeline_json(const Timeline& t, std::ostream& out) {
 void write_minutes_table(const Timeline& t, std::ostream& out) {
   char buf[256];
   if (t.minutes.size() > 1) {
-    out << "  per minute (edit -> deltas decoded, ms; voxeld RSS MiB, CPU % of a core)\n"
-           "    min  edits    p50     p99   p99.9     max  worst s p99    RSS min..max  CPU\n";
+    out << "  per minute (edit -> deltas decoded, ms; voxeld RSS MiB; CPU % of a core: voxeld, "
+           "this tester, stolen from the VM)\n"
+           "    min  edits    p50     p99   p99.9     max  worst s p99    RSS min..max  "
+           "voxeld tester steal\n";
+    auto cell = [](const std::optional<double>& v, int width) {
+      char text[32];
+      if (v)
+        std::snprintf(text, sizeof text, " %*.0f", width, *v);
+      else
+        std::snprintf(text, sizeof text, " %*s", width, "-");
+      return std::string(text);
+    };
     for (const MinuteStats& m : t.minutes) {
-      std::snprintf(buf, sizeof buf, "    %3zu %6zu %6.1f %7.1f %7.1f %7.1f %5zu %7.1f",
+      std::snprintf(buf, sizeof buf, "    %3zu %6zu %6.1f %7.1f %7.1f %7.1f %5zu %7.1f ",
                     m.minute + 1, m.delta.count, m.delta.p50, m.delta.p99, m.delta.p999,
                     m.delta.max, m.worst_second, m.worst_second_p99);
-      out << buf;
-      if (m.rss_min_mib) {
-        std::snprintf(buf, sizeof buf, "  %6.0f..%6.0f", *m.rss_min_mib, *m.rss_max_mib);
-        out << buf;
-      }
-      if (m.cpu_mean_percent) {
-        std::snprintf(buf, sizeof buf, " %4.0f", *m.cpu_mean_percent);
-        out << buf;
-      }
-      out << "\n";
+      out << buf << cell(m.rss_min_mib, 6) << ".." << cell(m.rss_max_mib, 6).substr(1)
+          << cell(m.cpu_mean_percent, 6) << cell(m.tester_cpu_mean_percent, 6)
+          << cell(m.steal_mean_percent, 5) << "\n";
     }
   }
   if (!t.any_deltas) {

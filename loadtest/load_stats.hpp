@@ -45,6 +45,8 @@ struct LoadStats {
   int server_pid = 0;                      // whose RSS was sampled; 0: none
   std::vector<double> server_rss_kib;      // voxeld's VmRSS, one sample a second from the start
   std::vector<double> server_cpu_percent;  // voxeld's CPU in each second, % of one core
+  std::vector<double> tester_cpu_percent;  // this load tester's, the same way
+  std::vector<double> host_steal_percent;  // stolen by the hypervisor, % of one core
 
   uint64_t error_count() const;
   uint64_t disconnect_count() const;

@@ -149,6 +149,11 @@ void LoadTest::count_bytes(size_t n) {
   bytes_per_second_[second].fetch_add(n, std::memory_order_relaxed);
 }
 
+void LoadTest::sample_machine() {
+  server_.sample();
+  host_.sample();
+}
+
 void LoadTest::collect_counters() {
   std::lock_guard lock(mutex_);
   stats_.messages_received = messages_.load();
@@ -159,6 +164,8 @@ void LoadTest::collect_counters() {
   stats_.server_pid = server_.pid();
   stats_.server_rss_kib = server_.kib();
   stats_.server_cpu_percent = server_.cpu_percent();
+  stats_.tester_cpu_percent = host_.tester_cpu_percent();
+  stats_.host_steal_percent = host_.steal_percent();
   const auto seconds = static_cast<size_t>(std::ceil(now_s()));
   stats_.bytes_per_second.assign(std::min(seconds, bytes_per_second_.size()), 0);
   for (size_t i = 0; i < stats_.bytes_per_second.size(); ++i) {
@@ -259,7 +266,7 @@ LoadStats LoadTest::run(std::ostream& progress) {
   editing_ = true;
   start_players();
   start_attackers();
-  server_.sample();
+  sample_machine();
   auto work = asio::make_work_guard(io_);
   const int thread_count = config_.threads > 0
                                ? config_.threads
@@ -270,7 +277,7 @@ LoadStats LoadTest::run(std::ostream& progress) {
   for (double next = 1; now_s() < end; next += 1) {
     std::this_thread::sleep_for(
         std::chrono::duration<double>(std::max(0.0, std::min(next, end) - now_s())));
-    server_.sample();
+    sample_machine();
     tick_progress(progress);
   }
   editing_ = false;
@@ -281,7 +288,7 @@ LoadStats LoadTest::run(std::ostream& progress) {
   }
   for (double slept = 0; slept < kDrainS; slept += 1) {
     std::this_thread::sleep_for(std::chrono::duration<double>(std::min(1.0, kDrainS - slept)));
-    server_.sample();
+    sample_machine();
   }
   // The players stand still now: before verifying, every view must be complete (the
   // server says so with ViewReady), however slowly the server streams.

@@ -21,6 +21,7 @@
 #include "loadtest/attack_mix.hpp"
 #include "loadtest/attack_stats.hpp"
 #include "loadtest/decode_memo.hpp"
+#include "loadtest/host_sampler.hpp"
 #include "loadtest/load_stats.hpp"
 #include "loadtest/server_sampler.hpp"
 #include "server/auth/player_token.hpp"
@@ -128,6 +129,7 @@ class LoadTest {
   void verify_all();
   bool all_views_ready() const;  // any thread
   void collect_counters();
+  void sample_machine();  // voxeld, this process and the host, once a second
 
   LoadConfig config_;
   double half_width_;
@@ -136,6 +138,7 @@ class LoadTest {
   std::vector<std::shared_ptr<Attacker>> attackers_;  // fixed once started, like players_
   AttackTally attack_tally_;
   ServerSampler server_;  // main thread only
+  HostSampler host_;      // main thread only
   std::chrono::steady_clock::time_point start_;
   std::atomic<bool> editing_{false}, stopping_{false};
   DecodeMemo memo_;

@@ -85,6 +85,25 @@ ChartPanel sampled_panel(const Timeline& t, std::string title, std::string y_lab
   return p;
 }
 
+// Whose CPU a slow second had: voxeld's, the load tester's (its players share the
+// machine) and what the hypervisor stole.
+ChartPanel cpu_panel(const Timeline& t) {
+  ChartPanel p = time_panel(t, "CPU: voxeld, the load tester, stolen by the hypervisor",
+                            "CPU (% of one core)");
+  ChartSeries voxeld{"voxeld", "#a06000", {}, false, false, 1.5};
+  ChartSeries tester{"load tester", "#2080a0", {}, false, false, 1};
+  ChartSeries steal{"stolen (steal)", "#c02060", {}, false, false, 1};
+  for (size_t i = 0; i < t.seconds.size(); ++i) {
+    const SecondStats& s = t.seconds[i];
+    if (s.cpu_percent) voxeld.points.push_back({i + 0.5, *s.cpu_percent});
+    if (s.tester_cpu_percent) tester.points.push_back({i + 0.5, *s.tester_cpu_percent});
+    if (s.steal_percent) steal.points.push_back({i + 0.5, *s.steal_percent});
+  }
+  for (auto* series : {&voxeld, &tester, &steal})
+    if (!series->points.empty()) p.series.push_back(std::move(*series));
+  return p;
+}
+
 }  // namespace
 
 void write_svg(const LoadStats& s, std::optional<double> goal_p99_ms, std::ostream& out) {
@@ -100,10 +119,8 @@ void write_svg(const LoadStats& s, std::optional<double> goal_p99_ms, std::ostre
     panels.push_back(sampled_panel(t, "voxeld resident memory", "RSS (MiB)", "RSS", "#8040a0",
                                    &SecondStats::rss_mib));
   }
-  if (!s.server_cpu_percent.empty()) {
-    panels.push_back(sampled_panel(t, "voxeld CPU", "CPU (% of one core)", "CPU per second",
-                                   "#a06000", &SecondStats::cpu_percent));
-  }
+  if (!s.server_cpu_percent.empty() || !s.tester_cpu_percent.empty())
+    panels.push_back(cpu_panel(t));
   std::string heading = "voxel-loadtest: " + std::to_string(s.players) +
                         (s.attack.mix.empty() ? "" : " honest") + " players, " +
                         human_number(std::round(s.duration_s)) + " s";

@@ -28,8 +28,16 @@ MinuteStats minute_of(const Timeline& t, const std::vector<std::vector<double>>&
   const size_t first = minute * kSecondsPerMinute,
                end = std::min(t.seconds.size(), first + kSecondsPerMinute);
   std::vector<double> all;
-  double cpu_sum = 0;
-  size_t cpu_n = 0;
+  struct Mean {
+    double sum = 0;
+    size_t n = 0;
+    void add(const std::optional<double>& v) {
+      if (v) sum += *v, ++n;
+    }
+    std::optional<double> value() const {
+      return n ? std::optional(sum / static_cast<double>(n)) : std::nullopt;
+    }
+  } cpu, tester, steal;
   bool any_edits = false;
   for (size_t i = first; i < end; ++i) {
     all.insert(all.end(), buckets[i].begin(), buckets[i].end());
@@ -43,14 +51,22 @@ MinuteStats minute_of(const Timeline& t, const std::vector<std::vector<double>>&
       m.rss_min_mib = std::min(m.rss_min_mib.value_or(*s.rss_mib), *s.rss_mib);
       m.rss_max_mib = std::max(m.rss_max_mib.value_or(*s.rss_mib), *s.rss_mib);
     }
-    if (s.cpu_percent) {
-      cpu_sum += *s.cpu_percent;
-      ++cpu_n;
-    }
+    cpu.add(s.cpu_percent);
+    tester.add(s.tester_cpu_percent);
+    steal.add(s.steal_percent);
   }
   m.delta = percentiles(std::move(all));
-  if (cpu_n > 0) m.cpu_mean_percent = cpu_sum / static_cast<double>(cpu_n);
+  m.cpu_mean_percent = cpu.value();
+  m.tester_cpu_mean_percent = tester.value();
+  m.steal_mean_percent = steal.value();
   return m;
+}
+
+// Sample i of a once-a-second series; nullopt past its end or where it is NaN (a sample
+// the sampler could not take: it keeps the others in their seconds).
+std::optional<double> sampled(const std::vector<double>& series, size_t i, double scale = 1) {
+  if (i >= series.size() || std::isnan(series[i])) return std::nullopt;
+  return series[i] * scale;
 }
 
 std::string format(const char* pattern, size_t minute, double value, double limit) {
@@ -73,11 +89,10 @@ Timeline timeline(const LoadStats& s) {
     SecondStats& second = t.seconds[i];
     second.delta = percentiles(buckets[i]);
     if (i < s.bytes_per_second.size()) second.bytes = s.bytes_per_second[i];
-    // NaN: a sample the sampler could not take (it keeps the others in their seconds).
-    if (i < s.server_rss_kib.size() && !std::isnan(s.server_rss_kib[i]))
-      second.rss_mib = s.server_rss_kib[i] / 1024;
-    if (i < s.server_cpu_percent.size() && !std::isnan(s.server_cpu_percent[i]))
-      second.cpu_percent = s.server_cpu_percent[i];
+    second.rss_mib = sampled(s.server_rss_kib, i, 1.0 / 1024);
+    second.cpu_percent = sampled(s.server_cpu_percent, i);
+    second.tester_cpu_percent = sampled(s.tester_cpu_percent, i);
+    second.steal_percent = sampled(s.host_steal_percent, i);
     if (second.delta.count > 0 && second.delta.p99 > t.worst_second_p99) {
       t.worst_second = i;
       t.worst_second_p99 = second.delta.p99;

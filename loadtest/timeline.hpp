@@ -18,6 +18,7 @@ struct SecondStats {
   double bytes = 0;                   // received by all players
   std::optional<double> rss_mib;      // voxeld's, sampled at the start of the second
   std::optional<double> cpu_percent;  // voxeld's over the second, % of one core
+  std::optional<double> tester_cpu_percent, steal_percent;  // the load tester's; stolen
 };
 
 struct MinuteStats {
@@ -26,6 +27,7 @@ struct MinuteStats {
   size_t worst_second = 0;  // of the run, the second of the minute with the highest p99
   double worst_second_p99 = 0;
   std::optional<double> rss_min_mib, rss_max_mib, cpu_mean_percent;
+  std::optional<double> tester_cpu_mean_percent, steal_mean_percent;
 };
 
 struct Timeline {

@@ -5,9 +5,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <limits>
 #include <regex>
 #include <sstream>
 
+#include "loadtest/host_sampler.hpp"
 #include "loadtest/report_svg.hpp"
 #include "loadtest/svg_chart.hpp"
 
@@ -25,6 +28,8 @@ LoadStats steady_run(size_t seconds, double ms) {
   for (size_t i = 0; i < seconds; ++i) {
     s.server_rss_kib.push_back(400.0 * 1024 + static_cast<double>(i));
     s.server_cpu_percent.push_back(120);
+    s.tester_cpu_percent.push_back(60);
+    s.host_steal_percent.push_back(i % 2 ? 10 : std::numeric_limits<double>::quiet_NaN());
   }
   return s;
 }
@@ -50,12 +55,17 @@ TEST(Timeline, GivesEachSecondAndMinuteItsOwnPercentilesAndFindsTheWorstSecond) 
   EXPECT_DOUBLE_EQ(*t.minutes[0].rss_min_mib, 400.0);
   EXPECT_DOUBLE_EQ(*t.minutes[0].rss_max_mib, 400.0 + 59.0 / 1024);
   EXPECT_DOUBLE_EQ(*t.minutes[2].cpu_mean_percent, 120);
+  EXPECT_DOUBLE_EQ(*t.minutes[2].tester_cpu_mean_percent, 60);
+  EXPECT_DOUBLE_EQ(*t.minutes[2].steal_mean_percent, 10);  // the seconds it could be read
+  EXPECT_FALSE(t.seconds[0].steal_percent);
 }
 
 TEST(Timeline, ARunWithoutServerSamplesHasNoRssOrCpuFigures) {
   LoadStats s = steady_run(5, 10);
   s.server_rss_kib.clear();
   s.server_cpu_percent.clear();
+  s.tester_cpu_percent.clear();
+  s.host_steal_percent.clear();
   const auto t = vox::loadtest::timeline(s);
   EXPECT_FALSE(t.seconds[0].rss_mib);
   EXPECT_FALSE(t.minutes[0].rss_max_mib);
@@ -94,6 +104,29 @@ TEST(Timeline, AMinuteOfEditingWithoutOneAnswerBreaksTheLatencyLimit) {
             1u);
 }
 
+TEST(HostSampler, ReadsStealFromTheAggregateCpuLineOnly) {
+  EXPECT_EQ(
+      vox::loadtest::parse_steal_ticks("cpu  10 2 30 4000 5 0 6 77 0 0\ncpu0 1 1 1 1 1 1 1 9\n"),
+      77u);
+  EXPECT_FALSE(vox::loadtest::parse_steal_ticks("cpu0 1 1 1 1 1 1 1 9\n"));
+  EXPECT_FALSE(vox::loadtest::parse_steal_ticks("cpu  10 2 30 4000\ncpu0 1 1 1 1 1 1 1 9\n"));
+  EXPECT_FALSE(vox::loadtest::parse_steal_ticks(""));
+}
+
+TEST(HostSampler, GivesOneFigurePerSecondAfterTheFirstSample) {
+  vox::loadtest::HostSampler sampler;
+  sampler.sample();
+  EXPECT_TRUE(sampler.tester_cpu_percent().empty());
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(200);
+  volatile double x = 0;
+  while (std::chrono::steady_clock::now() < until) x = x + 1e-9;
+  sampler.sample();
+  ASSERT_EQ(sampler.tester_cpu_percent().size(), 1u);
+  ASSERT_EQ(sampler.steal_percent().size(), 1u);
+  EXPECT_GT(sampler.tester_cpu_percent()[0], 0.0);
+  EXPECT_GE(sampler.steal_percent()[0], 0.0);
+}
+
 TEST(SvgChart, TicksAreRoundNumbersCoveringTheRange) {
   EXPECT_EQ(vox::loadtest::nice_ticks(0, 100), (std::vector<double>{0, 20, 40, 60, 80, 100}));
   EXPECT_EQ(vox::loadtest::nice_ticks(0, 30, 6), (std::vector<double>{0, 5, 10, 15, 20, 25, 30}));
@@ -122,9 +155,9 @@ TEST(SvgChart, ARunsChartHasAxesWithUnitsALegendAGoalAndNoScientificNumbers) {
   vox::loadtest::write_svg(s, 150.0, out);
   const std::string svg = out.str();
   for (const char* text :
-       {"latency (ms)", "throughput (MB/s)", "RSS (MiB)", "CPU (% of one core)",
-        "time since the start (minutes)", "p99 per second", "p99 per minute", "p99.9 per minute",
-        "goal: p99 150 ms", "stroke-dasharray", ">40<", ">4<", "#f2f2f2"}) {
+       {"latency (ms)", "throughput (MB/s)", "RSS (MiB)", "CPU (% of one core)", "load tester",
+        "stolen (steal)", "time since the start (minutes)", "p99 per second", "p99 per minute",
+        "p99.9 per minute", "goal: p99 150 ms", "stroke-dasharray", ">40<", ">4<", "#f2f2f2"}) {
     EXPECT_NE(svg.find(text), std::string::npos) << text;
   }
   EXPECT_FALSE(std::regex_search(svg, std::regex(">[^<]*[0-9]e[+-][0-9]")));
@@ -148,10 +181,12 @@ TEST(SvgChart, AShortRunIsInSecondsAndStallsSwitchTheLatencyAxisToLog) {
 TEST(SvgChart, AnAllZeroPanelStillHasDistinctTicks) {
   LoadStats s = steady_run(10, 5);
   s.server_cpu_percent.assign(10, 0.0);
+  s.tester_cpu_percent.assign(10, 0.0);
+  s.host_steal_percent.assign(10, 0.0);
   std::ostringstream out;
   vox::loadtest::write_svg(s, std::nullopt, out);
   const std::string svg = out.str();
-  const size_t cpu = svg.find("voxeld CPU");
+  const size_t cpu = svg.find("CPU: voxeld");
   ASSERT_NE(cpu, std::string::npos);
   for (const char* tick : {">0.2<", ">1<"})
     EXPECT_NE(svg.find(tick, cpu), std::string::npos) << tick;
