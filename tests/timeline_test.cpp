@@ -202,7 +202,11 @@ TEST(SvgChart, TheSweepsLastPointAndItsLabelAreInsideThePlot) {
   for (std::sregex_iterator it(svg.begin(), svg.end(), circle), end; it != end; ++it)
     rightmost = std::max(rightmost, std::stod((*it)[1]));
   EXPECT_GT(rightmost, 600);
-  EXPECT_LT(rightmost + 20, 920 - 190);  // the plot's right edge, before the legend
+  EXPECT_LT(rightmost + 20, 920 - 190);                 // the plot's right edge, before the legend
+  EXPECT_EQ(svg.find("log scale"), std::string::npos);  // 140 ms is not ten times 100
+  std::ostringstream saturated;
+  vox::loadtest::write_sweep_svg({{300, 19.7, 0}, {800, 1390, 0}}, 100, saturated);
+  EXPECT_NE(saturated.str().find("p99 latency (ms, log scale)"), std::string::npos);
   for (const char* text :
        {"players", "p99 latency (ms)", "limit: 100 ms", "a run with errors", ">800<", ">140<"}) {
     EXPECT_NE(svg.find(text), std::string::npos) << text;
