@@ -1,37 +1,11 @@
 #include "loadtest/host_sampler.hpp"
 
-#include <unistd.h>
-
-#include <array>
 #include <charconv>
 #include <chrono>
-#include <fstream>
-#include <limits>
-#include <sstream>
-#include <string>
 
 #include "loadtest/server_sampler.hpp"
 
 namespace vox::loadtest {
-
-namespace {
-
-std::string read_text(const char* path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
-
-// 100 * (now - before) ticks over `seconds`, or NaN when either reading is missing.
-double percent(std::optional<uint64_t> now, std::optional<uint64_t> before, double seconds) {
-  static const double kTicksPerSecond = static_cast<double>(::sysconf(_SC_CLK_TCK));
-  if (!now || !before || *now < *before || !(seconds > 0))
-    return std::numeric_limits<double>::quiet_NaN();
-  return 100.0 * static_cast<double>(*now - *before) / kTicksPerSecond / seconds;
-}
-
-}  // namespace
 
 std::optional<uint64_t> parse_steal_ticks(std::string_view text) {
   if (text.substr(0, 4) != "cpu ") return std::nullopt;
@@ -52,13 +26,13 @@ std::optional<uint64_t> parse_steal_ticks(std::string_view text) {
 
 void HostSampler::sample() {
   if (tester_.size() >= kMaxSamples) return;
-  const auto tester = parse_cpu_ticks(read_text("/proc/self/stat"));
-  const auto steal = parse_steal_ticks(read_text("/proc/stat"));
+  const auto tester = parse_cpu_ticks(read_proc_file("/proc/self/stat"));
+  const auto steal = parse_steal_ticks(read_proc_file("/proc/stat"));
   const double at_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
   if (last_at_s_) {
-    tester_.push_back(percent(tester, last_tester_, at_s - *last_at_s_));
-    steal_.push_back(percent(steal, last_steal_, at_s - *last_at_s_));
+    tester_.push_back(cpu_percent_between(tester, last_tester_, at_s - *last_at_s_));
+    steal_.push_back(cpu_percent_between(steal, last_steal_, at_s - *last_at_s_));
   }
   last_tester_ = tester;
   last_steal_ = steal;

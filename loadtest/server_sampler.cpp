@@ -13,14 +13,22 @@
 
 namespace vox::loadtest {
 
-namespace {
-
-std::string read_file(const std::string& path) {
+std::string read_proc_file(const std::string& path) {
   std::ifstream in(path);
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
 }
+
+double cpu_percent_between(std::optional<uint64_t> now, std::optional<uint64_t> before,
+                           double seconds) {
+  static const double kTicksPerSecond = static_cast<double>(::sysconf(_SC_CLK_TCK));
+  if (!now || !before || *now < *before || !(seconds > 0))
+    return std::numeric_limits<double>::quiet_NaN();
+  return 100.0 * static_cast<double>(*now - *before) / kTicksPerSecond / seconds;
+}
+
+namespace {
 
 std::string_view next_field(std::string_view& line) {
   const size_t start = line.find_first_not_of(" \t");
@@ -92,7 +100,7 @@ std::optional<uint64_t> find_listening_inode(std::string_view text, uint16_t por
 std::optional<int> find_listening_pid(uint16_t port) {
   std::optional<uint64_t> inode;
   for (const char* table : {"/proc/net/tcp", "/proc/net/tcp6"}) {
-    if ((inode = find_listening_inode(read_file(table), port))) break;
+    if ((inode = find_listening_inode(read_proc_file(table), port))) break;
   }
   if (!inode) return std::nullopt;
   const std::string target = "socket:[" + std::to_string(*inode) + "]";
@@ -116,19 +124,14 @@ std::optional<int> find_listening_pid(uint16_t port) {
 void ServerSampler::sample() {
   if (pid_ <= 0 || kib_.size() >= kMaxSamples) return;
   const std::string proc = "/proc/" + std::to_string(pid_);
-  const auto kib = parse_vm_rss_kib(read_file(proc + "/status"));
+  const auto kib = parse_vm_rss_kib(read_proc_file(proc + "/status"));
   if (!kib) return;
   kib_.push_back(static_cast<double>(*kib));
-  const auto ticks = parse_cpu_ticks(read_file(proc + "/stat"));
+  const auto ticks = parse_cpu_ticks(read_proc_file(proc + "/stat"));
   const double at_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-  static const double kTicksPerSecond = static_cast<double>(::sysconf(_SC_CLK_TCK));
-  if (kib_.size() > 1) {  // one CPU figure per second after the first, NaN when unknown
-    cpu_percent_.push_back(ticks && last_ticks_ && *ticks >= *last_ticks_ && at_s > last_at_s_
-                               ? 100.0 * static_cast<double>(*ticks - *last_ticks_) /
-                                     kTicksPerSecond / (at_s - last_at_s_)
-                               : std::numeric_limits<double>::quiet_NaN());
-  }
+  if (kib_.size() > 1)  // one CPU figure per second after the first, NaN when unknown
+    cpu_percent_.push_back(cpu_percent_between(ticks, last_ticks_, at_s - last_at_s_));
   if (ticks) {
     last_ticks_ = ticks;
     last_at_s_ = at_s;

@@ -17,6 +17,12 @@ std::optional<uint64_t> parse_vm_rss_kib(std::string_view status);
 // utime + stime, in clock ticks, from /proc/PID/stat text (the fields after the command
 // name in parentheses, which may itself hold spaces and parentheses).
 std::optional<uint64_t> parse_cpu_ticks(std::string_view stat);
+// 100 * (now - before) clock ticks over `seconds`: percent of one core. NaN when either
+// reading is missing, the ticks went back or no time passed.
+double cpu_percent_between(std::optional<uint64_t> now, std::optional<uint64_t> before,
+                           double seconds);
+// A /proc file's whole text; empty when it cannot be read.
+std::string read_proc_file(const std::string& path);
 // The inode of the socket listening on `port`, from /proc/net/tcp or /proc/net/tcp6 text.
 std::optional<uint64_t> find_listening_inode(std::string_view proc_net_tcp, uint16_t port);
 // The process listening on `port` of this machine: the listening socket's inode, then
