@@ -35,6 +35,10 @@ code=$?
 set -e
 curl -s "http://127.0.0.1:$(cat "$out/$name.mport")/metrics" > "$out/$name.metrics" || true
 kill -TERM $server; wait $server || true
+if [ ! -s "$out/$name.json" ]; then  # the tester refused its arguments or could not run
+  echo "$name: exit $code, no results: $(tail -1 "$out/$name.progress")"
+  exit "$code"
+fi
 /usr/bin/python3 - "$out/$name.json" "$out/$name.metrics" "$name" "$code" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1]))

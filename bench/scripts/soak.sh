@@ -2,7 +2,8 @@
 # A soak as an operator runs one before opening a server (docs/PERFORMANCE.md, issue 18):
 #   bench/scripts/soak.sh NAME MINUTES [PLAYERS] [-- extra voxel-loadtest args]
 # PLAYERS (default 300) play for MINUTES against a fresh voxeld with its default world store
-# and a 1 GiB memory budget (bench/scripts/attack_run.sh), edit rate 0.5/s, view radius 4.
+# and a 1 GiB memory budget (bench/scripts/attack_run.sh), edit rate 0.5/s (EDIT_RATE=N), view
+# radius 4 and a 10 s ramp are set there (passing them again after -- is a usage error, exit 2).
 # The load tester reports per second and per minute, draws NAME.svg and exits 1 when a minute's
 # edit->delta p99 is above 150 ms (MAX_P99_MS) or voxeld's RSS above MAX_RSS_MIB (when set).
 # Meanwhile voxeld's metrics are scraped every 10 s into NAME.series, and at the end the
