@@ -115,6 +115,16 @@ void write_timeline_json(const Timeline& t, std::ostream& out) {
   std::snprintf(buf, sizeof buf, "],\"worst_second\":{\"t\":%zu,\"p99_ms\":%.3f}", t.worst_second,
                 t.worst_second_p99);
   out << buf;
+  if (t.worst_quiet_second) {
+    std::snprintf(buf, sizeof buf,
+                  ",\"worst_quiet_second\":{\"t\":%zu,\"p99_ms\":%.3f,\"steal_below_percent\":%.0f,"
+                  "\"stolen_seconds\":%zu}",
+                  *t.worst_quiet_second, t.worst_quiet_second_p99, kQuietStealPercent,
+                  t.stolen_seconds);
+    out << buf;
+  } else {
+    out << ",\"worst_quiet_second\":null";
+  }
 }
 
 // Per minute, for runs of more than one: what a soak is judged by.
@@ -149,6 +159,14 @@ void write_minutes_table(const Timeline& t, std::ostream& out) {
   std::snprintf(buf, sizeof buf, "  worst second: %zu s into the run, edit->delta p99 %.1f ms\n",
                 t.worst_second, t.worst_second_p99);
   out << buf;
+  if (t.worst_quiet_second) {
+    std::snprintf(buf, sizeof buf,
+                  "  worst second with under %.0f %% of a core stolen by the host: %zu s, p99 "
+                  "%.1f ms (%zu seconds had more stolen)\n",
+                  kQuietStealPercent, *t.worst_quiet_second, t.worst_quiet_second_p99,
+                  t.stolen_seconds);
+    out << buf;
+  }
 }
 
 }  // namespace

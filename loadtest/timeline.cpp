@@ -97,6 +97,14 @@ Timeline timeline(const LoadStats& s) {
       t.worst_second = i;
       t.worst_second_p99 = second.delta.p99;
     }
+    if (second.delta.count > 0 && second.steal_percent) {
+      if (*second.steal_percent >= kQuietStealPercent) {
+        ++t.stolen_seconds;
+      } else if (!t.worst_quiet_second || second.delta.p99 > t.worst_quiet_second_p99) {
+        t.worst_quiet_second = i;
+        t.worst_quiet_second_p99 = second.delta.p99;
+      }
+    }
   }
   for (size_t m = 0; m * kSecondsPerMinute < seconds; ++m)
     t.minutes.push_back(minute_of(t, buckets, m));

@@ -35,9 +35,17 @@ struct Timeline {
   std::vector<MinuteStats> minutes;
   size_t worst_second = 0;  // the second of the run with the highest p99 (0 when no edits)
   double worst_second_p99 = 0;
-  bool any_deltas = false;  // some edit was answered with its delta
-  double editing_s = 0;     // when the players stopped editing (LoadStats::duration_s)
+  // The same among the seconds in which the VM lost less than kQuietStealPercent of a core
+  // to its host (steal time): what the server did when it had its CPU. Unset when steal
+  // was not sampled or no such second had an answer.
+  std::optional<size_t> worst_quiet_second;
+  double worst_quiet_second_p99 = 0;
+  size_t stolen_seconds = 0;  // seconds with answers and at least that much stolen
+  bool any_deltas = false;    // some edit was answered with its delta
+  double editing_s = 0;       // when the players stopped editing (LoadStats::duration_s)
 };
+
+inline constexpr double kQuietStealPercent = 5.0;
 
 Timeline timeline(const LoadStats& s);
 

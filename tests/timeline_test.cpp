@@ -60,6 +60,28 @@ TEST(Timeline, GivesEachSecondAndMinuteItsOwnPercentilesAndFindsTheWorstSecond) 
   EXPECT_FALSE(t.seconds[0].steal_percent);
 }
 
+TEST(Timeline, TheWorstQuietSecondLeavesOutSecondsTheHostStoleTheCpuIn) {
+  LoadStats s = steady_run(120, 20);
+  for (size_t i = 0; i < 120; ++i) s.host_steal_percent[i] = 1.0;
+  s.host_steal_percent[40] = 70.0;  // the host took most of a core: a slow second
+  s.host_steal_percent[41] = 4.0;
+  for (int i = 0; i < 10; ++i) s.edit_to_delta.push_back({40.5, 900});
+  for (int i = 0; i < 10; ++i) s.edit_to_delta.push_back({41.5, 60});
+  const auto t = vox::loadtest::timeline(s);
+  EXPECT_EQ(t.worst_second, 40u);
+  ASSERT_TRUE(t.worst_quiet_second);
+  EXPECT_EQ(*t.worst_quiet_second, 41u);
+  EXPECT_EQ(t.worst_quiet_second_p99, 60);
+  EXPECT_EQ(t.stolen_seconds, 1u);
+  std::ostringstream table;
+  vox::loadtest::write_table(s, table);
+  EXPECT_NE(table.str().find("stolen by the host: 41 s, p99 60.0 ms (1 seconds had more stolen)"),
+            std::string::npos)
+      << table.str();
+  s.host_steal_percent.clear();  // not sampled: no such figure
+  EXPECT_FALSE(vox::loadtest::timeline(s).worst_quiet_second);
+}
+
 TEST(Timeline, ARunWithoutServerSamplesHasNoRssOrCpuFigures) {
   LoadStats s = steady_run(5, 10);
   s.server_rss_kib.clear();
