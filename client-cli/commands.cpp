@@ -7,9 +7,7 @@
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/mesh_file.hpp"
-#include "client-cli/volume_file.hpp"
 #include "server/mesh/region_mesher.hpp"
-#include "server/mesh/volume_mesher.hpp"
 #include "server/world/parallel.hpp"
 #include "server/world/terrain_generator.hpp"
 
@@ -25,7 +23,7 @@ constexpr const char* kUsage =
     "  watch --at X,Y,Z        print every chunk update around a point\n"
     "  export --at X,Y,Z --out FILE   fetch meshes around a point: .obj, .ply or .glb\n"
     "  slice --y H --at X,Z --out map.svg   a top-down contour map of the terrain\n"
-    "  mesh INPUT --out FILE   mesh a volume file offline (text or raw float32)\n"
+    "  mesh INPUT --out FILE   mesh a volume offline (NIfTI, NRRD, raw float32 or text)\n"
     "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
     "  world info|log|verify WORLD   a world directory (or postgresql:// URI), read-only\n"
     "  keygen --out NAME       an Ed25519 key pair for player tokens (NAME.key, NAME.pub)\n"
@@ -40,55 +38,6 @@ double ms_since(Clock::time_point t0) {
 }
 
 }  // namespace
-
-int mesh_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  po::options_description opts("voxel-cli mesh options");
-  opts.add_options()("help,h", "show this help")("input", po::value<std::string>()->required(),
-                                                 "volume file")(
-      "out,o", po::value<std::string>()->required(),
-      "output mesh: .obj, .ply or .txt (seed 002 format)")(
-      "dims", po::value<std::string>(), "X,Y,Z: INPUT is raw float32 little-endian, x fastest")(
-      "iso", po::value<float>()->default_value(0.0f), "surface level")(
-      "invert", po::bool_switch(), "solid where the value is below --iso (Bourke's convention)")(
-      "threads", po::value<int>()->default_value(0), "worker threads, 0 = all cores");
-  po::positional_options_description positional;
-  positional.add("input", 1);
-  po::variables_map vm;
-  const int rc = parse_options(
-      args, opts, &positional,
-      "usage: voxel-cli mesh INPUT --out OUTPUT [--dims X,Y,Z] [--iso V] [--invert] [--threads N]",
-      vm, out, err);
-  if (rc >= 0) return rc;
-
-  const std::string input = vm["input"].as<std::string>(), output = vm["out"].as<std::string>();
-  mesh::VolumeMeshOptions options;
-  options.iso = vm["iso"].as<float>();
-  options.invert = vm["invert"].as<bool>();
-  options.threads = vm["threads"].as<int>();
-  if (!std::isfinite(options.iso)) {
-    err << "voxel-cli: error: --iso must be a finite number\n";
-    return 2;
-  }
-  if (options.threads < 0 || options.threads > 1024) {
-    err << "voxel-cli: error: --threads must be between 0 and 1024\n";
-    return 2;
-  }
-  return guarded(err, [&] {
-    mesh_format_for(output);  // refuse a bad extension before doing any work
-    std::optional<std::array<int, 3>> dims;
-    if (vm.count("dims")) dims = parse_dims(vm["dims"].as<std::string>());
-    const mesh::Volume volume = read_volume(input, dims);
-    const auto t0 = Clock::now();
-    const mesh::QuantizedVolume quantized = mesh::quantize_volume(volume, options);
-    const mesh::ChunkMesh result = mesh::mesh_volume(quantized, options.threads);
-    const double ms = ms_since(t0);
-    write_mesh(output, result);
-    out << "meshed " << volume.dims[0] << "x" << volume.dims[1] << "x" << volume.dims[2]
-        << " samples: " << result.vertex_count() << " vertices, " << result.triangle_count()
-        << " triangles in " << ms << " ms -> " << output << "\n";
-    return 0;
-  });
-}
 
 int demo_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts("voxel-cli demo options");

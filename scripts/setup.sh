@@ -15,7 +15,7 @@ packages=(
   libboost-dev libboost-program-options-dev
   libtbb-dev libprotobuf-dev protobuf-compiler libzstd-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev libmeshoptimizer-dev
-  prometheus-cpp-dev libjemalloc-dev libsodium-dev
+  prometheus-cpp-dev libjemalloc-dev libsodium-dev zlib1g-dev
   python3-protobuf python3-zstandard
   clang-format clang libclang-rt-14-dev
   libpqxx-dev postgresql

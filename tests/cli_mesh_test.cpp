@@ -310,6 +310,21 @@ TEST_F(CliMesh, EveryWrittenVertexIsUsedWhenSamplesLieOnTheIsoLevel) {
   }
 }
 
+// Issue 15: vertices of one chunk at one sample (a sample exactly on the iso level) were
+// written once per cut edge meeting there, up to six copies of one grid point.
+TEST_F(CliMesh, NoTwoVerticesShareAPositionWhenSamplesLieOnTheIsoLevel) {
+  write("ints.txt", integer_volume_text());
+  ASSERT_EQ(run({"mesh", path("ints.txt"), "--out", path("out.ply"), "--threads", "2"}), 0)
+      << err_.str();
+  const MeshFileContents m = read_ply(path("out.ply"));
+  ASSERT_GT(m.positions.size(), 1000u);
+  std::vector<std::array<int64_t, 3>> sorted = m.positions;
+  std::sort(sorted.begin(), sorted.end());
+  const size_t distinct =
+      static_cast<size_t>(std::unique(sorted.begin(), sorted.end()) - sorted.begin());
+  EXPECT_EQ(distinct, m.positions.size());
+}
+
 TEST_F(CliMesh, DemoWritesTerrainMesh) {
   ASSERT_EQ(run({"demo", "--radius", "1", "--out", path("demo.obj")}), 0) << err_.str();
   EXPECT_TRUE(fs::exists(path("demo.obj")));

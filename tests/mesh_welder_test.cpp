@@ -83,8 +83,12 @@ bool on_face(const Vec3f& l) {
          l.z == kChunkSize;
 }
 
-// What welding should give: one vertex per used vertex inside a chunk, one per world
-// position of the used vertices on chunk faces.
+bool at_sample(const Vec3f& l) {
+  return l.x == std::trunc(l.x) && l.y == std::trunc(l.y) && l.z == std::trunc(l.z);
+}
+
+// What welding should give: one vertex per used vertex inside a chunk away from a sample,
+// one per world position of the used vertices on chunk faces or at samples.
 size_t expected_vertex_count(const ChunkGrid& grid) {
   size_t inside = 0;
   std::set<std::array<float, 3>> on_faces;
@@ -94,7 +98,7 @@ size_t expected_vertex_count(const ChunkGrid& grid) {
     for (uint32_t index : p.indices) used[index] = true;
     for (size_t v = 0; v < p.vertex_count(); ++v) {
       if (!used[v]) continue;
-      if (!on_face(p.positions[v])) {
+      if (!on_face(p.positions[v]) && !at_sample(p.positions[v])) {
         ++inside;
         continue;
       }

@@ -3,11 +3,19 @@
 // (32 * chunk coordinate) for world space. Normals are unit length and point to air.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
 namespace vox::mesh {
+
+// Blocks of at least kLargeBlockBytes (whole-volume buffers of offline meshing) are mapped
+// directly, asked for transparent huge pages and populated in one call: first touching
+// them a 4 KiB page at a time cost a quarter of `voxel-cli mesh`. Any thread.
+inline constexpr size_t kLargeBlockBytes = size_t{4} << 20;
+void* allocate_large_block(size_t bytes);  // throws std::bad_alloc
+void free_large_block(void* p, size_t bytes) noexcept;
 
 // resize() on these leaves new elements uninitialised, so the mesher can size an output
 // buffer and then write it without paying for zero-filling first.
@@ -18,6 +26,15 @@ struct DefaultInitAllocator : std::allocator<T> {
     using other = DefaultInitAllocator<U>;
   };
   using std::allocator<T>::allocator;
+  T* allocate(size_t n) {
+    if (n >= kLargeBlockBytes / sizeof(T))
+      return static_cast<T*>(allocate_large_block(n * sizeof(T)));
+    return std::allocator<T>::allocate(n);
+  }
+  void deallocate(T* p, size_t n) noexcept {
+    if (n >= kLargeBlockBytes / sizeof(T)) return free_large_block(p, n * sizeof(T));
+    std::allocator<T>::deallocate(p, n);
+  }
   template <class U>
   void construct(U* p) noexcept {
     ::new (static_cast<void*>(p)) U;

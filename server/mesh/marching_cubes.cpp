@@ -24,21 +24,22 @@ namespace {
 using world::Density;
 constexpr int kStride[3] = {1, kBlockSide, kBlockSide* kBlockSide};
 
-// Bit x of the result is set when sample x of the row (x in 0..32) is solid.
-inline uint64_t classify_row(const Density* row) {
+// Bit x of the result is set when sample x of the row (x in 0..32) is solid: its density
+// above `floor` (0, or -1 when a density of 0 is solid).
+inline uint64_t classify_row(const Density* row, Density floor) {
 #if defined(__SSE2__)
-  const __m128i zero = _mm_setzero_si128();
+  const __m128i f = _mm_set1_epi16(floor);
   uint64_t bits = 0;
   for (int i = 0; i < 32; i += 16) {
     const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row + i));
     const __m128i b = _mm_loadu_si128(reinterpret_cast<const __m128i*>(row + i + 8));
-    const __m128i packed = _mm_packs_epi16(_mm_cmpgt_epi16(a, zero), _mm_cmpgt_epi16(b, zero));
+    const __m128i packed = _mm_packs_epi16(_mm_cmpgt_epi16(a, f), _mm_cmpgt_epi16(b, f));
     bits |= static_cast<uint64_t>(static_cast<uint32_t>(_mm_movemask_epi8(packed))) << i;
   }
-  return bits | (static_cast<uint64_t>(row[32] > 0) << 32);
+  return bits | (static_cast<uint64_t>(row[32] > floor) << 32);
 #else
   uint64_t bits = 0;
-  for (int x = 0; x <= 32; ++x) bits |= static_cast<uint64_t>(row[x] > 0) << x;
+  for (int x = 0; x <= 32; ++x) bits |= static_cast<uint64_t>(row[x] > floor) << x;
   return bits;
 #endif
 }
@@ -68,11 +69,12 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   const int ny = in.cells[1], nz = in.cells[2];
   const Density* dens = in.density.get();
   const world::Material* mats = in.material.get();
+  const Density floor = in.zero_is_solid ? Density{-1} : Density{0};
 
   // --- 1. classify samples [0, n] on each axis ---------------------------------------
   for (int z = 0; z <= nz; ++z)
     for (int y = 0; y <= ny; ++y)
-      s.solid[detail::row_of(y, z)] = classify_row(dens + PaddedBlock::index(0, y, z));
+      s.solid[detail::row_of(y, z)] = classify_row(dens + PaddedBlock::index(0, y, z), floor);
 
   // --- 2. cut edges per row and axis; first vertex index of each (row, axis) ---------
   const uint32_t vertex_count = index_cut_edges(s, in.cells);
@@ -112,10 +114,10 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
             n = {n.x * inv, n.y * inv, n.z * inv};
           } else {  // flat field: point along the edge, from the solid end to the air end
             n = {};
-            (&n.x)[a] = d0 > 0 ? 1.0f : -1.0f;
+            (&n.x)[a] = d0 > floor ? 1.0f : -1.0f;
           }
           *nrm++ = n;
-          *mat++ = d0 > 0 ? mats[i0] : mats[i1];
+          *mat++ = d0 > floor ? mats[i0] : mats[i1];
         }
       }
     }

@@ -52,14 +52,16 @@ class FaceTable {
 Vec3f add(const Vec3f& a, const Vec3f& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
 
 // Where a vertex sits on its chunk's faces: bit a of `on` when its local coordinate a is 0
-// or 32, of `upper` when it is 32. Two vertices of one chunk can coincide only at a sample
-// (different edges meet only there).
+// or 32, of `upper` when it is 32; and whether it sits on a sample. Two vertices of one
+// chunk can coincide only at a sample (different edges meet only there): a sample exactly
+// on the iso level, or an edge fraction rounded to 0 or 1.
 struct FacePlace {
   unsigned on = 0, upper = 0;
   bool at_sample = false;
 };
 inline FacePlace face_place(const Vec3f& l) {
   FacePlace f;
+  f.at_sample = l.x == std::trunc(l.x) && l.y == std::trunc(l.y) && l.z == std::trunc(l.z);
   if (l.x != 0.0f && l.y != 0.0f && l.z != 0.0f && l.x != kFace && l.y != kFace && l.z != kFace)
     return f;
   const float c[3] = {l.x, l.y, l.z};
@@ -67,7 +69,6 @@ inline FacePlace face_place(const Vec3f& l) {
     f.on |= (c[a] == 0.0f || c[a] == kFace) ? 1u << a : 0u;
     f.upper |= c[a] == kFace ? 1u << a : 0u;
   }
-  f.at_sample = l.x == std::trunc(l.x) && l.y == std::trunc(l.y) && l.z == std::trunc(l.z);
   return f;
 }
 
@@ -113,7 +114,8 @@ struct PartPlan {
 // part may ask for, by world position. A part is asked only by the holders after it in
 // owner_of's order, so a vertex at 32 on every face axis it is on (the last holder) is
 // left out unless it sits at a sample, where the part itself asks for its first copy. A
-// vertex inside the chunk, or at its home away from a sample, is kept without asking.
+// vertex at a sample inside the chunk asks its own part for the first copy there too; any
+// other vertex inside the chunk, or at its home away from a sample, is kept without asking.
 void find_used_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, PartPlan& plan) {
   plan.local.assign(p.vertex_count(), kUnused);
   for (uint32_t index : p.indices) plan.local[index] = 0;
@@ -121,7 +123,7 @@ void find_used_face_vertices(const Grid& grid, size_t i, const ChunkMesh& p, Par
   for (uint32_t v = 0; v < p.vertex_count(); ++v) {
     if (plan.local[v] == kUnused) continue;
     const FacePlace f = face_place(p.positions[v]);
-    if (f.on == 0) continue;
+    if (f.on == 0 && !f.at_sample) continue;
     if (f.upper != f.on || f.at_sample) plan.face.add(position_key(add(o, p.positions[v])), v);
     if (f.upper != 0 || f.at_sample) plan.local[v] = kAsk;
   }

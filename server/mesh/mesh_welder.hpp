@@ -4,7 +4,8 @@
 // chunk that holds and uses it, trying the chunk where it has local coordinate 0 first,
 // then the chunks below on those axes; the others point their triangles at that copy. The
 // grid may have holes: a chunk that is missing (an empty mesh) holds nothing, so a vertex
-// on its face stays with the chunks that have it. Vertices no triangle uses are dropped
+// on its face stays with the chunks that have it. Vertices of one chunk at one sample (a
+// sample exactly on the iso level) become one vertex too. Vertices no triangle uses are dropped
 // (those whose every triangle the mesher dropped as zero-area). Triangles keep their
 // order, part by part. Parts must not have a triangle with two vertices at one position
 // (the mesher drops zero-area triangles). Runs in parallel over chunks.

@@ -22,6 +22,9 @@ struct PaddedBlock {
   // Cells to mesh along x, y, z (1..32): cells [0, n) read samples [0, n]. A whole chunk
   // meshes 32; the last chunk of an offline volume may mesh fewer.
   std::array<int, 3> cells{world::kChunkSize, world::kChunkSize, world::kChunkSize};
+  // Solid is density > 0 (the world's rule), or >= 0 when set: offline volumes, where a
+  // sample exactly on the iso level counts as inside, as VTK's Flying Edges counts it.
+  bool zero_is_solid = false;
   std::unique_ptr<world::Density[]> density;  // kBlockVolume
   std::unique_ptr<world::Material[]> material;
 };

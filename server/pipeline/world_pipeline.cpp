@@ -16,11 +16,6 @@ using world::ChunkCoordHash;
 
 namespace {
 
-bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
-  return a.indices == b.indices && a.positions == b.positions && a.normals == b.normals &&
-         a.materials == b.materials;
-}
-
 constexpr const char* kStoppedMessage = "shutting down: the world pipeline has stopped";
 
 // A task the stopped pipeline will not run: refused (an inspection runs, `cancelled`).
@@ -38,10 +33,6 @@ void refuse_shutting_down(OrderedTask& task, bool cancelled) {
   } else {
     std::get<InspectTask>(task).run(cancelled);
   }
-}
-
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
@@ -357,64 +348,6 @@ void WorldPipeline::drain_after_stop() {
   for (auto& done : loads) done();
   for (auto& [pass, done] : waiting_done_) done();
   waiting_done_.clear();
-}
-
-// Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
-// publishes them as new versions. Returns the chunks given a new version.
-std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty,
-                                                          const EditTimes* edited_at) {
-  FreshMeshes fresh = remesh(dirty);
-  return publish(dirty, fresh, edited_at);
-}
-
-WorldPipeline::FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty) {
-  WorldState& st = *state_;
-  const Clock::time_point start = Clock::now();
-  std::sort(dirty.begin(), dirty.end());
-  dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
-  FreshMeshes fresh(dirty.size());
-  std::vector<MeshVersionPtr> previous(dirty.size());
-  for (size_t i = 0; i < dirty.size(); ++i) previous[i] = newest_mesh(dirty[i]);
-  parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
-    MeshWorker& w = *st.workers.local();
-    auto version = std::make_shared<MeshVersion>();
-    version->coord = dirty[i];
-    mesh::gather_padded_block(st.chunks, dirty[i], w.block);
-    mesh::mesh_chunk(w.block, w.scratch, version->mesh);
-    if (previous[i] && same_mesh(previous[i]->mesh, version->mesh)) return;
-    // Encoded once here, while the mesher's topology is at hand; every client shares it.
-    proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
-    w.zstd.compress(version->encoding, {}, version->full_frame);
-    fresh[i] = std::move(version);
-  });
-  if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
-  return fresh;
-}
-
-std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& dirty,
-                                               FreshMeshes& fresh, const EditTimes* edited_at) {
-  WorldState& st = *state_;
-  // An edit batch re-meshed only meshed chunks: one not resident now, or not meshed, was
-  // evicted (and maybe loaded again) while the batch waited for the store, and its mesh
-  // is made again when it is next viewed.
-  std::vector<char> current(dirty.size());
-  for (size_t i = 0; i < dirty.size(); ++i) {
-    auto it = st.info.find(dirty[i]);
-    current[i] = it != st.info.end() && (!edited_at || it->second.meshed);
-    if (current[i]) it->second.meshed = true;
-  }
-  std::vector<ChunkCoord> published;
-  for (size_t i = 0; i < dirty.size(); ++i) {
-    if (!fresh[i] || !current[i]) continue;
-    fresh[i]->version = st.next_version++;
-    if (edited_at) {
-      if (auto it = edited_at->find(dirty[i]); it != edited_at->end())
-        fresh[i]->edited_at = it->second;
-    }
-    meshes_.publish(std::move(fresh[i]));
-    published.push_back(dirty[i]);
-  }
-  return published;
 }
 
 // Edits, region changes and inspections, in arrival order. Without a store the batch is answered

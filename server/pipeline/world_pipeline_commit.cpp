@@ -16,10 +16,6 @@ using world::ChunkCoord;
 
 namespace {
 
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
 template <typename Future>
 bool landed(const Future& f) {  // no append, or its outcome is in
   return !f.valid() || f.wait_for(std::chrono::seconds(0)) == std::future_status::ready;

@@ -15,13 +15,7 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 
-namespace {
-
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
-
-}  // namespace
+namespace {}  // namespace
 
 // The world as the store has it: the checkpointed chunks (read when first needed), then
 // the log after the checkpoint applied in order, exactly as the batches applied it (so the

@@ -27,9 +27,14 @@ namespace vox::pipeline {
 
 using Clock = std::chrono::steady_clock;
 
+inline double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
 struct MeshWorker {
   mesh::PaddedBlock block;
   mesh::MeshScratch scratch;
+  mesh::ChunkMesh mesh;  // meshed into first: a mesh that did not change allocates nothing
   proto::CodecScratch codec;
   proto::ZstdCodec zstd;
 };

@@ -49,6 +49,11 @@ Bytes prefixed(std::initializer_list<uint8_t> head, const Bytes& rest) {
 }
 
 Bytes text(std::string_view s) { return Bytes(s.begin(), s.end()); }
+// A string literal with its embedded NUL bytes (not its terminating one).
+template <size_t N>
+Bytes literal(const char (&s)[N]) {
+  return Bytes(s, s + N - 1);
+}
 
 Bytes serialized(const wire::Envelope& e) {
   Bytes out(e.ByteSizeLong());
@@ -226,6 +231,38 @@ void volume_corpus(const CorpusDir& out) {
   out.write(t, "raw_dims_int32", prefixed({3, 3, 0, 0, 0, 2, 0, 0, 0, 2, 0, 0, 0}, raw));
   out.write(t, "raw_dims_huge", prefixed({3, 0, 0, 1, 0, 0, 0, 1, 0, 2, 0, 0, 0}, raw));
   out.write(t, "dims", prefixed({4}, text("64,32,2")));
+  // NIfTI-1: a 2x2x3 int16 volume after the 348-byte header and 4 extension bytes.
+  Bytes nii(352, 0);
+  auto put16 = [&nii](size_t at, int16_t v) { std::memcpy(nii.data() + at, &v, 2); };
+  auto put32 = [&nii](size_t at, auto v) { std::memcpy(nii.data() + at, &v, 4); };
+  put32(0, int32_t{348});
+  for (int i = 0; i < 8; ++i) put16(40 + 2 * i, i == 0 ? 3 : i == 3 ? 3 : 2);
+  put16(70, 4);   // int16
+  put16(72, 16);  // bitpix
+  for (int a = 1; a <= 3; ++a) put32(76 + 4 * a, 0.5f);
+  put32(108, 352.0f);  // vox_offset
+  put32(112, 2.0f);    // scl_slope
+  std::memcpy(nii.data() + 344, "n+1", 4);
+  for (int16_t i = 0; i < 12; ++i) {
+    const int16_t v = static_cast<int16_t>(i % 3 - 1);
+    nii.insert(nii.end(), reinterpret_cast<const uint8_t*>(&v),
+               reinterpret_cast<const uint8_t*>(&v) + 2);
+  }
+  out.write(t, "nifti_int16", prefixed({5}, nii));
+  Bytes nii_huge = nii;  // dims of 30000^3: refused before allocating
+  for (int i = 1; i <= 3; ++i) std::memcpy(nii_huge.data() + 40 + 2 * i, "\x30\x75", 2);
+  out.write(t, "nifti_huge_dims", prefixed({5}, nii_huge));
+  out.write(
+      t, "nrrd_raw_uchar",
+      prefixed({6}, literal("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\n"
+                            "spacings: 1 1 2\nencoding: raw\n\n\x00\x01\x00\x01\x02\x02\x00\x00")));
+  out.write(t, "nrrd_ascii_short",
+            prefixed({6}, text("NRRD0005\n# ascii\ntype: short\ndimension: 3\nsizes: 2 2 2\n"
+                               "space directions: (1,0,0) (0,2,0) (0,0,3)\nencoding: ascii\n\n"
+                               "-1 0 1 2\n3 -4 5 6\n")));
+  out.write(t, "nrrd_gzip_declared_huge",
+            prefixed({6}, literal("NRRD0004\ntype: float\ndimension: 3\nsizes: 1000 1000 1000\n"
+                                  "encoding: gzip\nendian: little\n\n\x1f\x8b\x08\x00")));
 }
 
 }  // namespace

@@ -6,6 +6,9 @@
 //   3  raw volume, dims from the next 12 bytes (3 int32 little-endian: huge and negative
 //      ones included), samples after them
 //   4  --dims text (parse_dims)
+//   5  NIfTI-1 from memory (parse_nifti: plain or gzip)
+//   6  NRRD from memory (parse_nrrd; inputs naming a detached data file are skipped, so
+//      that the fuzzer reads no file of this machine)
 // Files are a memfd reached through /proc/self/fd, so the readers' own file code runs
 // without touching the disk. Every refusal is a VolumeError; a header may never make a
 // reader allocate more than its input can fill (scripts/fuzz.sh caps the memory).
@@ -13,6 +16,7 @@
 #include <unistd.h>
 
 #include <array>
+#include <cctype>
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
@@ -20,6 +24,8 @@
 #include <string>
 #include <string_view>
 
+#include "client-cli/nifti_file.hpp"
+#include "client-cli/nrrd_file.hpp"
 #include "client-cli/volume_file.hpp"
 
 namespace {
@@ -43,6 +49,14 @@ int32_t int32_at(const uint8_t* p) {
                               static_cast<uint32_t>(p[3]) << 24);
 }
 
+// Whether an NRRD header may name a detached data file ("data file:", "datafile:", any case).
+bool names_a_data_file(std::string_view input) {
+  std::string lower(input.substr(0, vox::cli::kMaxNrrdHeaderBytes + 1));
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return lower.find("data file") != std::string::npos ||
+         lower.find("datafile") != std::string::npos;
+}
+
 void check_volume(const vox::mesh::Volume& v) {
   size_t n = 1;
   for (int d : v.dims) {
@@ -58,7 +72,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
   std::string_view input(reinterpret_cast<const char*>(data) + 1, size - 1);
   try {
-    switch (data[0] % 5) {
+    switch (data[0] % 7) {
       case 0:
         check_volume(vox::cli::parse_text_volume(input, "fuzz.txt"));
         break;
@@ -67,7 +81,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         break;
       case 2:
       case 3: {
-        const size_t header = data[0] % 5 == 2 ? 3 : 12;
+        const size_t header = data[0] % 7 == 2 ? 3 : 12;
         if (input.size() < header) return 0;
         std::array<int, 3> dims{};
         for (int a = 0; a < 3; ++a) {
@@ -81,6 +95,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       }
       case 4:
         (void)vox::cli::parse_dims(std::string(input));
+        break;
+      case 5:
+        check_volume(vox::cli::parse_nifti(
+                         {reinterpret_cast<const uint8_t*>(input.data()), input.size()}, "fuzz.nii")
+                         .volume);
+        break;
+      case 6:
+        if (names_a_data_file(input)) return 0;
+        check_volume(
+            vox::cli::parse_nrrd({reinterpret_cast<const uint8_t*>(input.data()), input.size()},
+                                 "fuzz.nrrd")
+                .volume);
         break;
     }
   } catch (const VolumeError&) {
