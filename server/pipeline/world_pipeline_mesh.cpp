@@ -17,6 +17,25 @@ bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
 
 }  // namespace
 
+std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& chunks,
+                                          ChunkCoord c, const MeshVersion* previous) {
+  mesh::gather_padded_block(chunks, c, w.block);
+  mesh::mesh_chunk(w.block, w.scratch, w.mesh);
+  if (previous && same_mesh(previous->mesh, w.mesh)) return nullptr;
+  // A new version: the only allocations, each of its final size (the worker's warm
+  // buffers took the mesher's writes).
+  auto version = std::make_shared<MeshVersion>();
+  version->coord = c;
+  version->mesh.positions.assign(w.mesh.positions.begin(), w.mesh.positions.end());
+  version->mesh.normals.assign(w.mesh.normals.begin(), w.mesh.normals.end());
+  version->mesh.materials.assign(w.mesh.materials.begin(), w.mesh.materials.end());
+  version->mesh.indices.assign(w.mesh.indices.begin(), w.mesh.indices.end());
+  // Encoded once here, while the mesher's topology is at hand; every client shares it.
+  proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
+  w.zstd.compress(version->encoding, {}, version->full_frame);
+  return version;
+}
+
 // Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
 // publishes them as new versions. Returns the chunks given a new version.
 std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty,
@@ -34,22 +53,7 @@ WorldPipeline::FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty)
   std::vector<MeshVersionPtr> previous(dirty.size());
   for (size_t i = 0; i < dirty.size(); ++i) previous[i] = newest_mesh(dirty[i]);
   parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
-    MeshWorker& w = *st.workers.local();
-    mesh::gather_padded_block(st.chunks, dirty[i], w.block);
-    mesh::mesh_chunk(w.block, w.scratch, w.mesh);
-    if (previous[i] && same_mesh(previous[i]->mesh, w.mesh)) return;
-    // A new version: the only allocations, each of its final size (the worker's warm
-    // buffers took the mesher's writes).
-    auto version = std::make_shared<MeshVersion>();
-    version->coord = dirty[i];
-    version->mesh.positions.assign(w.mesh.positions.begin(), w.mesh.positions.end());
-    version->mesh.normals.assign(w.mesh.normals.begin(), w.mesh.normals.end());
-    version->mesh.materials.assign(w.mesh.materials.begin(), w.mesh.materials.end());
-    version->mesh.indices.assign(w.mesh.indices.begin(), w.mesh.indices.end());
-    // Encoded once here, while the mesher's topology is at hand; every client shares it.
-    proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
-    w.zstd.compress(version->encoding, {}, version->full_frame);
-    fresh[i] = std::move(version);
+    fresh[i] = remesh_chunk(*st.workers.local(), st.chunks, dirty[i], previous[i].get());
   });
   if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
   return fresh;

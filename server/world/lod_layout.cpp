@@ -1,0 +1,132 @@
+#include "server/world/lod_layout.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace vox::world {
+namespace {
+
+constexpr std::array<std::array<int, 3>, 6> kFaceDirection = {
+    {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}}};
+
+// Distance from the eye to the chunk's box (0 inside), in voxels.
+double distance_to(const LodChunk& c, const std::array<double, 3>& eye) {
+  const auto lo = c.lo();
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double l = static_cast<double>(lo[a]), h = l + static_cast<double>(c.side());
+    const double d = eye[a] < l ? l - eye[a] : eye[a] > h ? eye[a] - h : 0.0;
+    d2 += d * d;
+  }
+  return std::sqrt(d2);
+}
+
+LodChunk child(const LodChunk& c, int i) {
+  return {c.level - 1, {2 * c.c.x + (i & 1), 2 * c.c.y + ((i >> 1) & 1), 2 * c.c.z + (i >> 2)}};
+}
+
+LodChunk parent(const LodChunk& c) {
+  return {c.level + 1, {floor_div(c.c.x, 2), floor_div(c.c.y, 2), floor_div(c.c.z, 2)}};
+}
+
+LodChunk neighbour(const LodChunk& c, int face) {
+  const auto& d = kFaceDirection[face];
+  return {c.level, c.c.offset(d[0], d[1], d[2])};
+}
+
+// Whether the region of `n` (same level as the leaf asking) holds leaves two or more
+// levels finer than the asker: n is split and one of its children on the shared face is
+// split too.
+bool has_finer_than_one_level(const LodChunk& n, int face_towards_asker,
+                              const std::set<LodChunk>& split) {
+  if (n.level < 2 || !split.contains(n)) return false;
+  const auto& d = kFaceDirection[face_towards_asker];
+  for (int i = 0; i < 8; ++i) {
+    const LodChunk ch = child(n, i);
+    const int bits[3] = {i & 1, (i >> 1) & 1, i >> 2};
+    bool on_face = true;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] < 0) on_face &= bits[a] == 0;
+      if (d[a] > 0) on_face &= bits[a] == 1;
+    }
+    if (on_face && split.contains(ch)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+LodLayout::LodLayout(LodSettings settings) : settings_(settings) {
+  if (settings_.levels < 1 || settings_.levels > 20 || settings_.top_radius < 0 ||
+      settings_.top_radius > 64 || !(settings_.split_distance > 0) ||
+      !(settings_.hysteresis >= 0)) {
+    throw std::invalid_argument("LodSettings out of range");
+  }
+}
+
+void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
+                       const std::set<LodChunk>& was_split, std::set<LodChunk>& leaves,
+                       std::set<LodChunk>& split) const {
+  const double band = was_split.contains(node) ? 1.0 + settings_.hysteresis : 1.0;
+  const double limit = settings_.split_distance * band * static_cast<double>(node.side());
+  if (node.level == 0 || distance_to(node, eye) >= limit) {
+    leaves.insert(node);
+    return;
+  }
+  split.insert(node);
+  for (int i = 0; i < 8; ++i) refine(child(node, i), eye, was_split, leaves, split);
+}
+
+void LodLayout::balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split) {
+  for (bool changed = true; changed;) {
+    changed = false;
+    std::vector<LodChunk> to_split;
+    for (const LodChunk& leaf : leaves) {
+      for (int f = 0; f < 6; ++f) {
+        if (has_finer_than_one_level(neighbour(leaf, f), f ^ 1, split)) {
+          to_split.push_back(leaf);
+          break;
+        }
+      }
+    }
+    for (const LodChunk& leaf : to_split) {
+      leaves.erase(leaf);
+      split.insert(leaf);
+      for (int i = 0; i < 8; ++i) leaves.insert(child(leaf, i));
+      changed = true;
+    }
+  }
+}
+
+bool LodLayout::update(const std::array<double, 3>& eye) {
+  const int top = settings_.levels - 1;
+  const int64_t side = int64_t{kChunkSize} << top;
+  std::array<int32_t, 3> centre{};
+  for (int a = 0; a < 3; ++a)
+    centre[a] = static_cast<int32_t>(std::floor(eye[a] / static_cast<double>(side)));
+  std::set<LodChunk> leaves, split;
+  const int r = settings_.top_radius;
+  for (int z = -r; z <= r; ++z)
+    for (int y = -r; y <= r; ++y)
+      for (int x = -r; x <= r; ++x)
+        refine({top, {centre[0] + x, centre[1] + y, centre[2] + z}}, eye, split_, leaves, split);
+  balance(leaves, split);
+  const bool changed = leaves != leaves_;
+  leaves_ = std::move(leaves);
+  split_ = std::move(split);
+  return changed;
+}
+
+uint8_t LodLayout::coarser_faces(const LodChunk& c) const {
+  if (!leaves_.contains(c)) return 0;
+  uint8_t mask = 0;
+  for (int f = 0; f < 6; ++f) {
+    if (leaves_.contains(parent(neighbour(c, f))) && parent(neighbour(c, f)) != parent(c))
+      mask |= static_cast<uint8_t>(1u << f);
+  }
+  return mask;
+}
+
+}  // namespace vox::world

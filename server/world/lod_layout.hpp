@@ -1,0 +1,74 @@
+// Which chunk of which level covers each region around a player (level of detail, issue
+// 16). A level-k chunk has 32^3 cells over 32 * 2^k voxels per side; level-k chunk c covers
+// voxels [32 * 2^k * c, 32 * 2^k * (c + 1)). The layout is the leaves of an octree: the
+// level-L chunks around the eye, each split into its 8 level-(k-1) children while the eye
+// is closer to it than split_distance times its side, recursively. So leaves never overlap
+// and leave no gap. Face neighbours differ by at most one level (the 2:1 rule transition
+// cells need): a leaf with a neighbour two levels finer is split too. A chunk split in the
+// previous layout merges back only when the eye is farther than (1 + hysteresis) times
+// that distance, so moving back and forth across a boundary does not reload.
+//
+// A pure policy: no I/O, no clock. One instance per client; one thread at a time.
+#pragma once
+
+#include <array>
+#include <compare>
+#include <cstdint>
+#include <set>
+
+#include "server/world/chunk_coord.hpp"
+
+namespace vox::world {
+
+struct LodChunk {
+  int level = 0;
+  ChunkCoord c;  // in level-`level` chunks
+  friend constexpr auto operator<=>(const LodChunk&, const LodChunk&) = default;
+
+  int64_t side() const { return int64_t{kChunkSize} << level; }  // in voxels
+  std::array<int64_t, 3> lo() const { return {c.x * side(), c.y * side(), c.z * side()}; }
+};
+
+struct LodSettings {
+  int levels = 7;               // level 0 .. levels-1; the top level's chunks are laid out first
+  int top_radius = 1;           // top-level chunks within this many of the eye's, per axis
+  double split_distance = 2.0;  // in sides of the chunk: closer than this, it is split
+  double hysteresis = 0.25;     // a split chunk merges beyond (1 + this) * split_distance
+};
+
+// Faces of a chunk, the bit of each in LodLayout::coarser_faces.
+enum LodFace : uint8_t {
+  kMinusX = 1,
+  kPlusX = 2,
+  kMinusY = 4,
+  kPlusY = 8,
+  kMinusZ = 16,
+  kPlusZ = 32
+};
+
+class LodLayout {
+ public:
+  explicit LodLayout(LodSettings settings);
+
+  // Lays the chunks out around `eye` (voxel coordinates); returns whether the layout
+  // changed.
+  bool update(const std::array<double, 3>& eye);
+  const std::set<LodChunk>& chunks() const { return leaves_; }
+  // LodFace bits of the faces of leaf `c` whose neighbour is one level coarser: where its
+  // transition patch is drawn. 0 for a chunk that is not in the layout.
+  uint8_t coarser_faces(const LodChunk& c) const;
+  const LodSettings& settings() const { return settings_; }
+
+ private:
+  void refine(const LodChunk& node, const std::array<double, 3>& eye,
+              const std::set<LodChunk>& was_split, std::set<LodChunk>& leaves,
+              std::set<LodChunk>& split) const;
+  // Splits leaves that have a face neighbour two or more levels finer, until none has.
+  static void balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split);
+
+  LodSettings settings_;
+  std::set<LodChunk> leaves_;
+  std::set<LodChunk> split_;  // the inner nodes of the octree
+};
+
+}  // namespace vox::world

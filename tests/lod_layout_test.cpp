@@ -1,0 +1,123 @@
+// The level-of-detail layout (server/world/lod_layout.hpp): rings without gap or overlap,
+// the 2:1 rule between face neighbours, hysteresis, and the faces that get transitions.
+#include "server/world/lod_layout.hpp"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+namespace vox::world {
+namespace {
+
+// The leaf holding voxel point p (each leaf a half-open box), and how many hold it.
+std::pair<const LodChunk*, int> leaf_at(const LodLayout& layout, const std::array<int64_t, 3>& p) {
+  const LodChunk* found = nullptr;
+  int count = 0;
+  for (const LodChunk& c : layout.chunks()) {
+    const auto lo = c.lo();
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) inside &= p[a] >= lo[a] && p[a] < lo[a] + c.side();
+    if (inside) {
+      found = &c;
+      ++count;
+    }
+  }
+  return {found, count};
+}
+
+TEST(LodLayout, LeavesCoverTheTopRegionOnceWithoutGapOrOverlap) {
+  LodLayout layout({.levels = 5, .top_radius = 1});
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pos(-900.0, 900.0);
+  for (int trial = 0; trial < 10; ++trial) {
+    const std::array<double, 3> eye{pos(rng), pos(rng) * 0.2, pos(rng)};
+    layout.update(eye);
+    // Volumes add up to the 3x3x3 top chunks...
+    const int64_t top = int64_t{32} << 4;
+    int64_t volume = 0;
+    for (const LodChunk& c : layout.chunks()) volume += c.side() * c.side() * c.side();
+    EXPECT_EQ(volume, 27 * top * top * top);
+    // ... and every sampled point is in exactly one leaf: no gap, so no overlap either.
+    std::uniform_int_distribution<int64_t> off(0, 3 * top - 1);
+    std::array<int64_t, 3> base{};
+    for (int a = 0; a < 3; ++a)
+      base[a] = (static_cast<int64_t>(std::floor(eye[a] / static_cast<double>(top))) - 1) * top;
+    for (int k = 0; k < 300; ++k) {
+      const std::array<int64_t, 3> p{base[0] + off(rng), base[1] + off(rng), base[2] + off(rng)};
+      EXPECT_EQ(leaf_at(layout, p).second, 1);
+    }
+    // Level 0 where the eye is; coarser farther away.
+    const auto [at_eye, n] = leaf_at(
+        layout, {static_cast<int64_t>(std::floor(eye[0])), static_cast<int64_t>(std::floor(eye[1])),
+                 static_cast<int64_t>(std::floor(eye[2]))});
+    ASSERT_EQ(n, 1);
+    EXPECT_EQ(at_eye->level, 0);
+  }
+}
+
+TEST(LodLayout, FaceNeighboursDifferByAtMostOneLevel) {
+  for (double split : {1.0, 1.5, 2.0}) {
+    LodLayout layout({.levels = 6, .top_radius = 1, .split_distance = split});
+    layout.update({100.3, 7.7, -40.2});
+    std::map<LodChunk, int> levels;
+    for (const LodChunk& c : layout.chunks()) {
+      // The point just across each face's centre.
+      const auto lo = c.lo();
+      const int64_t s = c.side();
+      for (int f = 0; f < 6; ++f) {
+        std::array<int64_t, 3> p{lo[0] + s / 2, lo[1] + s / 2, lo[2] + s / 2};
+        const int axis = f / 2;
+        p[axis] = f % 2 == 0 ? lo[axis] - 1 : lo[axis] + s;
+        const auto [n, count] = leaf_at(layout, p);
+        if (count == 0) continue;  // outside the layout
+        EXPECT_LE(std::abs(n->level - c.level), 1) << "split " << split;
+        const bool coarser = n->level == c.level + 1;
+        EXPECT_EQ((layout.coarser_faces(c) >> f) & 1, coarser ? 1 : 0);
+      }
+    }
+  }
+}
+
+TEST(LodLayout, MovingBackAndForthAcrossABoundaryDoesNotReload) {
+  LodLayout layout({.levels = 4, .top_radius = 1, .split_distance = 2.0, .hysteresis = 0.25});
+  // Walk along x until the layout changes: a split boundary has been crossed.
+  std::array<double, 3> eye{10.5, 10.5, 10.5};
+  layout.update(eye);
+  double x = eye[0];
+  for (int step = 0; step < 2000 && !layout.update({x, eye[1], eye[2]}); ++step) x += 1.0;
+  const auto after = layout.chunks();
+  // One voxel back and forth, many times: nothing changes.
+  for (int i = 0; i < 20; ++i) {
+    EXPECT_FALSE(layout.update({x - 1.0, eye[1], eye[2]})) << i;
+    EXPECT_FALSE(layout.update({x, eye[1], eye[2]})) << i;
+  }
+  EXPECT_EQ(layout.chunks(), after);
+  // Without hysteresis the same walk flickers.
+  LodLayout flicker({.levels = 4, .top_radius = 1, .split_distance = 2.0, .hysteresis = 0.0});
+  flicker.update({x, eye[1], eye[2]});
+  bool changed = false;
+  for (double d = 0.25; d <= 1.0 && !changed; d += 0.25) {
+    changed |= flicker.update({x - d, eye[1], eye[2]});
+    changed |= flicker.update({x, eye[1], eye[2]});
+  }
+  EXPECT_TRUE(changed);
+}
+
+TEST(LodLayout, FarFromTheEyeTheChunksAreCoarse) {
+  LodLayout layout({.levels = 7, .top_radius = 1, .split_distance = 2.0});
+  layout.update({0.5, 0.5, 0.5});
+  std::map<int, int> per_level;
+  for (const LodChunk& c : layout.chunks()) ++per_level[c.level];
+  // Level 0 covers about 2 level-1 sides (128 voxels) around the eye, not the whole view.
+  EXPECT_GT(per_level[0], 0);
+  EXPECT_LT(per_level[0], 1000);
+  // The top level's chunks all lie within split_distance of the eye: split, so the
+  // coarsest leaves are one level below (1024 voxels on a side, out to 3072 voxels).
+  EXPECT_EQ(per_level[6], 0);
+  EXPECT_GT(per_level[5], 0);
+  EXPECT_THROW(LodLayout({.levels = 0}), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace vox::world
