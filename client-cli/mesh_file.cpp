@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cassert>
 #include <cerrno>
 #include <charconv>
 #include <cstdio>
@@ -34,6 +35,7 @@ class BlockWriter {
 
   // Room for n <= kMaxRecord bytes; the caller fills exactly `n`.
   char* room(size_t n) {
+    assert(n <= kMaxRecord);
     if (used_ + n > kSize) flush();
     char* p = buffer_.get() + used_;
     used_ += n;
@@ -51,7 +53,10 @@ class BlockWriter {
     flush();
     std::fwrite(p, 1, n, f_);
   }
-  void text(std::string_view t) { std::memcpy(room(t.size()), t.data(), t.size()); }
+  void text(std::string_view t) {
+    if (t.size() > kMaxRecord) return bytes(t.data(), t.size());
+    std::memcpy(room(t.size()), t.data(), t.size());
+  }
   void flush() {
     if (used_ > 0) std::fwrite(buffer_.get(), 1, used_, f_);
     used_ = 0;
@@ -266,7 +271,9 @@ void write_mesh(const std::string& path, const mesh::ChunkMesh& mesh) {
   }
   // The file it replaces goes first: renaming over an existing file makes ext4 write the
   // new one out before rename returns (its auto_da_alloc), which tripled the time to
-  // write a mesh. The mesh still appears whole or not at all.
+  // write a mesh. A killed run leaves the old file or the new one, whole, never a part of
+  // one (killed between the two calls: neither). Like VTK's writers, nothing forces the
+  // data to disk: after a power loss the new file may be empty.
   std::error_code ec;
   if (std::filesystem::is_regular_file(std::filesystem::symlink_status(path, ec)))
     std::filesystem::remove(path, ec);

@@ -152,16 +152,14 @@ LoadedVolume parse_nifti(std::span<const uint8_t> file, const std::string& path)
   gz.check_can_hold(h.data_offset + static_cast<uint64_t>(bytes), "header and samples");
   gz.skip(h.data_offset - kNiftiHeaderSize, "NIfTI extensions");
   loaded.volume.dims = h.dims;
-  loaded.volume.values.resize(n);
-  read_gzip_samples(gz, n, h.type, h.big_endian, h.slope, h.intercept, loaded.volume.values.data(),
-                    path);
+  read_gzip_samples(gz, n, h.type, h.big_endian, h.slope, h.intercept, loaded.volume.values, path);
   loaded.spacing = h.spacing;
   return loaded;
 }
 
 LoadedVolume read_nifti(const std::string& path) {
-  const std::string file = read_whole_file(path);
-  return parse_nifti({reinterpret_cast<const uint8_t*>(file.data()), file.size()}, path);
+  const MappedFile file(path);
+  return parse_nifti(file.bytes(), path);
 }
 
 }  // namespace vox::cli

@@ -4,6 +4,8 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <optional>
+#include <set>
 
 namespace vox::cli {
 namespace {
@@ -22,12 +24,7 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-// A printable excerpt of a field's value for a message.
-std::string shown(std::string_view s) {
-  std::string out;
-  for (char c : s.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
-  return "'" + out + (s.size() > 40 ? "...'" : "'");
-}
+std::string shown(std::string_view s) { return quoted_excerpt(s); }
 
 SampleType type_of(std::string_view value, const std::string& path) {
   static const std::pair<const char*, SampleType> kNames[] = {
@@ -165,6 +162,8 @@ void apply_field(const std::string& field, std::string_view value, NrrdHeader& h
     h.big_endian = e == "big";
     have_endian = true;
   } else if (field == "data file" || field == "datafile") {
+    if (std::any_of(value.begin(), value.end(), [](char c) { return c < 0x20 || c == 0x7f; }))
+      throw VolumeError(path + ": NRRD data file " + shown(value) + " has control characters");
     if (value.empty() || value.find(' ') != std::string_view::npos || value == "LIST")
       throw VolumeError(path + ": NRRD data file " + shown(value) +
                         ": only one file name is supported");
@@ -191,19 +190,32 @@ std::span<const uint8_t> after_lines(std::span<const uint8_t> data, int lines,
   return data.subspan(at);
 }
 
+bool is_separator(char c) { return c == ' ' || c == '\n' || c == '\r' || c == '\t' || c == ','; }
+
 void decode_ascii(std::span<const uint8_t> data, size_t n, float* out, const std::string& path) {
   const char* p = reinterpret_cast<const char*>(data.data());
   const char* end = p + data.size();
   for (size_t i = 0; i < n; ++i) {
-    while (p < end && (*p == ' ' || *p == '\n' || *p == '\r' || *p == '\t' || *p == ',')) ++p;
-    double v = 0;
-    auto [next, ec] = std::from_chars(p, end, v);
-    if (p == end)
+    while (p < end && is_separator(*p)) ++p;
+    if (p == end) {
       throw VolumeError(path + ": NRRD ascii data end at value " + std::to_string(i) + " of " +
                         std::to_string(n));
-    if (ec != std::errc() || !std::isfinite(static_cast<float>(v)))
+    }
+    if (*p == '+') ++p;
+    double v = 0;
+    auto [next, ec] = std::from_chars(p, end, v);
+    if (ec == std::errc::result_out_of_range) {  // 1e-400 underflows to 0; 1e400 is refused
+      const std::string_view text(p, static_cast<size_t>(next - p));
+      if (text.find("e-") != std::string_view::npos || text.find("E-") != std::string_view::npos) {
+        ec = {};
+        v = 0;
+      }
+    }
+    if (ec != std::errc() || (next != end && !is_separator(*next)) ||
+        !std::isfinite(static_cast<float>(v))) {
       throw VolumeError(path + ": NRRD ascii value " + std::to_string(i) +
-                        " is not a finite number");
+                        " is not a finite float32 number");
+    }
     out[i] = static_cast<float>(v);
     p = next;
   }
@@ -217,6 +229,7 @@ NrrdHeader parse_nrrd_header(std::string_view text, const std::string& path) {
     throw VolumeError(path + ": not a NRRD file (no NRRD000N magic)");
   NrrdHeader h;
   int rank = 0;
+  std::set<std::string> seen;
   bool have_type = false, have_sizes = false, have_encoding = false, have_endian = false;
   size_t at = text.find('\n');
   while (true) {
@@ -243,6 +256,8 @@ NrrdHeader parse_nrrd_header(std::string_view text, const std::string& path) {
     if (colon == std::string_view::npos)
       throw VolumeError(path + ": NRRD header line " + shown(line) + " is not 'field: value'");
     const std::string field = lower(trim(line.substr(0, colon)));
+    if (!seen.insert(field).second)
+      throw VolumeError(path + ": NRRD field " + shown(field) + " appears twice");
     apply_field(field, trim(line.substr(colon + 2)), h, rank, have_endian, path);
     have_type |= field == "type";
     have_sizes |= field == "sizes";
@@ -263,13 +278,13 @@ LoadedVolume parse_nrrd(std::span<const uint8_t> file, const std::string& path) 
   const std::string_view text(reinterpret_cast<const char*>(file.data()),
                               std::min(file.size(), kMaxNrrdHeaderBytes + 1));
   const NrrdHeader h = parse_nrrd_header(text, path);
-  std::string detached;
+  std::optional<MappedFile> detached;
   std::span<const uint8_t> data = file.subspan(std::min(h.header_bytes, file.size()));
   std::string data_path = path;
   if (!h.data_file.empty()) {
     data_path = (std::filesystem::path(path).parent_path() / h.data_file).string();
-    detached = read_whole_file(data_path);
-    data = {reinterpret_cast<const uint8_t*>(detached.data()), detached.size()};
+    detached.emplace(data_path);
+    data = detached->bytes();
   }
   data = after_lines(data, h.line_skip, data_path);
   const size_t n = volume_sample_count(h.dims);
@@ -293,11 +308,9 @@ LoadedVolume parse_nrrd(std::span<const uint8_t> file, const std::string& path) 
     }
     case NrrdEncoding::kGzip: {
       GzipReader gz(data, data_path);
-      gz.check_can_hold(static_cast<uint64_t>(h.byte_skip) + bytes, "samples");
+      gz.check_can_hold(static_cast<uint64_t>(h.byte_skip) + bytes, "byte skip and samples");
       gz.skip(static_cast<size_t>(h.byte_skip), "byte skip");
-      loaded.volume.values.resize(n);
-      read_gzip_samples(gz, n, h.type, h.big_endian, 1.0, 0.0, loaded.volume.values.data(),
-                        data_path);
+      read_gzip_samples(gz, n, h.type, h.big_endian, 1.0, 0.0, loaded.volume.values, data_path);
       break;
     }
     case NrrdEncoding::kAscii: {
@@ -315,8 +328,8 @@ LoadedVolume parse_nrrd(std::span<const uint8_t> file, const std::string& path) 
 }
 
 LoadedVolume read_nrrd(const std::string& path) {
-  const std::string file = read_whole_file(path);
-  return parse_nrrd({reinterpret_cast<const uint8_t*>(file.data()), file.size()}, path);
+  const MappedFile file(path);
+  return parse_nrrd(file.bytes(), path);
 }
 
 }  // namespace vox::cli

@@ -1,6 +1,7 @@
 #include "client-cli/sample_data.hpp"
 
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -8,6 +9,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <utility>
 #include <vector>
 
 #include "client-cli/volume_file.hpp"
@@ -44,7 +46,7 @@ void decode_as(const uint8_t* bytes, size_t count, bool swap, double slope, doub
     const float f = static_cast<float>(v);
     if (!std::isfinite(f))
       throw VolumeError(path + ": sample " + std::to_string(first_index + i) +
-                        " is not a finite number");
+                        " is not finite, or too large for float32 after scaling");
     out[i] = f;
   }
 }
@@ -132,8 +134,8 @@ void GzipReader::read(uint8_t* out, size_t n, const char* what) {
   size_t done = 0;
   while (done < n) {
     if (ended_) {
-      throw VolumeError(path_ + ": gzip data ends in the " + what + " (" + std::to_string(done) +
-                        " of " + std::to_string(n) + " bytes)");
+      throw VolumeError(path_ + ": gzip data end in the " + what + ", after " +
+                        std::to_string(delivered_ + done) + " decompressed bytes");
     }
     if (z_.avail_in == 0) {  // more than 4 GiB of input: feed the next part
       const size_t used = static_cast<size_t>(z_.next_in - in_.data());
@@ -160,6 +162,7 @@ void GzipReader::read(uint8_t* out, size_t n, const char* what) {
                         (z_.msg != nullptr ? z_.msg : "zlib error " + std::to_string(rc)) + ")");
     }
   }
+  delivered_ += n;
 }
 
 void GzipReader::skip(size_t n, const char* what) {
@@ -181,44 +184,60 @@ void GzipReader::check_can_hold(uint64_t needed, const char* what) const {
 }
 
 void read_gzip_samples(GzipReader& gz, size_t count, SampleType type, bool big_endian, double slope,
-                       double intercept, float* out, const std::string& path) {
+                       double intercept, std::vector<float>& out, const std::string& path) {
   constexpr size_t kSlabBytes = size_t{1} << 20;
   const size_t size = sample_size(type), per_slab = kSlabBytes / size;
   std::vector<uint8_t> slab(std::min(count, per_slab) * size);
-  for (size_t done = 0; done < count;) {
-    const size_t k = std::min(per_slab, count - done);
+  out.clear();
+  out.reserve(std::min(count, per_slab));
+  while (out.size() < count) {
+    const size_t done = out.size(), k = std::min(per_slab, count - done);
     gz.read(slab.data(), k * size, "samples");
-    decode_samples({slab.data(), k * size}, k, type, big_endian, slope, intercept, out + done, path,
-                   done);
-    done += k;
+    out.resize(done + k);  // grows geometrically, only once the bytes are there
+    decode_samples({slab.data(), k * size}, k, type, big_endian, slope, intercept,
+                   out.data() + done, path, done);
   }
 }
 
-std::string read_whole_file(const std::string& path) {
+std::string quoted_excerpt(std::string_view s) {
+  std::string out;
+  for (char c : s.substr(0, 40)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
+  return "'" + out + (s.size() > 40 ? "...'" : "'");
+}
+
+MappedFile::MappedFile(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) throw VolumeError(path + ": cannot open: " + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
-    throw VolumeError(path + ": not a regular file");  // a FIFO or /dev/zero never ends
+    throw VolumeError(path + ": not a regular file");
   }
-  std::string data;
-  data.resize(static_cast<size_t>(st.st_size));
-  size_t done = 0;
-  while (done < data.size()) {
-    const ssize_t n = ::read(fd, data.data() + done, data.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int e = n < 0 ? errno : 0;
-      ::close(fd);
-      throw VolumeError(
-          path + ": read error" +
-          (e != 0 ? std::string(": ") + std::strerror(e) : std::string(" (file shrank)")));
-    }
-    done += static_cast<size_t>(n);
+  size_ = static_cast<size_t>(st.st_size);
+  if (size_ > 0) {
+    void* map = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
+    const int e = errno;
+    ::close(fd);
+    if (map == MAP_FAILED) throw VolumeError(path + ": cannot map: " + std::strerror(e));
+    map_ = map;
+  } else {
+    ::close(fd);
   }
-  ::close(fd);
-  return data;
+}
+
+MappedFile::~MappedFile() {
+  if (map_ != nullptr) ::munmap(map_, size_);
+}
+
+MappedFile::MappedFile(MappedFile&& other) noexcept
+    : map_(std::exchange(other.map_, nullptr)), size_(std::exchange(other.size_, 0)) {}
+
+void MappedFile::release(size_t begin, size_t end) const {
+  static const size_t page = static_cast<size_t>(::sysconf(_SC_PAGESIZE));
+  const size_t first = (begin + page - 1) / page * page;  // whole pages only
+  const size_t last = std::min(end, size_) / page * page;
+  if (map_ != nullptr && first < last)
+    (void)::madvise(static_cast<char*>(map_) + first, last - first, MADV_DONTNEED);
 }
 
 }  // namespace vox::cli

@@ -10,6 +10,8 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace vox::cli {
 
@@ -50,14 +52,40 @@ class GzipReader {
   std::string path_;
   z_stream z_{};
   bool ended_ = false;
+  uint64_t delivered_ = 0;  // decompressed bytes handed out so far
 };
 
-// decode_samples() for `count` samples read from `gz`, a slab at a time (the compressed
-// bytes are never all held decompressed besides the floats).
+// decode_samples() for `count` samples read from `gz`, a slab at a time, appended to
+// `out`, which grows as the data arrive: a header that declares more than its stream holds
+// costs the memory of what the stream does hold, not of what it declares.
 void read_gzip_samples(GzipReader& gz, size_t count, SampleType type, bool big_endian, double slope,
-                       double intercept, float* out, const std::string& path);
+                       double intercept, std::vector<float>& out, const std::string& path);
 
-// The whole file; throws VolumeError naming it when it cannot be read.
-std::string read_whole_file(const std::string& path);
+// A file's text for a one-line message: at most 40 characters, anything not printable
+// ASCII shown as '?', in single quotes ("...'" when cut).
+std::string quoted_excerpt(std::string_view s);
+
+// A regular file mapped read-only: its bytes without reading them all (a header says how
+// many are needed; a sparse 100 GiB data file costs nothing until read). Throws VolumeError
+// naming the file when it cannot be opened, is not a regular file (a FIFO or /dev/zero
+// never ends) or cannot be mapped. Truncating the file while it is mapped ends the process
+// with SIGBUS, as for any mapped input. Move-only; any thread.
+class MappedFile {
+ public:
+  explicit MappedFile(const std::string& path);
+  ~MappedFile();
+  MappedFile(MappedFile&& other) noexcept;
+  MappedFile& operator=(MappedFile&&) = delete;
+  MappedFile(const MappedFile&) = delete;
+
+  std::span<const uint8_t> bytes() const { return {static_cast<const uint8_t*>(map_), size_}; }
+  // Drops the whole pages inside bytes [begin, end) from this process's memory (they stay
+  // in the page cache; reading them maps them back).
+  void release(size_t begin, size_t end) const;
+
+ private:
+  void* map_ = nullptr;
+  size_t size_ = 0;
+};
 
 }  // namespace vox::cli

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <new>
 #include <sstream>
 #include <utility>
 
@@ -89,7 +90,9 @@ std::array<int, 3> parse_dims(const std::string& text) {
 }
 
 mesh::Volume read_text_volume(const std::string& path) {
-  return parse_text_volume(read_whole_file(path), path);
+  const MappedFile file(path);
+  const auto bytes = file.bytes();
+  return parse_text_volume({reinterpret_cast<const char*>(bytes.data()), bytes.size()}, path);
 }
 
 mesh::Volume parse_text_volume(std::string_view text, const std::string& path) {
@@ -101,8 +104,7 @@ mesh::Volume parse_text_volume(std::string_view text, const std::string& path) {
     if (t.empty()) throw VolumeError(path + ": missing " + names[a] + " in the header");
     auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), volume.dims[a]);
     if (ec != std::errc() || end != t.data() + t.size()) {
-      throw VolumeError(path + ": " + names[a] + " is not an integer: '" +
-                        std::string(t.substr(0, 32)) + "'");
+      throw VolumeError(path + ": " + names[a] + " is not an integer: " + quoted_excerpt(t));
     }
   }
   check_volume_dims(path, volume.dims);
@@ -125,8 +127,8 @@ mesh::Volume parse_text_volume(std::string_view text, const std::string& path) {
     const char* first = t.data() + (t.size() > 1 && t[0] == '+' ? 1 : 0);
     auto [end, ec] = std::from_chars(first, t.data() + t.size(), v);
     if (ec != std::errc() || end != t.data() + t.size()) {
-      throw VolumeError(path + ": value " + std::to_string(i) + " is not a number: '" +
-                        std::string(t.substr(0, 32)) + "'");
+      throw VolumeError(path + ": value " + std::to_string(i) +
+                        " is not a number: " + quoted_excerpt(t));
     }
     if (!std::isfinite(v))
       throw VolumeError(path + ": value " + std::to_string(i) + " is not finite");
@@ -139,52 +141,31 @@ mesh::Volume parse_text_volume(std::string_view text, const std::string& path) {
   return volume;
 }
 
-RawVolumeFile::RawVolumeFile(const std::string& path, std::array<int, 3> dims) : dims_(dims) {
-  static_assert(std::endian::native == std::endian::little,
-                "raw volumes are mapped as they are: a little-endian host is assumed");
-  check_volume_dims(path, dims);
+RawVolumeFile::RawVolumeFile(const std::string& path, std::array<int, 3> dims)
+    : dims_(dims), file_(checked(path, dims)) {
   const size_t n = volume_sample_count(dims);
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
-  if (fd < 0) throw VolumeError(path + ": cannot open: " + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
-    ::close(fd);
-    throw VolumeError(path + ": not a regular file");
-  }
-  const auto size = static_cast<size_t>(st.st_size);
-  if (size != n * sizeof(float)) {
-    ::close(fd);
+  if (file_.bytes().size() != n * sizeof(float)) {
     throw VolumeError(path + ": raw float32 volume of " + std::to_string(dims[0]) + "x" +
                       std::to_string(dims[1]) + "x" + std::to_string(dims[2]) + " needs " +
                       std::to_string(n * sizeof(float)) + " bytes, file has " +
-                      std::to_string(size));
+                      std::to_string(file_.bytes().size()));
   }
-  // Not populated: the mesher reads the samples in order and releases what it is done
-  // with, so that only a slab of the file is resident at a time.
-  void* map = ::mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
-  const int e = errno;
-  ::close(fd);
-  if (map == MAP_FAILED) throw VolumeError(path + ": cannot map: " + std::strerror(e));
-  map_ = map;
-  bytes_ = size;
 }
 
-RawVolumeFile::~RawVolumeFile() {
-  if (map_ != nullptr) ::munmap(map_, bytes_);
+MappedFile RawVolumeFile::checked(const std::string& path, const std::array<int, 3>& dims) {
+  static_assert(std::endian::native == std::endian::little,
+                "raw volumes are mapped as they are: a little-endian host is assumed");
+  check_volume_dims(path, dims);
+  return MappedFile(path);
 }
-
-RawVolumeFile::RawVolumeFile(RawVolumeFile&& other) noexcept
-    : dims_(other.dims_), map_(std::exchange(other.map_, nullptr)), bytes_(other.bytes_) {}
 
 std::span<const float> RawVolumeFile::values() const {
-  return {static_cast<const float*>(map_), bytes_ / sizeof(float)};
+  return {reinterpret_cast<const float*>(file_.bytes().data()),
+          file_.bytes().size() / sizeof(float)};
 }
 
 void RawVolumeFile::release(size_t begin, size_t end) const {
-  static const size_t page = static_cast<size_t>(::sysconf(_SC_PAGESIZE));
-  const size_t first = (begin * sizeof(float) + page - 1) / page * page;  // whole pages only
-  const size_t last = std::min(end * sizeof(float), bytes_) / page * page;
-  if (first < last) (void)::madvise(static_cast<char*>(map_) + first, last - first, MADV_DONTNEED);
+  file_.release(begin * sizeof(float), end * sizeof(float));
 }
 
 mesh::Volume read_raw_volume(const std::string& path, std::array<int, 3> dims) {
@@ -205,9 +186,23 @@ mesh::Volume read_volume(const std::string& path, const std::optional<std::array
 }
 
 LoadedVolume load_volume(const std::string& path, const std::optional<std::array<int, 3>>& dims) {
-  if (!dims && (ends_with(path, ".nii") || ends_with(path, ".nii.gz"))) return read_nifti(path);
-  if (!dims && (ends_with(path, ".nrrd") || ends_with(path, ".nhdr"))) return read_nrrd(path);
-  return {read_volume(path, dims), std::nullopt};
+  try {
+    if (!dims && (ends_with(path, ".nii") || ends_with(path, ".nii.gz"))) return read_nifti(path);
+    if (!dims && (ends_with(path, ".nrrd") || ends_with(path, ".nhdr"))) return read_nrrd(path);
+    if (!dims) {  // another name: a NIfTI or NRRD file is still known by its first bytes
+      const MappedFile file(path);
+      const auto b = file.bytes();
+      const bool gzip = b.size() >= 2 && b[0] == 0x1f && b[1] == 0x8b;
+      const bool nifti =
+          b.size() >= kNiftiHeaderSize && (std::memcmp(b.data() + 344, "n+1", 4) == 0 ||
+                                           std::memcmp(b.data() + 344, "ni1", 4) == 0);
+      if (gzip || nifti) return parse_nifti(b, path);
+      if (b.size() >= 4 && std::memcmp(b.data(), "NRRD", 4) == 0) return parse_nrrd(b, path);
+    }
+    return {read_volume(path, dims), std::nullopt};
+  } catch (const std::bad_alloc&) {
+    throw VolumeError(path + ": not enough memory for the samples it declares");
+  }
 }
 
 }  // namespace vox::cli

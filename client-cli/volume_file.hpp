@@ -13,6 +13,7 @@
 #include <string>
 #include <string_view>
 
+#include "client-cli/sample_data.hpp"
 #include "server/mesh/volume_mesher.hpp"
 
 namespace vox::cli {
@@ -44,10 +45,6 @@ mesh::Volume parse_text_volume(std::string_view text, const std::string& path);
 class RawVolumeFile {
  public:
   RawVolumeFile(const std::string& path, std::array<int, 3> dims);
-  ~RawVolumeFile();
-  RawVolumeFile(RawVolumeFile&& other) noexcept;
-  RawVolumeFile& operator=(RawVolumeFile&&) = delete;
-  RawVolumeFile(const RawVolumeFile&) = delete;
 
   std::span<const float> values() const;
   const std::array<int, 3>& dims() const { return dims_; }
@@ -56,9 +53,9 @@ class RawVolumeFile {
   void release(size_t begin, size_t end) const;
 
  private:
+  static MappedFile checked(const std::string& path, const std::array<int, 3>& dims);
   std::array<int, 3> dims_;
-  void* map_ = nullptr;
-  size_t bytes_ = 0;
+  MappedFile file_;
 };
 
 // A copy of a RawVolumeFile's samples, every one checked finite.

@@ -22,6 +22,10 @@ class FaceTable {
   static constexpr uint32_t kNone = UINT32_MAX;
   void add(const PositionKey& k, uint32_t vertex) { pending_.push_back({k, vertex}); }
   void build() {
+    if (pending_.empty()) {  // most chunks of a thin or empty volume: no table at all
+      slots_.clear();
+      return;
+    }
     size_t capacity = 16;
     while (capacity < 2 * pending_.size()) capacity *= 2;
     slots_.assign(capacity, Slot{{}, kNone});

@@ -36,10 +36,15 @@ uint32_t largest_distance_bits(const float* values, size_t begin, size_t end, fl
 struct Quantizer {
   float iso = 0, sign = 1, k = 0;
 
-  Quantizer(const VolumeMeshOptions& options, float scale)
-      : iso(options.iso),
-        sign(options.invert ? -1.0f : 1.0f),
-        k(scale > 0.0f ? 32767.0f / scale : 0.0f) {}
+  // A scale below 1 is first brought into [1, 2) (at most 2^100 up) by an exact power of
+  // two folded into `sign`: 32767 / scale overflowed to infinity below about 1e-34, and
+  // 0 * infinity is NaN.
+  Quantizer(const VolumeMeshOptions& options, float scale) : iso(options.iso) {
+    const float up =
+        scale > 0.0f && scale < 1.0f ? std::ldexp(1.0f, std::min(100, -std::ilogb(scale))) : 1.0f;
+    sign = (options.invert ? -1.0f : 1.0f) * up;
+    k = scale > 0.0f ? 32767.0f / (scale * up) : 0.0f;
+  }
 
   // out[0, n) from values[0, n). Sign and magnitude by bits and integer selects, so that
   // it vectorises (float compares may trap, which keeps them out of vector selects); out
@@ -73,9 +78,10 @@ void gather_block(const std::array<int, 3>& dims, const std::array<int, 3>& o, P
   const int dx = dims[0], dy = dims[1], dz = dims[2];
   const int x_lo = o[0] - 1, x_hi = o[0] + kChunkSize + 1;  // inclusive block range in volume x
   const int copy_lo = std::max(x_lo, 0), copy_hi = std::min(x_hi, dx - 1);
-  for (int bz = -1; bz <= kChunkSize + 1; ++bz) {
+  // y and z only as far as the mesher reads (cells + 1): a thin volume's chunks are thin.
+  for (int bz = -1; bz <= out.cells[2] + 1; ++bz) {
     const int vz = std::clamp(o[2] + bz, 0, dz - 1);
-    for (int by = -1; by <= kChunkSize + 1; ++by) {
+    for (int by = -1; by <= out.cells[1] + 1; ++by) {
       const size_t row = static_cast<size_t>(std::clamp(o[1] + by, 0, dy - 1)) +
                          static_cast<size_t>(dy) * static_cast<size_t>(vz);
       world::Density* dst = out.density.get() + PaddedBlock::index(-1, by, bz);
