@@ -124,7 +124,9 @@ int run_mesh(const po::variables_map& vm, MeshRequest& r, std::ostream& out) {
   out << "meshed " << dims[0] << "x" << dims[1] << "x" << dims[2] << " samples";
   if (r.percentile) out << " at iso " << r.options.iso;
   out << ": " << result.vertex_count() << " vertices, " << result.triangle_count()
-      << " triangles in " << ms << " ms -> " << r.output << "\n";
+      << " triangles in " << ms << " ms -> " << r.output;
+  if (result.empty()) out << " (no surface: every sample is on one side of the level)";
+  out << "\n";
   return 0;
 }
 

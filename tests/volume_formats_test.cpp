@@ -591,6 +591,10 @@ TEST_F(CliScanMesh, IsoPercentileChoosesTheLevelFromTheSamples) {
   const std::array<float, 3> e = ply_extent(out);
   EXPECT_LT(e[0], 6.0f);
   EXPECT_GT(e[0], 1.0f);
+  // The 0th percentile is the smallest sample: everything is at or above it, no surface,
+  // and the line says so rather than leaving an empty file unexplained.
+  ASSERT_EQ(run({"mesh", in, "--out", out, "--iso-percentile", "0"}), 0) << err_.str();
+  EXPECT_NE(out_.str().find("no surface"), std::string::npos) << out_.str();
   EXPECT_EQ(run({"mesh", in, "--out", out, "--iso-percentile", "101"}), 2);
   EXPECT_EQ(run({"mesh", in, "--out", out, "--iso-percentile", "50", "--iso", "1"}), 2);
 }
