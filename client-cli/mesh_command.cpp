@@ -106,12 +106,12 @@ int run_mesh(const po::variables_map& vm, MeshRequest& r, std::ostream& out) {
   const std::span<const float> values =
       raw ? raw->values() : std::span<const float>(loaded.volume.values);
   const std::optional<std::array<float, 3>> spacing = spacing_for(vm, loaded, r.input);
-  if (r.percentile) r.options.iso = mesh::value_percentile(values, *r.percentile);
   const auto t0 = Clock::now();
   mesh::FloatVolumeView view{dims, values, {}};
   if (raw) view.release = [&raw](size_t begin, size_t end) { raw->release(begin, end); };
   mesh::ChunkMesh result;
   try {
+    if (r.percentile) r.options.iso = mesh::value_percentile(values, *r.percentile);
     result = mesh::mesh_float_volume(view, r.options);
   } catch (const std::domain_error& e) {
     throw VolumeError(r.input + ": " + e.what());

@@ -9,8 +9,6 @@
 #include <random>
 #include <thread>
 
-#include "server/pipeline/world_state.hpp"
-#include "tests/alloc_counter.hpp"
 #include "tests/mesh_test_util.hpp"
 
 namespace vox::pipeline {
@@ -223,27 +221,6 @@ TEST(WorldPipeline, EditThatChangesNoMeshPublishesNothing) {
   EXPECT_TRUE(r.changed_chunks.empty());
   EXPECT_EQ(p.meshes().get({0, -8, 0})->version, before);
   EXPECT_TRUE(p.meshes().get({0, -8, 0})->mesh.empty());
-}
-
-// Issue 15: every dirty chunk was meshed into a freshly allocated MeshVersion, changed or
-// not; the worker's warm buffers now take the mesher's writes.
-TEST(WorldPipeline, ReMeshingAChunkWhoseMeshDidNotChangeAllocatesNothing) {
-  const world::TerrainGenerator gen(kSeed);
-  const mesh::ChunkBox box = surface_box();
-  world::ChunkMap chunks;
-  for (int z = box.lo.z; z <= box.hi.z; ++z)
-    for (int y = box.lo.y; y <= box.hi.y; ++y)
-      for (int x = box.lo.x; x <= box.hi.x; ++x) chunks.insert({x, y, z}, gen.generate({x, y, z}));
-  const ChunkCoord c = box.at(13);  // the middle one
-  MeshWorker w;
-  std::shared_ptr<MeshVersion> first = remesh_chunk(w, chunks, c, nullptr);
-  ASSERT_TRUE(first);
-  ASSERT_FALSE(first->mesh.empty());
-  EXPECT_FALSE(first->full_frame.empty());
-  ASSERT_FALSE(remesh_chunk(w, chunks, c, first.get()));  // warm
-  const size_t before = test::allocations_on_this_thread();
-  for (int i = 0; i < 5; ++i) EXPECT_FALSE(remesh_chunk(w, chunks, c, first.get()));
-  EXPECT_EQ(test::allocations_on_this_thread(), before);
 }
 
 TEST(WorldPipeline, LoadsOnDemandAndReportsMemory) {

@@ -199,6 +199,11 @@ ChunkMesh mesh_float_volume(const FloatVolumeView& v, const VolumeMeshOptions& o
 
 float value_percentile(std::span<const float> values, double p) {
   if (values.empty()) return 0.0f;
+  if (const auto bad =
+          std::find_if(values.begin(), values.end(), [](float v) { return !std::isfinite(v); });
+      bad != values.end()) {
+    throw std::domain_error("value " + std::to_string(bad - values.begin()) + " is not finite");
+  }
   const size_t rank = static_cast<size_t>(
       std::llround(std::clamp(p, 0.0, 100.0) / 100.0 * static_cast<double>(values.size() - 1)));
   const auto [lo_it, hi_it] = std::minmax_element(values.begin(), values.end());

@@ -61,7 +61,7 @@ QuantizedVolume quantize_volume(const Volume& volume, const VolumeMeshOptions& o
 
 // The p-th percentile (p in [0, 100]) of the values: the value at rank
 // round(p / 100 * (n - 1)) in sorted order. Linear time (a histogram, then a selection
-// inside one bin).
+// inside one bin). Throws std::domain_error for a NaN or an infinity.
 float value_percentile(std::span<const float> values, double p);
 
 // Scales positions by `spacing` (a voxel's size per axis) and turns the normals with them

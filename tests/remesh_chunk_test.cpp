@@ -1,0 +1,37 @@
+// The pipeline's per-chunk re-mesh (server/pipeline/world_state.hpp remesh_chunk): a mesh
+// that did not change is not published and, once the worker is warm, allocates nothing.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "server/pipeline/world_state.hpp"
+#include "server/world/terrain_generator.hpp"
+#include "tests/alloc_counter.hpp"
+
+namespace vox::pipeline {
+namespace {
+
+// Issue 15: every dirty chunk was meshed into a freshly allocated MeshVersion, changed or
+// not; the worker's warm buffers now take the mesher's writes.
+TEST(RemeshChunk, ReMeshingAChunkWhoseMeshDidNotChangeAllocatesNothing) {
+  const world::TerrainGenerator gen(17);
+  // The chunk the surface crosses at (16, 16), with its 26 neighbours.
+  const world::ChunkCoord c{
+      0, world::floor_div(static_cast<int>(std::floor(gen.height_at(16, 16))), world::kChunkSize),
+      0};
+  world::ChunkMap chunks;
+  world::for_each_chunk_in(c.offset(-1, -1, -1), c.offset(1, 1, 1),
+                           [&](world::ChunkCoord n) { chunks.insert(n, gen.generate(n)); });
+  MeshWorker w;
+  std::shared_ptr<MeshVersion> first = remesh_chunk(w, chunks, c, nullptr);
+  ASSERT_TRUE(first);
+  ASSERT_FALSE(first->mesh.empty());
+  EXPECT_FALSE(first->full_frame.empty());
+  ASSERT_FALSE(remesh_chunk(w, chunks, c, first.get()));  // warm
+  const size_t before = test::allocations_on_this_thread();
+  for (int i = 0; i < 5; ++i) EXPECT_FALSE(remesh_chunk(w, chunks, c, first.get()));
+  EXPECT_EQ(test::allocations_on_this_thread(), before);
+}
+
+}  // namespace
+}  // namespace vox::pipeline
