@@ -56,26 +56,43 @@ TEST(LodLayout, LeavesCoverTheTopRegionOnceWithoutGapOrOverlap) {
   }
 }
 
-TEST(LodLayout, FaceNeighboursDifferByAtMostOneLevel) {
+TEST(LodLayout, FaceAndEdgeNeighboursDifferByAtMostOneLevelAndFinerOnesAreSeams) {
   for (double split : {1.0, 1.5, 2.0}) {
     LodLayout layout({.levels = 6, .top_radius = 1, .split_distance = split});
     layout.update({100.3, 7.7, -40.2});
-    std::map<LodChunk, int> levels;
+    int finer_faces = 0, finer_edges_only = 0;
     for (const LodChunk& c : layout.chunks()) {
-      // The point just across each face's centre.
       const auto lo = c.lo();
       const int64_t s = c.side();
+      const LodSeams seams = layout.seams(c);
+      // The point just across the middle of each face and of each edge.
+      auto across = [&](const std::array<int, 3>& d) {
+        std::array<int64_t, 3> p{};
+        for (int a = 0; a < 3; ++a)
+          p[a] = d[a] < 0 ? lo[a] - 1 : d[a] > 0 ? lo[a] + s : lo[a] + s / 2;
+        return leaf_at(layout, p);
+      };
       for (int f = 0; f < 6; ++f) {
-        std::array<int64_t, 3> p{lo[0] + s / 2, lo[1] + s / 2, lo[2] + s / 2};
-        const int axis = f / 2;
-        p[axis] = f % 2 == 0 ? lo[axis] - 1 : lo[axis] + s;
-        const auto [n, count] = leaf_at(layout, p);
+        std::array<int, 3> d{};
+        d[f / 2] = f % 2 == 0 ? -1 : 1;
+        const auto [n, count] = across(d);
         if (count == 0) continue;  // outside the layout
         EXPECT_LE(std::abs(n->level - c.level), 1) << "split " << split;
-        const bool coarser = n->level == c.level + 1;
-        EXPECT_EQ((layout.coarser_faces(c) >> f) & 1, coarser ? 1 : 0);
+        EXPECT_EQ((seams.faces >> f) & 1, n->level < c.level ? 1 : 0);
+        finer_faces += n->level < c.level;
       }
+      for (int e = 0; e < kChunkEdges; ++e) {
+        const auto [n, count] = across(lod_edge_direction(e));
+        if (count == 0) continue;
+        EXPECT_LE(std::abs(n->level - c.level), 1) << "split " << split;
+        const bool from_faces = (normalized({seams.faces, 0}).edges >> e) & 1;
+        EXPECT_EQ((seams.edges >> e) & 1, n->level < c.level || from_faces ? 1 : 0);
+        finer_edges_only += n->level < c.level && !from_faces;
+      }
+      EXPECT_EQ(normalized(seams), seams);
     }
+    EXPECT_GT(finer_faces, 0);
+    EXPECT_GT(finer_edges_only, 0) << "a chunk touched by a finer one only across an edge";
   }
 }
 

@@ -44,6 +44,29 @@ TEST(MarchingCubesTables, TrianglesUseEveryCutEdgeAndNothingElse) {
   }
 }
 
+// A fan triangle flat in a face of the cube (cases with two air corners diagonal on a face
+// and every other corner solid) met the same triangle of the cell across that face, wound
+// the other way: a fin of zero thickness, its edges in four triangles. Found on coarse
+// level-of-detail terrain.
+TEST(MarchingCubesTables, NoTriangleLiesFlatInAFaceOfTheCube) {
+  for (int c = 0; c < 256; ++c) {
+    for (int t = 0; t < 3 * triangles_in(c); t += 3) {
+      for (const auto& face : kCubeFaces) {
+        int on = 0;
+        for (int i = 0; i < 3; ++i) {
+          const int e = triTable[c][t + i];
+          for (int k = 0; k < 4; ++k) {
+            const int a = face[k], b = face[(k + 1) % 4];
+            on += (kEdgeCorners[e][0] == a && kEdgeCorners[e][1] == b) ||
+                  (kEdgeCorners[e][0] == b && kEdgeCorners[e][1] == a);
+          }
+        }
+        EXPECT_LT(on, 3) << "case " << c << " triangle " << t / 3;
+      }
+    }
+  }
+}
+
 TEST(MarchingCubesTables, ComplementaryCasesCutTheSameEdges) {
   for (int c = 0; c < 256; ++c) EXPECT_EQ(edgeTable[c], edgeTable[255 - c]);
 }

@@ -188,7 +188,10 @@ Topology analyse(const mesh::ChunkMesh& m) {
       ++topo.boundary_edges;
       topo.open_edges.push_back({position_of_id[key.first], position_of_id[key.second]});
     }
-    if (total > 2) ++topo.non_manifold_edges;
+    if (total > 2) {
+      ++topo.non_manifold_edges;
+      topo.crowded_edges.push_back({position_of_id[key.first], position_of_id[key.second]});
+    }
     if (total == 2 && uses.first != 1) ++topo.misoriented_edges;
   }
   for (uint32_t v = 0; v < used.size(); ++v) {

@@ -34,10 +34,11 @@ size_t unmatched_triangles(const std::vector<Triangle>& a, const std::vector<Tri
 struct Topology {
   size_t vertices = 0, edges = 0, faces = 0;
   size_t components = 0;
-  size_t boundary_edges = 0;                           // edges used by one triangle
-  size_t non_manifold_edges = 0;                       // edges used by more than two triangles
-  size_t misoriented_edges = 0;                        // edges used twice in the same direction
-  std::vector<std::array<mesh::Vec3f, 2>> open_edges;  // the boundary edges' end points
+  size_t boundary_edges = 0;                              // edges used by one triangle
+  size_t non_manifold_edges = 0;                          // edges used by more than two triangles
+  size_t misoriented_edges = 0;                           // edges used twice in the same direction
+  std::vector<std::array<mesh::Vec3f, 2>> open_edges;     // the boundary edges' end points
+  std::vector<std::array<mesh::Vec3f, 2>> crowded_edges;  // the non-manifold edges' ends
   double area = 0, volume = 0;  // volume by the divergence theorem (> 0: outward normals)
   long euler() const {
     return static_cast<long>(vertices) - static_cast<long>(edges) + static_cast<long>(faces);

@@ -7,6 +7,7 @@
 #include <set>
 
 #include "server/world/parallel.hpp"
+#include "server/world/terrain_sampler.hpp"
 
 namespace vox::world {
 namespace {
@@ -53,6 +54,26 @@ TEST(TerrainGenerator, PointSamplesEqualChunkSamples) {
                 z = static_cast<int>(rng() % 32);
       ASSERT_EQ(chunk.at(x, y, z), gen.sample_at(c.x * 32 + x, c.y * 32 + y, c.z * 32 + z));
     }
+  }
+}
+
+TEST(TerrainGenerator, ColumnsAndGridsOfPointsEqualPointSamples) {
+  const TerrainGenerator gen(7);
+  const TerrainSampler sampler(gen);
+  std::mt19937 rng(5);
+  for (const int step : {1, 2, 8, 64}) {
+    // Columns from deep rock through the cave band to the sky.
+    const std::array<int32_t, 3> origin{static_cast<int32_t>(rng() % 4000) - 2000, -40 * step,
+                                        static_cast<int32_t>(rng() % 4000) - 2000};
+    const std::array<int, 3> n{5, 80, 4};
+    std::vector<Sample> grid(static_cast<size_t>(n[0] * n[1] * n[2]));
+    sampler.sample_grid(origin, step, n, grid.data());
+    for (int k = 0; k < n[2]; ++k)
+      for (int j = 0; j < n[1]; ++j)
+        for (int i = 0; i < n[0]; ++i)
+          ASSERT_EQ(grid[static_cast<size_t>(i + n[0] * (j + n[1] * k))],
+                    gen.sample_at(origin[0] + step * i, origin[1] + step * j, origin[2] + step * k))
+              << "step " << step;
   }
 }
 

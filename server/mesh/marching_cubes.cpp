@@ -65,7 +65,7 @@ inline Vec3f gradient(const Density* d, int i) {
 
 }  // namespace
 
-void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
+void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out, const CellRows* skip) {
   const int ny = in.cells[1], nz = in.cells[2];
   const Density* dens = in.density.get();
   const world::Material* mats = in.material.get();
@@ -126,10 +126,12 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   // --- 4. triangles of the cells whose corners differ ---------------------------------
   out.indices.resize(max_triangles(s, in.cells) * 3);
   const Vec3f* vpos = out.positions.data();
-  const size_t triangles =
-      emit_triangles(s, in.cells, out.indices.data(), [&](uint32_t a, uint32_t b, uint32_t c) {
+  const size_t triangles = emit_triangles(
+      s, in.cells, out.indices.data(),
+      [&](uint32_t a, uint32_t b, uint32_t c) {
         return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
-      });
+      },
+      skip);
   out.indices.resize(triangles * 3);
 }
 

@@ -29,7 +29,12 @@ struct MeshScratch {
 // are dropped. Vertices on the block's faces depend only on the samples of that face, so
 // neighbouring chunks produce bit-identical vertices there (in world space). Afterwards
 // scratch.solid holds the samples' solid bits (rows 0..cells), which the mesh codec transmits.
-void mesh_chunk(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out);
+// `skip` (bit x of entry row_of(y, z)), when given, names cells whose triangles are left
+// out: the seam cells of a level-of-detail chunk, meshed apart (lod_mesher.hpp). Their
+// vertices stay.
+using CellRows = std::array<uint64_t, kRows>;
+void mesh_chunk(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out,
+                const CellRows* skip = nullptr);
 
 // The topology half of the mesher, shared with the mesh codec's decoder, which rebuilds a
 // mesh from the solid bits. Both read scratch.solid for rows y <= cells[1], z <= cells[2]
@@ -46,11 +51,11 @@ size_t max_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells
 size_t table_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells);
 // Writes the triangles of every cell whose corners differ, cells in (z, y, x) order, each
 // cell's triangles in triTable order, as vertex index triples into `out` (room for
-// max_triangles). keep(a, b, c) decides whether a triangle is written. Returns the number
-// of triangles written.
+// max_triangles). keep(a, b, c) decides whether a triangle is written; cells named in
+// `skip` are left out. Returns the number of triangles written.
 template <class Keep>
 size_t emit_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells, uint32_t* out,
-                      Keep&& keep);
+                      Keep&& keep, const CellRows* skip = nullptr);
 
 }  // namespace vox::mesh
 

@@ -41,11 +41,12 @@ inline unsigned cube_index(uint64_t r00, uint64_t r10, uint64_t r01, uint64_t r1
 
 template <class Keep>
 size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uint32_t* out,
-                      Keep&& keep) {
+                      Keep&& keep, const CellRows* skip) {
   uint32_t* idx = out;
   for (int z = 0; z < cells[2]; ++z) {
     for (int y = 0; y < cells[1]; ++y) {
       uint64_t cells_left = detail::mixed_cells(s, cells[0], y, z);
+      if (skip != nullptr) cells_left &= ~(*skip)[detail::row_of(y, z)];
       if (cells_left == 0) continue;
       const uint64_t r00 = s.solid[detail::row_of(y, z)], r10 = s.solid[detail::row_of(y + 1, z)],
                      r01 = s.solid[detail::row_of(y, z + 1)],

@@ -9,21 +9,13 @@
 // the surface has no holes. Chaining the face segments gives closed polygons, wound
 // counter-clockwise seen from the air side; each polygon becomes a triangle fan from the
 // apex whose thinnest triangle (with vertices at the edge midpoints) is the widest, so no
-// fan triangle is degenerate.
+// fan triangle is degenerate, and none lies flat in a face of the cube (the cell across
+// the face could have the same triangle, wound the other way: a fin of zero thickness,
+// four triangles on one edge).
 #include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::mesh {
 namespace {
-
-// The 6 faces, corners counter-clockwise as seen from outside the cube.
-constexpr int kFaces[6][4] = {
-    {0, 3, 2, 1},  // z = 0
-    {4, 5, 6, 7},  // z = 1
-    {0, 1, 5, 4},  // y = 0
-    {3, 7, 6, 2},  // y = 1
-    {0, 4, 7, 3},  // x = 0
-    {1, 2, 6, 5},  // x = 1
-};
 
 constexpr int edge_between(int a, int b) {
   for (int e = 0; e < 12; ++e) {
@@ -50,6 +42,20 @@ constexpr int fan_triangle_weight(int e0, int e1, int e2) {
   return n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
 }
 
+// Whether the three edges lie on one face of the cube: a fan triangle there would lie flat
+// in the face, and the cell across it can have the same one, wound the other way.
+constexpr bool on_one_face(int e0, int e1, int e2) {
+  for (const auto& face : kCubeFaces) {
+    int on = 0;
+    for (int i = 0; i < 4; ++i) {
+      const int e = edge_between(face[i], face[(i + 1) % 4]);
+      on += (e == e0) + (e == e1) + (e == e2);
+    }
+    if (on == 3) return true;
+  }
+  return false;
+}
+
 constexpr std::array<uint16_t, 256> make_edge_table() {
   std::array<uint16_t, 256> table{};
   for (int c = 0; c < 256; ++c) {
@@ -64,7 +70,7 @@ constexpr std::array<uint16_t, 256> make_edge_table() {
 constexpr std::array<int8_t, 16> make_tri_row(int c) {
   auto solid = [c](int corner) { return ((c >> corner) & 1) != 0; };
   int next[12] = {-1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
-  for (const auto& face : kFaces) {
+  for (const auto& face : kCubeFaces) {
     for (int i = 0; i < 4; ++i) {
       if (solid(face[i]) || !solid(face[(i + 1) % 4])) continue;  // need air -> solid
       for (int k = 1; k < 4; ++k) {
@@ -92,8 +98,8 @@ constexpr std::array<int8_t, 16> make_tri_row(int c) {
     for (int apex = 0; apex < n; ++apex) {
       int thinnest = 1 << 30;
       for (int k = 1; k + 1 < n; ++k) {
-        const int w = fan_triangle_weight(polygon[apex], polygon[(apex + k) % n],
-                                          polygon[(apex + k + 1) % n]);
+        const int a = polygon[apex], b = polygon[(apex + k) % n], c = polygon[(apex + k + 1) % n];
+        const int w = on_one_face(a, b, c) ? 0 : fan_triangle_weight(a, b, c);
         thinnest = w < thinnest ? w : thinnest;
       }
       if (thinnest > best_weight) {

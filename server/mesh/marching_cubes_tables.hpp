@@ -43,5 +43,14 @@ inline constexpr std::array<std::array<int8_t, 2>, 12> kEdgeCorners = {{
     {2, 6},
     {3, 7},
 }};
+// The 6 faces, corners counter-clockwise as seen from outside the cube.
+inline constexpr std::array<std::array<int8_t, 4>, 6> kCubeFaces = {{
+    {0, 3, 2, 1},  // z = 0
+    {4, 5, 6, 7},  // z = 1
+    {0, 1, 5, 4},  // y = 0
+    {3, 7, 6, 2},  // y = 1
+    {0, 4, 7, 3},  // x = 0
+    {1, 2, 6, 5},  // x = 1
+}};
 
 }  // namespace vox::mesh

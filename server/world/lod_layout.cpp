@@ -27,31 +27,32 @@ LodChunk child(const LodChunk& c, int i) {
   return {c.level - 1, {2 * c.c.x + (i & 1), 2 * c.c.y + ((i >> 1) & 1), 2 * c.c.z + (i >> 2)}};
 }
 
-LodChunk parent(const LodChunk& c) {
-  return {c.level + 1, {floor_div(c.c.x, 2), floor_div(c.c.y, 2), floor_div(c.c.z, 2)}};
-}
-
-LodChunk neighbour(const LodChunk& c, int face) {
-  const auto& d = kFaceDirection[face];
+LodChunk neighbour(const LodChunk& c, const std::array<int, 3>& d) {
   return {c.level, c.c.offset(d[0], d[1], d[2])};
 }
 
-// Whether the region of `n` (same level as the leaf asking) holds leaves two or more
-// levels finer than the asker: n is split and one of its children on the shared face is
-// split too.
-bool has_finer_than_one_level(const LodChunk& n, int face_towards_asker,
+// The face and edge neighbours of a chunk: offsets to the chunks sharing a face or an edge.
+constexpr std::array<std::array<int, 3>, 18> kNeighbourDirections = [] {
+  std::array<std::array<int, 3>, 18> d{};
+  for (int f = 0; f < 6; ++f) d[f] = kFaceDirection[f];
+  for (int e = 0; e < kChunkEdges; ++e) d[6 + e] = lod_edge_direction(e);
+  return d;
+}();
+
+// Whether the region of `n` (same level as the leaf asking, at offset `d` from it) holds
+// leaves two or more levels finer than the asker: n is split and one of its children that
+// touch the asker is split too.
+bool has_finer_than_one_level(const LodChunk& n, const std::array<int, 3>& d,
                               const std::set<LodChunk>& split) {
   if (n.level < 2 || !split.contains(n)) return false;
-  const auto& d = kFaceDirection[face_towards_asker];
   for (int i = 0; i < 8; ++i) {
-    const LodChunk ch = child(n, i);
     const int bits[3] = {i & 1, (i >> 1) & 1, i >> 2};
-    bool on_face = true;
+    bool touches = true;
     for (int a = 0; a < 3; ++a) {
-      if (d[a] < 0) on_face &= bits[a] == 0;
-      if (d[a] > 0) on_face &= bits[a] == 1;
+      if (d[a] > 0) touches &= bits[a] == 0;  // n lies above the asker on this axis
+      if (d[a] < 0) touches &= bits[a] == 1;
     }
-    if (on_face && split.contains(ch)) return true;
+    if (touches && split.contains(child(n, i))) return true;
   }
   return false;
 }
@@ -84,8 +85,8 @@ void LodLayout::balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split) {
     changed = false;
     std::vector<LodChunk> to_split;
     for (const LodChunk& leaf : leaves) {
-      for (int f = 0; f < 6; ++f) {
-        if (has_finer_than_one_level(neighbour(leaf, f), f ^ 1, split)) {
+      for (const auto& d : kNeighbourDirections) {
+        if (has_finer_than_one_level(neighbour(leaf, d), d, split)) {
           to_split.push_back(leaf);
           break;
         }
@@ -119,14 +120,15 @@ bool LodLayout::update(const std::array<double, 3>& eye) {
   return changed;
 }
 
-uint8_t LodLayout::coarser_faces(const LodChunk& c) const {
-  if (!leaves_.contains(c)) return 0;
-  uint8_t mask = 0;
-  for (int f = 0; f < 6; ++f) {
-    if (leaves_.contains(parent(neighbour(c, f))) && parent(neighbour(c, f)) != parent(c))
-      mask |= static_cast<uint8_t>(1u << f);
-  }
-  return mask;
+LodSeams LodLayout::seams(const LodChunk& c) const {
+  LodSeams s;
+  if (!leaves_.contains(c)) return s;
+  for (int f = 0; f < 6; ++f)
+    if (split_.contains(neighbour(c, kFaceDirection[f]))) s.faces |= static_cast<uint8_t>(1u << f);
+  for (int e = 0; e < kChunkEdges; ++e)
+    if (split_.contains(neighbour(c, lod_edge_direction(e))))
+      s.edges |= static_cast<uint16_t>(1u << e);
+  return normalized(s);
 }
 
 }  // namespace vox::world

@@ -3,10 +3,11 @@
 // voxels [32 * 2^k * c, 32 * 2^k * (c + 1)). The layout is the leaves of an octree: the
 // level-L chunks around the eye, each split into its 8 level-(k-1) children while the eye
 // is closer to it than split_distance times its side, recursively. So leaves never overlap
-// and leave no gap. Face neighbours differ by at most one level (the 2:1 rule transition
-// cells need): a leaf with a neighbour two levels finer is split too. A chunk split in the
-// previous layout merges back only when the eye is farther than (1 + hysteresis) times
-// that distance, so moving back and forth across a boundary does not reload.
+// and leave no gap. Chunks sharing a face or an edge differ by at most one level (the 2:1
+// rule the seams of lod_seams.hpp need): a leaf with such a neighbour two levels finer is
+// split too. A chunk split in the previous layout merges back only when the eye is farther
+// than (1 + hysteresis) times that distance, so moving back and forth across a boundary
+// does not reload.
 //
 // A pure policy: no I/O, no clock. One instance per client; one thread at a time.
 #pragma once
@@ -17,6 +18,7 @@
 #include <set>
 
 #include "server/world/chunk_coord.hpp"
+#include "server/world/lod_seams.hpp"
 
 namespace vox::world {
 
@@ -36,7 +38,7 @@ struct LodSettings {
   double hysteresis = 0.25;     // a split chunk merges beyond (1 + this) * split_distance
 };
 
-// Faces of a chunk, the bit of each in LodLayout::coarser_faces.
+// Faces of a chunk, the bit of each in LodSeams::faces.
 enum LodFace : uint8_t {
   kMinusX = 1,
   kPlusX = 2,
@@ -54,16 +56,17 @@ class LodLayout {
   // changed.
   bool update(const std::array<double, 3>& eye);
   const std::set<LodChunk>& chunks() const { return leaves_; }
-  // LodFace bits of the faces of leaf `c` whose neighbour is one level coarser: where its
-  // transition patch is drawn. 0 for a chunk that is not in the layout.
-  uint8_t coarser_faces(const LodChunk& c) const;
+  // Where leaf `c` meets finer leaves (lod_seams.hpp); none for a chunk that is not in
+  // the layout.
+  LodSeams seams(const LodChunk& c) const;
   const LodSettings& settings() const { return settings_; }
 
  private:
   void refine(const LodChunk& node, const std::array<double, 3>& eye,
               const std::set<LodChunk>& was_split, std::set<LodChunk>& leaves,
               std::set<LodChunk>& split) const;
-  // Splits leaves that have a face neighbour two or more levels finer, until none has.
+  // Splits leaves that have a face or edge neighbour two or more levels finer, until none
+  // has.
   static void balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split);
 
   LodSettings settings_;

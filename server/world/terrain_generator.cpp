@@ -76,7 +76,22 @@ Sample TerrainGenerator::make_sample(float height, int32_t y, const float* cave)
 }
 
 Sample TerrainGenerator::sample_at(int32_t x, int32_t y, int32_t z) const {
+  return sample_with_caves(height_at(x, z), x, y, z);
+}
+
+void TerrainGenerator::sample_column(int32_t x, int32_t z, int32_t y0, int32_t step, int n,
+                                     Sample* out, ptrdiff_t stride) const {
   const float height = height_at(x, z);
+  for (int j = 0; j < n; ++j, out += stride) {
+    const int32_t y = y0 + step * j;
+    const float depth = height - static_cast<float>(y);
+    // make_sample reads the cave noise only inside the band
+    const bool in_band = depth > params_.cave_top_depth && depth < params_.cave_bottom_depth;
+    *out = in_band ? sample_with_caves(height, x, y, z) : make_sample(height, y, nullptr);
+  }
+}
+
+Sample TerrainGenerator::sample_with_caves(float height, int32_t x, int32_t y, int32_t z) const {
   const int32_t i = floor_div(x, kCaveStep), j = floor_div(y, kCaveStep),
                 k = floor_div(z, kCaveStep);
   const float step = 1.0f / kCaveStep;

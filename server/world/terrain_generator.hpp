@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 
 #include "server/world/chunk.hpp"
@@ -44,6 +45,10 @@ class TerrainGenerator {
   // The sample the chunk containing (x, y, z) holds there; bit-identical to generate().
   Sample sample_at(int32_t x, int32_t y, int32_t z) const;
   float height_at(int32_t x, int32_t z) const;
+  // sample_at(x, y0 + step * j, z) for j < n, into out[j * stride]: the column's height
+  // once, cave noise only in the cave band.
+  void sample_column(int32_t x, int32_t z, int32_t y0, int32_t step, int n, Sample* out,
+                     ptrdiff_t stride) const;
 
   uint64_t seed() const { return seed_; }
   const TerrainParams& params() const { return params_; }
@@ -53,6 +58,7 @@ class TerrainGenerator {
   float cave_lattice(int32_t i, int32_t j, int32_t k) const;
   // `cave` is the interpolated cave noise, or null when the chunk lies outside the band.
   Sample make_sample(float height, int32_t y, const float* cave) const;
+  Sample sample_with_caves(float height, int32_t x, int32_t y, int32_t z) const;
 
   uint64_t seed_;
   TerrainParams params_;

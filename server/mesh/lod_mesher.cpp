@@ -1,0 +1,285 @@
+#include "server/mesh/lod_mesher.hpp"
+
+#include <bit>
+#include <cmath>
+
+#include "server/mesh/marching_cubes_tables.hpp"
+
+namespace vox::mesh {
+namespace {
+
+using world::Density;
+using world::kChunkSize;
+
+constexpr int kHalfSteps = 2 * kFractionSteps;  // position step: 1/2048 of a cell
+constexpr int kSeamStride[3] = {1, kSeamSide, kSeamSide* kSeamSide};
+// kCubeFaces[f] lies on the chunk face (LodFace bit) when the cell is at that end.
+constexpr int kCellFaceAxis[6] = {2, 2, 1, 1, 0, 0};
+constexpr int kCellFaceSide[6] = {0, 1, 0, 1, 0, 1};
+
+// The marching-cubes vertex of the whole edge from coarse sample p along `axis`.
+uint32_t whole_edge_vertex(const MeshScratch& s, const std::array<int, 3>& p, int axis) {
+  const int r = detail::row_of(p[1], p[2]);
+  return s.first_vertex[axis][r] +
+         static_cast<uint32_t>(std::popcount(s.cut[axis][r] & detail::low_bits(p[0])));
+}
+
+std::array<int64_t, 3> scaled(const Vec3f& v) {
+  return {static_cast<int64_t>(v.x * kHalfSteps), static_cast<int64_t>(v.y * kHalfSteps),
+          static_cast<int64_t>(v.z * kHalfSteps)};
+}
+
+std::array<int64_t, 3> cross(const std::array<int64_t, 3>& a, const std::array<int64_t, 3>& b,
+                             const std::array<int64_t, 3>& c) {
+  const int64_t ux = b[0] - a[0], uy = b[1] - a[1], uz = b[2] - a[2];
+  const int64_t wx = c[0] - a[0], wy = c[1] - a[1], wz = c[2] - a[2];
+  return {uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx};
+}
+
+int64_t squared(const std::array<int64_t, 3>& n) { return n[0] * n[0] + n[1] * n[1] + n[2] * n[2]; }
+
+class SeamMesher {
+ public:
+  SeamMesher(const LodBlock& in, LodScratch& s, ChunkMesh& out) : in_(in), s_(s), out_(out) {}
+
+  void mesh_cell(int x, int y, int z) {
+    const SeamCellSplits splits = seam_cell_splits(in_.seams, x, y, z);
+    uint32_t needed = 0, solid = 0;
+    for (int p = 0; p < 27; ++p) {
+      const auto q = seam_point_xyz(p);
+      if (!is_needed(splits, q)) continue;
+      needed |= 1u << p;
+      if (density({2 * x + q[0], 2 * y + q[1], 2 * z + q[2]}) > 0) solid |= 1u << p;
+    }
+    if (solid == 0 || solid == needed) return;
+    SeamCellContour contour;
+    contour_seam_cell(splits, solid, contour);
+    int begin = 0;
+    for (int k = 0; k < contour.polygons; ++k) {
+      const int end = contour.polygon_end[k];
+      uint32_t polygon[SeamCellContour::kMaxEdges];
+      uint8_t faces[SeamCellContour::kMaxEdges];
+      for (int i = begin; i < end; ++i) {
+        polygon[i - begin] = vertex_of({x, y, z}, contour.edges[i]);
+        faces[i - begin] = faces_of(contour.edges[i]);
+      }
+      fan(polygon, faces, end - begin);
+      begin = end;
+    }
+  }
+
+ private:
+  static bool is_needed(SeamCellSplits splits, const std::array<int, 3>& q) {
+    const int odd = (q[0] & 1) + (q[1] & 1) + (q[2] & 1);
+    if (odd == 0) return true;  // a corner
+    if (odd == 1) {             // an edge's midpoint
+      for (int e = 0; e < 12; ++e) {
+        if (((splits.edges >> e) & 1) == 0) continue;
+        const auto& a = kCubeCorner[kEdgeCorners[e][0]];
+        const auto& b = kCubeCorner[kEdgeCorners[e][1]];
+        if (a[0] + b[0] == q[0] && a[1] + b[1] == q[1] && a[2] + b[2] == q[2]) return true;
+      }
+      return false;
+    }
+    if (odd == 2) {  // a face's centre
+      for (int f = 0; f < 6; ++f) {
+        if (((splits.faces >> f) & 1) == 0) continue;
+        if (q[kCellFaceAxis[f]] == 2 * kCellFaceSide[f]) return true;
+      }
+    }
+    return false;
+  }
+
+  // The sample at half-cell point h of the chunk (coarse lattice points from the coarse
+  // block, whose samples the seam grid repeats).
+  Density density(const std::array<int, 3>& h) const {
+    if (((h[0] | h[1] | h[2]) & 1) == 0)
+      return in_.coarse.density[PaddedBlock::index(h[0] / 2, h[1] / 2, h[2] / 2)];
+    return in_.seam_density[LodBlock::seam_index(h[0], h[1], h[2])];
+  }
+
+  uint32_t vertex_of(const std::array<int, 3>& cell, SeamCellEdge e) {
+    const auto a = seam_point_xyz(e.from), b = seam_point_xyz(e.to);
+    std::array<int, 3> h{};
+    int axis = 0;
+    for (int i = 0; i < 3; ++i) {
+      h[i] = 2 * cell[i] + a[i];
+      if (b[i] != a[i]) axis = i;
+    }
+    if (b[axis] - a[axis] == 2)
+      return whole_edge_vertex(s_.mc, {h[0] / 2, h[1] / 2, h[2] / 2}, axis);
+    return half_edge_vertex(h, axis);
+  }
+
+  uint32_t half_edge_vertex(const std::array<int, 3>& h, int axis) {
+    const uint32_t key = 1 + static_cast<uint32_t>((h[0] + 1) | ((h[1] + 1) << 7) |
+                                                   ((h[2] + 1) << 14) | (axis << 21));
+    uint32_t* slot = find(key);
+    if (*slot == key) return s_.vertex_index[static_cast<size_t>(slot - s_.vertex_keys.data())];
+    *slot = key;
+    const uint32_t index = static_cast<uint32_t>(out_.positions.size());
+    s_.vertex_index[static_cast<size_t>(slot - s_.vertex_keys.data())] = index;
+    ++s_.vertex_entries;
+    add_half_edge_vertex(h, axis);
+    if (2 * s_.vertex_entries > s_.vertex_keys.size()) grow();
+    return index;
+  }
+
+  uint32_t* find(uint32_t key) {
+    const size_t mask = s_.vertex_keys.size() - 1;
+    for (size_t i = (key * 0x9E3779B1u) & mask;; i = (i + 1) & mask) {
+      if (s_.vertex_keys[i] == key || s_.vertex_keys[i] == 0) return &s_.vertex_keys[i];
+    }
+  }
+
+  void grow() {
+    Buffer<uint32_t> keys(std::move(s_.vertex_keys)), index(std::move(s_.vertex_index));
+    s_.vertex_keys.assign(keys.size() * 2, 0);
+    s_.vertex_index.resize(keys.size() * 2);
+    for (size_t i = 0; i < keys.size(); ++i) {
+      if (keys[i] == 0) continue;
+      uint32_t* slot = find(keys[i]);
+      *slot = keys[i];
+      s_.vertex_index[static_cast<size_t>(slot - s_.vertex_keys.data())] = index[i];
+    }
+  }
+
+  Vec3f gradient(int i) const {
+    const Density* d = in_.seam_density.get();
+    return {static_cast<float>(d[i + kSeamStride[0]] - d[i - kSeamStride[0]]),
+            static_cast<float>(d[i + kSeamStride[1]] - d[i - kSeamStride[1]]),
+            static_cast<float>(d[i + kSeamStride[2]] - d[i - kSeamStride[2]])};
+  }
+
+  // As marching_cubes.cpp makes a vertex, on the finer level's edge.
+  void add_half_edge_vertex(const std::array<int, 3>& h, int axis) {
+    const int i0 = LodBlock::seam_index(h[0], h[1], h[2]), i1 = i0 + kSeamStride[axis];
+    const int d0 = in_.seam_density[i0], d1 = in_.seam_density[i1];
+    const float t = static_cast<float>(d0) / static_cast<float>(d0 - d1);
+    const int q = static_cast<int>(t * kFractionSteps + 0.5f);
+    Vec3f p{static_cast<float>(h[0]) * 0.5f, static_cast<float>(h[1]) * 0.5f,
+            static_cast<float>(h[2]) * 0.5f};
+    (&p.x)[axis] += static_cast<float>(q) * (1.0f / kHalfSteps);
+    const Vec3f g0 = gradient(i0), g1 = gradient(i1);
+    Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)), -(g0.z + t * (g1.z - g0.z))};
+    const float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
+    if (len2 > 0.0f) {
+      const float inv = 1.0f / std::sqrt(len2);
+      n = {n.x * inv, n.y * inv, n.z * inv};
+    } else {
+      n = {};
+      (&n.x)[axis] = d0 > 0 ? 1.0f : -1.0f;
+    }
+    out_.positions.push_back(p);
+    out_.normals.push_back(n);
+    out_.materials.push_back(d0 > 0 ? in_.seam_material[i0] : in_.seam_material[i1]);
+  }
+
+  // Bit 2 * axis + side: the edge lies in that face plane of the cell.
+  static uint8_t faces_of(SeamCellEdge e) {
+    const auto a = seam_point_xyz(e.from), b = seam_point_xyz(e.to);
+    uint8_t mask = 0;
+    for (int axis = 0; axis < 3; ++axis) {
+      if (a[axis] == b[axis] && a[axis] != 1)
+        mask |= static_cast<uint8_t>(1u << (2 * axis + a[axis] / 2));
+    }
+    return mask;
+  }
+
+  // A triangle fan from the apex whose thinnest triangle is the widest, as the
+  // marching-cubes table is made: triangles flat in a face of the cell count as thinnest
+  // (the cell across may have the same one).
+  void fan(const uint32_t* polygon, const uint8_t* faces, int n) {
+    std::array<int64_t, 3> p[SeamCellContour::kMaxEdges];
+    for (int i = 0; i < n; ++i) p[i] = scaled(out_.positions[polygon[i]]);
+    int best_apex = 0;
+    int64_t best = -1;
+    for (int apex = 0; apex < n; ++apex) {
+      int64_t thinnest = INT64_MAX;
+      for (int k = 1; k + 1 < n; ++k) {
+        const int b = (apex + k) % n, c = (apex + k + 1) % n;
+        const bool flat = (faces[apex] & faces[b] & faces[c]) != 0;
+        thinnest = std::min(thinnest, flat ? 0 : squared(cross(p[apex], p[b], p[c])));
+      }
+      if (thinnest > best) {
+        best = thinnest;
+        best_apex = apex;
+      }
+    }
+    for (int k = 1; k + 1 < n; ++k) {
+      const int b = (best_apex + k) % n, c = (best_apex + k + 1) % n;
+      // Two vertices in one place: nothing to draw or to join. Three distinct ones on a
+      // line stay: rounding put them there, and the triangle still joins its neighbours.
+      if (p[best_apex] == p[b] || p[b] == p[c] || p[c] == p[best_apex]) continue;
+      out_.indices.push_back(polygon[best_apex]);
+      out_.indices.push_back(polygon[b]);
+      out_.indices.push_back(polygon[c]);
+    }
+  }
+
+  const LodBlock& in_;
+  LodScratch& s_;
+  ChunkMesh& out_;
+};
+
+// Bit x set for the cells of row (y, z) that touch a split edge.
+uint64_t seam_cells_of_row(world::LodSeams seams, int y, int z) {
+  uint64_t bits = 0;
+  for (int x = 0; x < kChunkSize; ++x) {
+    const bool boundary_row = y == 0 || y == kChunkSize - 1 || z == 0 || z == kChunkSize - 1;
+    if (!boundary_row && x != 0 && x != kChunkSize - 1) continue;
+    if (seam_cell_splits(seams, x, y, z).edges != 0) bits |= uint64_t{1} << x;
+  }
+  return bits;
+}
+
+}  // namespace
+
+SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z) {
+  SeamCellSplits s;
+  const int cell[3] = {x, y, z};
+  for (int e = 0; e < 12; ++e) {
+    const detail::EdgeSlot slot = detail::kEdgeSlot[e];
+    const int p[3] = {x + slot.dx, y + slot.dy, z + slot.dz};
+    const int a = slot.axis, b = (a + 1) % 3, c = (a + 2) % 3;
+    bool split = false;
+    for (const int o : {b, c}) {
+      if (p[o] == 0) split |= ((seams.faces >> (2 * o)) & 1) != 0;
+      if (p[o] == kChunkSize) split |= ((seams.faces >> (2 * o + 1)) & 1) != 0;
+    }
+    const bool b_end = p[b] == 0 || p[b] == kChunkSize, c_end = p[c] == 0 || p[c] == kChunkSize;
+    if (b_end && c_end)
+      split |=
+          ((seams.edges >> world::lod_edge(a, p[b] == kChunkSize, p[c] == kChunkSize)) & 1) != 0;
+    if (split) s.edges |= static_cast<uint16_t>(1u << e);
+  }
+  for (int f = 0; f < 6; ++f) {
+    const int axis = kCellFaceAxis[f], side = kCellFaceSide[f];
+    if (cell[axis] != (side == 0 ? 0 : kChunkSize - 1)) continue;
+    if ((seams.faces >> (2 * axis + side)) & 1) s.faces |= static_cast<uint8_t>(1u << f);
+  }
+  return s;
+}
+
+void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
+  for (int z = 0; z < kChunkSize; ++z)
+    for (int y = 0; y < kChunkSize; ++y)
+      s.seam_cells[detail::row_of(y, z)] = in.seams.empty() ? 0 : seam_cells_of_row(in.seams, y, z);
+  mesh_chunk(in.coarse, s.mc, out, in.seams.empty() ? nullptr : &s.seam_cells);
+  if (in.seams.empty()) return;
+
+  if (s.vertex_keys.empty()) {
+    s.vertex_keys.assign(4096, 0);
+    s.vertex_index.resize(4096);
+  } else {
+    std::fill(s.vertex_keys.begin(), s.vertex_keys.end(), 0u);
+  }
+  s.vertex_entries = 0;
+  SeamMesher seam(in, s, out);
+  for (int z = 0; z < kChunkSize; ++z)
+    for (int y = 0; y < kChunkSize; ++y)
+      for (uint64_t bits = s.seam_cells[detail::row_of(y, z)]; bits != 0; bits &= bits - 1)
+        seam.mesh_cell(std::countr_zero(bits), y, z);
+}
+
+}  // namespace vox::mesh

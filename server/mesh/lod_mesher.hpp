@@ -1,0 +1,42 @@
+// Meshes a level-of-detail chunk (issue 16) with its seams: marching cubes over the
+// chunk's own level for every cell, except the cells touching a split face or edge
+// (lod_seams.hpp), which are contoured from the finer level's samples there too
+// (seam_cell.hpp). Where a finer chunk meets this one, both meshes then have the same
+// vertices and segments on the shared face: the combined surface is closed.
+//
+// Positions are chunk-local in the level's cells (0..32; world = lo + 2^k * local).
+// Vertices of whole edges are the marching-cubes vertices, numbered as in
+// marching_cubes.hpp (a vertex on a split edge stays, unused); vertices on half edges come
+// after them, on 1/2048 of a cell (1/1024 of a finer cell, so they equal the finer
+// chunk's). Outside the seam cells, triangles of zero area at the rounded positions are
+// dropped (as marching_cubes.hpp does); in them, only triangles with two vertices in one
+// place: three on a line still join their neighbours, and dropping them opened the
+// surface where a sample lay within rounding of the level.
+#pragma once
+
+#include <cstdint>
+
+#include "server/mesh/chunk_mesh.hpp"
+#include "server/mesh/lod_block.hpp"
+#include "server/mesh/marching_cubes.hpp"
+#include "server/mesh/seam_cell.hpp"
+
+namespace vox::mesh {
+
+// A worker's buffers; once warm, meshing allocates nothing.
+struct LodScratch {
+  MeshScratch mc;
+  CellRows seam_cells{};  // bit x of row_of(y, z): cell (x, y, z) touches a split edge
+  // The half-edge vertices made so far: open addressing, key + 1 (0 = empty) -> index.
+  Buffer<uint32_t> vertex_keys;
+  Buffer<uint32_t> vertex_index;
+  size_t vertex_entries = 0;
+};
+
+// Which edges of cell (x, y, z) are split and which of its faces carry centres.
+SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z);
+
+// The calling thread only (one scratch per thread).
+void mesh_lod_chunk(const LodBlock& in, LodScratch& scratch, ChunkMesh& out);
+
+}  // namespace vox::mesh
