@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <memory>
 
 #include "proto/crc32c.hpp"
 
@@ -16,9 +17,22 @@ namespace {
 
 using mesh::kRowsPerAxis;
 constexpr size_t kHeaderBytes = 16;
+constexpr size_t kLodHeaderBytes = 27;  // format 2: seams, seam vertex and triangle counts
+constexpr size_t kSeamVertexBytes =
+    9;  // half point x, y, z, axis, fraction (2), normal (2), material
 constexpr size_t kChecksumBytes = 4;
 constexpr uint32_t kMaxVertices = 3 * kRowsPerAxis * kRowsPerAxis * kRowsPerAxis;
 constexpr uint32_t kMaxTriangles = 5 * 32 * 32 * 32;
+// Half edges on the 6 faces and 12 edges of a chunk; triangles of 6 * 32^2 seam cells.
+constexpr uint32_t kMaxSeamVertices = 6 * 2 * 64 * 65 + 12 * 64;
+constexpr uint32_t kMaxSeamTriangles = 6 * 32 * 32 * 48;
+
+// What format 2 adds to format 1.
+struct LodSection {
+  world::LodSeams seams;
+  const mesh::CellRows* seam_cells;
+  const mesh::LodScratch* lod;  // encoder only
+};
 
 size_t row_bytes(int cells_x) { return static_cast<size_t>(cells_x + 1 + 7) / 8; }
 int row_of(int y, int z) { return y + kRowsPerAxis * z; }
@@ -95,28 +109,69 @@ inline mesh::Vec3f decode_normal_inline(uint8_t u, uint8_t v) {
 
 mesh::Vec3f decode_normal(uint8_t u, uint8_t v) { return decode_normal_inline(u, v); }
 
-void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
-                 const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out) {
-  const auto vertices = static_cast<uint32_t>(m.vertex_count());
-  const auto triangles = static_cast<uint32_t>(m.triangle_count());
+namespace {
+
+// Format 2's seam vertices (planes after the dropped list) and triangles, at p.
+void write_seam_section(const mesh::ChunkMesh& m, const mesh::LodScratch& lod, uint8_t* p) {
+  const auto count = static_cast<uint32_t>(lod.seam_vertices.size());
+  uint8_t* plane[kSeamVertexBytes];
+  for (size_t k = 0; k < kSeamVertexBytes; ++k) plane[k] = p + k * count;
+  uint8_t prev_m = 0;
+  for (uint32_t i = 0; i < count; ++i) {
+    const mesh::HalfEdge e = lod.seam_vertices[i];
+    const uint32_t v = lod.regular_vertices + i;
+    const mesh::Vec3f pos = m.positions[v];
+    const uint8_t lower[3] = {e.x, e.y, e.z};
+    const float frac = (&pos.x)[e.axis] * 2.0f - static_cast<float>(lower[e.axis]);
+    const auto q = static_cast<uint16_t>(
+        std::clamp(frac * kFractionSteps + 0.5f, 0.0f, float{kFractionSteps}));
+    const auto n = encode_normal(m.normals[v]);
+    const uint8_t bytes[kSeamVertexBytes] = {e.x,
+                                             e.y,
+                                             e.z,
+                                             e.axis,
+                                             static_cast<uint8_t>(q),
+                                             static_cast<uint8_t>(q >> 8),
+                                             n[0],
+                                             n[1],
+                                             static_cast<uint8_t>(m.materials[v] - prev_m)};
+    for (size_t k = 0; k < kSeamVertexBytes; ++k) plane[k][i] = bytes[k];
+    prev_m = m.materials[v];
+  }
+  p += kSeamVertexBytes * count;
+  for (size_t k = 3 * size_t{lod.regular_triangles}; k < m.indices.size(); ++k, p += 4)
+    put_u32(p, m.indices[k]);
+}
+
+void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
+                 const std::array<int, 3>& cells, const LodSection* lod, CodecScratch& scratch,
+                 Bytes& out) {
+  const auto vertices =
+      static_cast<uint32_t>(lod != nullptr ? lod->lod->regular_vertices : m.vertex_count());
+  const auto triangles =
+      static_cast<uint32_t>(lod != nullptr ? lod->lod->regular_triangles : m.triangle_count());
+  const mesh::CellRows* skip = lod != nullptr ? lod->seam_cells : nullptr;
 
   // Triangles the mesher dropped (zero area): their ordinals in the table-derived order.
   scratch.triangles.clear();  // reused as the dropped list
-  if (mesh::table_triangles(t, cells) != triangles) {
+  if (mesh::table_triangles(t, cells, skip) != triangles) {
     std::vector<uint32_t>& dropped = scratch.triangles;
     size_t next = 0;
     uint32_t ordinal = 0;
     // Walks the table-derived triangles against the mesh's; writes nothing (keep is false).
-    mesh::emit_triangles(t, cells, nullptr, [&](uint32_t a, uint32_t b, uint32_t c) {
-      const bool kept = next < triangles && m.indices[3 * next] == a &&
-                        m.indices[3 * next + 1] == b && m.indices[3 * next + 2] == c;
-      if (kept)
-        ++next;
-      else
-        dropped.push_back(ordinal);
-      ++ordinal;
-      return false;
-    });
+    mesh::emit_triangles(
+        t, cells, nullptr,
+        [&](uint32_t a, uint32_t b, uint32_t c) {
+          const bool kept = next < triangles && m.indices[3 * next] == a &&
+                            m.indices[3 * next + 1] == b && m.indices[3 * next + 2] == c;
+          if (kept)
+            ++next;
+          else
+            dropped.push_back(ordinal);
+          ++ordinal;
+          return false;
+        },
+        skip);
   }
   const auto dropped = static_cast<uint32_t>(scratch.triangles.size());
 
@@ -136,16 +191,27 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
       nonzero += diff[r] != 0 ? 1 : 0;
     }
   }
-  const size_t size = kHeaderBytes + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} +
-                      4 * size_t{dropped} + kChecksumBytes;
+  const size_t seam_vertices = lod != nullptr ? lod->lod->seam_vertices.size() : 0;
+  const size_t seam_triangles = m.triangle_count() - triangles;
+  const size_t header = lod != nullptr ? kLodHeaderBytes : kHeaderBytes;
+  const size_t seam_bytes = kSeamVertexBytes * seam_vertices + 12 * seam_triangles;
+  const size_t size = header + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} +
+                      4 * size_t{dropped} + seam_bytes + kChecksumBytes;
   out.resize(size);
   uint8_t* p = out.data();
-  p[0] = kMeshFormat;
+  p[0] = lod != nullptr ? kLodMeshFormat : kMeshFormat;
   for (int a = 0; a < 3; ++a) p[1 + a] = static_cast<uint8_t>(cells[a]);
   put_u32(p + 4, vertices);
   put_u32(p + 8, triangles);
   put_u32(p + 12, dropped);
-  p += kHeaderBytes;
+  if (lod != nullptr) {
+    p[16] = lod->seams.faces;
+    p[17] = static_cast<uint8_t>(lod->seams.edges);
+    p[18] = static_cast<uint8_t>(lod->seams.edges >> 8);
+    put_u32(p + 19, static_cast<uint32_t>(seam_vertices));
+    put_u32(p + 23, static_cast<uint32_t>(seam_triangles));
+  }
+  p += header;
   std::memset(p, 0, (rows + 7) / 8);
   for (r = 0; r < rows; ++r)
     p[r / 8] = static_cast<uint8_t>(p[r / 8] | (diff[r] != 0 ? 1u << (r % 8) : 0u));
@@ -182,8 +248,58 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
     put_u32(p, d);
     p += 4;
   }
-  put_u32(p, crc32c(out.data(), size - kChecksumBytes));
+  if (lod != nullptr) write_seam_section(m, *lod->lod, p);
+  put_u32(out.data() + size - kChecksumBytes, crc32c(out.data(), size - kChecksumBytes));
 }
+
+}  // namespace
+
+void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
+                 const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out) {
+  encode_impl(m, t, cells, nullptr, scratch, out);
+}
+
+void encode_lod_mesh(const mesh::ChunkMesh& m, const mesh::LodScratch& lod, world::LodSeams seams,
+                     CodecScratch& scratch, Bytes& out) {
+  const LodSection section{seams, &lod.seam_cells, &lod};
+  encode_impl(m, lod.mc, {32, 32, 32}, &section, scratch, out);
+}
+
+namespace {
+
+// Format 2's seam vertices and triangles, appended to the regular part in m.
+std::optional<Error> read_seam_section(const uint8_t* p, uint32_t count, uint32_t triangles,
+                                       mesh::ChunkMesh& m) {
+  const auto regular = static_cast<uint32_t>(m.vertex_count());
+  const uint8_t* plane[kSeamVertexBytes];
+  for (size_t k = 0; k < kSeamVertexBytes; ++k) plane[k] = p + k * count;
+  uint8_t material = 0;
+  for (uint32_t i = 0; i < count; ++i) {
+    const int h[3] = {plane[0][i], plane[1][i], plane[2][i]};
+    const int axis = plane[3][i];
+    const unsigned q = plane[4][i] | static_cast<unsigned>(plane[5][i]) << 8;
+    if (axis > 2 || h[0] > 64 || h[1] > 64 || h[2] > 64 || h[axis] >= 64)
+      return Error{"seam vertex edge outside the chunk"};
+    if (q > kFractionSteps) return Error{"edge fraction over 1024"};
+    mesh::Vec3f pos{static_cast<float>(h[0]) * 0.5f, static_cast<float>(h[1]) * 0.5f,
+                    static_cast<float>(h[2]) * 0.5f};
+    (&pos.x)[axis] += static_cast<float>(q) * (1.0f / (2 * kFractionSteps));
+    material = static_cast<uint8_t>(material + plane[8][i]);
+    m.positions.push_back(pos);
+    m.normals.push_back(decode_normal_inline(plane[6][i], plane[7][i]));
+    m.materials.push_back(material);
+  }
+  p += kSeamVertexBytes * size_t{count};
+  const uint32_t total = regular + count;
+  for (size_t k = 0; k < 3 * size_t{triangles}; ++k, p += 4) {
+    const uint32_t v = get_u32(p);
+    if (v >= total) return Error{"seam triangle names a vertex that does not exist"};
+    m.indices.push_back(v);
+  }
+  return std::nullopt;
+}
+
+}  // namespace
 
 std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits,
                                  CodecScratch& scratch, mesh::ChunkMesh& m) {
@@ -191,15 +307,31 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   if (in.size() > limits.max_encoding_bytes) return Error{"mesh encoding larger than the limit"};
   if (in.size() < kHeaderBytes + kChecksumBytes)
     return Error{"mesh encoding truncated (no header)"};
-  if (in[0] != kMeshFormat) return Error{"unknown mesh format " + std::to_string(in[0])};
+  if (in[0] != kMeshFormat && in[0] != kLodMeshFormat)
+    return Error{"unknown mesh format " + std::to_string(in[0])};
+  const bool lod = in[0] == kLodMeshFormat;
+  const size_t header = lod ? kLodHeaderBytes : kHeaderBytes;
+  if (in.size() < header + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
   const std::array<int, 3> cells{in[1], in[2], in[3]};
   for (int c : cells) {
     if (c < 1 || c > 32) return Error{"cells per axis must be 1..32"};
+    if (lod && c != 32) return Error{"a level-of-detail chunk has 32 cells per axis"};
   }
   const uint32_t vertices = get_u32(in.data() + 4), triangles = get_u32(in.data() + 8),
                  dropped = get_u32(in.data() + 12);
   if (vertices > kMaxVertices || triangles > kMaxTriangles || dropped > kMaxTriangles) {
     return Error{"mesh encoding declares impossible counts"};
+  }
+  world::LodSeams seams;
+  uint32_t seam_vertices = 0, seam_triangles = 0;
+  if (lod) {
+    seams = {in[16], static_cast<uint16_t>(in[17] | in[18] << 8)};
+    seam_vertices = get_u32(in.data() + 19);
+    seam_triangles = get_u32(in.data() + 23);
+    if (seams.faces > 63 || seams.edges > 0xfff || world::normalized(seams) != seams)
+      return Error{"seam faces and edges are not a normalized set"};
+    if (seam_vertices > kMaxSeamVertices || seam_triangles > kMaxSeamTriangles)
+      return Error{"mesh encoding declares impossible seam counts"};
   }
   if (crc32c(in.data(), in.size() - kChecksumBytes) !=
       get_u32(in.data() + in.size() - kChecksumBytes)) {
@@ -208,16 +340,17 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   const size_t rb = row_bytes(cells[0]);
   const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
   const size_t bitmap = (rows + 7) / 8;
-  if (in.size() < kHeaderBytes + bitmap + kChecksumBytes)
+  if (in.size() < header + bitmap + kChecksumBytes)
     return Error{"mesh encoding truncated (row bitmap)"};
-  const uint8_t* flags = in.data() + kHeaderBytes;
+  const uint8_t* flags = in.data() + header;
   size_t nonzero = 0;
   for (size_t r = 0; r < rows; ++r) nonzero += (flags[r / 8] >> (r % 8)) & 1;
   for (size_t r = rows; r < bitmap * 8; ++r) {
     if ((flags[r / 8] >> (r % 8)) & 1) return Error{"row bitmap flags rows beyond the chunk"};
   }
-  const size_t expected = kHeaderBytes + bitmap + nonzero * rb + 5 * size_t{vertices} +
-                          4 * size_t{dropped} + kChecksumBytes;
+  const size_t expected = header + bitmap + nonzero * rb + 5 * size_t{vertices} +
+                          4 * size_t{dropped} + kSeamVertexBytes * size_t{seam_vertices} +
+                          12 * size_t{seam_triangles} + kChecksumBytes;
   if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
 
   mesh::MeshScratch& t = scratch.topology;
@@ -285,8 +418,14 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   const size_t declared = size_t{triangles} + dropped;
   m.indices.resize(declared * 3);
   uint32_t ordinal = 0, next_drop = 0;
-  const size_t written =
-      mesh::emit_triangles(t, cells, m.indices.data(), [&](uint32_t, uint32_t, uint32_t) {
+  const mesh::CellRows* skip = nullptr;
+  if (lod) {
+    mesh::seam_cell_rows(seams, scratch.seam_cells);
+    skip = &scratch.seam_cells;
+  }
+  const size_t written = mesh::emit_triangles(
+      t, cells, m.indices.data(),
+      [&](uint32_t, uint32_t, uint32_t) {
         if (ordinal >= declared) {
           ++ordinal;
           return false;
@@ -295,11 +434,13 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
         next_drop += drop_it ? 1 : 0;
         ++ordinal;
         return !drop_it;
-      });
+      },
+      skip);
   if (ordinal != declared) return Error{"triangle count does not match the solid rows"};
   if (next_drop != dropped) return Error{"dropped triangle beyond the last triangle"};
   if (written != triangles) return Error{"triangle count does not match the solid rows"};
   m.indices.resize(written * 3);
+  if (lod) return read_seam_section(drop + 4 * size_t{dropped}, seam_vertices, seam_triangles, m);
   return std::nullopt;
 }
 
@@ -311,8 +452,11 @@ Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> in, const DecodeLim
 }
 
 Result<mesh::ChunkMesh> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits) {
-  static thread_local CodecScratch scratch;
-  return decode_mesh(encoding, limits, scratch);
+  // On the heap: a thread_local of this size (66 KiB) is carved out of every thread's
+  // stack, civetweb's small ones included, whose metrics handler then overflowed.
+  static thread_local std::unique_ptr<CodecScratch> scratch;
+  if (!scratch) scratch = std::make_unique<CodecScratch>();
+  return decode_mesh(encoding, limits, *scratch);
 }
 
 }  // namespace vox::proto

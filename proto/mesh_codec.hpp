@@ -17,6 +17,7 @@
 
 #include "proto/result.hpp"
 #include "server/mesh/chunk_mesh.hpp"
+#include "server/mesh/lod_mesher.hpp"
 #include "server/mesh/marching_cubes.hpp"
 
 namespace vox::proto {
@@ -24,6 +25,7 @@ namespace vox::proto {
 using Bytes = std::vector<uint8_t>;
 
 inline constexpr uint8_t kMeshFormat = 1;
+inline constexpr uint8_t kLodMeshFormat = 2;  // a level-of-detail chunk with its seams
 inline constexpr int kFractionSteps = mesh::kFractionSteps;  // edge fraction step: 1/1024 voxel
 
 struct DecodeLimits {
@@ -33,6 +35,7 @@ struct DecodeLimits {
 // Scratch reused across calls: once warm, encode and decode allocate only the output.
 struct CodecScratch {
   mesh::MeshScratch topology;
+  mesh::CellRows seam_cells;
   std::array<uint64_t, mesh::kRows> row_diff;
   std::vector<uint32_t> triangles;
 };
@@ -43,7 +46,12 @@ struct CodecScratch {
 void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology,
                  const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out);
 
-// Rebuilds the mesh into `out` (its buffers reused); never trusts the bytes: any
+// Format 2 (docs/PROTOCOL.md §2.7): a level-of-detail chunk from mesh_lod_chunk, whose
+// scratch (`lod`) still holds the topology, the regular counts and the seam vertices.
+void encode_lod_mesh(const mesh::ChunkMesh& mesh, const mesh::LodScratch& lod,
+                     world::LodSeams seams, CodecScratch& scratch, Bytes& out);
+
+// Rebuilds the mesh (format 1 or 2) into `out` (its buffers reused); never trusts the bytes: any
 // inconsistency is an error (and `out` holds no meaningful mesh).
 std::optional<Error> decode_mesh(std::span<const uint8_t> encoding, const DecodeLimits& limits,
                                  CodecScratch& scratch, mesh::ChunkMesh& out);

@@ -1,6 +1,7 @@
 #include "proto/mesh_codec.hpp"
 
 #include <gtest/gtest.h>
+#include <link.h>
 #include <zstd.h>
 
 #include <cmath>
@@ -14,6 +15,7 @@
 #include "server/world/edit_apply.hpp"
 #include "server/world/gradient_noise.hpp"
 #include "server/world/terrain_generator.hpp"
+#include "tests/codec_test_util.hpp"
 
 namespace vox::proto {
 namespace {
@@ -41,21 +43,7 @@ Encoded mesh_and_encode(const world::ChunkMap& map, ChunkCoord c) {
   return mesh_and_encode(block);
 }
 
-void expect_same_mesh(const ChunkMesh& original, const ChunkMesh& decoded) {
-  ASSERT_EQ(decoded.vertex_count(), original.vertex_count());
-  ASSERT_EQ(decoded.indices, original.indices);
-  for (size_t v = 0; v < original.vertex_count(); ++v) {
-    const auto& a = original.positions[v];
-    const auto& b = decoded.positions[v];
-    ASSERT_NEAR(a.x, b.x, 0.5f / kFractionSteps + 1e-5f);
-    ASSERT_NEAR(a.y, b.y, 0.5f / kFractionSteps + 1e-5f);
-    ASSERT_NEAR(a.z, b.z, 0.5f / kFractionSteps + 1e-5f);
-    const auto& n = original.normals[v];
-    const auto& m = decoded.normals[v];
-    ASSERT_GT(n.x * m.x + n.y * m.y + n.z * m.z, 0.999f) << "normal off by more than 2.6 degrees";
-    ASSERT_EQ(original.materials[v], decoded.materials[v]);
-  }
-}
+using test::expect_same_mesh;
 
 world::ChunkMap terrain(uint64_t seed, int r) {
   const world::TerrainGenerator gen(seed);
@@ -451,6 +439,25 @@ TEST(MeshCodec, WorkedExampleOfTheProtocolDocument) {
 
 namespace vox::proto {
 namespace {
+// glibc carves a thread's static thread-local block out of its stack. decode_mesh kept its
+// 66 KiB scratch in a thread_local, and civetweb's worker threads (the metrics endpoint)
+// overflowed their small stacks: every scrape got an empty reply. This binary links the
+// same libraries as voxeld; their thread-locals together must stay small.
+TEST(MeshCodec, ThreadLocalsLeaveSmallThreadStacksAlone) {
+  size_t tls = 0;
+  dl_iterate_phdr(
+      [](dl_phdr_info* info, size_t, void* data) {
+        if (info->dlpi_name != nullptr && info->dlpi_name[0] != '\0') return 0;  // the executable
+        for (int i = 0; i < info->dlpi_phnum; ++i)
+          if (info->dlpi_phdr[i].p_type == PT_TLS)
+            *static_cast<size_t*>(data) = info->dlpi_phdr[i].p_memsz;
+        return 0;
+      },
+      &tls);
+  EXPECT_LT(tls, size_t{16} << 10) << "bytes of static thread-local storage";
+  EXPECT_TRUE(decode_mesh(mesh_and_encode(terrain(3, 1), {0, -1, 0}).encoding));
+}
+
 TEST(Crc32c, MatchesTheStandardCheckValue) {
   const std::string s = "123456789";
   EXPECT_EQ(crc32c(reinterpret_cast<const uint8_t*>(s.data()), s.size()), 0xE3069283u);

@@ -171,6 +171,8 @@ class SeamMesher {
       (&n.x)[axis] = d0 > 0 ? 1.0f : -1.0f;
     }
     out_.positions.push_back(p);
+    s_.seam_vertices.push_back({static_cast<uint8_t>(h[0]), static_cast<uint8_t>(h[1]),
+                                static_cast<uint8_t>(h[2]), static_cast<uint8_t>(axis)});
     out_.normals.push_back(n);
     out_.materials.push_back(d0 > 0 ? in_.seam_material[i0] : in_.seam_material[i1]);
   }
@@ -261,11 +263,19 @@ SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z) {
   return s;
 }
 
-void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
+void seam_cell_rows(world::LodSeams seams, CellRows& out) {
+  out.fill(0);
+  if (seams.empty()) return;
   for (int z = 0; z < kChunkSize; ++z)
-    for (int y = 0; y < kChunkSize; ++y)
-      s.seam_cells[detail::row_of(y, z)] = in.seams.empty() ? 0 : seam_cells_of_row(in.seams, y, z);
+    for (int y = 0; y < kChunkSize; ++y) out[detail::row_of(y, z)] = seam_cells_of_row(seams, y, z);
+}
+
+void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
+  seam_cell_rows(in.seams, s.seam_cells);
   mesh_chunk(in.coarse, s.mc, out, in.seams.empty() ? nullptr : &s.seam_cells);
+  s.regular_vertices = static_cast<uint32_t>(out.vertex_count());
+  s.regular_triangles = static_cast<uint32_t>(out.triangle_count());
+  s.seam_vertices.clear();
   if (in.seams.empty()) return;
 
   if (s.vertex_keys.empty()) {

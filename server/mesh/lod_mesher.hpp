@@ -23,8 +23,20 @@
 
 namespace vox::mesh {
 
-// A worker's buffers; once warm, meshing allocates nothing.
+// The half-cell edge a seam vertex lies on: its lower end in half-cell units of the chunk
+// (0..64) and its axis.
+struct HalfEdge {
+  uint8_t x = 0, y = 0, z = 0, axis = 0;
+  friend constexpr bool operator==(const HalfEdge&, const HalfEdge&) = default;
+};
+
+// A worker's buffers; once warm, meshing allocates nothing. After mesh_lod_chunk: the
+// mesh's first regular_vertices vertices and regular_triangles triangles are the
+// marching-cubes ones; seam_vertices[i] is the edge of vertex regular_vertices + i.
 struct LodScratch {
+  uint32_t regular_vertices = 0;
+  uint32_t regular_triangles = 0;
+  Buffer<HalfEdge> seam_vertices;
   MeshScratch mc;
   CellRows seam_cells{};  // bit x of row_of(y, z): cell (x, y, z) touches a split edge
   // The half-edge vertices made so far: open addressing, key + 1 (0 = empty) -> index.
@@ -35,6 +47,10 @@ struct LodScratch {
 
 // Which edges of cell (x, y, z) are split and which of its faces carry centres.
 SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z);
+
+// The seam cells of a chunk with these (normalized) seams: bit x of row_of(y, z) set when
+// cell (x, y, z) touches a split edge.
+void seam_cell_rows(world::LodSeams seams, CellRows& out);
 
 // The calling thread only (one scratch per thread).
 void mesh_lod_chunk(const LodBlock& in, LodScratch& scratch, ChunkMesh& out);

@@ -155,7 +155,8 @@ uint32_t index_cut_edges(MeshScratch& s, const std::array<int, 3>& cells) {
   return vertex_count;
 }
 
-size_t table_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
+size_t table_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
+                       const CellRows* skip) {
   static const auto kCount = [] {
     std::array<uint8_t, 256> count{};
     for (int c = 0; c < 256; ++c)
@@ -168,7 +169,9 @@ size_t table_triangles(const MeshScratch& s, const std::array<int, 3>& cells) {
       const uint64_t r00 = s.solid[detail::row_of(y, z)], r10 = s.solid[detail::row_of(y + 1, z)],
                      r01 = s.solid[detail::row_of(y, z + 1)],
                      r11 = s.solid[detail::row_of(y + 1, z + 1)];
-      for (uint64_t left = detail::mixed_cells(s, cells[0], y, z); left != 0; left &= left - 1) {
+      uint64_t mixed = detail::mixed_cells(s, cells[0], y, z);
+      if (skip != nullptr) mixed &= ~(*skip)[detail::row_of(y, z)];
+      for (uint64_t left = mixed; left != 0; left &= left - 1) {
         total += kCount[detail::cube_index(r00, r10, r01, r11, std::countr_zero(left))];
       }
     }

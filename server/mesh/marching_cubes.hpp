@@ -48,7 +48,8 @@ uint32_t index_cut_edges(MeshScratch& scratch, const std::array<int, 3>& cells);
 size_t max_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells);
 // The number of triangles the tables give for these solid rows (before any zero-area
 // triangle is dropped).
-size_t table_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells);
+size_t table_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells,
+                       const CellRows* skip = nullptr);
 // Writes the triangles of every cell whose corners differ, cells in (z, y, x) order, each
 // cell's triangles in triTable order, as vertex index triples into `out` (room for
 // max_triangles). keep(a, b, c) decides whether a triangle is written; cells named in

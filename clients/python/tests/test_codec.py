@@ -8,6 +8,7 @@ import zstandard
 import harness  # noqa: F401  (puts the package on sys.path)
 from voxelclient import (CompressionError, MeshError, crc32c, decode, decompress_delta,
                          decompress_full, load_table, proto)
+from voxelclient.mesh import normalized, seam_cells
 
 WORKED = bytes.fromhex("01 010101 03000000 01000000 00000000 03 01 01"
                        " 000000 020202 bf9f9f 9fbf9f 030000 e42739aa")
@@ -52,7 +53,8 @@ class Refusals(unittest.TestCase):
 
     def test_each_rule(self):
         cases = {
-            "format 2": worked(head=b"\2\1\1\1"),
+            "format 3": worked(head=b"\3\1\1\1"),
+            "format 2 of 1 cell": worked(head=b"\2\1\1\1"),
             "cells 0": worked(head=b"\1\0\1\1"),
             "cells 33": worked(head=b"\1\41\1\1"),
             "bad CRC": WORKED[:-1] + bytes([WORKED[-1] ^ 1]),
@@ -72,6 +74,53 @@ class Refusals(unittest.TestCase):
         for what, enc in cases.items():
             with self.subTest(what):
                 self.refuse(enc, what)
+
+
+def lod(faces=1, edges=None, seam=None, triangles=(0, 1, 2), cells=b"\x20\x20\x20"):
+    """A format-2 encoding (section 2.7) of an empty 32^3 chunk plus three seam vertices
+    on its -x face and one seam triangle; fields replaceable, CRC recomputed."""
+    if edges is None:
+        edges = normalized(faces, 0)
+    # hx, hy, hz, axis, fraction low, high, normal u, v, material difference per vertex
+    seam = seam or [(0, 2, 3, 1, 0, 2, 0x9f, 0x9f, 3), (0, 3, 2, 2, 0, 1, 0x9f, 0x9f, 0),
+                    (0, 5, 5, 1, 0, 4, 0x9f, 0x9f, 0)]
+    rows = 33 * 33
+    body = (b"\2" + cells + struct.pack("<III", 0, 0, 0)
+            + struct.pack("<BHII", faces, edges, len(seam), len(triangles) // 3)
+            + bytes((rows + 7) // 8)
+            + b"".join(bytes(v[k] for v in seam) for k in range(9))
+            + struct.pack("<%dI" % len(triangles), *triangles))
+    return with_crc(body)
+
+
+class LodFormat(unittest.TestCase):
+    def test_decode(self):
+        m = decode(lod(), TABLE)
+        self.assertEqual((m.seam_faces, m.seam_edges), (1, normalized(1, 0)))
+        self.assertEqual(list(m.positions), [0, 1.25, 1.5, 0, 1.5, 1.125, 0, 3.0, 2.5])
+        self.assertEqual(list(m.triangles), [0, 1, 2])
+        self.assertEqual(m.materials, b"\3\3\3")
+
+    def test_seam_cells_skip_the_outer_layer_of_split_faces(self):
+        cells = seam_cells(1, normalized(1, 0))
+        self.assertEqual(cells, {(0, y, z) for y in range(32) for z in range(32)})
+        self.assertEqual(len(seam_cells(0, 1)), 32)  # one chunk edge: the cells along it
+
+    def test_refusals(self):
+        cases = {
+            "edges of a split face missing": lod(edges=0),
+            "31 cells": lod(cells=b"\x1f\x20\x20"),
+            "axis 3": lod(seam=[(0, 2, 3, 3, 0, 2, 0x9f, 0x9f, 3)], triangles=()),
+            "half edge past the chunk": lod(seam=[(0, 64, 3, 1, 0, 2, 0x9f, 0x9f, 3)],
+                                            triangles=()),
+            "fraction 1025": lod(seam=[(0, 2, 3, 1, 1, 4, 0x9f, 0x9f, 3)], triangles=()),
+            "material 0": lod(seam=[(0, 2, 3, 1, 0, 2, 0x9f, 0x9f, 0)], triangles=()),
+            "vertex index past the end": lod(triangles=(0, 1, 3)),
+            "bad CRC": lod()[:-1] + b"\0",
+        }
+        for what, enc in cases.items():
+            with self.subTest(what), self.assertRaises(MeshError, msg=what):
+                decode(enc, TABLE)
 
 
 class Frames(unittest.TestCase):

@@ -1,10 +1,13 @@
-"""Mesh encoding format 1 (PROTOCOL.md section 2): decoding and every check it lists."""
+"""Mesh encoding formats 1 and 2 (PROTOCOL.md section 2): decoding and every check it lists."""
 import math
 import struct
 from array import array
 
 FORMAT = 1
+LOD_FORMAT = 2  # a level-of-detail chunk with its seams (section 2.7)
 HEADER = 16
+LOD_HEADER = 27
+SEAM_VERTEX_BYTES = 9
 FRACTION_ONE = 1024
 AXIS_X, AXIS_Y, AXIS_Z = 0, 1, 2
 
@@ -85,8 +88,9 @@ def _check_case(case, mask, edges):
 
 class Mesh:
     """A decoded chunk mesh. Flat arrays: positions/normals are xyz per vertex (float32),
-    triangles three vertex indices each. Vertex i lies on the lattice edge of axis `axis[i]`
-    whose lower sample is `samples[3i:3i+3]`."""
+    triangles three vertex indices each. Regular vertex i lies on the lattice edge of axis
+    `axis[i]` whose lower sample is `samples[3i:3i+3]`; in format 2 the seam vertices follow
+    (`seam_faces`, `seam_edges`: the chunk's seams)."""
 
     def __init__(self, cells, rows):
         self.cells = cells
@@ -99,9 +103,15 @@ class Mesh:
         self.triangles = array("I")
         self.table_triangles = 0
         self.dropped = ()
+        self.seam_faces = 0
+        self.seam_edges = 0
 
     @property
     def vertex_count(self):
+        return len(self.positions) // 3
+
+    @property
+    def regular_vertex_count(self):
         return len(self.axis)
 
     @property
@@ -122,20 +132,24 @@ class _Reader:
 def decode(enc, table):
     """Decodes one encoding; raises MeshError on any violation of section 2."""
     enc = bytes(enc)
-    cells, counts = _header(enc)
+    cells, counts, seams = _header(enc)
+    header = LOD_HEADER if seams else HEADER
     cx, cy, cz = cells
     V, T, D = counts
+    faces, edges, S, ST = seams or (0, 0, 0, 0)
     R = (cy + 1) * (cz + 1)
     bitmap_len = (R + 7) // 8
-    bitmap = int.from_bytes(enc[HEADER:HEADER + bitmap_len], "little")
+    bitmap = int.from_bytes(enc[header:header + bitmap_len], "little")
     if bitmap >> R:
         raise MeshError("row bitmap has bits at or past R")
     B = (cx + 1 + 7) // 8
-    expected = HEADER + bitmap_len + bitmap.bit_count() * B + 5 * V + 4 * D + 4
+    expected = (header + bitmap_len + bitmap.bit_count() * B + 5 * V + 4 * D
+                + SEAM_VERTEX_BYTES * S + 12 * ST + 4)
     if len(enc) != expected:
         raise MeshError("length %d, the header says %d" % (len(enc), expected))
-    reader = _Reader(enc, HEADER + bitmap_len)
+    reader = _Reader(enc, header + bitmap_len)
     mesh = Mesh(cells, _rows(reader, bitmap, R, cx, B))
+    mesh.seam_faces, mesh.seam_edges = faces, edges
     groups = _groups(mesh.rows, cells)
     cut = groups[-1][0] + groups[-1][1].bit_count()
     if cut != V:
@@ -145,20 +159,108 @@ def decode(enc, table):
     _normals(mesh, planes[2], planes[3])
     _materials(mesh, planes[4])
     dropped = struct.unpack_from("<%dI" % D, enc, reader.offset)
-    _triangles(mesh, groups, table, dropped)
+    reader.take(4 * D)
+    _triangles(mesh, groups, table, dropped, seam_cells(faces, edges) if seams else None)
     if mesh.triangle_count != T:
         raise MeshError("T = %d but %d triangles remain" % (T, mesh.triangle_count))
+    if seams:
+        _seam_section(mesh, reader, S, ST)
     return mesh
 
 
 def _header(enc):
     check_crc(enc)  # first: a delta applied to a wrong base is reported as what it is
-    if enc[0] != FORMAT:
-        raise MeshError("format %d is not 1" % enc[0])
+    if enc[0] not in (FORMAT, LOD_FORMAT):
+        raise MeshError("format %d is not 1 or 2" % enc[0])
     cells = tuple(enc[1:4])
     if any(c < 1 or c > 32 for c in cells):
         raise MeshError("cells %s out of 1..32" % (cells,))
-    return cells, struct.unpack_from("<III", enc, 4)
+    if enc[0] == FORMAT:
+        return cells, struct.unpack_from("<III", enc, 4), None
+    if len(enc) < LOD_HEADER + 4:
+        raise MeshError("encoding of %d bytes is too short" % len(enc))
+    if cells != (32, 32, 32):
+        raise MeshError("a level-of-detail chunk has 32 cells per axis, not %s" % (cells,))
+    faces, edges, S, ST = struct.unpack_from("<BHII", enc, 16)
+    if faces > 63 or edges > 0xFFF or normalized(faces, edges) != edges:
+        raise MeshError("seam faces %#x and edges %#x are not a normalized set" % (faces, edges))
+    return cells, struct.unpack_from("<III", enc, 4), (faces, edges, S, ST)
+
+
+# ---- seams (section 2.7) ----------------------------------------------------------------
+
+def face_edges(f):
+    """The chunk edges lying on face f (0 -x, 1 +x, 2 -y, 3 +y, 4 -z, 5 +z)."""
+    axis, side, mask = f // 2, f % 2, 0
+    for e in range(12):
+        a = e // 4
+        if a == axis:
+            continue
+        bit = e & 1 if (a + 1) % 3 == axis else (e >> 1) & 1
+        if bit == side:
+            mask |= 1 << e
+    return mask
+
+
+def normalized(faces, edges):
+    for f in range(6):
+        if (faces >> f) & 1:
+            edges |= face_edges(f)
+    return edges
+
+
+def _edge_split(faces, edges, p, axis):
+    """Whether the cell edge from sample p along axis is split."""
+    b, c = (axis + 1) % 3, (axis + 2) % 3
+    for o in (b, c):
+        if (p[o] == 0 and (faces >> (2 * o)) & 1) or (p[o] == 32 and (faces >> (2 * o + 1)) & 1):
+            return True
+    if p[b] in (0, 32) and p[c] in (0, 32):
+        return bool((edges >> (axis * 4 + (p[b] == 32) + 2 * (p[c] == 32))) & 1)
+    return False
+
+
+def seam_cells(faces, edges):
+    """The cells (x, y, z) with a split edge: they contribute no table triangles."""
+    out = set()
+    if not faces and not edges:
+        return out
+    for z in range(32):
+        for y in range(32):
+            border_row = y in (0, 31) or z in (0, 31)
+            for x in (range(32) if border_row else (0, 31)):
+                for axis, (dx, dy, dz) in CELL_EDGES:
+                    if _edge_split(faces, edges, (x + dx, y + dy, z + dz), axis):
+                        out.add((x, y, z))
+                        break
+    return out
+
+
+def _seam_section(mesh, reader, S, ST):
+    planes = [reader.take(S) for _ in range(SEAM_VERTEX_BYTES)]
+    hx, hy, hz, axes, low, high, us, vs, mats = planes
+    material, materials = 0, bytearray(S)
+    for i in range(S):
+        h, axis = [hx[i], hy[i], hz[i]], axes[i]
+        q = low[i] | high[i] << 8
+        if axis > 2 or max(h) > 64 or h[axis] >= 64:
+            raise MeshError("seam vertex %d lies outside the chunk" % i)
+        if q > FRACTION_ONE:
+            raise MeshError("seam vertex %d has fraction %d > 1024" % (i, q))
+        p = [c / 2 for c in h]
+        p[axis] += q / (2 * FRACTION_ONE)
+        mesh.positions.extend(p)
+        mesh.normals.extend(octahedral(us[i], vs[i]))
+        material = (material + mats[i]) & 0xFF
+        if material == 0:
+            raise MeshError("seam vertex %d has material 0 (air)" % i)
+        materials[i] = material
+    mesh.materials += bytes(materials)
+    total = mesh.vertex_count
+    indices = struct.unpack("<%dI" % (3 * ST), reader.take(12 * ST))
+    if any(v >= total for v in indices):
+        raise MeshError("a seam triangle names a vertex that does not exist")
+    mesh.triangles.extend(indices)
 
 
 def _rows(reader, bitmap, R, cx, B):
@@ -264,7 +366,7 @@ def _mixed_cells(r00, r10, r01, r11, cx):
     return ((some | (some >> 1)) & ~(every & (every >> 1))) & ((1 << cx) - 1)
 
 
-def _triangles(mesh, groups, table, dropped):
+def _triangles(mesh, groups, table, dropped, seam=None):
     cx, cy, cz = mesh.cells
     rows, out, ordinal, skip = mesh.rows, mesh.triangles, 0, set(dropped)
     if any(b <= a for a, b in zip(dropped, dropped[1:])):
@@ -275,6 +377,8 @@ def _triangles(mesh, groups, table, dropped):
             r = z * stride + y
             quad = (rows[r], rows[r + 1], rows[r + stride], rows[r + stride + 1])
             for x in _bits(_mixed_cells(*quad, cx)):
+                if seam and (x, y, z) in seam:
+                    continue
                 key = ((quad[0] >> x) & 3) | ((quad[1] >> x) & 3) << 2 \
                     | ((quad[2] >> x) & 3) << 4 | ((quad[3] >> x) & 3) << 6
                 for tri in table[_CASE_OF_SLICES[key]]:
