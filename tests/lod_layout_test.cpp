@@ -136,5 +136,33 @@ TEST(LodLayout, FarFromTheEyeTheChunksAreCoarse) {
   EXPECT_THROW(LodLayout({.levels = 0}), std::invalid_argument);
 }
 
+// near_split_distance sets how far level 0 reaches: every voxel within that many level-1
+// sides (64 voxels) of the eye is level 0, whatever split_distance says for the others.
+TEST(LodLayout, LevelZeroReachesTheNearSplitDistanceWhateverTheCoarserOnes) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> pos(-500.0, 500.0), dir(-1.0, 1.0);
+  for (int trial = 0; trial < 5; ++trial) {
+    const std::array<double, 3> eye{pos(rng), pos(rng) * 0.1, pos(rng)};
+    LodLayout near({.levels = 7, .split_distance = 1.0, .near_split_distance = 2.0});
+    LodLayout plain({.levels = 7, .split_distance = 1.0});
+    near.update(eye);
+    plain.update(eye);
+    for (int k = 0; k < 200; ++k) {
+      std::array<double, 3> d{dir(rng), dir(rng), dir(rng)};
+      const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      std::array<int64_t, 3> p{};
+      for (int a = 0; a < 3; ++a)
+        p[a] = static_cast<int64_t>(std::floor(eye[a] + d[a] / len * 127.0));
+      const auto [leaf, count] = leaf_at(near, p);
+      ASSERT_EQ(count, 1);
+      EXPECT_EQ(leaf->level, 0) << "127 voxels from the eye";
+    }
+    std::map<int, int> a, b;
+    for (const LodChunk& c : near.chunks()) ++a[c.level];
+    for (const LodChunk& c : plain.chunks()) ++b[c.level];
+    EXPECT_GT(a[0], b[0]);
+  }
+}
+
 }  // namespace
 }  // namespace vox::world

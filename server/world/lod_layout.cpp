@@ -62,7 +62,7 @@ bool has_finer_than_one_level(const LodChunk& n, const std::array<int, 3>& d,
 LodLayout::LodLayout(LodSettings settings) : settings_(settings) {
   if (settings_.levels < 1 || settings_.levels > 20 || settings_.top_radius < 0 ||
       settings_.top_radius > 64 || !(settings_.split_distance > 0) ||
-      !(settings_.hysteresis >= 0)) {
+      !(settings_.near_split_distance >= 0) || !(settings_.hysteresis >= 0)) {
     throw std::invalid_argument("LodSettings out of range");
   }
 }
@@ -71,7 +71,10 @@ void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
                        const std::set<LodChunk>& was_split, std::set<LodChunk>& leaves,
                        std::set<LodChunk>& split) const {
   const double band = was_split.contains(node) ? 1.0 + settings_.hysteresis : 1.0;
-  const double limit = settings_.split_distance * band * static_cast<double>(node.side());
+  const double factor = node.level == 1 && settings_.near_split_distance > 0
+                            ? settings_.near_split_distance
+                            : settings_.split_distance;
+  const double limit = factor * band * static_cast<double>(node.side());
   if (node.level == 0 || distance_to(node, eye) >= limit) {
     leaves.insert(node);
     return;

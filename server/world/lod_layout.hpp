@@ -35,7 +35,9 @@ struct LodSettings {
   int levels = 7;               // level 0 .. levels-1; the top level's chunks are laid out first
   int top_radius = 1;           // top-level chunks within this many of the eye's, per axis
   double split_distance = 2.0;  // in sides of the chunk: closer than this, it is split
-  double hysteresis = 0.25;     // a split chunk merges beyond (1 + this) * split_distance
+  // The same for level-1 chunks (how far level 0 reaches); 0: split_distance.
+  double near_split_distance = 0.0;
+  double hysteresis = 0.25;  // a split chunk merges beyond (1 + this) * split_distance
 };
 
 // Faces of a chunk, the bit of each in LodSeams::faces.

@@ -82,12 +82,79 @@ Sample TerrainGenerator::sample_at(int32_t x, int32_t y, int32_t z) const {
 void TerrainGenerator::sample_column(int32_t x, int32_t z, int32_t y0, int32_t step, int n,
                                      Sample* out, ptrdiff_t stride) const {
   const float height = height_at(x, z);
+  // On the cave lattice (coarse levels: every point a multiple of 4) the trilinear cave
+  // noise has all fractions 0 and is the lattice value itself, bit for bit.
+  const bool on_lattice = floor_mod(x, kCaveStep) == 0 && floor_mod(z, kCaveStep) == 0 &&
+                          floor_mod(y0, kCaveStep) == 0 && step % kCaveStep == 0;
   for (int j = 0; j < n; ++j, out += stride) {
     const int32_t y = y0 + step * j;
     const float depth = height - static_cast<float>(y);
     // make_sample reads the cave noise only inside the band
     const bool in_band = depth > params_.cave_top_depth && depth < params_.cave_bottom_depth;
-    *out = in_band ? sample_with_caves(height, x, y, z) : make_sample(height, y, nullptr);
+    if (!in_band) {
+      *out = make_sample(height, y, nullptr);
+    } else if (on_lattice) {
+      const float cave =
+          cave_lattice(floor_div(x, kCaveStep), floor_div(y, kCaveStep), floor_div(z, kCaveStep));
+      *out = make_sample(height, y, &cave);
+    } else {
+      *out = sample_with_caves(height, x, y, z);
+    }
+  }
+}
+
+void TerrainGenerator::sample_grid(const std::array<int32_t, 3>& origin, int32_t step,
+                                   const std::array<int, 3>& n, Sample* out,
+                                   std::vector<float>& lattice) const {
+  const ptrdiff_t row = n[0], layer = static_cast<ptrdiff_t>(n[0]) * n[1];
+  if (step >= kCaveStep) {  // coarse: no lattice value is shared between samples
+    for (int k = 0; k < n[2]; ++k)
+      for (int i = 0; i < n[0]; ++i)
+        sample_column(origin[0] + step * i, origin[2] + step * k, origin[1], step, n[1],
+                      out + i + layer * k, row);
+    return;
+  }
+  // The lattice cells under the grid, computed on first use (NaN: not yet).
+  std::array<int32_t, 3> lo{}, size{};
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = floor_div(origin[a], kCaveStep);
+    size[a] = floor_div(origin[a] + step * (n[a] - 1), kCaveStep) + 2 - lo[a];
+  }
+  lattice.assign(static_cast<size_t>(size[0]) * size[1] * size[2], NAN);
+  auto at = [&](int32_t i, int32_t j, int32_t k) {
+    float& v =
+        lattice[static_cast<size_t>((i - lo[0]) + size[0] * ((j - lo[1]) + size[1] * (k - lo[2])))];
+    if (std::isnan(v)) v = cave_lattice(i, j, k);
+    return v;
+  };
+  const float frac = 1.0f / kCaveStep;
+  for (int k = 0; k < n[2]; ++k) {
+    for (int i = 0; i < n[0]; ++i) {
+      const int32_t x = origin[0] + step * i, z = origin[2] + step * k;
+      const float height = height_at(x, z);
+      const int32_t li = floor_div(x, kCaveStep), lk = floor_div(z, kCaveStep);
+      const float fx = static_cast<float>(floor_mod(x, kCaveStep)) * frac,
+                  fz = static_cast<float>(floor_mod(z, kCaveStep)) * frac;
+      Sample* column = out + i + layer * k;
+      for (int j = 0; j < n[1]; ++j) {
+        const int32_t y = origin[1] + step * j;
+        const float depth = height - static_cast<float>(y);
+        if (!(depth > params_.cave_top_depth && depth < params_.cave_bottom_depth)) {
+          column[row * j] = make_sample(height, y, nullptr);
+          continue;
+        }
+        // As sample_with_caves, from the cached lattice.
+        const int32_t lj = floor_div(y, kCaveStep);
+        const float fy = static_cast<float>(floor_mod(y, kCaveStep)) * frac;
+        float level[2];
+        for (int l = 0; l < 2; ++l) {
+          level[l] = cave_level(at(li, lj + l, lk), at(li + 1, lj + l, lk), at(li, lj + l, lk + 1),
+                                at(li + 1, lj + l, lk + 1), fx, fz);
+        }
+        const float cave = cave_between(level[0], level[1], fy);
+        column[row * j] = make_sample(height, y, &cave);
+      }
+    }
   }
 }
 

@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <vector>
 
 #include "server/world/chunk.hpp"
 #include "server/world/gradient_noise.hpp"
@@ -49,6 +50,12 @@ class TerrainGenerator {
   // once, cave noise only in the cave band.
   void sample_column(int32_t x, int32_t z, int32_t y0, int32_t step, int n, Sample* out,
                      ptrdiff_t stride) const;
+  // sample_at(origin + step * (i, j, k)) into out[i + n[0] * (j + n[1] * k)], bit for bit:
+  // heights once per column; on grids finer than the cave lattice, each lattice value
+  // computed once (not eight times per sample). The calling thread only per `lattice`
+  // (a reusable buffer).
+  void sample_grid(const std::array<int32_t, 3>& origin, int32_t step, const std::array<int, 3>& n,
+                   Sample* out, std::vector<float>& lattice) const;
 
   uint64_t seed() const { return seed_; }
   const TerrainParams& params() const { return params_; }

@@ -1,5 +1,5 @@
 // The terrain generator as a PointSampler: a level-of-detail chunk's samples straight from
-// the seed, a column's height computed once per grid column.
+// the seed (TerrainGenerator::sample_grid).
 #pragma once
 
 #include "server/world/point_sampler.hpp"

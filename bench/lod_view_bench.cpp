@@ -1,0 +1,139 @@
+// What a far view costs (issue 16): a player's whole view meshed, encoded and compressed
+// as the server would send it, once with today's level-0 chunks to radius 8 and once as a
+// level-of-detail layout reaching 2,048 voxels (levels 0..6, level 0 near the eye), on one
+// thread. Counters: meshes with a surface, triangles, bytes on the wire.
+// Run: build/bin/bench_lod_view (see docs/PERFORMANCE.md).
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
+#include "server/mesh/lod_mesher.hpp"
+#include "server/mesh/marching_cubes.hpp"
+#include "server/world/chunk_map.hpp"
+#include "server/world/lod_layout.hpp"
+#include "server/world/terrain_generator.hpp"
+#include "server/world/terrain_sampler.hpp"
+
+namespace {
+
+using namespace vox;
+
+const world::TerrainGenerator& generator() {
+  static const world::TerrainGenerator gen(1);
+  return gen;
+}
+
+std::array<double, 3> eye() {
+  return {40.5, static_cast<double>(generator().height_at(40, -20)) + 2.0, -20.5};
+}
+
+struct ViewCost {
+  size_t meshes = 0, triangles = 0, bytes = 0;
+};
+
+void report(benchmark::State& state, const ViewCost& cost) {
+  state.counters["meshes"] = static_cast<double>(cost.meshes);
+  state.counters["triangles"] = static_cast<double>(cost.triangles);
+  state.counters["bytes"] = static_cast<double>(cost.bytes);
+}
+
+// Today's view: every level-0 chunk within radius 8 (Euclidean, in chunks) of the eye's
+// chunk, generated, meshed (format 1) and compressed as full messages.
+void BM_Radius8LevelZeroView(benchmark::State& state) {
+  const auto e = eye();
+  const world::ChunkCoord centre = world::chunk_of_voxel(static_cast<int32_t>(std::floor(e[0])),
+                                                         static_cast<int32_t>(std::floor(e[1])),
+                                                         static_cast<int32_t>(std::floor(e[2])));
+  constexpr int r = 8;
+  mesh::PaddedBlock block;
+  mesh::MeshScratch topology;
+  mesh::ChunkMesh mesh;
+  proto::CodecScratch scratch;
+  proto::ZstdCodec zstd;
+  proto::Bytes encoding, frame;
+  ViewCost cost;
+  for (auto _ : state) {
+    cost = {};
+    world::ChunkMap map;  // the server generates each chunk once, the margin too
+    for (int z = -r - 1; z <= r + 1; ++z)
+      for (int y = -r - 1; y <= r + 1; ++y)
+        for (int x = -r - 1; x <= r + 1; ++x) {
+          const world::ChunkCoord c = centre.offset(x, y, z);
+          map.insert(c, generator().generate(c));
+        }
+    for (int z = -r; z <= r; ++z)
+      for (int y = -r; y <= r; ++y)
+        for (int x = -r; x <= r; ++x) {
+          if (x * x + y * y + z * z > r * r) continue;
+          mesh::gather_padded_block(map, centre.offset(x, y, z), block);
+          mesh::mesh_chunk(block, topology, mesh);
+          if (mesh.empty()) continue;
+          proto::encode_mesh(mesh, topology, block.cells, scratch, encoding);
+          zstd.compress(encoding, {}, frame);
+          ++cost.meshes;
+          cost.triangles += mesh.triangle_count();
+          cost.bytes += frame.size();
+        }
+  }
+  report(state, cost);
+}
+BENCHMARK(BM_Radius8LevelZeroView)->Unit(benchmark::kMillisecond)->Iterations(3);
+
+// A level-of-detail view to 2,048 voxels: levels 0..6, 3x3x3 level-6 chunks around the
+// eye, each split while the eye is nearer than split_x10 / 10 times its side (level-1
+// chunks: near_split_x10 / 10; 2.0 keeps level 0 within 4 chunks). Level-0 chunks come from
+// the generator like today's; coarser ones from the generator at their own spacing, with
+// their seams. Format 2 for levels >= 1.
+void BM_LodView2048(benchmark::State& state) {
+  const double split = static_cast<double>(state.range(0)) / 10.0;
+  const double near_split = static_cast<double>(state.range(1)) / 10.0;
+  world::LodLayout layout(
+      {.levels = 7, .top_radius = 1, .split_distance = split, .near_split_distance = near_split});
+  layout.update(eye());
+  const world::TerrainSampler sampler(generator());
+  mesh::LodBlock block;
+  mesh::LodScratch lod;
+  mesh::ChunkMesh mesh;
+  proto::CodecScratch scratch;
+  proto::ZstdCodec zstd;
+  proto::Bytes encoding, frame;
+  ViewCost cost;
+  std::array<size_t, 7> per_level{};
+  for (auto _ : state) {
+    cost = {};
+    per_level = {};
+    for (const world::LodChunk& c : layout.chunks()) {
+      const world::LodSeams seams = layout.seams(c);
+      mesh::gather_lod_block(sampler, c, seams, block);
+      mesh::mesh_lod_chunk(block, lod, mesh);
+      if (mesh.empty()) continue;
+      if (c.level == 0)
+        proto::encode_mesh(mesh, lod.mc, block.coarse.cells, scratch, encoding);
+      else
+        proto::encode_lod_mesh(mesh, lod, seams, scratch, encoding);
+      zstd.compress(encoding, {}, frame);
+      ++cost.meshes;
+      ++per_level[static_cast<size_t>(c.level)];
+      cost.triangles += mesh.triangle_count();
+      cost.bytes += frame.size();
+    }
+  }
+  report(state, cost);
+  state.counters["layout_chunks"] = static_cast<double>(layout.chunks().size());
+  for (size_t k = 0; k < per_level.size(); ++k)
+    state.counters["meshes_l" + std::to_string(k)] = static_cast<double>(per_level[k]);
+}
+BENCHMARK(BM_LodView2048)
+    ->Args({10, 10})
+    ->Args({10, 20})
+    ->Args({15, 20})
+    ->Args({20, 20})
+    ->ArgNames({"split_x10", "near_split_x10"})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();
