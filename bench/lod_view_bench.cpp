@@ -83,7 +83,8 @@ BENCHMARK(BM_Radius8LevelZeroView)->Unit(benchmark::kMillisecond)->Iterations(3)
 
 // A level-of-detail view to 2,048 voxels: levels 0..6, 3x3x3 level-6 chunks around the
 // eye, each split while the eye is nearer than split_x10 / 10 times its side (level-1
-// chunks: near_split_x10 / 10; 2.0 keeps level 0 within 4 chunks). Level-0 chunks come from
+// chunks: near_split_x10 / 10; 2.0 keeps level 0 within 4 chunks). Level-0 chunks are
+// generated once each into a chunk map, as the server does. Level-0 chunks come from
 // the generator like today's; coarser ones from the generator at their own spacing, with
 // their seams. Format 2 for levels >= 1.
 void BM_LodView2048(benchmark::State& state) {
@@ -104,10 +105,23 @@ void BM_LodView2048(benchmark::State& state) {
   for (auto _ : state) {
     cost = {};
     per_level = {};
+    world::ChunkMap map;  // level 0 as the server has it: each chunk generated once
+    for (const world::LodChunk& c : layout.chunks()) {
+      if (c.level != 0) continue;
+      world::for_each_chunk_in(c.c.offset(-1, -1, -1), c.c.offset(1, 1, 1),
+                               [&](world::ChunkCoord n) {
+                                 if (map.find(n) == nullptr) map.insert(n, generator().generate(n));
+                               });
+    }
     for (const world::LodChunk& c : layout.chunks()) {
       const world::LodSeams seams = layout.seams(c);
-      mesh::gather_lod_block(sampler, c, seams, block);
-      mesh::mesh_lod_chunk(block, lod, mesh);
+      if (c.level == 0) {
+        mesh::gather_padded_block(map, c.c, block.coarse);
+        mesh::mesh_chunk(block.coarse, lod.mc, mesh);
+      } else {
+        mesh::gather_lod_block(sampler, c, seams, block);
+        mesh::mesh_lod_chunk(block, lod, mesh);
+      }
       if (mesh.empty()) continue;
       if (c.level == 0)
         proto::encode_mesh(mesh, lod.mc, block.coarse.cells, scratch, encoding);
