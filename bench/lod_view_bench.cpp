@@ -126,7 +126,7 @@ void BM_LodView2048(benchmark::State& state) {
       if (c.level == 0)
         proto::encode_mesh(mesh, lod.mc, block.coarse.cells, scratch, encoding);
       else
-        proto::encode_lod_mesh(mesh, lod, seams, scratch, encoding);
+        proto::encode_lod_mesh(mesh, lod, scratch, encoding);
       zstd.compress(encoding, {}, frame);
       ++cost.meshes;
       ++per_level[static_cast<size_t>(c.level)];

@@ -143,46 +143,38 @@ void write_seam_section(const mesh::ChunkMesh& m, const mesh::LodScratch& lod, u
     put_u32(p, m.indices[k]);
 }
 
-void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
-                 const std::array<int, 3>& cells, const LodSection* lod, CodecScratch& scratch,
-                 Bytes& out) {
-  const auto vertices =
-      static_cast<uint32_t>(lod != nullptr ? lod->lod->regular_vertices : m.vertex_count());
-  const auto triangles =
-      static_cast<uint32_t>(lod != nullptr ? lod->lod->regular_triangles : m.triangle_count());
-  const mesh::CellRows* skip = lod != nullptr ? lod->seam_cells : nullptr;
+// The ordinals, in table order, of the table triangles the mesher dropped (zero area),
+// into scratch.triangles.
+void collect_dropped(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
+                     const std::array<int, 3>& cells, const mesh::CellRows* skip,
+                     uint32_t triangles, CodecScratch& scratch) {
+  std::vector<uint32_t>& dropped = scratch.triangles;
+  dropped.clear();
+  if (mesh::table_triangles(t, cells, skip) == triangles) return;
+  size_t next = 0;
+  uint32_t ordinal = 0;
+  // Walks the table-derived triangles against the mesh's; writes nothing (keep is false).
+  mesh::emit_triangles(
+      t, cells, nullptr,
+      [&](uint32_t a, uint32_t b, uint32_t c) {
+        const bool kept = next < triangles && m.indices[3 * next] == a &&
+                          m.indices[3 * next + 1] == b && m.indices[3 * next + 2] == c;
+        if (kept)
+          ++next;
+        else
+          dropped.push_back(ordinal);
+        ++ordinal;
+        return false;
+      },
+      skip);
+}
 
-  // Triangles the mesher dropped (zero area): their ordinals in the table-derived order.
-  scratch.triangles.clear();  // reused as the dropped list
-  if (mesh::table_triangles(t, cells, skip) != triangles) {
-    std::vector<uint32_t>& dropped = scratch.triangles;
-    size_t next = 0;
-    uint32_t ordinal = 0;
-    // Walks the table-derived triangles against the mesh's; writes nothing (keep is false).
-    mesh::emit_triangles(
-        t, cells, nullptr,
-        [&](uint32_t a, uint32_t b, uint32_t c) {
-          const bool kept = next < triangles && m.indices[3 * next] == a &&
-                            m.indices[3 * next + 1] == b && m.indices[3 * next + 2] == c;
-          if (kept)
-            ++next;
-          else
-            dropped.push_back(ordinal);
-          ++ordinal;
-          return false;
-        },
-        skip);
-  }
-  const auto dropped = static_cast<uint32_t>(scratch.triangles.size());
-
-  // Solid rows xor-ed with the row before them (z-major, then y); only rows whose xor is
-  // not zero are sent, flagged in a bitmap (one bit per row, LSB first).
-  const size_t rb = row_bytes(cells[0]);
-  const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
-  std::array<uint64_t, mesh::kRows>& diff = scratch.row_diff;
-  size_t nonzero = 0;
+// Solid rows xor-ed with the row before them (z-major, then y) into diff; returns how many
+// are not zero (only those are sent, flagged in a bitmap).
+size_t diff_rows(const mesh::MeshScratch& t, const std::array<int, 3>& cells,
+                 std::array<uint64_t, mesh::kRows>& diff) {
+  size_t nonzero = 0, r = 0;
   uint64_t previous = 0;
-  size_t r = 0;
   for (int z = 0; z <= cells[2]; ++z) {
     for (int y = 0; y <= cells[1]; ++y, ++r) {
       const uint64_t row = t.solid[row_of(y, z)] & mesh::detail::low_bits(cells[0] + 1);
@@ -191,38 +183,27 @@ void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
       nonzero += diff[r] != 0 ? 1 : 0;
     }
   }
-  const size_t seam_vertices = lod != nullptr ? lod->lod->seam_vertices.size() : 0;
-  const size_t seam_triangles = m.triangle_count() - triangles;
-  const size_t header = lod != nullptr ? kLodHeaderBytes : kHeaderBytes;
-  const size_t seam_bytes = kSeamVertexBytes * seam_vertices + 12 * seam_triangles;
-  const size_t size = header + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} +
-                      4 * size_t{dropped} + seam_bytes + kChecksumBytes;
-  out.resize(size);
-  uint8_t* p = out.data();
-  p[0] = lod != nullptr ? kLodMeshFormat : kMeshFormat;
-  for (int a = 0; a < 3; ++a) p[1 + a] = static_cast<uint8_t>(cells[a]);
-  put_u32(p + 4, vertices);
-  put_u32(p + 8, triangles);
-  put_u32(p + 12, dropped);
-  if (lod != nullptr) {
-    p[16] = lod->seams.faces;
-    p[17] = static_cast<uint8_t>(lod->seams.edges);
-    p[18] = static_cast<uint8_t>(lod->seams.edges >> 8);
-    put_u32(p + 19, static_cast<uint32_t>(seam_vertices));
-    put_u32(p + 23, static_cast<uint32_t>(seam_triangles));
-  }
-  p += header;
+  return nonzero;
+}
+
+// The bitmap (one bit per row, LSB first) and the non-zero differences, B bytes each.
+uint8_t* write_rows(const std::array<uint64_t, mesh::kRows>& diff, size_t rows, size_t rb,
+                    uint8_t* p) {
   std::memset(p, 0, (rows + 7) / 8);
-  for (r = 0; r < rows; ++r)
+  for (size_t r = 0; r < rows; ++r)
     p[r / 8] = static_cast<uint8_t>(p[r / 8] | (diff[r] != 0 ? 1u << (r % 8) : 0u));
   p += (rows + 7) / 8;
-  for (r = 0; r < rows; ++r) {
+  for (size_t r = 0; r < rows; ++r) {
     if (diff[r] == 0) continue;
     for (size_t b = 0; b < rb; ++b) *p++ = static_cast<uint8_t>(diff[r] >> (8 * b));
   }
+  return p;
+}
 
-  // Per-vertex planes: fraction low bytes, fraction high bytes, normal u, normal v, and
-  // material as the difference from the previous vertex's (mod 256).
+// Per-vertex planes: fraction low bytes, fraction high bytes, normal u, normal v, and
+// material as the difference from the previous vertex's (mod 256).
+uint8_t* write_vertex_planes(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
+                             const std::array<int, 3>& cells, uint32_t vertices, uint8_t* p) {
   uint8_t* frac_lo = p;
   uint8_t* frac_hi = frac_lo + vertices;
   uint8_t* nu = frac_hi + vertices;
@@ -243,7 +224,44 @@ void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
     mat[v] = static_cast<uint8_t>(m.materials[v] - prev_m);
     prev_m = m.materials[v];
   });
-  p = mat + vertices;
+  return mat + vertices;
+}
+
+void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
+                 const std::array<int, 3>& cells, const LodSection* lod, CodecScratch& scratch,
+                 Bytes& out) {
+  const auto vertices =
+      static_cast<uint32_t>(lod != nullptr ? lod->lod->regular_vertices : m.vertex_count());
+  const auto triangles =
+      static_cast<uint32_t>(lod != nullptr ? lod->lod->regular_triangles : m.triangle_count());
+  collect_dropped(m, t, cells, lod != nullptr ? lod->seam_cells : nullptr, triangles, scratch);
+  const auto dropped = static_cast<uint32_t>(scratch.triangles.size());
+  const size_t rb = row_bytes(cells[0]);
+  const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
+  const size_t nonzero = diff_rows(t, cells, scratch.row_diff);
+
+  const size_t seam_vertices = lod != nullptr ? lod->lod->seam_vertices.size() : 0;
+  const size_t seam_triangles = m.triangle_count() - triangles;
+  const size_t header = lod != nullptr ? kLodHeaderBytes : kHeaderBytes;
+  const size_t seam_bytes = kSeamVertexBytes * seam_vertices + 12 * seam_triangles;
+  const size_t size = header + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} +
+                      4 * size_t{dropped} + seam_bytes + kChecksumBytes;
+  out.resize(size);
+  uint8_t* p = out.data();
+  p[0] = lod != nullptr ? kLodMeshFormat : kMeshFormat;
+  for (int a = 0; a < 3; ++a) p[1 + a] = static_cast<uint8_t>(cells[a]);
+  put_u32(p + 4, vertices);
+  put_u32(p + 8, triangles);
+  put_u32(p + 12, dropped);
+  if (lod != nullptr) {
+    p[16] = lod->seams.faces;
+    p[17] = static_cast<uint8_t>(lod->seams.edges);
+    p[18] = static_cast<uint8_t>(lod->seams.edges >> 8);
+    put_u32(p + 19, static_cast<uint32_t>(seam_vertices));
+    put_u32(p + 23, static_cast<uint32_t>(seam_triangles));
+  }
+  p = write_rows(scratch.row_diff, rows, rb, p + header);
+  p = write_vertex_planes(m, t, cells, vertices, p);
   for (uint32_t d : scratch.triangles) {
     put_u32(p, d);
     p += 4;
@@ -259,9 +277,9 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
   encode_impl(m, t, cells, nullptr, scratch, out);
 }
 
-void encode_lod_mesh(const mesh::ChunkMesh& m, const mesh::LodScratch& lod, world::LodSeams seams,
-                     CodecScratch& scratch, Bytes& out) {
-  const LodSection section{seams, &lod.seam_cells, &lod};
+void encode_lod_mesh(const mesh::ChunkMesh& m, const mesh::LodScratch& lod, CodecScratch& scratch,
+                     Bytes& out) {
+  const LodSection section{lod.seams, &lod.seam_cells, &lod};
   encode_impl(m, lod.mc, {32, 32, 32}, &section, scratch, out);
 }
 
@@ -301,63 +319,62 @@ std::optional<Error> read_seam_section(const uint8_t* p, uint32_t count, uint32_
 
 }  // namespace
 
-std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits,
-                                 CodecScratch& scratch, mesh::ChunkMesh& m) {
-  m.clear();
+namespace {
+
+// What the header says, checked against the limits and the CRC.
+struct Header {
+  bool lod = false;
+  size_t bytes = 0;  // the header's length
+  std::array<int, 3> cells{};
+  uint32_t vertices = 0, triangles = 0, dropped = 0;
+  world::LodSeams seams;
+  uint32_t seam_vertices = 0, seam_triangles = 0;
+};
+
+std::optional<Error> read_header(std::span<const uint8_t> in, const DecodeLimits& limits,
+                                 Header& h) {
   if (in.size() > limits.max_encoding_bytes) return Error{"mesh encoding larger than the limit"};
   if (in.size() < kHeaderBytes + kChecksumBytes)
     return Error{"mesh encoding truncated (no header)"};
   if (in[0] != kMeshFormat && in[0] != kLodMeshFormat)
     return Error{"unknown mesh format " + std::to_string(in[0])};
-  const bool lod = in[0] == kLodMeshFormat;
-  const size_t header = lod ? kLodHeaderBytes : kHeaderBytes;
-  if (in.size() < header + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
-  const std::array<int, 3> cells{in[1], in[2], in[3]};
-  for (int c : cells) {
+  h.lod = in[0] == kLodMeshFormat;
+  h.bytes = h.lod ? kLodHeaderBytes : kHeaderBytes;
+  if (in.size() < h.bytes + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
+  h.cells = {in[1], in[2], in[3]};
+  for (int c : h.cells) {
     if (c < 1 || c > 32) return Error{"cells per axis must be 1..32"};
-    if (lod && c != 32) return Error{"a level-of-detail chunk has 32 cells per axis"};
+    if (h.lod && c != 32) return Error{"a level-of-detail chunk has 32 cells per axis"};
   }
-  const uint32_t vertices = get_u32(in.data() + 4), triangles = get_u32(in.data() + 8),
-                 dropped = get_u32(in.data() + 12);
-  if (vertices > kMaxVertices || triangles > kMaxTriangles || dropped > kMaxTriangles) {
+  h.vertices = get_u32(in.data() + 4);
+  h.triangles = get_u32(in.data() + 8);
+  h.dropped = get_u32(in.data() + 12);
+  if (h.vertices > kMaxVertices || h.triangles > kMaxTriangles || h.dropped > kMaxTriangles)
     return Error{"mesh encoding declares impossible counts"};
-  }
-  world::LodSeams seams;
-  uint32_t seam_vertices = 0, seam_triangles = 0;
-  if (lod) {
-    seams = {in[16], static_cast<uint16_t>(in[17] | in[18] << 8)};
-    seam_vertices = get_u32(in.data() + 19);
-    seam_triangles = get_u32(in.data() + 23);
-    if (seams.faces > 63 || seams.edges > 0xfff || world::normalized(seams) != seams)
+  if (h.lod) {
+    h.seams = {in[16], static_cast<uint16_t>(in[17] | in[18] << 8)};
+    h.seam_vertices = get_u32(in.data() + 19);
+    h.seam_triangles = get_u32(in.data() + 23);
+    if (h.seams.faces > 63 || h.seams.edges > 0xfff || world::normalized(h.seams) != h.seams)
       return Error{"seam faces and edges are not a normalized set"};
-    if (seam_vertices > kMaxSeamVertices || seam_triangles > kMaxSeamTriangles)
+    if (h.seam_vertices > kMaxSeamVertices || h.seam_triangles > kMaxSeamTriangles)
       return Error{"mesh encoding declares impossible seam counts"};
   }
   if (crc32c(in.data(), in.size() - kChecksumBytes) !=
       get_u32(in.data() + in.size() - kChecksumBytes)) {
     return Error{"mesh encoding checksum mismatch (corrupt, or a delta against the wrong base)"};
   }
-  const size_t rb = row_bytes(cells[0]);
-  const size_t rows = static_cast<size_t>(cells[1] + 1) * static_cast<size_t>(cells[2] + 1);
-  const size_t bitmap = (rows + 7) / 8;
-  if (in.size() < header + bitmap + kChecksumBytes)
-    return Error{"mesh encoding truncated (row bitmap)"};
-  const uint8_t* flags = in.data() + header;
-  size_t nonzero = 0;
-  for (size_t r = 0; r < rows; ++r) nonzero += (flags[r / 8] >> (r % 8)) & 1;
-  for (size_t r = rows; r < bitmap * 8; ++r) {
-    if ((flags[r / 8] >> (r % 8)) & 1) return Error{"row bitmap flags rows beyond the chunk"};
-  }
-  const size_t expected = header + bitmap + nonzero * rb + 5 * size_t{vertices} +
-                          4 * size_t{dropped} + kSeamVertexBytes * size_t{seam_vertices} +
-                          12 * size_t{seam_triangles} + kChecksumBytes;
-  if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
+  return std::nullopt;
+}
 
-  mesh::MeshScratch& t = scratch.topology;
-  const uint8_t* p = flags + bitmap;
+// The solid rows from the bitmap and differences at p, into t.solid; p moves past them.
+std::optional<Error> read_rows(const uint8_t* flags, size_t bitmap, const std::array<int, 3>& cells,
+                               mesh::MeshScratch& t, const uint8_t*& p) {
+  const size_t rb = row_bytes(cells[0]);
   const uint64_t valid = mesh::detail::low_bits(cells[0] + 1);
   uint64_t previous = 0;
   size_t r = 0;
+  p = flags + bitmap;
   for (int z = 0; z <= cells[2]; ++z) {
     for (int y = 0; y <= cells[1]; ++y, ++r) {
       if ((flags[r / 8] >> (r % 8)) & 1) {
@@ -370,16 +387,18 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
       t.solid[row_of(y, z)] = previous;
     }
   }
-  if (mesh::index_cut_edges(t, cells) != vertices)
-    return Error{"vertex count does not match the solid rows"};
+  return std::nullopt;
+}
 
+// The five vertex planes at p (V bytes each) into m's positions, normals and materials.
+std::optional<Error> read_vertex_planes(const uint8_t* p, const mesh::MeshScratch& t,
+                                        const std::array<int, 3>& cells, uint32_t vertices,
+                                        mesh::ChunkMesh& m) {
   const uint8_t* frac_lo = p;
   const uint8_t* frac_hi = frac_lo + vertices;
   const uint8_t* nu = frac_hi + vertices;
   const uint8_t* nv = nu + vertices;
   const uint8_t* mat = nv + vertices;
-  const uint8_t* drop = mat + vertices;
-
   m.positions.resize(vertices);
   m.normals.resize(vertices);
   m.materials.resize(vertices);
@@ -388,7 +407,6 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   mesh::Vec3f* out_nrm = m.normals.data();
   uint8_t* out_mat = m.materials.data();
   bool bad_fraction = false;
-  uint8_t material = 0;
   for_each_vertex(t, cells, [&](uint32_t i, int a, int x, int y, int z) {
     const unsigned q = frac_lo[i] | static_cast<unsigned>(frac_hi[i]) << 8;
     bad_fraction |= q > kFractionSteps;
@@ -401,46 +419,86 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   if (bad_fraction) return Error{"edge fraction over 1024"};
   // Normals and materials do not depend on the edge: plain loops.
   for (uint32_t i = 0; i < vertices; ++i) out_nrm[i] = decode_normal_inline(nu[i], nv[i]);
+  uint8_t material = 0;
   for (uint32_t i = 0; i < vertices; ++i) {
     material = static_cast<uint8_t>(material + mat[i]);
     out_mat[i] = material;
   }
+  return std::nullopt;
+}
 
-  // Triangles: every table triangle of the mixed cells, minus the dropped ordinals.
+// Every table triangle of the mixed cells (seam cells left out), minus the dropped
+// ordinals listed at `drop`.
+std::optional<Error> read_triangles(const uint8_t* drop, const Header& h, CodecScratch& scratch,
+                                    mesh::ChunkMesh& m) {
   uint32_t previous_drop = 0;
-  for (uint32_t k = 0; k < dropped; ++k) {
+  for (uint32_t k = 0; k < h.dropped; ++k) {
     const uint32_t d = get_u32(drop + 4 * k);
     if (k > 0 && d <= previous_drop) return Error{"dropped triangle list out of order"};
     previous_drop = d;
   }
   // The buffer holds the declared table triangles; a mixed-cell pattern that yields more
   // is refused instead of written past the end.
-  const size_t declared = size_t{triangles} + dropped;
+  const size_t declared = size_t{h.triangles} + h.dropped;
   m.indices.resize(declared * 3);
   uint32_t ordinal = 0, next_drop = 0;
   const mesh::CellRows* skip = nullptr;
-  if (lod) {
-    mesh::seam_cell_rows(seams, scratch.seam_cells);
+  if (h.lod) {
+    mesh::seam_cell_rows(h.seams, scratch.seam_cells);
     skip = &scratch.seam_cells;
   }
   const size_t written = mesh::emit_triangles(
-      t, cells, m.indices.data(),
+      scratch.topology, h.cells, m.indices.data(),
       [&](uint32_t, uint32_t, uint32_t) {
         if (ordinal >= declared) {
           ++ordinal;
           return false;
         }
-        const bool drop_it = next_drop < dropped && get_u32(drop + 4 * next_drop) == ordinal;
+        const bool drop_it = next_drop < h.dropped && get_u32(drop + 4 * next_drop) == ordinal;
         next_drop += drop_it ? 1 : 0;
         ++ordinal;
         return !drop_it;
       },
       skip);
   if (ordinal != declared) return Error{"triangle count does not match the solid rows"};
-  if (next_drop != dropped) return Error{"dropped triangle beyond the last triangle"};
-  if (written != triangles) return Error{"triangle count does not match the solid rows"};
+  if (next_drop != h.dropped) return Error{"dropped triangle beyond the last triangle"};
+  if (written != h.triangles) return Error{"triangle count does not match the solid rows"};
   m.indices.resize(written * 3);
-  if (lod) return read_seam_section(drop + 4 * size_t{dropped}, seam_vertices, seam_triangles, m);
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits& limits,
+                                 CodecScratch& scratch, mesh::ChunkMesh& m) {
+  m.clear();
+  Header h;
+  if (auto error = read_header(in, limits, h)) return error;
+  const size_t rb = row_bytes(h.cells[0]);
+  const size_t rows = static_cast<size_t>(h.cells[1] + 1) * static_cast<size_t>(h.cells[2] + 1);
+  const size_t bitmap = (rows + 7) / 8;
+  if (in.size() < h.bytes + bitmap + kChecksumBytes)
+    return Error{"mesh encoding truncated (row bitmap)"};
+  const uint8_t* flags = in.data() + h.bytes;
+  size_t nonzero = 0;
+  for (size_t r = 0; r < rows; ++r) nonzero += (flags[r / 8] >> (r % 8)) & 1;
+  for (size_t r = rows; r < bitmap * 8; ++r) {
+    if ((flags[r / 8] >> (r % 8)) & 1) return Error{"row bitmap flags rows beyond the chunk"};
+  }
+  const size_t expected = h.bytes + bitmap + nonzero * rb + 5 * size_t{h.vertices} +
+                          4 * size_t{h.dropped} + kSeamVertexBytes * size_t{h.seam_vertices} +
+                          12 * size_t{h.seam_triangles} + kChecksumBytes;
+  if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};
+
+  const uint8_t* p = nullptr;
+  if (auto error = read_rows(flags, bitmap, h.cells, scratch.topology, p)) return error;
+  if (mesh::index_cut_edges(scratch.topology, h.cells) != h.vertices)
+    return Error{"vertex count does not match the solid rows"};
+  if (auto error = read_vertex_planes(p, scratch.topology, h.cells, h.vertices, m)) return error;
+  const uint8_t* drop = p + 5 * size_t{h.vertices};
+  if (auto error = read_triangles(drop, h, scratch, m)) return error;
+  if (h.lod)
+    return read_seam_section(drop + 4 * size_t{h.dropped}, h.seam_vertices, h.seam_triangles, m);
   return std::nullopt;
 }
 

@@ -19,6 +19,7 @@
 #include "server/mesh/chunk_mesh.hpp"
 #include "server/mesh/lod_mesher.hpp"
 #include "server/mesh/marching_cubes.hpp"
+#include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::proto {
 
@@ -27,6 +28,7 @@ using Bytes = std::vector<uint8_t>;
 inline constexpr uint8_t kMeshFormat = 1;
 inline constexpr uint8_t kLodMeshFormat = 2;  // a level-of-detail chunk with its seams
 inline constexpr int kFractionSteps = mesh::kFractionSteps;  // edge fraction step: 1/1024 voxel
+inline constexpr uint32_t kMeshTableRevision = mesh::kMeshTableRevision;  // Welcome
 
 struct DecodeLimits {
   size_t max_encoding_bytes = size_t{4} << 20;  // an encoding (decompressed) over this is refused
@@ -47,9 +49,9 @@ void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology,
                  const std::array<int, 3>& cells, CodecScratch& scratch, Bytes& out);
 
 // Format 2 (docs/PROTOCOL.md §2.7): a level-of-detail chunk from mesh_lod_chunk, whose
-// scratch (`lod`) still holds the topology, the regular counts and the seam vertices.
+// scratch (`lod`) still holds the seams, topology, regular counts and seam vertices.
 void encode_lod_mesh(const mesh::ChunkMesh& mesh, const mesh::LodScratch& lod,
-                     world::LodSeams seams, CodecScratch& scratch, Bytes& out);
+                     CodecScratch& scratch, Bytes& out);
 
 // Rebuilds the mesh (format 1 or 2) into `out` (its buffers reused); never trusts the bytes: any
 // inconsistency is an error (and `out` holds no meaningful mesh).

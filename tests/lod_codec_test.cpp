@@ -47,7 +47,7 @@ std::vector<LodEncoded> make_terrain_layout_chunks() {
     mesh::gather_lod_block(sampler, c, e.seams, block);
     mesh::mesh_lod_chunk(block, lod, e.mesh);
     if (e.mesh.empty()) continue;
-    encode_lod_mesh(e.mesh, lod, e.seams, scratch, e.encoding);
+    encode_lod_mesh(e.mesh, lod, scratch, e.encoding);
     out.push_back(std::move(e));
   }
   return out;
@@ -170,13 +170,13 @@ TEST(LodCodec, MeshingAndEncodingAChunkWithSeamsAllocateNothingOnceWarm) {
   for (int warm = 0; warm < 2; ++warm) {
     mesh::gather_lod_block(sampler, c, seams, block);
     mesh::mesh_lod_chunk(block, lod, mesh);
-    encode_lod_mesh(mesh, lod, seams, scratch, encoding);
+    encode_lod_mesh(mesh, lod, scratch, encoding);
   }
   ASSERT_GT(lod.seam_vertices.size(), 0u);
   const size_t before = test::allocations_on_this_thread();
   mesh::gather_lod_block(sampler, c, seams, block);
   mesh::mesh_lod_chunk(block, lod, mesh);
-  encode_lod_mesh(mesh, lod, seams, scratch, encoding);
+  encode_lod_mesh(mesh, lod, scratch, encoding);
   EXPECT_EQ(test::allocations_on_this_thread(), before);
 }
 

@@ -183,7 +183,10 @@ TEST(MarchingCubesTables, PublishedTableFileMatchesTheCode) {
   ASSERT_TRUE(in) << "docs/marching_cubes_tables.txt is missing";
   std::string line;
   int expected_case = 0;
+  uint32_t revision = 0;
   while (std::getline(in, line)) {
+    if (line.rfind("# revision ", 0) == 0)
+      revision = static_cast<uint32_t>(std::stoul(line.substr(11)));
     if (line.empty() || line[0] == '#') continue;
     std::istringstream fields(line);
     int c = -1;
@@ -199,6 +202,7 @@ TEST(MarchingCubesTables, PublishedTableFileMatchesTheCode) {
     ++expected_case;
   }
   EXPECT_EQ(expected_case, 256);
+  EXPECT_EQ(revision, kMeshTableRevision) << "the file's revision line";
 }
 
 }  // namespace

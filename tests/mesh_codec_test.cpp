@@ -441,8 +441,9 @@ namespace vox::proto {
 namespace {
 // glibc carves a thread's static thread-local block out of its stack. decode_mesh kept its
 // 66 KiB scratch in a thread_local, and civetweb's worker threads (the metrics endpoint)
-// overflowed their small stacks: every scrape got an empty reply. This binary links the
-// same libraries as voxeld; their thread-locals together must stay small.
+// overflowed their small stacks: every scrape got an empty reply. This test binary links
+// the same libraries whose thread-locals voxeld has (mesh, codec, world); together they
+// must stay small. (voxeld's own are checked by the metrics test scraping it.)
 TEST(MeshCodec, ThreadLocalsLeaveSmallThreadStacksAlone) {
   size_t tls = 0;
   dl_iterate_phdr(

@@ -8,6 +8,7 @@
 
 #include "client/voxel_client.hpp"
 #include "proto/framing.hpp"
+#include "proto/mesh_codec.hpp"
 #include "tests/session_test_util.hpp"
 
 namespace vox::net {
@@ -59,6 +60,7 @@ TEST(Server, HandshakeReturnsWelcome) {
   EXPECT_EQ(w.chunk_size(), 32u);
   EXPECT_EQ(w.protocol_version(), 1u);
   EXPECT_EQ(w.mesh_format(), 1u);
+  EXPECT_EQ(w.mesh_table_revision(), proto::kMeshTableRevision);
   EXPECT_GT(w.max_view_radius(), 0u);
   EXPECT_EQ(w.players(), 1u);
   wire::Envelope ping;

@@ -61,19 +61,34 @@ TEST(TerrainGenerator, ColumnsAndGridsOfPointsEqualPointSamples) {
   const TerrainGenerator gen(7);
   const TerrainSampler sampler(gen);
   std::mt19937 rng(5);
-  for (const int step : {1, 2, 8, 64}) {
-    // Columns from deep rock through the cave band to the sky.
-    const std::array<int32_t, 3> origin{static_cast<int32_t>(rng() % 4000) - 2000, -40 * step,
-                                        static_cast<int32_t>(rng() % 4000) - 2000};
-    const std::array<int, 3> n{5, 80, 4};
-    std::vector<Sample> grid(static_cast<size_t>(n[0] * n[1] * n[2]));
-    sampler.sample_grid(origin, step, n, grid.data());
-    for (int k = 0; k < n[2]; ++k)
-      for (int j = 0; j < n[1]; ++j)
-        for (int i = 0; i < n[0]; ++i)
-          ASSERT_EQ(grid[static_cast<size_t>(i + n[0] * (j + n[1] * k))],
-                    gen.sample_at(origin[0] + step * i, origin[1] + step * j, origin[2] + step * k))
-              << "step " << step;
+  for (const int step : {1, 2, 4, 8, 64}) {
+    for (const bool aligned : {false, true}) {  // aligned: every point on the cave lattice
+      // Columns from deep rock through the cave band to the sky.
+      std::array<int32_t, 3> origin{static_cast<int32_t>(rng() % 4000) - 2000, -40 * step,
+                                    static_cast<int32_t>(rng() % 4000) - 2000};
+      if (aligned) {
+        origin[0] = floor_div(origin[0], 4) * 4;
+        origin[2] = floor_div(origin[2], 4) * 4;
+      }
+      const std::array<int, 3> n{5, 80, 4};
+      std::vector<Sample> grid(static_cast<size_t>(n[0] * n[1] * n[2]));
+      sampler.sample_grid(origin, step, n, grid.data());
+      for (int k = 0; k < n[2]; ++k)
+        for (int j = 0; j < n[1]; ++j)
+          for (int i = 0; i < n[0]; ++i)
+            ASSERT_EQ(
+                grid[static_cast<size_t>(i + n[0] * (j + n[1] * k))],
+                gen.sample_at(origin[0] + step * i, origin[1] + step * j, origin[2] + step * k))
+                << "step " << step << (aligned ? ", aligned" : "");
+    }
+  }
+  // A whole chunk's grid equals the chunk generated.
+  for (const ChunkCoord c : {ChunkCoord{0, -1, 0}, ChunkCoord{-3, -2, 5}}) {
+    const Chunk chunk = gen.generate(c);
+    std::vector<Sample> grid(kChunkVolume);
+    sampler.sample_grid({c.x * kChunkSize, c.y * kChunkSize, c.z * kChunkSize}, 1,
+                        {kChunkSize, kChunkSize, kChunkSize}, grid.data());
+    for (int i = 0; i < kChunkVolume; ++i) ASSERT_EQ(grid[static_cast<size_t>(i)], chunk.at(i));
   }
 }
 

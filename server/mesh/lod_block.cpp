@@ -36,9 +36,14 @@ void gather_lod_block(const world::PointSampler& sampler, const world::LodChunk&
   if (c.level < 0 || c.level > 20 || (c.level == 0 && !seams.empty()))
     throw std::invalid_argument("gather_lod_block: bad level or seams");
   seams = world::normalized(seams);
+  const auto lo64 = c.lo();
+  for (int a = 0; a < 3; ++a) {  // every sampled point, padding included, fits in int32
+    const int64_t side = c.side();
+    if (lo64[a] - side < -(int64_t{1} << 30) || lo64[a] + 2 * side > (int64_t{1} << 30))
+      throw std::invalid_argument("gather_lod_block: chunk outside the world's coordinates");
+  }
   out.chunk = c;
   out.seams = seams;
-  const auto lo64 = c.lo();
   const std::array<int32_t, 3> origin{static_cast<int32_t>(lo64[0]), static_cast<int32_t>(lo64[1]),
                                       static_cast<int32_t>(lo64[2])};
   const int32_t step = int32_t{1} << c.level;

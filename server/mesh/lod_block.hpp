@@ -34,8 +34,9 @@ struct LodBlock {
   std::vector<world::Sample> staging;  // one sampled grid at a time
 };
 
-// Fills `out` for chunk `c` with `seams` (normalized; none at level 0). Reuses out's
-// buffers: once warm it allocates nothing. The calling thread only.
+// Fills `out` for chunk `c` with `seams` (normalized here; none at level 0). Reuses out's
+// buffers: once warm it allocates nothing. Throws std::invalid_argument for a bad level,
+// seams at level 0, or a chunk reaching beyond +-2^30 voxels. The calling thread only.
 void gather_lod_block(const world::PointSampler& sampler, const world::LodChunk& c,
                       world::LodSeams seams, LodBlock& out);
 

@@ -126,8 +126,11 @@ class SeamMesher {
   }
 
   uint32_t* find(uint32_t key) {
+    // The product's high bits: its low ones depend on the key's low bits only (x and part
+    // of y), which would crowd a face's vertices into a few runs.
     const size_t mask = s_.vertex_keys.size() - 1;
-    for (size_t i = (key * 0x9E3779B1u) & mask;; i = (i + 1) & mask) {
+    const int shift = 32 - std::countr_zero(s_.vertex_keys.size());
+    for (size_t i = (key * 0x9E3779B1u) >> shift;; i = (i + 1) & mask) {
       if (s_.vertex_keys[i] == key || s_.vertex_keys[i] == 0) return &s_.vertex_keys[i];
     }
   }
@@ -271,6 +274,7 @@ void seam_cell_rows(world::LodSeams seams, CellRows& out) {
 }
 
 void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
+  s.seams = in.seams;
   seam_cell_rows(in.seams, s.seam_cells);
   mesh_chunk(in.coarse, s.mc, out, in.seams.empty() ? nullptr : &s.seam_cells);
   s.regular_vertices = static_cast<uint32_t>(out.vertex_count());

@@ -34,6 +34,7 @@ struct HalfEdge {
 // mesh's first regular_vertices vertices and regular_triangles triangles are the
 // marching-cubes ones; seam_vertices[i] is the edge of vertex regular_vertices + i.
 struct LodScratch {
+  world::LodSeams seams;  // of the chunk last meshed (normalized)
   uint32_t regular_vertices = 0;
   uint32_t regular_triangles = 0;
   Buffer<HalfEdge> seam_vertices;

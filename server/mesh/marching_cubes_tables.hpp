@@ -16,6 +16,10 @@
 
 namespace vox::mesh {
 
+// The revision of the published table (docs/marching_cubes_tables.txt, Welcome): 2 since
+// no fan puts a triangle flat in a cube face (8 cases changed).
+inline constexpr uint32_t kMeshTableRevision = 2;
+
 extern const std::array<uint16_t, 256> edgeTable;
 extern const std::array<std::array<int8_t, 16>, 256> triTable;
 

@@ -44,7 +44,9 @@ struct SeamCellEdge {
 struct SeamCellContour {
   static constexpr int kMaxEdges = 48;  // at most 2 segments per quarter square, 24 squares
   std::array<SeamCellEdge, kMaxEdges> edges;
-  std::array<uint8_t, kMaxEdges / 3 + 1> polygon_end;  // end of polygon i in edges
+  // End of polygon i in edges. Polygons have 3 sides or more, or 2 (a crease along a
+  // split edge); each uses segments of at least two faces: at most 16 of them.
+  std::array<uint8_t, kMaxEdges / 2> polygon_end;
   int polygons = 0;
   int edge_count() const { return polygons == 0 ? 0 : polygon_end[polygons - 1]; }
 };

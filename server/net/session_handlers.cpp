@@ -144,6 +144,7 @@ void ClientSession::send_welcome(uint64_t players) {
   w->set_max_set_views_per_second(std::max(0.0, config_.set_view_rate));
   w->set_max_connections_per_address(static_cast<uint32_t>(config_.max_per_address));
   w->set_max_resync_chunks(static_cast<uint32_t>(config_.max_resync_chunks));
+  w->set_mesh_table_revision(proto::kMeshTableRevision);
   queue_control(welcome);
 }
 

@@ -105,6 +105,9 @@ void LodLayout::balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split) {
 }
 
 bool LodLayout::update(const std::array<double, 3>& eye) {
+  for (const double v : eye) {
+    if (!(std::abs(v) < 1e9)) throw std::invalid_argument("LodLayout: eye outside the world");
+  }
   const int top = settings_.levels - 1;
   const int64_t side = int64_t{kChunkSize} << top;
   std::array<int32_t, 3> centre{};

@@ -54,8 +54,8 @@ class LodLayout {
  public:
   explicit LodLayout(LodSettings settings);
 
-  // Lays the chunks out around `eye` (voxel coordinates); returns whether the layout
-  // changed.
+  // Lays the chunks out around `eye` (voxel coordinates; throws std::invalid_argument
+  // when not finite or beyond 1e9); returns whether the layout changed.
   bool update(const std::array<double, 3>& eye);
   const std::set<LodChunk>& chunks() const { return leaves_; }
   // Where leaf `c` meets finer leaves (lod_seams.hpp); none for a chunk that is not in

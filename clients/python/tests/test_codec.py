@@ -30,6 +30,9 @@ def worked(**changes):
 
 
 class WorkedExample(unittest.TestCase):
+    def test_table_revision(self):
+        self.assertEqual(TABLE.revision, 2)
+
     def test_crc_check_value(self):
         self.assertEqual(crc32c(b"123456789"), 0xE3069283)
 
@@ -117,6 +120,8 @@ class LodFormat(unittest.TestCase):
             "material 0": lod(seam=[(0, 2, 3, 1, 0, 2, 0x9f, 0x9f, 0)], triangles=()),
             "vertex index past the end": lod(triangles=(0, 1, 3)),
             "bad CRC": lod()[:-1] + b"\0",
+            "too many seam vertices": with_crc(lod()[:19] + struct.pack("<I", 50689)
+                                               + lod()[23:-4]),
         }
         for what, enc in cases.items():
             with self.subTest(what), self.assertRaises(MeshError, msg=what):

@@ -182,6 +182,12 @@ class Client:
         kind = env.WhichOneof("body")
         self.log.append((kind, _detail(kind, env)))
         if kind == "welcome":
+            revision = env.welcome.mesh_table_revision or 1
+            if self.decode and revision != getattr(self.table, "revision", 1):
+                raise mesh.MeshError(
+                    "the server derives triangles with table revision %d, this client's "
+                    "table is revision %d: take the server's docs/marching_cubes_tables.txt"
+                    % (revision, getattr(self.table, "revision", 1)))
             self.welcome = env.welcome
         elif kind == "chunk_mesh":
             self.on_chunk_mesh(env.chunk_mesh)

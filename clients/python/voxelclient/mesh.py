@@ -8,6 +8,8 @@ LOD_FORMAT = 2  # a level-of-detail chunk with its seams (section 2.7)
 HEADER = 16
 LOD_HEADER = 27
 SEAM_VERTEX_BYTES = 9
+MAX_SEAM_VERTICES = 6 * 2 * 64 * 65 + 12 * 64  # half edges on the faces and chunk edges
+MAX_SEAM_TRIANGLES = 6 * 32 * 32 * 48           # 48 per seam cell
 FRACTION_ONE = 1024
 AXIS_X, AXIS_Y, AXIS_Z = 0, 1, 2
 
@@ -59,11 +61,19 @@ EDGE_CORNERS = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4),
                 (0, 4), (1, 5), (2, 6), (3, 7)]
 
 
+class Table(list):
+    """The 256 cases' triangles, and the file's revision (its "# revision N" line; 1 when
+    it has none)."""
+    revision = 1
+
+
 def load_table(path):
     """Parses docs/marching_cubes_tables.txt: a list of 256 tuples of triangles (edge triples)."""
-    cases = {}
+    cases, revision = {}, 1
     with open(path, encoding="ascii") as f:
         for line in f:
+            if line.startswith("# revision "):
+                revision = int(line.split()[2])
             fields = line.split("#", 1)[0].split()
             if not fields:
                 continue
@@ -72,7 +82,9 @@ def load_table(path):
             cases[case] = tuple(tuple(edges[i:i + 3]) for i in range(0, len(edges), 3))
     if sorted(cases) != list(range(256)):
         raise MeshError("table does not have exactly the cases 0..255")
-    return [cases[c] for c in range(256)]
+    table = Table(cases[c] for c in range(256))
+    table.revision = revision
+    return table
 
 
 def _check_case(case, mask, edges):
@@ -184,6 +196,8 @@ def _header(enc):
     faces, edges, S, ST = struct.unpack_from("<BHII", enc, 16)
     if faces > 63 or edges > 0xFFF or normalized(faces, edges) != edges:
         raise MeshError("seam faces %#x and edges %#x are not a normalized set" % (faces, edges))
+    if S > MAX_SEAM_VERTICES or ST > MAX_SEAM_TRIANGLES:
+        raise MeshError("seam counts %d, %d are impossible" % (S, ST))
     return cells, struct.unpack_from("<III", enc, 4), (faces, edges, S, ST)
 
 
