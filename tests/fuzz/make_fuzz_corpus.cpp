@@ -77,6 +77,8 @@ void mesh_corpus(const CorpusDir& out) {
   out.write(t, "raw_sphere", prefixed({0}, base));
   out.write(t, "raw_empty", prefixed({0}, empty));
   out.write(t, "raw_crc_fixed", prefixed({3}, other));
+  // Changes to the level-of-detail seed: a seam face bit, a byte in the rows, one far in.
+  out.write(t, "lod_changes", Bytes{4, 16, 0, 2, 60, 0, 1, 0, 8, 4});
   Bytes frame;
   zstd.compress(other, {}, frame);
   out.write(t, "full_frame", prefixed({1}, frame));

@@ -1,9 +1,10 @@
 // libFuzzer target for the mesh decoder and the zstd frame reader: what a client does with
 // a ChunkMesh payload. scripts/fuzz.sh builds and runs it (README, "Fuzzing").
 // The first input byte picks the path: raw encoding (with its CRC as given, or fixed up
-// so that the structural checks behind it are reached), full frame, or delta against a
+// so that the structural checks behind it are reached), full frame, delta against a
 // real encoding (fuzz_meshes.hpp), decompressed into a reused buffer as the client
-// library does; the rest is the input.
+// library does, or byte changes to a real level-of-detail (format 2) encoding, its CRC
+// fixed up; the rest is the input.
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -24,7 +25,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       vox::fuzz::sphere_encoding(vox::fuzz::kBaseRadius, vox::fuzz::kBaseMaterial);
   const std::span<const uint8_t> input(data + 1, size - 1);
   const vox::proto::DecodeLimits limits{.max_encoding_bytes = 1 << 20};
-  switch (data[0] % 4) {
+  switch (data[0] % 5) {
     case 0:
       (void)vox::proto::decode_mesh(input, limits, scratch, mesh);
       break;
@@ -45,6 +46,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
           fixed[fixed.size() - 4 + i] = static_cast<uint8_t>(crc >> (8 * i));
       }
       (void)vox::proto::decode_mesh(fixed, limits, scratch, mesh);
+      break;
+    }
+    case 4: {  // (u16 offset, xor byte) triples applied to the level-of-detail seed
+      static const vox::proto::Bytes lod = vox::fuzz::lod_sphere_encoding();
+      std::vector<uint8_t> changed(lod);
+      for (size_t i = 0; i + 3 <= input.size(); i += 3) {
+        const size_t at = (input[i] | static_cast<size_t>(input[i + 1]) << 8) % changed.size();
+        changed[at] ^= input[i + 2];
+      }
+      const uint32_t crc = vox::proto::crc32c(changed.data(), changed.size() - 4);
+      for (int i = 0; i < 4; ++i)
+        changed[changed.size() - 4 + i] = static_cast<uint8_t>(crc >> (8 * i));
+      (void)vox::proto::decode_mesh(changed, limits, scratch, mesh);
       break;
     }
   }
