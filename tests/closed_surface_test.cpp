@@ -11,15 +11,6 @@ namespace {
 
 using world::ChunkMap;
 
-void expect_closed_manifold(const test::Topology& t) {
-  EXPECT_GT(t.faces, 0u);
-  EXPECT_EQ(t.boundary_edges, 0u);
-  EXPECT_EQ(t.non_manifold_edges, 0u);
-  EXPECT_EQ(t.misoriented_edges, 0u);
-  EXPECT_EQ(t.euler(), 2 * static_cast<long>(t.components)) << "genus-0 components expected";
-  EXPECT_GT(t.volume, 0.0) << "normals must point out of the solid";
-}
-
 TEST(ClosedSurface, SphereIsClosedManifoldWithAnalyticAreaAndVolume) {
   const float cx = 32.3f, cy = 31.6f, cz = 32.8f, r = 10.0f;
   const ChunkBox box{{0, 0, 0}, {1, 1, 1}};  // the sphere crosses all 8 chunks
@@ -29,7 +20,7 @@ TEST(ClosedSurface, SphereIsClosedManifoldWithAnalyticAreaAndVolume) {
   });
   const ChunkMesh m = mesh_region(map, box, 2);
   const test::Topology t = test::analyse(m);
-  expect_closed_manifold(t);
+  test::expect_closed_manifold(t);
   EXPECT_EQ(t.components, 1u);
   const double pi = std::numbers::pi;
   EXPECT_NEAR(t.area, 4 * pi * r * r, 0.02 * 4 * pi * r * r);
@@ -62,7 +53,7 @@ TEST(ClosedSurface, MetaballsGiveClosedManifoldWithEulerTwoPerComponent) {
     return f - 1.0f;
   });
   const test::Topology t = test::analyse(mesh_region(map, box, 2));
-  expect_closed_manifold(t);
+  test::expect_closed_manifold(t);
   EXPECT_EQ(t.components, 2u);
 }
 

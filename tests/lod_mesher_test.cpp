@@ -160,20 +160,6 @@ LodView mesh_layout(const LodLayout& layout, const world::PointSampler& sampler,
   return view;
 }
 
-void expect_closed(const test::Topology& t) {
-  EXPECT_GT(t.faces, 0u);
-  EXPECT_EQ(t.boundary_edges, 0u);
-  EXPECT_EQ(t.non_manifold_edges, 0u);
-  EXPECT_EQ(t.misoriented_edges, 0u);
-  EXPECT_EQ(t.euler(), 2 * static_cast<long>(t.components)) << "genus-0 components expected";
-  EXPECT_GT(t.volume, 0.0) << "normals must point out of the solid";
-  for (size_t i = 0; i < t.open_edges.size() && i < 5; ++i) {
-    const auto& e = t.open_edges[i];
-    ADD_FAILURE() << "open edge (" << e[0].x << ", " << e[0].y << ", " << e[0].z << ") - ("
-                  << e[1].x << ", " << e[1].y << ", " << e[1].z << ")";
-  }
-}
-
 TEST(LodMesher, ASphereAcrossChunksOfLevelsZeroOneAndTwoIsOneClosedSurface) {
   LodLayout layout({.levels = 3, .top_radius = 1, .split_distance = 1.0});
   layout.update({20.5, 12.25, 30.75});
@@ -185,7 +171,7 @@ TEST(LodMesher, ASphereAcrossChunksOfLevelsZeroOneAndTwoIsOneClosedSurface) {
   for (int level = 0; level < 3; ++level) EXPECT_GT(view.triangles_per_level.count(level), 0u);
   EXPECT_GT(view.seam_chunks_with_surface, 0u);
   const test::Topology t = test::analyse(view.combined);
-  expect_closed(t);
+  test::expect_closed_manifold(t);
   EXPECT_EQ(t.components, 1u);
   // A level-k surface lies within 2^k voxels of the sphere (the level-0 surface).
   for (const auto& [level, vertices] : view.vertices_per_level) {

@@ -1,5 +1,7 @@
 #include "tests/mesh_test_util.hpp"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -200,6 +202,20 @@ Topology analyse(const mesh::ChunkMesh& m) {
     if (uf.find(v) == v) ++topo.components;
   }
   return topo;
+}
+
+void expect_closed_manifold(const Topology& t) {
+  EXPECT_GT(t.faces, 0u);
+  EXPECT_EQ(t.boundary_edges, 0u);
+  EXPECT_EQ(t.non_manifold_edges, 0u);
+  EXPECT_EQ(t.misoriented_edges, 0u);
+  EXPECT_EQ(t.euler(), 2 * static_cast<long>(t.components)) << "genus-0 components expected";
+  EXPECT_GT(t.volume, 0.0) << "normals must point out of the solid";
+  for (size_t i = 0; i < t.open_edges.size() && i < 5; ++i) {
+    const auto& e = t.open_edges[i];
+    ADD_FAILURE() << "open edge (" << e[0].x << ", " << e[0].y << ", " << e[0].z << ") - ("
+                  << e[1].x << ", " << e[1].y << ", " << e[1].z << ")";
+  }
 }
 
 void fill_from_field(world::ChunkMap& map, const mesh::ChunkBox& box,

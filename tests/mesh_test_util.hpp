@@ -46,6 +46,9 @@ struct Topology {
 };
 // Vertices are identified by exact position, so coincident duplicates count as one.
 Topology analyse(const mesh::ChunkMesh& welded);
+// gtest expectations: some faces, every edge in two triangles wound opposite ways, genus-0
+// components, outward normals; the first open edges are named.
+void expect_closed_manifold(const Topology& t);
 
 // Fills the box's chunks (plus a one-chunk margin) from a field in world coordinates.
 void fill_from_field(world::ChunkMap& map, const mesh::ChunkBox& box,
