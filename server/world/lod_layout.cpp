@@ -11,18 +11,6 @@ namespace {
 constexpr std::array<std::array<int, 3>, 6> kFaceDirection = {
     {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}}};
 
-// Distance from the eye to the chunk's box (0 inside), in voxels.
-double distance_to(const LodChunk& c, const std::array<double, 3>& eye) {
-  const auto lo = c.lo();
-  double d2 = 0;
-  for (int a = 0; a < 3; ++a) {
-    const double l = static_cast<double>(lo[a]), h = l + static_cast<double>(c.side());
-    const double d = eye[a] < l ? l - eye[a] : eye[a] > h ? eye[a] - h : 0.0;
-    d2 += d * d;
-  }
-  return std::sqrt(d2);
-}
-
 LodChunk child(const LodChunk& c, int i) {
   return {c.level - 1, {2 * c.c.x + (i & 1), 2 * c.c.y + ((i >> 1) & 1), 2 * c.c.z + (i >> 2)}};
 }
@@ -58,6 +46,17 @@ bool has_finer_than_one_level(const LodChunk& n, const std::array<int, 3>& d,
 }
 
 }  // namespace
+
+double distance_to(const LodChunk& c, const std::array<double, 3>& eye) {
+  const auto lo = c.lo();
+  double d2 = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double l = static_cast<double>(lo[a]), h = l + static_cast<double>(c.side());
+    const double d = eye[a] < l ? l - eye[a] : eye[a] > h ? eye[a] - h : 0.0;
+    d2 += d * d;
+  }
+  return std::sqrt(d2);
+}
 
 LodLayout::LodLayout(LodSettings settings) : settings_(settings) {
   if (settings_.levels < 1 || settings_.levels > 20 || settings_.top_radius < 0 ||

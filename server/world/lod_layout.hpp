@@ -31,6 +31,9 @@ struct LodChunk {
   std::array<int64_t, 3> lo() const { return {c.x * side(), c.y * side(), c.z * side()}; }
 };
 
+// Distance from `eye` (voxels) to the chunk's box, 0 inside.
+double distance_to(const LodChunk& c, const std::array<double, 3>& eye);
+
 struct LodSettings {
   int levels = 7;               // level 0 .. levels-1; the top level's chunks are laid out first
   int top_radius = 1;           // top-level chunks within this many of the eye's, per axis
