@@ -8,6 +8,7 @@
 #include <cmath>
 #include <functional>
 #include <map>
+#include <random>
 #include <set>
 
 #include "server/mesh/marching_cubes_tables.hpp"
@@ -183,6 +184,38 @@ TEST(LodMesher, ASphereAcrossChunksOfLevelsZeroOneAndTwoIsOneClosedSurface) {
   }
   // The control: without seams the levels leave cracks, which the check sees.
   EXPECT_GT(test::analyse(mesh_layout(layout, sampler, false).combined).boundary_edges, 100u);
+}
+
+// Metaballs (seed 004's field) around random eyes: every layout puts the seams (faces,
+// edges only, corners where three levels meet) somewhere else on the surfaces.
+TEST(LodMesher, MetaballsAroundRandomEyesAreClosed) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> eye_at(-40.0, 40.0);
+  size_t seam_chunks = 0;
+  for (int trial = 0; trial < 4; ++trial) {
+    LodLayout layout({.levels = 3, .top_radius = 1, .split_distance = 1.0});
+    layout.update({eye_at(rng), eye_at(rng), eye_at(rng)});
+    struct Ball {
+      float x, y, z, s;
+    };
+    // 60-110 voxels from the eyes, where levels 0, 1 and 2 meet; inside every layout.
+    const Ball balls[] = {{-88.3f, 10.2f, 5.1f, 625.0f},
+                          {84.6f, -20.1f, 10.4f, 500.0f},
+                          {2.2f, 88.7f, -30.9f, 400.0f},
+                          {-40.4f, -79.6f, 69.3f, 300.0f},
+                          {-60.1f, 30.3f, 40.2f, 350.0f}};
+    const FieldSampler sampler([&](float x, float y, float z) {
+      float f = 0;
+      for (const Ball& b : balls)
+        f += b.s / ((x - b.x) * (x - b.x) + (y - b.y) * (y - b.y) + (z - b.z) * (z - b.z) + 1.0f);
+      return std::min(f - 1.0f, 1.0f);
+    });
+    const LodView view = mesh_layout(layout, sampler);
+    seam_chunks += view.seam_chunks_with_surface;
+    const test::Topology t = test::analyse(view.combined);
+    test::expect_closed_manifold(t);
+  }
+  EXPECT_GT(seam_chunks, 8u);
 }
 
 // Many small shapes, ambiguous cells and pockets on the seams: a noise field cut off by a
