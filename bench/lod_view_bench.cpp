@@ -6,6 +6,8 @@
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <map>
+#include <span>
 
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
@@ -13,6 +15,7 @@
 #include "server/mesh/marching_cubes.hpp"
 #include "server/world/chunk_map.hpp"
 #include "server/world/lod_layout.hpp"
+#include "server/world/lod_view.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "server/world/terrain_sampler.hpp"
 
@@ -147,6 +150,63 @@ BENCHMARK(BM_LodView2048)
     ->ArgNames({"split_x10", "near_split_x10"})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
+
+// A player walking 512 voxels along x at the surface, 4 voxels per update (the layout of the
+// near-split-2.0 view): what the changes cost on the wire. A chunk the client holds with
+// other seams is sent as a zstd delta against its previous encoding (PROTOCOL §3); a new
+// chunk in full. Counters: bytes per voxel walked, of them for seam changes, chunks sent.
+void BM_LodWalk(benchmark::State& state) {
+  const world::TerrainSampler sampler(generator());
+  mesh::LodBlock block;
+  mesh::LodScratch lod;
+  mesh::ChunkMesh mesh;
+  proto::CodecScratch scratch;
+  proto::ZstdCodec zstd;
+  proto::Bytes encoding, frame;
+  size_t bytes = 0, seam_bytes = 0, sent = 0, resent = 0;
+  constexpr double kWalk = 512.0, kStep = 4.0;
+  for (auto _ : state) {
+    bytes = seam_bytes = sent = resent = 0;
+    world::LodView view(
+        {.levels = 7, .top_radius = 1, .split_distance = 1.0, .near_split_distance = 2.0});
+    std::map<world::LodChunk, proto::Bytes> held;  // the client's encodings
+    auto e = eye();
+    view.update(e);  // the first view is BM_LodView2048's; count the walk only
+    for (const auto& [c, seams] : view.held()) held[c];
+    for (double walked = kStep; walked <= kWalk; walked += kStep) {
+      e[0] += kStep;
+      e[1] = static_cast<double>(generator().height_at(static_cast<int32_t>(e[0]), -20)) + 2.0;
+      const world::LodViewChange change = view.update(e);
+      for (const world::LodChunk& c : change.unload) held.erase(c);
+      for (const auto& [c, seams] : change.send) {
+        if (c.level == 0) {
+          held[c];  // level 0 streams as today (counted by the load test, not here)
+          continue;
+        }
+        mesh::gather_lod_block(sampler, c, seams, block);
+        mesh::mesh_lod_chunk(block, lod, mesh);
+        proto::encode_lod_mesh(mesh, lod, scratch, encoding);
+        auto it = held.find(c);
+        const bool delta = it != held.end() && !it->second.empty();
+        zstd.compress(encoding,
+                      delta ? std::span<const uint8_t>(it->second) : std::span<const uint8_t>{},
+                      frame);
+        bytes += frame.size();
+        ++sent;
+        if (it != held.end()) {
+          seam_bytes += frame.size();
+          ++resent;
+        }
+        held[c] = encoding;
+      }
+    }
+  }
+  state.counters["bytes_per_voxel"] = static_cast<double>(bytes) / kWalk;
+  state.counters["seam_bytes_per_voxel"] = static_cast<double>(seam_bytes) / kWalk;
+  state.counters["chunks_sent"] = static_cast<double>(sent);
+  state.counters["seam_resends"] = static_cast<double>(resent);
+}
+BENCHMARK(BM_LodWalk)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 }  // namespace
 
