@@ -125,6 +125,25 @@ TEST(SeamCell, EveryCutEdgeStartsOneSegmentAndEndsOne) {
   }
 }
 
+// The seam cells come from rows and end bits; they are the cells with a split edge.
+TEST(SeamCell, SeamCellRowsAreTheCellsWithASplitEdge) {
+  std::mt19937 rng(6);
+  CellRows rows{};
+  for (int trial = 0; trial < 300; ++trial) {
+    const LodSeams seams =
+        world::normalized({static_cast<uint8_t>(trial < 64 ? trial : rng() % 64),
+                           static_cast<uint16_t>(trial < 64 ? 0 : rng() % 4096)});
+    seam_cell_rows(seams, rows);
+    for (int z = 0; z < 32; ++z)
+      for (int y = 0; y < 32; ++y)
+        for (int x = 0; x < 32; ++x)
+          ASSERT_EQ((rows[detail::row_of(y, z)] >> x) & 1,
+                    seam_cell_splits(seams, x, y, z).edges != 0 ? 1u : 0u)
+              << "seams " << int{seams.faces} << "/" << seams.edges << " cell " << x << " " << y
+              << " " << z;
+  }
+}
+
 struct LodView {
   ChunkMesh combined;                                    // world positions
   std::map<int, std::vector<Vec3f>> vertices_per_level;  // world positions, used ones

@@ -227,17 +227,6 @@ class SeamMesher {
   ChunkMesh& out_;
 };
 
-// Bit x set for the cells of row (y, z) that touch a split edge.
-uint64_t seam_cells_of_row(world::LodSeams seams, int y, int z) {
-  uint64_t bits = 0;
-  for (int x = 0; x < kChunkSize; ++x) {
-    const bool boundary_row = y == 0 || y == kChunkSize - 1 || z == 0 || z == kChunkSize - 1;
-    if (!boundary_row && x != 0 && x != kChunkSize - 1) continue;
-    if (seam_cell_splits(seams, x, y, z).edges != 0) bits |= uint64_t{1} << x;
-  }
-  return bits;
-}
-
 }  // namespace
 
 SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z) {
@@ -267,10 +256,27 @@ SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z) {
 }
 
 void seam_cell_rows(world::LodSeams seams, CellRows& out) {
+  // A cell has an edge on a split face's plane when it is in that face's layer, and one on
+  // a split chunk edge when it is in the column along it: whole rows or end bits.
   out.fill(0);
   if (seams.empty()) return;
-  for (int z = 0; z < kChunkSize; ++z)
-    for (int y = 0; y < kChunkSize; ++y) out[detail::row_of(y, z)] = seam_cells_of_row(seams, y, z);
+  constexpr int kLast = kChunkSize - 1;
+  const uint64_t all = detail::low_bits(kChunkSize), x_lo = 1, x_hi = uint64_t{1} << kLast;
+  auto face = [&](int f) { return ((seams.faces >> f) & 1) != 0; };
+  auto edge = [&](int axis, int a, int b) {
+    return ((seams.edges >> world::lod_edge(axis, a, b)) & 1) != 0;
+  };
+  for (int z = 0; z < kChunkSize; ++z) {
+    for (int y = 0; y < kChunkSize; ++y) {
+      const int ys = y == 0 ? 0 : y == kLast ? 1 : -1, zs = z == 0 ? 0 : z == kLast ? 1 : -1;
+      uint64_t row = (face(0) ? x_lo : 0) | (face(1) ? x_hi : 0);
+      if ((ys >= 0 && face(2 + ys)) || (zs >= 0 && face(4 + zs))) row = all;
+      if (ys >= 0 && zs >= 0 && edge(0, ys, zs)) row = all;  // along x: sides of y, z
+      if (zs >= 0) row |= (edge(1, zs, 0) ? x_lo : 0) | (edge(1, zs, 1) ? x_hi : 0);  // z, x
+      if (ys >= 0) row |= (edge(2, 0, ys) ? x_lo : 0) | (edge(2, 1, ys) ? x_hi : 0);  // x, y
+      out[detail::row_of(y, z)] = row;
+    }
+  }
 }
 
 void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {

@@ -223,30 +223,27 @@ def normalized(faces, edges):
     return edges
 
 
-def _edge_split(faces, edges, p, axis):
-    """Whether the cell edge from sample p along axis is split."""
-    b, c = (axis + 1) % 3, (axis + 2) % 3
-    for o in (b, c):
-        if (p[o] == 0 and (faces >> (2 * o)) & 1) or (p[o] == 32 and (faces >> (2 * o + 1)) & 1):
-            return True
-    if p[b] in (0, 32) and p[c] in (0, 32):
-        return bool((edges >> (axis * 4 + (p[b] == 32) + 2 * (p[c] == 32))) & 1)
-    return False
-
-
 def seam_cells(faces, edges):
-    """The cells (x, y, z) with a split edge: they contribute no table triangles."""
+    """The cells (x, y, z) with a split edge: they contribute no table triangles. A cell
+    has one when it is in the layer of a split face (x, y or z is 0 or 31 on that face's
+    side) or in the column along a split chunk edge."""
     out = set()
-    if not faces and not edges:
-        return out
-    for z in range(32):
-        for y in range(32):
-            border_row = y in (0, 31) or z in (0, 31)
-            for x in (range(32) if border_row else (0, 31)):
-                for axis, (dx, dy, dz) in CELL_EDGES:
-                    if _edge_split(faces, edges, (x + dx, y + dy, z + dz), axis):
-                        out.add((x, y, z))
-                        break
+    ends = (0, 31)
+    for f in range(6):
+        if (faces >> f) & 1:
+            axis, at = f // 2, ends[f % 2]
+            for u in range(32):
+                for v in range(32):
+                    p = [u, v]
+                    p.insert(axis, at)
+                    out.add(tuple(p))
+    for e in range(12):
+        if (edges >> e) & 1:
+            axis, b, c = e // 4, (e // 4 + 1) % 3, (e // 4 + 2) % 3
+            for t in range(32):
+                p = [0, 0, 0]
+                p[axis], p[b], p[c] = t, ends[e & 1], ends[(e >> 1) & 1]
+                out.add(tuple(p))
     return out
 
 
