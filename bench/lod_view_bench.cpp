@@ -42,6 +42,28 @@ void report(benchmark::State& state, const ViewCost& cost) {
   state.counters["bytes"] = static_cast<double>(cost.bytes);
 }
 
+// A level-of-detail chunk meshed, encoded (format 2) and compressed, in full or as a delta
+// against `base`; the buffers reused from chunk to chunk.
+struct LodWork {
+  world::TerrainSampler sampler{generator()};
+  mesh::LodBlock block;
+  mesh::LodScratch lod;
+  mesh::ChunkMesh mesh;
+  proto::CodecScratch scratch;
+  proto::ZstdCodec zstd;
+  proto::Bytes encoding, frame;
+
+  // Returns whether the chunk has a surface (then `frame` holds its payload).
+  bool make(const world::LodChunk& c, world::LodSeams seams, std::span<const uint8_t> base = {}) {
+    mesh::gather_lod_block(sampler, c, seams, block);
+    mesh::mesh_lod_chunk(block, lod, mesh);
+    if (mesh.empty()) return false;
+    proto::encode_lod_mesh(mesh, lod, scratch, encoding);
+    zstd.compress(encoding, base, frame);
+    return true;
+  }
+};
+
 // Today's view: every level-0 chunk within radius 8 (Euclidean, in chunks) of the eye's
 // chunk, generated, meshed (format 1) and compressed as full messages.
 void BM_Radius8LevelZeroView(benchmark::State& state) {
@@ -96,13 +118,7 @@ void BM_LodView2048(benchmark::State& state) {
   world::LodLayout layout(
       {.levels = 7, .top_radius = 1, .split_distance = split, .near_split_distance = near_split});
   layout.update(eye());
-  const world::TerrainSampler sampler(generator());
-  mesh::LodBlock block;
-  mesh::LodScratch lod;
-  mesh::ChunkMesh mesh;
-  proto::CodecScratch scratch;
-  proto::ZstdCodec zstd;
-  proto::Bytes encoding, frame;
+  LodWork w;
   ViewCost cost;
   std::array<size_t, 7> per_level{};
   for (auto _ : state) {
@@ -117,24 +133,19 @@ void BM_LodView2048(benchmark::State& state) {
                                });
     }
     for (const world::LodChunk& c : layout.chunks()) {
-      const world::LodSeams seams = layout.seams(c);
       if (c.level == 0) {
-        mesh::gather_padded_block(map, c.c, block.coarse);
-        mesh::mesh_chunk(block.coarse, lod.mc, mesh);
-      } else {
-        mesh::gather_lod_block(sampler, c, seams, block);
-        mesh::mesh_lod_chunk(block, lod, mesh);
+        mesh::gather_padded_block(map, c.c, w.block.coarse);
+        mesh::mesh_chunk(w.block.coarse, w.lod.mc, w.mesh);
+        if (w.mesh.empty()) continue;
+        proto::encode_mesh(w.mesh, w.lod.mc, w.block.coarse.cells, w.scratch, w.encoding);
+        w.zstd.compress(w.encoding, {}, w.frame);
+      } else if (!w.make(c, layout.seams(c))) {
+        continue;
       }
-      if (mesh.empty()) continue;
-      if (c.level == 0)
-        proto::encode_mesh(mesh, lod.mc, block.coarse.cells, scratch, encoding);
-      else
-        proto::encode_lod_mesh(mesh, lod, scratch, encoding);
-      zstd.compress(encoding, {}, frame);
       ++cost.meshes;
       ++per_level[static_cast<size_t>(c.level)];
-      cost.triangles += mesh.triangle_count();
-      cost.bytes += frame.size();
+      cost.triangles += w.mesh.triangle_count();
+      cost.bytes += w.frame.size();
     }
   }
   report(state, cost);
@@ -156,13 +167,7 @@ BENCHMARK(BM_LodView2048)
 // other seams is sent as a zstd delta against its previous encoding (PROTOCOL §3); a new
 // chunk in full. Counters: bytes per voxel walked, of them for seam changes, chunks sent.
 void BM_LodWalk(benchmark::State& state) {
-  const world::TerrainSampler sampler(generator());
-  mesh::LodBlock block;
-  mesh::LodScratch lod;
-  mesh::ChunkMesh mesh;
-  proto::CodecScratch scratch;
-  proto::ZstdCodec zstd;
-  proto::Bytes encoding, frame;
+  LodWork w;
   size_t bytes = 0, seam_bytes = 0, sent = 0, resent = 0;
   constexpr double kWalk = 512.0, kStep = 4.0;
   for (auto _ : state) {
@@ -183,21 +188,19 @@ void BM_LodWalk(benchmark::State& state) {
           held[c];  // level 0 streams as today (counted by the load test, not here)
           continue;
         }
-        mesh::gather_lod_block(sampler, c, seams, block);
-        mesh::mesh_lod_chunk(block, lod, mesh);
-        proto::encode_lod_mesh(mesh, lod, scratch, encoding);
         auto it = held.find(c);
         const bool delta = it != held.end() && !it->second.empty();
-        zstd.compress(encoding,
-                      delta ? std::span<const uint8_t>(it->second) : std::span<const uint8_t>{},
-                      frame);
-        bytes += frame.size();
+        if (!w.make(c, seams,
+                    delta ? std::span<const uint8_t>(it->second) : std::span<const uint8_t>{}))
+          w.encoding.clear();  // no surface: the client holds an empty mesh
+        const size_t sent_bytes = w.encoding.empty() ? 0 : w.frame.size();
+        bytes += sent_bytes;
         ++sent;
         if (it != held.end()) {
-          seam_bytes += frame.size();
+          seam_bytes += sent_bytes;
           ++resent;
         }
-        held[c] = encoding;
+        held[c] = w.encoding;
       }
     }
   }
