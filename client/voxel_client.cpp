@@ -97,11 +97,28 @@ std::optional<wire::Envelope> Client::receive(std::chrono::milliseconds timeout)
   }
 }
 
+// A level the protocol can carry (a chunk of 32 * 2^level voxels in 32-bit coordinates).
+constexpr uint32_t kMaxLevel = 26;
+
 std::optional<std::string> Client::apply(const wire::ChunkMesh& m) {
-  return cache_.apply(m, zstd_, scratch_, decoded_);
+  if (m.level() == 0) return cache_.apply(m, zstd_, scratch_, decoded_);
+  if (m.level() > kMaxLevel) return "a chunk of level " + std::to_string(m.level());
+  return lod_cache_[m.level()].apply(m, zstd_, scratch_, decoded_);
 }
 
-void Client::forget(const wire::ChunkUnload& u) { cache_.forget(u); }
+void Client::forget(const wire::ChunkUnload& u) {
+  if (u.level() == 0) {
+    cache_.forget(u);
+  } else if (auto it = lod_cache_.find(u.level()); it != lod_cache_.end()) {
+    it->second.forget(u);
+  }
+}
+
+const HeldChunks& Client::lod_chunks(uint32_t level) const {
+  static const HeldChunks kNone;
+  const auto it = lod_cache_.find(level);
+  return it == lod_cache_.end() ? kNone : it->second.chunks();
+}
 
 wire::ViewReady Client::receive_view(uint64_t view_id, std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
@@ -129,9 +146,12 @@ wire::Envelope make_hello(const std::string& name, uint32_t version, const std::
   return m;
 }
 
-wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id) {
+wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id,
+                             uint32_t lod_level, float lod_distance) {
   wire::Envelope m;
   auto* v = m.mutable_set_view();
+  v->set_lod_level(lod_level);
+  v->set_lod_distance(lod_distance);
   v->set_view_id(view_id);
   v->mutable_position()->set_x(x);
   v->mutable_position()->set_y(y);
@@ -140,8 +160,9 @@ wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_
   return m;
 }
 
-wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords) {
+wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords, uint32_t level) {
   wire::Envelope m;
+  m.mutable_resync()->set_level(level);
   for (const auto& c : coords) *m.mutable_resync()->add_coords() = c;
   return m;
 }

@@ -47,7 +47,9 @@ class Client {
   // and unloads on the way; throws on an Error, a mesh that does not apply, a close, or
   // when `timeout` passes first.
   wire::ViewReady receive_view(uint64_t view_id, std::chrono::milliseconds timeout);
-  const HeldChunks& chunks() const { return cache_.chunks(); }
+  const HeldChunks& chunks() const { return cache_.chunks(); }  // level 0
+  // Level-of-detail chunks held, by level (>= 1; none: an empty map).
+  const HeldChunks& lod_chunks(uint32_t level) const;
 
  private:
   boost::asio::io_context io_;
@@ -59,12 +61,15 @@ class Client {
   proto::CodecScratch scratch_;
   mesh::ChunkMesh decoded_;
   ChunkCache cache_;
+  std::map<uint32_t, ChunkCache> lod_cache_;  // levels >= 1
 };
 
 wire::Envelope make_hello(const std::string& name, uint32_t version = 1,
                           const std::string& token = {});
-wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id = 0);
-wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords);
+// `lod_level` > 0: a level-of-detail view of levels 0 .. lod_level (docs/PROTOCOL.md 4.10).
+wire::Envelope make_set_view(float x, float y, float z, uint32_t radius, uint64_t view_id = 0,
+                             uint32_t lod_level = 0, float lod_distance = 0);
+wire::Envelope make_resync(std::span<const wire::ChunkCoord> coords, uint32_t level = 0);
 // An Edit carrying a Brush at (x, y, z) that keeps the existing material (material 0).
 wire::Envelope make_brush(uint64_t request_id, float x, float y, float z, float radius,
                           float strength, bool remove);

@@ -291,18 +291,27 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
   return true;
 }
 
-// Once per applied view, when its every chunk has been sent or found empty.
+// Once per applied view, when its every chunk (of every level) has been sent or found
+// empty.
 void ClientSession::append_view_ready(std::vector<uint8_t>& out) {
-  const auto complete = scheduler_.take_view_complete();
-  if (!complete) return;
+  if (!level0_done_) level0_done_ = scheduler_.take_view_complete();
+  if (!level0_done_) return;
+  if (lod_view_ && !lod_done_) lod_done_ = lod_queue_.take_complete();
+  if (lod_view_ && !lod_done_) return;
   wire::Envelope ready;
   auto* r = ready.mutable_view_ready();
   r->set_view_id(view_id_);
   *r->mutable_center() = to_wire(view_center_);  // strand: its only writer
   r->set_radius(static_cast<uint32_t>(view_radius_));
-  r->set_chunks_sent(complete->sent);
-  r->set_chunks_empty(complete->empty);
+  r->set_chunks_sent(level0_done_->sent);
+  r->set_chunks_empty(level0_done_->empty);
+  if (lod_done_) {
+    r->set_lod_chunks_sent(lod_done_->sent);
+    r->set_lod_chunks_empty(lod_done_->empty);
+  }
   append_framed(ready, out);
+  level0_done_.reset();
+  lod_done_.reset();
 }
 
 void ClientSession::pump() {
@@ -318,6 +327,11 @@ void ClientSession::pump() {
   }
   if (!closing_) {
     while (write_buffer_.size() < config_.max_bytes_in_flight && append_next_mesh(write_buffer_)) {
+      ++messages;
+    }
+    // Coarser levels after every level-0 mesh due (updates of held chunks first).
+    while (write_buffer_.size() < config_.max_bytes_in_flight &&
+           append_next_lod_mesh(write_buffer_)) {
       ++messages;
     }
     const size_t before = write_buffer_.size();
@@ -370,9 +384,13 @@ void ClientSession::update_memory() {
   // Map node (~64) + an entry in the updates or new-chunk heap (24), in the waiting heap
   // (24) and in the deferred list (12), at most.
   constexpr size_t kPerVisibleChunk = 128;
+  // A layout chunk: in the LodView's leaves and held map, the LodSendQueue and the
+  // level-0 set.
+  constexpr size_t kPerLodChunk = 384;
+  const size_t lod_chunks = lod_view_ ? lod_view_->held().size() : 0;
   const size_t bytes = sizeof(ClientSession) + scheduler_.visible_count() * kPerVisibleChunk +
-                       control_bytes_ + write_buffer_.capacity() + decoder_.buffered() +
-                       results_.size() * 64;
+                       lod_chunks * kPerLodChunk + control_bytes_ + write_buffer_.capacity() +
+                       decoder_.buffered() + results_.size() * 64;
   const size_t old = memory_bytes_.exchange(bytes, std::memory_order_relaxed);
   counters_.session_bytes.fetch_add(bytes - old, std::memory_order_relaxed);  // wraps: exact
 }
@@ -398,6 +416,9 @@ void ClientSession::shutdown() {
   }
   if (!player_id_.empty()) services_.players->release(player_id_, this);
   scheduler_.clear();
+  lod_queue_.clear();
+  lod_view_.reset();
+  lod_active_.store(false, std::memory_order_relaxed);
   control_.clear();
   control_bytes_ = 0;
   pending_view_.reset();

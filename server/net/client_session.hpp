@@ -10,6 +10,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "server/auth/player_token.hpp"
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
+#include "server/net/lod_send_queue.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/player_registry.hpp"
 #include "server/net/result_order.hpp"
@@ -24,6 +26,7 @@
 #include "server/net/server_counters.hpp"
 #include "server/pipeline/token_bucket.hpp"
 #include "server/pipeline/world_pipeline.hpp"
+#include "server/world/lod_view.hpp"
 #include "voxel.pb.h"
 
 namespace vox::net {
@@ -33,11 +36,15 @@ namespace asio = boost::asio;
 struct ServerConfig {
   std::string bind = "127.0.0.1";
   uint16_t port = 7777;
-  size_t max_clients = 256;                 // players (past Hello)
-  size_t max_handshaking = 64;              // connections before Hello, not counted in max_clients
-  size_t max_per_address = 16;              // connections from one address (0: no cap)
-  size_t max_handshaking_per_address = 4;   // of them before Hello (0: no cap)
-  uint32_t max_view_radius = 12;            // chunks
+  size_t max_clients = 256;                // players (past Hello)
+  size_t max_handshaking = 64;             // connections before Hello, not counted in max_clients
+  size_t max_per_address = 16;             // connections from one address (0: no cap)
+  size_t max_handshaking_per_address = 4;  // of them before Hello (0: no cap)
+  uint32_t max_view_radius = 12;           // chunks
+  // Level of detail (SetView.lod_level, lod_distance): the coarsest level a view may ask
+  // for (at most the pipeline's lod.levels - 1; 0: none) and the largest split distance.
+  uint32_t max_lod_level = 6;
+  float max_lod_distance = 4.0f;
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
   // Queued results/errors before a client counts as not reading.
@@ -100,6 +107,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   // updated before the session first looks its chunks up in the store, so a mesh
   // published meanwhile is either seen by that lookup or passes this filter.
   bool may_see(const std::vector<world::ChunkCoord>& chunks) const;
+  // Any thread: new level-of-detail meshes (session_lod.cpp); ignored without a LOD view.
+  void on_lod_published(std::shared_ptr<const std::vector<pipeline::LodKey>> keys);
+  bool has_lod_view() const { return lod_active_.load(std::memory_order_relaxed); }
   // Sends an Error and closes (SHUTTING_DOWN, SERVER_FULL); any thread.
   void close_with_error(wire::Error::Code code, std::string message);
   uint64_t id() const { return id_; }
@@ -121,7 +131,23 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   BudgetLimits edit_limits(const auth::PlayerClaims* claims) const;
   void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
-  void apply_view(world::ChunkCoord center, int radius, uint64_t view_id);
+  struct PendingView {
+    world::ChunkCoord center;
+    int radius = 0;
+    uint64_t view_id = 0;
+    std::array<double, 3> eye{};  // voxels
+    int lod_level = 0;            // 0: level 0 only
+    double lod_distance = 1.0;
+  };
+  void apply_view(const PendingView& v);
+  // SetView's lod_level and lod_distance into `v`; false after a BAD_VALUE error.
+  bool check_lod(const wire::SetView& view, PendingView& v);
+  // Level of detail (session_lod.cpp): lays the view out and returns the level-0 part's
+  // radius and chunks (the layout's level-0 leaves); unloads what the layout dropped.
+  int apply_lod_view(const PendingView& v, std::function<bool(world::ChunkCoord)>& keep);
+  void drop_lod_view();  // unloads every LOD chunk the client holds
+  void queue_lod_unload(const std::vector<world::LodChunk>& chunks);
+  bool append_next_lod_mesh(std::vector<uint8_t>& out);
   void handle_resync(const wire::Resync& resync);
   void handle_region_command(const wire::RegionCommand& command);  // region_commands.cpp
   void list_regions(uint64_t after_id, wire::Envelope& reply);
@@ -172,14 +198,18 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::shared_ptr<SharedEditBudget> edit_budget_;  // the player's (shared) or this session's
   pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
   ResultOrder results_;
-  struct PendingView {
-    world::ChunkCoord center;
-    int radius = 0;
-    uint64_t view_id = 0;
-  };
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
 
   SendScheduler scheduler_;
+  // Level of detail: the client's layout (none: a level-0 view), what it holds of levels
+  // >= 1, the layout's level-0 chunks, and the two halves of the view-complete marker.
+  std::optional<world::LodView> lod_view_;
+  world::LodSettings lod_settings_;
+  LodSendQueue lod_queue_;
+  std::shared_ptr<const std::set<world::ChunkCoord>> lod_level0_;
+  std::atomic<bool> lod_active_{false};
+  std::optional<SendScheduler::ViewComplete> level0_done_;
+  std::optional<LodSendQueue::Complete> lod_done_;
   uint64_t view_id_ = 0;           // of the view applied last (echoed in its ViewReady)
   mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)
   world::ChunkCoord view_center_{};

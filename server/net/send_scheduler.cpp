@@ -12,13 +12,13 @@ int64_t SendScheduler::distance2(ChunkCoord c) const {
   return dx * dx + dy * dy + dz * dz;
 }
 
-std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
+std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius, const Keep& keep) {
   center_ = center;
   radius_ = radius;
   const int64_t r2 = static_cast<int64_t>(radius) * radius;
   std::vector<ChunkCoord> unloaded;
   for (auto it = visible_.begin(); it != visible_.end();) {
-    if (distance2(it->first) > r2) {
+    if (distance2(it->first) > r2 || (keep && !keep(it->first))) {
       if (it->second.sent) unloaded.push_back(it->first);
       if (!it->second.version) --unresolved_;
       it = visible_.erase(it);
@@ -29,7 +29,7 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius) {
   for (int dz = -radius; dz <= radius; ++dz)
     for (int dy = -radius; dy <= radius; ++dy)
       for (int dx = -radius; dx <= radius; ++dx) {
-        if (dx * dx + dy * dy + dz * dz <= r2 &&
+        if (dx * dx + dy * dy + dz * dz <= r2 && (!keep || keep(center.offset(dx, dy, dz))) &&
             visible_.try_emplace(center.offset(dx, dy, dz)).second) {
           ++unresolved_;
         }

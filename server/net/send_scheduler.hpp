@@ -21,10 +21,13 @@ class SendScheduler {
  public:
   using Lookup = std::function<pipeline::MeshVersionPtr(world::ChunkCoord)>;
 
-  // The view becomes the chunks within `radius` (Euclidean, chunk units) of `center`;
+  // The view becomes the chunks within `radius` (Euclidean, chunk units) of `center` (and,
+  // given `keep`, for which it is true: a level-of-detail layout's level-0 chunks);
   // every visible chunk is re-checked. Returns the chunks that left the view while the
   // client held a mesh of them (to unload).
-  std::vector<world::ChunkCoord> set_view(world::ChunkCoord center, int radius);
+  using Keep = std::function<bool(world::ChunkCoord)>;
+  std::vector<world::ChunkCoord> set_view(world::ChunkCoord center, int radius,
+                                          const Keep& keep = {});
   bool has_view() const { return radius_ >= 0; }
   bool visible(world::ChunkCoord c) const { return visible_.count(c) > 0; }
   size_t visible_count() const { return visible_.size(); }

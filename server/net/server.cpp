@@ -41,6 +41,7 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
 
 Server::~Server() {
   if (subscription_ != 0) pipeline_.unsubscribe(subscription_);
+  if (lod_subscription_ != 0) pipeline_.unsubscribe(lod_subscription_);
 }
 
 void Server::start() {
@@ -69,6 +70,18 @@ void Server::start() {
     for (const auto& s : live) {
       if (s->may_see(changed)) s->on_chunks_published(shared);
     }
+  });
+  lod_subscription_ = pipeline_.subscribe_lod([this](const std::vector<pipeline::LodKey>& keys) {
+    // Pipeline thread: to every session with a level-of-detail view.
+    auto shared = std::make_shared<const std::vector<pipeline::LodKey>>(keys);
+    std::vector<std::shared_ptr<ClientSession>> live;
+    {
+      std::lock_guard lock(sessions_mutex_);
+      for (const auto& [id, weak] : sessions_) {
+        if (auto s = weak.lock(); s && s->has_lod_view()) live.push_back(std::move(s));
+      }
+    }
+    for (const auto& s : live) s->on_lod_published(shared);
   });
   spdlog::info(
       "voxeld listening on {}:{} (seed {}, max {} players, {} in handshake, {} per address)",

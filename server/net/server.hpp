@@ -57,6 +57,7 @@ class Server {
   std::shared_ptr<SharedLogRateLimit> logs_;
   std::shared_ptr<PlayerRegistry<ClientSession>> players_;
   uint64_t subscription_ = 0;
+  uint64_t lod_subscription_ = 0;
   uint64_t next_session_ = 1;  // strand_ only
 
   // Leaf lock: guards sessions_; no call into a session while it is held.

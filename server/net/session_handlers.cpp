@@ -145,6 +145,10 @@ void ClientSession::send_welcome(uint64_t players) {
   w->set_max_connections_per_address(static_cast<uint32_t>(config_.max_per_address));
   w->set_max_resync_chunks(static_cast<uint32_t>(config_.max_resync_chunks));
   w->set_mesh_table_revision(proto::kMeshTableRevision);
+  w->set_max_lod_level(
+      std::min<uint32_t>(config_.max_lod_level,
+                         static_cast<uint32_t>(std::max(0, pipeline_.config().lod.levels - 1))));
+  w->set_max_lod_distance(config_.max_lod_distance);
   queue_control(welcome);
 }
 
@@ -169,42 +173,51 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
                false);
     return;
   }
-  const int r = static_cast<int>(view.radius());
-  const ChunkCoord center = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])),
-                                                  static_cast<int32_t>(std::floor(p[1])),
-                                                  static_cast<int32_t>(std::floor(p[2])));
+  PendingView v;
+  if (!check_lod(view, v)) return;
+  v.radius = static_cast<int>(view.radius());
+  v.center = world::chunk_of_voxel(static_cast<int32_t>(std::floor(p[0])),
+                                   static_cast<int32_t>(std::floor(p[1])),
+                                   static_cast<int32_t>(std::floor(p[2])));
+  v.eye = {p[0], p[1], p[2]};
+  v.view_id = view.view_id();
   // Over the SetView rate, the newest view waits for the next token; older ones are
   // coalesced into it.
   if (pending_view_) {
-    pending_view_ = {center, r, view.view_id()};
+    pending_view_ = v;
     ServerCounters::bump(counters_.set_views_coalesced);
     return;
   }
   const auto wait = view_budget_.take(1, Clock::now());
   if (wait.count() == 0) {
-    apply_view(center, r, view.view_id());
+    apply_view(v);
     return;
   }
-  pending_view_ = {center, r, view.view_id()};
+  pending_view_ = v;
   ServerCounters::bump(counters_.set_views_coalesced);
   view_timer_.expires_after(wait);
   view_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
     if (ec || self->closing_ || !self->pending_view_) return;
-    const PendingView v = *self->pending_view_;
+    const PendingView pending = *self->pending_view_;
     self->pending_view_.reset();
     (void)self->view_budget_.take(1, Clock::now());
-    self->apply_view(v.center, v.radius, v.view_id);
+    self->apply_view(pending);
   });
 }
 
-void ClientSession::apply_view(ChunkCoord center, int r, uint64_t view_id) {
-  view_id_ = view_id;
+void ClientSession::apply_view(const PendingView& v) {
+  view_id_ = v.view_id;
+  level0_done_.reset();
+  lod_done_.reset();
+  std::function<bool(ChunkCoord)> keep;  // a LOD view's level-0 chunks
+  const int r = v.lod_level > 0 ? apply_lod_view(v, keep) : v.radius;
+  if (v.lod_level == 0) drop_lod_view();
   {
     std::lock_guard lock(view_mutex_);
-    view_center_ = center;
+    view_center_ = v.center;
     view_radius_ = r;
   }
-  const std::vector<ChunkCoord> left = scheduler_.set_view(center, r);
+  const std::vector<ChunkCoord> left = scheduler_.set_view(v.center, r, keep);
   if (!left.empty()) {
     wire::Envelope unload;
     for (const ChunkCoord& c : left) *unload.mutable_chunk_unload()->add_coords() = to_wire(c);
@@ -212,7 +225,7 @@ void ClientSession::apply_view(ChunkCoord center, int r, uint64_t view_id) {
   }
   // The pipeline loads what is missing (this view replaces the session's previous one);
   // newly published meshes arrive through on_chunks_published.
-  pipeline_.set_view(id_, center, r, std::hash<std::string>{}(address_) | 1);  // never 0
+  pipeline_.set_view(id_, v.center, r, std::hash<std::string>{}(address_) | 1, keep);  // never 0
   update_memory();
   pump();
 }
@@ -232,7 +245,11 @@ void ClientSession::handle_resync(const wire::Resync& resync) {
   if (resync.coords_size() > 1) message_budget_.charge(resync.coords_size() - 1, Clock::now());
   if (!scheduler_.has_view()) return;
   size_t queued = 0;
-  for (const auto& c : resync.coords()) queued += scheduler_.resync(from_wire(c)) ? 1 : 0;
+  const int level = static_cast<int>(std::min<uint32_t>(resync.level(), 64));
+  for (const auto& c : resync.coords()) {
+    queued += level == 0 ? scheduler_.resync(from_wire(c))
+                         : lod_queue_.resync(world::LodChunk{level, from_wire(c)});
+  }
   counters_.chunks_resynced.fetch_add(queued, std::memory_order_relaxed);
   pump();
 }

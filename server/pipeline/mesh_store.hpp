@@ -37,6 +37,7 @@ struct MeshVersion {
 
  private:
   friend class MeshStore;
+  friend class LodMeshStore;
   mutable std::mutex deltas_mutex_;  // leaf lock; compression runs outside it
   mutable std::vector<std::pair<uint64_t, std::shared_ptr<const std::vector<uint8_t>>>> deltas_;
   // The store's count of delta bytes (set when published; shared, as a version may

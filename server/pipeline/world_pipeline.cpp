@@ -67,7 +67,8 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       budget_(config_.max_memory),
       scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
                  config_.load_work_per_address, config_.load_burst_per_address),
-      state_(std::make_unique<WorldState>(config_.threads)) {
+      state_(std::make_unique<WorldState>(config_.threads)),
+      lod_(std::make_unique<LodStage>(generator_, *state_, config_.lod)) {
   if (config_.store) {
     state_->read_stored = [this](ChunkCoord c) { return read_stored_chunk(c); };
     restore_from_store();  // before any thread: may throw StoreError
@@ -98,6 +99,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
         }
         queue_cv_.notify_one();
       });
+  lod_->learn_modified();  // what the restore loaded or replayed
   thread_ = std::thread([this] { run(); });
 }
 
@@ -156,9 +158,10 @@ std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
   return future;
 }
 
-void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius,
-                             uint64_t budget_group) {
+void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius, uint64_t budget_group,
+                             const std::function<bool(ChunkCoord)>& keep) {
   std::vector<ChunkCoord> chunks = ball_nearest_first(center, radius);  // outside the lock
+  if (keep) std::erase_if(chunks, [&](ChunkCoord c) { return !keep(c); });
   std::function<void()> replaced;
   {
     std::lock_guard lock(queue_mutex_);
@@ -176,6 +179,7 @@ void WorldPipeline::drop_view(LoadOwner owner) {
     std::lock_guard lock(queue_mutex_);
     dropped = scheduler_.drop(owner);
     view_updates_[owner] = {{}, -1};
+    lod_updates_[owner] = {};
   }
   if (dropped) dropped();
 }
@@ -199,6 +203,7 @@ uint64_t WorldPipeline::subscribe(Subscriber s) {
 void WorldPipeline::unsubscribe(uint64_t id) {
   std::lock_guard lock(subscribers_mutex_);
   std::erase_if(subscribers_, [id](const auto& p) { return p.first == id; });
+  std::erase_if(lod_subscribers_, [id](const auto& p) { return p.first == id; });
 }
 
 PipelineStats WorldPipeline::stats() const {
@@ -209,8 +214,10 @@ PipelineStats WorldPipeline::stats() const {
   }
   s.mesh_count = meshes_.size();
   s.mesh_bytes = meshes_.memory_bytes();
+  s.lod_mesh_count = lod_->meshes().size();
+  s.lod_mesh_bytes = lod_->meshes().memory_bytes();
   s.other_bytes = other_bytes_.load(std::memory_order_relaxed);
-  s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.other_bytes;
+  s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + s.other_bytes;
   s.loads_blocked = loads_blocked_.load(std::memory_order_relaxed);
   std::lock_guard lock(queue_mutex_);
   s.queued_edits = scheduler_.ordered_count();
@@ -239,7 +246,8 @@ bool WorldPipeline::batch_ready() {
       store_read_failing_ && !waiting_meshes_.empty() && Clock::now() >= store_read_retry_at_;
   return scheduler_.has_ordered() || generated_ready_ || retry_reads ||
          (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
-          scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0);
+          scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0) ||
+         lod_ready(Clock::now());
 }
 
 // A batch: every queued edit and inspection first; then, on the world as the edits left
@@ -265,6 +273,10 @@ void WorldPipeline::run() {
         if ((store_read_failing_ && !waiting_meshes_.empty()) || regions_doubtful_)
           wait = std::min(
               wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
+        // A coarse chunk's re-mesh falls due.
+        if (const auto due = lod_->next_due())
+          wait = std::min(wait, std::chrono::ceil<std::chrono::milliseconds>(
+                                    std::max(Clock::duration::zero(), *due - Clock::now())));
         queue_cv_.wait_for(lock, wait);
         take_view_updates();
         lock.unlock();
@@ -295,6 +307,7 @@ void WorldPipeline::run() {
     LoadPlan plan;
     std::vector<LoadSlice> loads = take_loads(plan, now);
     process_loads(loads, plan, now, counts);
+    lod_pass(Clock::now(), ordered_count > 0);
     // Column heights are shared within a batch only (edits and loads both fill them).
     state_->column_heights.clear();
     {
@@ -517,6 +530,7 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
     b.fresh.clear();
   } else {
     unsaved_edits_ += config_.store ? b.accepted.size() : 0;
+    lod_edited(b, Clock::now());
   }
   const std::vector<ChunkCoord> published = publish(b.dirty, b.fresh, &b.edited_at);
   const CoordSet published_set(published.begin(), published.end());

@@ -28,6 +28,7 @@
 #include "server/pipeline/batch_scheduler.hpp"
 #include "server/pipeline/checkpoint_policy.hpp"
 #include "server/pipeline/checkpoint_writer.hpp"
+#include "server/pipeline/lod_stage.hpp"
 #include "server/pipeline/memory_budget.hpp"
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/store_appender.hpp"
@@ -93,6 +94,12 @@ struct PipelineConfig {
   // After a failed append, edits are refused kStorageUnavailable without trying the store
   // again for this long.
   std::chrono::milliseconds store_retry{1000};
+  // Level of detail (issue 16): levels 0 .. lod_levels-1 may be viewed; meshes of levels
+  // >= 1 per pass (while edits wait: the smaller number), each re-meshed at most once per
+  // interval after edits.
+  LodStageConfig lod;
+  size_t lod_pass_chunks = 8;
+  size_t lod_pass_chunks_while_edits_wait = 2;
 };
 
 struct EditResult {
@@ -132,7 +139,8 @@ struct PipelineStats {
   size_t cached_columns =
       0;                   // column heights left by earlier batches at the last batch's start (0)
   size_t other_bytes = 0;  // reported by set_other_bytes (sessions)
-  size_t accounted_bytes = 0;  // chunks + meshes + other
+  size_t lod_mesh_count = 0, lod_mesh_bytes = 0;  // level-of-detail meshes (levels >= 1)
+  size_t accounted_bytes = 0;                     // chunks + meshes + other
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
   // The durable world: chunks the store has a checkpoint of, resident chunks changed since
   // (not evictable), checkpoints written, and the newest one's sequence number.
@@ -185,9 +193,22 @@ class WorldPipeline {
   // `radius` chunks around `center`: its queued loads are replaced by the new view's
   // missing chunks, nearest first. Newly published meshes reach subscribers.
   // `budget_group`: the owner's address (0: none), for the per-address load budget.
-  void set_view(LoadOwner owner, world::ChunkCoord center, int radius, uint64_t budget_group = 0);
-  // Any thread: drops the owner's queued loads (its session closed).
+  // `keep`: of the ball, only the chunks it is true for (a level-of-detail layout's level
+  // 0); the whole ball stays safe from eviction.
+  void set_view(LoadOwner owner, world::ChunkCoord center, int radius, uint64_t budget_group = 0,
+                const std::function<bool(world::ChunkCoord)>& keep = {});
+  // Any thread: drops the owner's queued loads and its level-of-detail view (its session
+  // closed).
   void drop_view(LoadOwner owner);
+  // Any thread. The level-of-detail meshes (levels >= 1, with their seams) `owner`'s
+  // layout needs, nearest first, replacing its previous ones. They are meshed between
+  // batches, re-meshed after edits (coalesced, see LodStageConfig), and each new version
+  // reaches the LOD subscribers.
+  void set_lod_view(LoadOwner owner, std::vector<LodKey> keys);
+  const LodMeshStore& lod_meshes() const { return lod_->meshes(); }  // any thread
+  // Like subscribe(), for level-of-detail meshes (unsubscribe() drops either).
+  using LodSubscriber = std::function<void(const std::vector<LodKey>&)>;
+  uint64_t subscribe_lod(LodSubscriber s);  // any thread
   // Runs fn on the pipeline thread between batches, and waits for it (tests, persistence).
   void inspect(std::function<void(const world::ChunkMap&)> fn);
 
@@ -320,6 +341,12 @@ class WorldPipeline {
   // Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was
   // rolled back), then answers its edits and notifies the subscribers.
   void answer(Batch& b, bool durable, PipelineStats& batch);
+  // Level of detail (world_pipeline_lod.cpp; pipeline thread): whether the stage may run
+  // now (no batch waits for the store), and one pass of it.
+  bool lod_ready(Clock::time_point now) const;
+  void lod_pass(Clock::time_point now, bool edits_waiting);
+  // After a durable batch: its accepted edits reach the coarse levels.
+  void lod_edited(const Batch& b, Clock::time_point now);
   // The newest mesh of `c`: a pending batch's, else the published one.
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
   // Whether a pending batch changed samples that meshes of `chunks` read: a load pass
@@ -372,6 +399,7 @@ class WorldPipeline {
 
   mutable std::mutex subscribers_mutex_;  // leaf lock; callbacks run on a copy, outside it
   std::vector<std::pair<uint64_t, Subscriber>> subscribers_;
+  std::vector<std::pair<uint64_t, LodSubscriber>> lod_subscribers_;
   uint64_t next_subscriber_ = 1;
 
   mutable std::mutex stats_mutex_;  // leaf lock
@@ -380,6 +408,10 @@ class WorldPipeline {
   bool generated_ready_ = false;  // under queue_mutex_: the prefetcher has chunks for us
 
   std::unique_ptr<WorldState> state_;  // pipeline thread only
+  std::unique_ptr<LodStage> lod_;      // pipeline thread only, but lod_meshes()
+  // Level-of-detail views set or dropped since the last batch (empty: dropped); under
+  // queue_mutex_.
+  std::unordered_map<LoadOwner, std::vector<LodKey>> lod_updates_;
   // Chunks a load pass planned to mesh whose terrain is still being generated, with the
   // pass that planned them, and the load callbacks waiting for them (pipeline thread).
   // Bounded by the owners' load budgets, which paid for them.

@@ -1,0 +1,242 @@
+#include "server/pipeline/lod_stage.hpp"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "proto/mesh_codec.hpp"
+#include "proto/zstd_codec.hpp"
+#include "server/mesh/lod_block.hpp"
+#include "server/mesh/lod_mesher.hpp"
+#include "server/pipeline/world_state.hpp"
+#include "server/store/world_store.hpp"
+#include "server/world/overlay_sampler.hpp"
+
+namespace vox::pipeline {
+
+using world::ChunkCoord;
+using world::LodChunk;
+
+struct LodWorker {
+  mesh::LodBlock block;
+  mesh::LodScratch lod;
+  mesh::ChunkMesh mesh;
+  proto::CodecScratch codec;
+  proto::ZstdCodec zstd;
+};
+
+namespace {
+
+// Keys an owner gets per round-robin turn.
+constexpr size_t kOwnerTurn = 4;
+
+// The level-0 chunks whose samples a mesh of `c` reads: its padded block and seams span
+// voxels [lo - 2^k, lo + 33 * 2^k].
+std::pair<ChunkCoord, ChunkCoord> footprint(const LodChunk& c) {
+  const auto lo = c.lo();
+  const int64_t step = int64_t{1} << c.level;
+  ChunkCoord a, b;
+  for (int i = 0; i < 3; ++i) {
+    (&a.x)[i] = static_cast<int32_t>(
+        world::floor_div(static_cast<int32_t>(lo[i] - step), world::kChunkSize));
+    (&b.x)[i] = static_cast<int32_t>(
+        world::floor_div(static_cast<int32_t>(lo[i] + 33 * step), world::kChunkSize));
+  }
+  return {a, b};
+}
+
+bool within(ChunkCoord c, ChunkCoord lo, ChunkCoord hi) {
+  return c.x >= lo.x && c.x <= hi.x && c.y >= lo.y && c.y <= hi.y && c.z >= lo.z && c.z <= hi.z;
+}
+
+}  // namespace
+
+LodStage::LodStage(const world::TerrainGenerator& generator, WorldState& state,
+                   LodStageConfig config)
+    : generator_(generator),
+      state_(state),
+      config_(config),
+      remesh_(config.levels, config.remesh_interval, config.max_pending_remesh),
+      workers_([] { return std::make_unique<LodWorker>(); }) {}
+
+void LodStage::learn_modified() {
+  modified_.insert(state_.stored.begin(), state_.stored.end());
+  for (const auto& [c, info] : state_.info)
+    if (info.modified) modified_.insert(c);
+}
+
+LodStage::~LodStage() = default;
+
+void LodStage::want(const LodKey& k) {
+  if (refs_[k]++ == 0) {
+    variants_[k.chunk].push_back(k.seams);
+    missing_ = true;
+  }
+}
+
+void LodStage::unwant(const LodKey& k) {
+  auto it = refs_.find(k);
+  if (it == refs_.end() || --it->second > 0) return;
+  refs_.erase(it);
+  meshes_.erase(k);
+  auto v = variants_.find(k.chunk);
+  std::erase(v->second, k.seams);
+  if (v->second.empty()) {
+    variants_.erase(v);
+    remesh_.forget(k.chunk);
+  }
+}
+
+void LodStage::set_wants(LoadOwner owner, std::vector<LodKey> keys) {
+  std::erase_if(keys, [](const LodKey& k) { return k.chunk.level < 1; });
+  for (LodKey& k : keys) k.seams = world::normalized(k.seams);
+  for (const LodKey& k : keys) want(k);  // before the old ones go: shared keys stay
+  auto it = owners_.find(owner);
+  if (it != owners_.end()) {
+    for (const LodKey& k : it->second.keys) unwant(k);
+    if (keys.empty()) {
+      owners_.erase(it);
+      return;
+    }
+    it->second = {std::move(keys), 0};
+  } else if (!keys.empty()) {
+    owners_.emplace(owner, Owner{std::move(keys), 0});
+  }
+  missing_ = true;
+}
+
+void LodStage::edited(const world::VoxelBox& box, Clock::time_point now) {
+  // Every chunk the box meets (an edit's box spans a few): those it did not change hold
+  // the generated samples, and those not resident are dropped when a footprint is made
+  // resident.
+  world::for_each_chunk_in(
+      world::chunk_of_voxel(box.lo[0], box.lo[1], box.lo[2]),
+      world::chunk_of_voxel(box.hi[0], box.hi[1], box.hi[2]), [&](ChunkCoord c) {
+        if (const auto it = state_.info.find(c); it != state_.info.end() && it->second.modified)
+          modified_.insert(c);
+      });
+  remesh_.mark(box, now, [this](const LodChunk& c) { return variants_.count(c) > 0; });
+}
+
+bool LodStage::has_work(Clock::time_point now) const {
+  if (missing_ && !owners_.empty()) return true;
+  const auto due = remesh_.next_due();
+  return due && *due <= now;
+}
+
+void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
+  std::vector<LoadOwner> order;
+  order.reserve(owners_.size());
+  for (const auto& [id, o] : owners_) order.push_back(id);
+  std::sort(order.begin(), order.end());
+  std::unordered_set<LodKey, LodKeyHash> taken(out.begin(), out.end());
+  bool any = true;
+  while (out.size() < max && any) {
+    any = false;
+    for (size_t i = 0; i < order.size() && out.size() < max; ++i) {
+      Owner& o = owners_.at(order[(next_owner_ + i) % order.size()]);
+      size_t turn = 0;
+      for (size_t at = o.cursor; at < o.keys.size() && turn < kOwnerTurn && out.size() < max;
+           ++at) {
+        const LodKey& k = o.keys[at];
+        if (meshes_.get(k)) {
+          if (at == o.cursor) ++o.cursor;
+          continue;
+        }
+        if (taken.insert(k).second) {
+          out.push_back(k);
+          ++turn;
+          any = true;
+        }
+      }
+    }
+  }
+  if (!order.empty()) next_owner_ = (next_owner_ + 1) % order.size();
+  if (out.size() < max) missing_ = false;  // every owner's keys are published or taken
+}
+
+bool LodStage::make_resident(const LodChunk& c, Clock::time_point now) {
+  const auto [lo, hi] = footprint(c);
+  std::vector<ChunkCoord> missing;
+  const int64_t box =
+      (int64_t{hi.x} - lo.x + 1) * (int64_t{hi.y} - lo.y + 1) * (int64_t{hi.z} - lo.z + 1);
+  const auto look = [&](ChunkCoord m) {
+    if (!state_.chunks.find(m)) missing.push_back(m);
+  };
+  if (box <= static_cast<int64_t>(modified_.size())) {
+    world::for_each_chunk_in(lo, hi, [&](ChunkCoord m) {
+      if (modified_.contains(m)) look(m);
+    });
+  } else {
+    for (const ChunkCoord m : modified_)
+      if (within(m, lo, hi)) look(m);
+  }
+  for (const ChunkCoord m : missing) {
+    if (!state_.stored.count(m)) {
+      modified_.erase(m);  // generated terrain: nothing to lay over it
+      continue;
+    }
+    try {
+      state_.load_stored(m, now);
+    } catch (const std::exception& e) {
+      if (!store_failing_)
+        spdlog::error("lod: cannot read chunk ({},{},{}) from the store: {}", m.x, m.y, m.z,
+                      e.what());
+      store_failing_ = true;
+      return false;
+    }
+  }
+  store_failing_ = false;
+  return true;
+}
+
+std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
+  std::vector<LodKey> keys;
+  for (const LodChunk& c : remesh_.take_due(now, max_chunks)) {
+    const auto v = variants_.find(c);
+    if (v == variants_.end()) continue;
+    for (const world::LodSeams s : v->second) keys.push_back({c, s});
+  }
+  if (keys.size() < max_chunks) take_missing(max_chunks, keys);
+  std::erase_if(keys, [&](const LodKey& k) { return !make_resident(k.chunk, now); });
+  if (keys.empty()) return {};
+  return mesh_and_publish(keys);
+}
+
+std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) {
+  const world::OverlaySampler sampler(
+      generator_, modified_, [this](ChunkCoord c) -> const world::Chunk& {
+        const world::Chunk* chunk = state_.chunks.find(c);
+        if (!chunk) throw std::logic_error("lod: a modified chunk is not resident");
+        return *chunk;
+      });
+  std::vector<std::shared_ptr<MeshVersion>> fresh(keys.size());
+  state_.arena.execute([&] {
+    tbb::parallel_for(size_t{0}, keys.size(), [&](size_t i) {
+      LodWorker& w = *workers_.local();
+      const LodKey& k = keys[i];
+      mesh::gather_lod_block(sampler, k.chunk, k.seams, w.block);
+      mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
+      auto v = std::make_shared<MeshVersion>();
+      v->coord = k.chunk.c;
+      proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
+      const MeshVersionPtr old = meshes_.get(k);
+      if (old && old->encoding == v->encoding) return;  // unchanged
+      v->mesh = w.mesh;
+      w.zstd.compress(v->encoding, {}, v->full_frame);
+      fresh[i] = std::move(v);
+    });
+  });
+  std::vector<LodKey> published;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    if (!fresh[i]) continue;
+    fresh[i]->version = next_version_++;
+    meshes_.publish(keys[i], std::move(fresh[i]));
+    published.push_back(keys[i]);
+  }
+  return published;
+}
+
+}  // namespace vox::pipeline

@@ -1,0 +1,101 @@
+// The pipeline's level-of-detail stage (issue 16): which (chunk, seams) meshes the
+// clients' layouts want, meshing the missing ones and re-meshing those an edit changed
+// (coalesced by LodRemeshQueue), published into a LodMeshStore.
+//
+// Samples come from the generator at the chunk's own spacing, with every modified level-0
+// chunk laid over it (OverlaySampler): so every level shows the edits. Modified chunks in
+// a mesh's footprint that were evicted are read back from the store first.
+//
+// Pipeline thread only (it reads the chunk map while no batch writes it), except
+// meshes(), which any thread may read. The pipeline runs it only while no batch waits for
+// the store, so a LOD mesh never shows an edit that is not durable.
+#pragma once
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <unordered_map>
+#include <unordered_set>
+#include <vector>
+
+#include "server/pipeline/batch_scheduler.hpp"
+#include "server/pipeline/lod_mesh_store.hpp"
+#include "server/pipeline/lod_remesh_queue.hpp"
+#include "server/world/edit.hpp"
+#include "server/world/terrain_generator.hpp"
+
+namespace vox::pipeline {
+
+struct WorldState;
+struct LodWorker;
+using Clock = std::chrono::steady_clock;
+
+struct LodStageConfig {
+  int levels = 7;  // levels 0 .. levels-1 (level 0 is the pipeline's own)
+  std::chrono::milliseconds remesh_interval{250};  // a chunk re-meshed at most this often
+  size_t max_pending_remesh = 65536;
+};
+
+class LodStage {
+ public:
+  LodStage(const world::TerrainGenerator& generator, WorldState& state, LodStageConfig config);
+  ~LodStage();
+
+  const LodMeshStore& meshes() const { return meshes_; }  // any thread
+
+  // Learns which chunks differ from the generated terrain (stored, or modified and
+  // resident): once the world is restored.
+  void learn_modified();
+
+  // The meshes `owner`'s layout needs, nearest first (empty: none; its session left).
+  // Keys no owner wants any more are erased.
+  void set_wants(LoadOwner owner, std::vector<LodKey> keys);
+  // A durable edit changed the samples of `box`: the wanted chunks it reaches are
+  // re-meshed within the interval.
+  void edited(const world::VoxelBox& box, Clock::time_point now);
+  // Whether run() has something to do now, and when a re-mesh falls due.
+  bool has_work(Clock::time_point now) const;
+  std::optional<Clock::time_point> next_due() const { return remesh_.next_due(); }
+  // Meshes up to `max_chunks` meshes (re-meshes due first, then missing ones, the owners
+  // round robin) in parallel; publishes those that changed; returns their keys.
+  std::vector<LodKey> run(Clock::time_point now, size_t max_chunks);
+
+  size_t wanted() const { return refs_.size(); }
+  uint64_t remesh_dropped() const { return remesh_.dropped(); }
+
+ private:
+  struct Owner {
+    std::vector<LodKey> keys;
+    size_t cursor = 0;  // keys before it were published when last looked at
+  };
+  void want(const LodKey& k);
+  void unwant(const LodKey& k);
+  void take_missing(size_t max, std::vector<LodKey>& out);
+  // Makes the modified chunks a mesh of `c` reads resident; false when the store fails.
+  bool make_resident(const world::LodChunk& c, Clock::time_point now);
+  std::vector<LodKey> mesh_and_publish(const std::vector<LodKey>& keys);
+
+  const world::TerrainGenerator& generator_;
+  WorldState& state_;
+  LodStageConfig config_;
+  LodMeshStore meshes_;
+  LodRemeshQueue remesh_;
+  std::unordered_map<LoadOwner, Owner> owners_;
+  std::unordered_map<LodKey, uint32_t, LodKeyHash> refs_;  // owners wanting each key
+  // Per chunk, the seams variants wanted (each counted once however many owners).
+  std::map<world::LodChunk, std::vector<world::LodSeams>> variants_;
+  bool missing_ = false;  // an owner may want a key not published yet
+  // Chunks that may differ from the generated terrain: stored ones and those edits
+  // changed (an unmodified one found here is dropped when its footprint is prepared).
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> modified_;
+  uint64_t next_version_ = 1;
+  tbb::enumerable_thread_specific<std::unique_ptr<LodWorker>> workers_;
+  size_t next_owner_ = 0;  // round robin
+  bool store_failing_ = false;
+};
+
+}  // namespace vox::pipeline

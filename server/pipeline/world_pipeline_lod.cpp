@@ -1,0 +1,57 @@
+// The pipeline's level-of-detail part (issue 16): views set from any thread, taken
+// between batches; a LodStage pass after each batch's loads; durable edits marked.
+#include <spdlog/spdlog.h>
+
+#include "server/pipeline/world_pipeline.hpp"
+#include "server/pipeline/world_state.hpp"
+
+namespace vox::pipeline {
+
+void WorldPipeline::set_lod_view(LoadOwner owner, std::vector<LodKey> keys) {
+  {
+    std::lock_guard lock(queue_mutex_);
+    if (stopping_) return;
+    lod_updates_[owner] = std::move(keys);
+  }
+  queue_cv_.notify_one();
+}
+
+uint64_t WorldPipeline::subscribe_lod(LodSubscriber s) {
+  std::lock_guard lock(subscribers_mutex_);
+  lod_subscribers_.emplace_back(next_subscriber_, std::move(s));
+  return next_subscriber_++;
+}
+
+// Pipeline thread. While a batch waits for the store, the chunk map may show edits that
+// are not durable: no LOD mesh is made from it then (the append's landing wakes us).
+bool WorldPipeline::lod_ready(Clock::time_point now) const {
+  return pending_.empty() && (!lod_updates_.empty() || lod_->has_work(now));
+}
+
+void WorldPipeline::lod_pass(Clock::time_point now, bool edits_waiting) {
+  {
+    std::lock_guard lock(queue_mutex_);
+    for (auto& [owner, keys] : lod_updates_) lod_->set_wants(owner, std::move(keys));
+    lod_updates_.clear();
+    edits_waiting = edits_waiting || scheduler_.has_ordered();
+  }
+  if (!pending_.empty() || !lod_->has_work(now)) return;
+  const std::vector<LodKey> published = lod_->run(
+      now, edits_waiting ? config_.lod_pass_chunks_while_edits_wait : config_.lod_pass_chunks);
+  if (published.empty()) return;
+  std::vector<LodSubscriber> subscribers;
+  {
+    std::lock_guard lock(subscribers_mutex_);
+    for (const auto& [id, s] : lod_subscribers_) subscribers.push_back(s);
+  }
+  for (const auto& s : subscribers) s(published);
+}
+
+void WorldPipeline::lod_edited(const Batch& b, Clock::time_point now) {
+  for (size_t t = 0; t < b.tasks.size(); ++t) {
+    const auto* task = std::get_if<EditTask>(&b.tasks[t]);
+    if (task && b.results[t].accepted) lod_->edited(world::touched_box(task->edit), now);
+  }
+}
+
+}  // namespace vox::pipeline
