@@ -1,9 +1,11 @@
 // voxel-cli export: fetch the meshes around a point, decode them and write one welded
 // mesh (.obj, .ply or .glb).
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <iomanip>
 #include <ostream>
+#include <unordered_map>
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
@@ -16,10 +18,66 @@ namespace vox::cli {
 
 using namespace std::chrono_literals;
 
+namespace {
+
+// The chunks of every level the client holds (a level-of-detail view), in world
+// positions, as one mesh: a vertex on a seam is bit-identical to its twin in the chunk
+// across (PROTOCOL.md 2.7), so vertices are joined by exact position; unused ones drop.
+mesh::ChunkMesh weld_levels(const client::Client& c, uint32_t levels) {
+  struct PositionHash {
+    size_t operator()(const std::array<uint32_t, 3>& p) const {
+      return (uint64_t{p[0]} * 0x9E3779B97F4A7C15ull) ^ (uint64_t{p[1]} * 0xC2B2AE3D27D4EB4Full) ^
+             (uint64_t{p[2]} * 0x165667B19E3779F9ull);
+    }
+  };
+  std::unordered_map<std::array<uint32_t, 3>, uint32_t, PositionHash> index;
+  mesh::ChunkMesh out;
+  std::vector<uint32_t> remap;
+  for (uint32_t level = 0; level <= levels; ++level) {
+    const float scale = static_cast<float>(1u << level), side = 32.0f * scale;
+    for (const auto& [key, held] : level == 0 ? c.chunks() : c.lod_chunks(level)) {
+      auto decoded = proto::decode_mesh(held.encoding);
+      if (!decoded) throw std::runtime_error("bad mesh from the server: " + decoded.error());
+      const mesh::ChunkMesh& m = *decoded;
+      const float o[3] = {static_cast<float>(std::get<0>(key)) * side,
+                          static_cast<float>(std::get<1>(key)) * side,
+                          static_cast<float>(std::get<2>(key)) * side};
+      remap.assign(m.positions.size(), UINT32_MAX);
+      for (const uint32_t i : m.indices) {
+        if (remap[i] != UINT32_MAX) {
+          out.indices.push_back(remap[i]);
+          continue;
+        }
+        const mesh::Vec3f p{o[0] + m.positions[i].x * scale, o[1] + m.positions[i].y * scale,
+                            o[2] + m.positions[i].z * scale};
+        const std::array<uint32_t, 3> bits{std::bit_cast<uint32_t>(p.x),
+                                           std::bit_cast<uint32_t>(p.y),
+                                           std::bit_cast<uint32_t>(p.z)};
+        auto [it, added] = index.try_emplace(bits, static_cast<uint32_t>(out.positions.size()));
+        if (added) {
+          out.positions.push_back(p);
+          out.normals.push_back(m.normals[i]);
+          out.materials.push_back(m.materials[i]);
+        }
+        remap[i] = it->second;
+        out.indices.push_back(it->second);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   po::options_description opts = network_options("export");
   add_view_options(opts, "X,Y,Z: centre", true);
-  opts.add_options()("out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb");
+  opts.add_options()("out,o", po::value<std::string>()->required(), "output: .obj, .ply or .glb")(
+      "lod-distance", po::value<float>(),
+      "a level-of-detail view to the horizon: coarser chunks split within this many of their "
+      "sides (1 .. the server's max_lod_distance); level 0 reaches --radius chunks")(
+      "lod-level", po::value<uint32_t>()->default_value(6),
+      "with --lod-distance: the coarsest level (6: 2,048 voxels and more)");
   po::variables_map vm;
   const int rc =
       parse_options(args, opts, nullptr, "usage: voxel-cli export --at X,Y,Z --radius N --out FILE",
@@ -29,10 +87,21 @@ int export_command(const std::vector<std::string>& args, std::ostream& out, std:
     const std::string output = vm["out"].as<std::string>();
     mesh_format_for(output);
     const auto at = parse_vec3(vm["at"].as<std::string>(), "--at");
-    const auto region =
-        fetch_region(server_access(vm), "voxel-cli-export", at, vm["radius"].as<uint32_t>(),
-                     timeout_of(vm["timeout"].as<double>()));
+    const bool lod = vm.count("lod-distance") > 0;
+    const uint32_t levels = lod ? vm["lod-level"].as<uint32_t>() : 0;
+    const auto region = fetch_region(
+        server_access(vm), "voxel-cli-export", at, vm["radius"].as<uint32_t>(),
+        timeout_of(vm["timeout"].as<double>()), levels, lod ? vm["lod-distance"].as<float>() : 0);
     const client::Client& c = *region;
+    if (lod) {
+      const mesh::ChunkMesh all = weld_levels(c, levels);
+      write_mesh(output, all);
+      size_t chunks = c.chunks().size();
+      for (uint32_t level = 1; level <= levels; ++level) chunks += c.lod_chunks(level).size();
+      out << "exported " << chunks << " chunks of levels 0-" << levels << ": " << all.vertex_count()
+          << " vertices, " << all.triangle_count() << " triangles -> " << output << "\n";
+      return 0;
+    }
     // Decode every chunk into a dense grid over their bounding box, then weld.
     std::array<int, 3> lo{INT32_MAX, INT32_MAX, INT32_MAX}, hi{INT32_MIN, INT32_MIN, INT32_MIN};
     for (const auto& [key, held] : c.chunks()) {

@@ -207,10 +207,14 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     gauge(out, "voxeld_checkpoint_sequence", "The newest checkpoint includes every edit to this",
           double(s.checkpoint_seq));
     gauge(out, "voxeld_meshes_loaded", "Published meshes in the store", double(s.mesh_count));
+    gauge(out, "voxeld_lod_meshes_loaded",
+          "Level-of-detail meshes (levels >= 1) some client's layout wants",
+          double(s.lod_mesh_count));
     auto accounted =
         family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
     add(accounted, double(s.chunk_bytes), {{"part", "chunks"}});
     add(accounted, double(s.mesh_bytes), {{"part", "meshes"}});
+    add(accounted, double(s.lod_mesh_bytes), {{"part", "lod_meshes"}});
     add(accounted, double(s.other_bytes), {{"part", "sessions"}});
     out.push_back(std::move(accounted));
     gauge(out, "voxeld_memory_budget_bytes", "--max-memory", double(pipeline_.config().max_memory));

@@ -181,6 +181,7 @@ void WorldPipeline::drop_view(LoadOwner owner) {
     view_updates_[owner] = {{}, -1};
     lod_updates_[owner] = {};
   }
+  queue_cv_.notify_one();  // its LOD meshes go now, not at the next idle wake
   if (dropped) dropped();
 }
 
