@@ -128,6 +128,39 @@ TEST(PipelineStore, CheckpointedChunksAreEvictedAndReadBackUnchanged) {
   std::filesystem::remove_all(dir);
 }
 
+// A level-of-detail chunk over modified chunks that were checkpointed and evicted reads
+// them back from the store: it shows the edits (issue 16), as a pipeline that kept them.
+TEST(PipelineStore, ACoarseChunkOverEvictedModifiedChunksShowsTheirEdits) {
+  const auto dir = temp_world("lod_evict");
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  WorldPipeline p(PipelineConfig{.seed = 3,
+                                 .threads = 2,
+                                 .evict_after = 300ms,
+                                 .evict_min_age = 1ms,
+                                 .store = store.get(),
+                                 .checkpoint = {.interval = 20ms}});
+  WorldPipeline memory(PipelineConfig{.seed = 3, .threads = 2});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
+  for (const world::Edit& e : border_edits(y)) {
+    ASSERT_TRUE(p.submit(e).get().accepted);
+    ASSERT_TRUE(memory.submit(e).get().accepted);
+  }
+  ASSERT_TRUE(eventually([&] { return p.stats().modified_chunks == 0; }))
+      << "checkpointed chunks were not evicted";
+  const LodKey key{{1, {0, world::floor_div(y, 64), 0}}, {}};
+  p.set_lod_view(1, {key});
+  memory.set_lod_view(1, {key});
+  ASSERT_TRUE(eventually([&] { return p.lod_meshes().get(key) && memory.lod_meshes().get(key); }));
+  EXPECT_EQ(p.lod_meshes().get(key)->encoding, memory.lod_meshes().get(key)->encoding);
+  WorldPipeline plain(PipelineConfig{.seed = 3, .threads = 2});  // no edits
+  plain.set_lod_view(1, {key});
+  ASSERT_TRUE(eventually([&] { return plain.lod_meshes().get(key) != nullptr; }));
+  EXPECT_NE(plain.lod_meshes().get(key)->encoding, p.lod_meshes().get(key)->encoding)
+      << "the edits do not show at level 1";
+  p.stop();
+  std::filesystem::remove_all(dir);
+}
+
 // A checkpoint the store refuses (here the last one, at stop) loses nothing: the log still
 // has the edits, and the next start replays them and checkpoints them.
 TEST(PipelineStore, ACheckpointTheStoreRefusedLosesNothing) {

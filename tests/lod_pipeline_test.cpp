@@ -1,0 +1,188 @@
+// The pipeline's level-of-detail stage (server/pipeline/lod_stage.hpp) through
+// WorldPipeline: what a layout wants is meshed as a direct mesh of the world would be,
+// edits reach the coarse chunks within the interval and no faster, and a leaving owner's
+// meshes go at once.
+#include <gtest/gtest.h>
+
+#include <condition_variable>
+#include <map>
+#include <mutex>
+
+#include "proto/mesh_codec.hpp"
+#include "server/mesh/lod_block.hpp"
+#include "server/mesh/lod_mesher.hpp"
+#include "server/pipeline/world_pipeline.hpp"
+#include "server/world/overlay_sampler.hpp"
+#include "server/world/terrain_sampler.hpp"
+
+namespace vox::pipeline {
+namespace {
+
+using namespace std::chrono_literals;
+using world::LodChunk;
+
+constexpr uint64_t kSeed = 5;
+
+// Every LOD publication, with its time.
+struct Publications {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::vector<std::pair<LodKey, Clock::time_point>> seen;
+  void add(const std::vector<LodKey>& keys) {
+    std::lock_guard lock(mutex);
+    for (const LodKey& k : keys) seen.push_back({k, Clock::now()});
+    cv.notify_all();
+  }
+  // Waits until `pred(seen)`; false after `limit`.
+  template <class Pred>
+  bool wait(Pred pred, std::chrono::milliseconds limit = 20s) {
+    std::unique_lock lock(mutex);
+    return cv.wait_for(lock, limit, [&] { return pred(seen); });
+  }
+  size_t count(const LodKey& k) {
+    std::lock_guard lock(mutex);
+    return std::count_if(seen.begin(), seen.end(), [&](const auto& s) { return s.first == k; });
+  }
+};
+
+// The keys of a small layout around `eye` (levels 1..2).
+std::vector<LodKey> layout_keys(const std::array<double, 3>& eye) {
+  world::LodLayout layout({.levels = 3, .top_radius = 1, .split_distance = 1.0});
+  layout.update(eye);
+  std::vector<LodKey> keys;
+  for (const LodChunk& c : layout.chunks())
+    if (c.level > 0) keys.push_back({c, world::normalized(layout.seams(c))});
+  return keys;
+}
+
+proto::Bytes direct_encoding(const world::PointSampler& sampler, const LodKey& k) {
+  mesh::LodBlock block;
+  mesh::LodScratch scratch;
+  mesh::ChunkMesh mesh;
+  proto::CodecScratch codec;
+  proto::Bytes out;
+  mesh::gather_lod_block(sampler, k.chunk, k.seams, block);
+  mesh::mesh_lod_chunk(block, scratch, mesh);
+  proto::encode_lod_mesh(mesh, scratch, codec, out);
+  return out;
+}
+
+TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  Publications pub;
+  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  const auto keys = layout_keys({20.5, 10.5, -40.5});
+  p.set_lod_view(1, keys);
+  ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= keys.size(); }));
+  EXPECT_EQ(p.stats().lod_mesh_count, keys.size());
+  const world::TerrainGenerator generator(kSeed);
+  const world::TerrainSampler sampler(generator);
+  size_t with_surface = 0;
+  for (const LodKey& k : keys) {
+    const MeshVersionPtr v = p.lod_meshes().get(k);
+    ASSERT_TRUE(v);
+    EXPECT_EQ(v->encoding, direct_encoding(sampler, k)) << "level " << k.chunk.level;
+    with_surface += !v->mesh.empty();
+  }
+  EXPECT_GT(with_surface, 4u);
+}
+
+TEST(LodPipeline, AnEditReachesTheCoarseChunksOverItAsAFreshMeshOfTheEditedWorld) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  Publications pub;
+  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  const world::TerrainGenerator generator(kSeed);
+  const float h = generator.height_at(200, -40);  // beyond level 0 (about 64 voxels)
+  const auto keys = layout_keys({20.5, h, -40.5});
+  p.set_lod_view(1, keys);
+  ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= keys.size(); }));
+  const size_t before = keys.size();
+  const auto submitted = Clock::now();
+  ASSERT_TRUE(p.submit(world::Brush{{200, h, -40}, 10, 1.0f, true}).get().accepted);
+  // Every wanted chunk whose samples the edit reached is published again.
+  std::vector<LodKey> over;
+  for (const LodKey& k : keys) {
+    const auto lo = k.chunk.lo();
+    const int64_t step = int64_t{1} << k.chunk.level;
+    if (200 + 12 >= lo[0] - step && 200 - 12 <= lo[0] + 33 * step && h + 12 >= lo[1] - step &&
+        h - 12 <= lo[1] + 33 * step && -40 + 12 >= lo[2] - step && -40 - 12 <= lo[2] + 33 * step)
+      over.push_back(k);
+  }
+  ASSERT_FALSE(over.empty());
+  EXPECT_TRUE(pub.wait([&](const auto& seen) { return seen.size() > before; }, 5s));
+  const auto reached = Clock::now();
+  EXPECT_LT(reached - submitted, 1s) << "a coarse update within a second";
+  std::this_thread::sleep_for(300ms);  // every chunk over it has had its turn
+  p.inspect([&](const world::ChunkMap& map) {
+    world::OverlaySampler::ModifiedSet modified;
+    for (const auto& [c, chunk] : map) modified.insert(c);  // resident ones: as generated or edited
+    const world::OverlaySampler sampler(
+        generator, modified,
+        [&](world::ChunkCoord c) -> const world::Chunk& { return *map.find(c); });
+    size_t changed = 0;
+    for (const LodKey& k : over) {
+      const auto fresh = direct_encoding(sampler, k);
+      EXPECT_EQ(p.lod_meshes().get(k)->encoding, fresh) << "level " << k.chunk.level;
+      changed += fresh != direct_encoding(world::TerrainSampler(generator), k);
+    }
+    EXPECT_GT(changed, 0u) << "the edit shows at a coarse level";
+  });
+}
+
+TEST(LodPipeline, AStormOfEditsRemeshesEachCoarseChunkAtMostOncePerInterval) {
+  PipelineConfig config{.seed = kSeed, .threads = 2};
+  config.lod.remesh_interval = 250ms;
+  WorldPipeline p(config);
+  Publications pub;
+  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  const world::TerrainGenerator generator(kSeed);
+  const float h = generator.height_at(200, 30);
+  const auto keys = layout_keys({0.5, h, 0.5});
+  p.set_lod_view(1, keys);
+  ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= keys.size(); }));
+  const size_t warm = pub.seen.size();
+  std::vector<std::future<EditResult>> results;
+  for (int i = 0; i < 60; ++i) {  // 1.2 s of explosions, one every 20 ms
+    results.push_back(p.submit(world::Explosion{{200.0f + i % 7, h, 30.0f - i % 5}, 6, 2.0f}));
+    std::this_thread::sleep_for(20ms);
+  }
+  for (auto& r : results) r.get();
+  std::this_thread::sleep_for(400ms);
+  std::lock_guard lock(pub.mutex);
+  std::map<std::tuple<int, int, int, int>, std::vector<Clock::time_point>> per_chunk;
+  for (size_t i = warm; i < pub.seen.size(); ++i) {
+    const LodChunk& c = pub.seen[i].first.chunk;
+    per_chunk[{c.level, c.c.x, c.c.y, c.c.z}].push_back(pub.seen[i].second);
+  }
+  ASSERT_FALSE(per_chunk.empty()) << "the storm reached no coarse chunk";
+  size_t republished = 0;
+  for (const auto& [c, times] : per_chunk) {
+    republished += times.size() > 1;
+    for (size_t i = 1; i < times.size(); ++i)
+      EXPECT_GE(times[i] - times[i - 1], 240ms) << "a coarse chunk re-meshed twice in an interval";
+  }
+  EXPECT_GT(republished, 0u) << "a 1.2 s storm re-meshes a chunk more than once";
+}
+
+TEST(LodPipeline, ALeavingOwnersMeshesAreDroppedAtOnce) {
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  Publications pub;
+  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  const auto keys = layout_keys({0.5, 0.5, 0.5});
+  p.set_lod_view(1, keys);
+  p.set_lod_view(2, keys);
+  ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= keys.size(); }));
+  p.drop_view(1);
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(p.stats().lod_mesh_count, keys.size()) << "owner 2 still wants them";
+  const auto dropped = Clock::now();
+  p.drop_view(2);  // before the fix the pipeline slept until its next idle wake (30 s)
+  while (p.stats().lod_mesh_count > 0 && Clock::now() - dropped < 5s)
+    std::this_thread::sleep_for(5ms);
+  EXPECT_EQ(p.stats().lod_mesh_count, 0u);
+  EXPECT_EQ(p.stats().lod_mesh_bytes, 0u);
+  EXPECT_LT(Clock::now() - dropped, 1s);
+}
+
+}  // namespace
+}  // namespace vox::pipeline
