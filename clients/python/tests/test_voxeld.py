@@ -359,6 +359,54 @@ class T5Errors(Case):
                 self.assertEqual(Shared.pb.EditResult.Status.Name(got.status), status, got.reason)
 
 
+class T6LevelOfDetail(Case):
+    """Section 4.10: a view to the horizon, decoded by this client alone."""
+
+    def test_lod_view_is_one_surface_across_levels(self):
+        c = self.connect("lod")
+        w = c.welcome
+        self.assertEqual((w.max_lod_level, w.max_lod_distance), (6, 4.0))
+        view = c.set_view(ORIGIN_VIEW, 1, lod_level=2, lod_distance=1.0)
+        ready = c.wait_view_ready(view, h.VIEW_TIMEOUT)
+        self.assertEqual(ready.lod_chunks_sent, len(c.lod_chunks))
+        self.assertGreater(len(c.lod_chunks), 0)
+        self.assertEqual(ready.chunks_sent, len(c.chunks))
+        levels = {key[0] for key in c.lod_chunks}
+        self.assertEqual(levels, {1, 2})
+        # World positions of every level; edges by exact position (seam vertices are
+        # bit-identical to their twins): open only on the layout's outer box, the 3x3x3
+        # level-2 chunks (128 voxels) around the centre's.
+        uses = {}
+        held = [((0,) + k, v) for k, v in c.chunks.items()]
+        held += list(c.lod_chunks.items())
+        for (level, x, y, z), chunk in held:
+            m, s = chunk.mesh, float(1 << level)
+            p = m.positions
+            pos = [(32 * s * x + p[3 * i] * s, 32 * s * y + p[3 * i + 1] * s,
+                    32 * s * z + p[3 * i + 2] * s) for i in range(m.vertex_count)]
+            idx = m.triangles
+            for t in range(0, len(idx), 3):
+                a, b, d = pos[idx[t]], pos[idx[t + 1]], pos[idx[t + 2]]
+                for e in ((a, b), (b, d), (d, a)):
+                    key = (min(e), max(e))
+                    uses[key] = uses.get(key, 0) + 1
+        lo, hi = -128.0, 256.0
+        inner_open = [e for e, n in uses.items() if n == 1 and not any(
+            e[0][a] == e[1][a] and e[0][a] in (lo, hi) for a in range(3))]
+        self.assertEqual(inner_open[:5], [], "a crack between chunks")
+        # Back to level 0 only: every coarse chunk is unloaded.
+        again = c.set_view(ORIGIN_VIEW, 1)
+        c.wait_view_ready(again, h.VIEW_TIMEOUT)
+        self.assertEqual(c.lod_chunks, {})
+        self.assertGreater(len(c.lod_unloaded), 0)
+
+    def test_lod_limits(self):
+        c = self.connect("lod-limits")
+        c.set_view(ORIGIN_VIEW, 1, lod_level=7)
+        err = c.wait_error()
+        self.assertEqual(err.code, Shared.pb.Error.BAD_VALUE)
+
+
 def big_hello(pb, size):
     """A serialized Envelope(Hello) of exactly `size` bytes (the token pads it)."""
     for pad in range(size - 16, size):

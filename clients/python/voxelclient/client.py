@@ -55,11 +55,13 @@ class Client:
         self.reader = FrameReader(self.sock)
         self.closed = False
         self.welcome = None
-        self.chunks = {}          # coord -> Chunk
+        self.chunks = {}          # coord -> Chunk (level 0)
+        self.lod_chunks = {}      # (level, x, y, z) -> Chunk (levels >= 1, section 4.10)
         self.resyncing = set()    # coords dropped and asked for again
         self.failures = []        # (coord, reason) of payloads that did not apply
         self.received = []        # (coord, version, base_version, payload bytes, content bytes)
-        self.unloaded = []        # coords of every ChunkUnload
+        self.unloaded = []        # coords of every ChunkUnload (level 0)
+        self.lod_unloaded = []    # (level, x, y, z) of every ChunkUnload of a coarser level
         self.view_ready = {}      # view_id -> ViewReady
         self.results = {}         # request_id -> EditResult
         self.result_log = []      # request ids of every EditResult, in arrival order
@@ -89,10 +91,13 @@ class Client:
             raise self.error_exception(self.errors[0])
         return self.welcome
 
-    def set_view(self, position, radius, view_id=None):
+    def set_view(self, position, radius, view_id=None, lod_level=0, lod_distance=0.0):
+        """`lod_level` > 0: a level-of-detail view of levels 0 .. lod_level (section 4.10);
+        coarse chunks land in `lod_chunks`."""
         view_id = next(self._ids) if view_id is None else view_id
         self.send_message(set_view=self.pb.SetView(
-            position=self.vec3(position), radius=radius, view_id=view_id))
+            position=self.vec3(position), radius=radius, view_id=view_id,
+            lod_level=lod_level, lod_distance=lod_distance))
         return view_id
 
     def edit(self, kind, request_id=None, **fields):
@@ -119,12 +124,15 @@ class Client:
     def ping(self, nonce):
         self.send_message(ping=self.pb.Ping(nonce=nonce))
 
-    def resync(self, coords):
+    def resync(self, coords, level=0):
         coords = list(coords)
+        held = self.chunks if level == 0 else self.lod_chunks
         for c in coords:
-            self.chunks.pop(c, None)
-            self.resyncing.add(c)
-        self.send_message(resync=self.pb.Resync(coords=[self.chunk_coord(c) for c in coords]))
+            key = c if level == 0 else (level,) + tuple(c)
+            held.pop(key, None)
+            self.resyncing.add(key)
+        self.send_message(resync=self.pb.Resync(coords=[self.chunk_coord(c) for c in coords],
+                                                level=level))
 
     def vec3(self, v):
         return self.pb.Vec3(x=v[0], y=v[1], z=v[2])
@@ -192,10 +200,12 @@ class Client:
         elif kind == "chunk_mesh":
             self.on_chunk_mesh(env.chunk_mesh)
         elif kind == "chunk_unload":
+            level = env.chunk_unload.level
             for c in map(coord_of, env.chunk_unload.coords):
-                self.chunks.pop(c, None)
-                self.resyncing.discard(c)
-                self.unloaded.append(c)
+                key = c if level == 0 else (level,) + c
+                (self.chunks if level == 0 else self.lod_chunks).pop(key, None)
+                self.resyncing.discard(key)
+                (self.unloaded if level == 0 else self.lod_unloaded).append(key)
         elif kind == "view_ready":
             self.view_ready[env.view_ready.view_id] = env.view_ready
         elif kind == "edit_result":
@@ -208,8 +218,10 @@ class Client:
         # anything else (None: a body this client does not know) is ignored, section 4.1
 
     def on_chunk_mesh(self, msg):
-        c = coord_of(msg.coord)
-        held = self.chunks.get(c)
+        # Level-k chunks (k >= 1) are keyed (k, x, y, z); versions are per key (4.10).
+        c = coord_of(msg.coord) if msg.level == 0 else (msg.level,) + coord_of(msg.coord)
+        store = self.chunks if msg.level == 0 else self.lod_chunks
+        held = store.get(c)
         if msg.base_version != 0 and c in self.resyncing:
             return  # a delta for a chunk we hold no base of: wait for the full copy
         try:
@@ -221,7 +233,7 @@ class Client:
             self._failed(c, str(e))
             return
         self.received.append((c, msg.version, msg.base_version, len(msg.payload), len(encoding)))
-        self.chunks[c] = Chunk(msg.version, encoding, decoded)
+        store[c] = Chunk(msg.version, encoding, decoded)
         self.resyncing.discard(c)
 
     def _apply(self, msg, held):
@@ -239,9 +251,10 @@ class Client:
 
     def _failed(self, c, reason):
         self.failures.append((c, reason))
-        self.chunks.pop(c, None)
+        level, coord = (0, c) if len(c) == 3 else (c[0], c[1:])
+        (self.chunks if level == 0 else self.lod_chunks).pop(c, None)
         if self.auto_resync:
-            self.resync([c])
+            self.resync([coord], level)
         else:
             self.resyncing.add(c)
 
