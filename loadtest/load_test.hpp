@@ -26,6 +26,10 @@
 #include "loadtest/server_sampler.hpp"
 #include "server/auth/player_token.hpp"
 
+namespace vox::client {
+class Client;
+}  // namespace vox::client
+
 namespace vox::loadtest {
 
 // The ground the players walk on: the surface height at voxel column (x, z). The load
@@ -41,6 +45,10 @@ struct LoadConfig {
   double duration_s = 10;
   double edit_rate = 0.5;  // edits per second per player
   uint32_t view_radius = 4;
+  // Level of detail (PROTOCOL 4.10): > 0 views levels 0 .. lod_level, level 0 within
+  // view_radius chunks; coarse chunks are decoded and held like level-0 ones.
+  uint32_t lod_level = 0;
+  float lod_distance = 1.0f;
   double ramp_s = 2;
   uint64_t seed = 1;
   double walk_speed = 1.4;  // voxels per second
@@ -127,6 +135,7 @@ class LoadTest {
   void stop_attackers();
   void tick_progress(std::ostream& progress);
   void verify_all();
+  size_t lod_mismatches(const SimPlayer& p, const client::Client& fresh) const;
   bool all_views_ready() const;  // any thread
   void collect_counters();
   void sample_machine();  // voxeld, this process and the host, once a second

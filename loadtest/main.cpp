@@ -42,10 +42,15 @@ void describe(po::options_description& opts, Options& o) {
                                         po::value<double>(&o.config.edit_rate)->default_value(0.5),
                                         "edits per second per player")(
       "view-radius", po::value<uint32_t>(&o.config.view_radius)->default_value(4),
-      "view radius in chunks")("ramp", po::value<double>(&o.config.ramp_s)->default_value(2),
-                               "seconds over which players join")(
-      "seed", po::value<uint64_t>(&o.config.seed)->default_value(1),
-      "seed of the players' paths and edits")(
+      "view radius in chunks (with --lod-level: how far level 0 reaches)")(
+      "lod-level", po::value<uint32_t>(&o.config.lod_level)->default_value(0),
+      "a level-of-detail view of levels 0..N (6: to 2,048 voxels and more); 0: level 0 only")(
+      "lod-distance", po::value<float>(&o.config.lod_distance)->default_value(1.0f),
+      "with --lod-level: split coarse chunks within this many of their sides")(
+      "ramp", po::value<double>(&o.config.ramp_s)->default_value(2),
+      "seconds over which players join")("seed",
+                                         po::value<uint64_t>(&o.config.seed)->default_value(1),
+                                         "seed of the players' paths and edits")(
       "spawn-area", po::value<double>(&o.config.spawn_area)->default_value(0),
       "players live within +-this many voxels of the origin; 0 = grow with --players at the "
       "density of 50 in +-96")("threads", po::value<int>(&o.config.threads)->default_value(0),
@@ -110,10 +115,12 @@ std::optional<int> check_limits(const po::variables_map& vm, Options& o) {
 std::optional<int> check(const po::variables_map& vm, Options& o) {
   const auto& c = o.config;
   if (c.players < 1 || c.players > 10000 || !(c.duration_s > 0) || !(c.edit_rate > 0) ||
-      !(c.ramp_s >= 0) || c.view_radius > 64 || !(c.spawn_area >= 0) || c.spawn_area > 1e6 ||
-      c.threads < 0 || c.threads > 64) {
+      !(c.ramp_s >= 0) || c.view_radius > 64 || c.lod_level > 20 || !(c.lod_distance >= 1) ||
+      c.lod_distance > 64 || !(c.spawn_area >= 0) || c.spawn_area > 1e6 || c.threads < 0 ||
+      c.threads > 64) {
     return usage(
         "--players 1..10000, --duration > 0, --edit-rate > 0, --ramp >= 0, --view-radius <= 64, "
+        "--lod-level <= 20, --lod-distance 1..64, "
         "--spawn-area 0..1e6, --threads 0..64");
   }
   if (vm.count("attack")) {

@@ -170,6 +170,8 @@ void SimPlayer::read_more() {
 }
 
 bool SimPlayer::in_view(const ChunkKey& k) const {
+  // A LOD view's level 0 is its layout's level-0 chunks: those the player holds.
+  if (test_.config().lod_level > 0) return cache_.chunks().count(k) > 0;
   const int64_t dx = std::get<0>(k) - std::get<0>(view_chunk_),
                 dy = std::get<1>(k) - std::get<1>(view_chunk_),
                 dz = std::get<2>(k) - std::get<2>(view_chunk_);
@@ -195,6 +197,10 @@ void SimPlayer::on_message(const wire::Envelope& m) {
       on_chunk_mesh(m.chunk_mesh());
       break;
     case wire::Envelope::kChunkUnload:
+      if (m.chunk_unload().level() > 0) {
+        lod_cache_[m.chunk_unload().level()].forget(m.chunk_unload());
+        break;
+      }
       cache_.forget(m.chunk_unload());
       for (auto& [id, p] : pending_) {
         for (const auto& c : m.chunk_unload().coords()) p.waiting.erase({c.x(), c.y(), c.z()});
@@ -243,6 +249,7 @@ void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
     fail("decode failure: " + *error, false);
     return;
   }
+  if (m.level() > 0) return;  // edit -> delta is measured on level 0
   const double now = test_.now_s();
   const ChunkKey k = client::key_of(m.coord());
   for (auto it = pending_.begin(); it != pending_.end();) {
@@ -260,6 +267,10 @@ void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
 // are a version another player already decoded (DecodeMemo).
 std::optional<std::string> SimPlayer::apply_mesh(const wire::ChunkMesh& m) {
   DecodeScratch& d = decode_scratch();
+  if (m.level() > 0) {  // coarse chunks: decoded every time (the memo is keyed by level-0 coords)
+    if (m.level() > 20) return "a chunk of level " + std::to_string(m.level());
+    return lod_cache_[m.level()].apply(m, d.zstd, d.scratch, d.decoded);
+  }
   if (auto error = cache_.expand(m, d.zstd, d.expanded)) return error;
   const std::span<const uint8_t> encoding(d.expanded.data(), d.expanded.size());
   const ChunkKey key = client::key_of(m.coord());
@@ -284,6 +295,9 @@ void SimPlayer::send_view() {
   v.mutable_set_view()->mutable_position()->set_y(y_);
   v.mutable_set_view()->mutable_position()->set_z(z_);
   v.mutable_set_view()->set_radius(radius_);
+  v.mutable_set_view()->set_lod_level(test_.config().lod_level);
+  if (test_.config().lod_level > 0)
+    v.mutable_set_view()->set_lod_distance(test_.config().lod_distance);
   v.mutable_set_view()->set_view_id(views_sent_.load(std::memory_order_relaxed) + 1);
   views_sent_.fetch_add(1, std::memory_order_release);
   view_position_ = {x_, y_, z_};

@@ -26,6 +26,8 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   std::array<float, 3> position() const;  // from any thread
   std::array<float, 3> view_position() const { return view_position_; }
   const client::ChunkCache& cache() const { return cache_; }
+  // Level-k chunks held (k >= 1); only while the event loop is not running.
+  const std::map<uint32_t, client::ChunkCache>& lod_caches() const { return lod_cache_; }
   uint32_t radius() const { return radius_; }
   // True once the server said the newest view is complete (ViewReady); any thread.
   // A player whose connection closed has no view to wait for.
@@ -80,7 +82,8 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   std::atomic<bool> gone_{false};        // the connection closed
   uint64_t next_request_ = 1;
   std::map<uint64_t, PendingEdit> pending_;
-  client::ChunkCache cache_;
+  client::ChunkCache cache_;                          // level 0
+  std::map<uint32_t, client::ChunkCache> lod_cache_;  // levels >= 1 (a LOD view)
 };
 
 }  // namespace vox::loadtest
