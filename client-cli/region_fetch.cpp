@@ -16,7 +16,9 @@ std::unique_ptr<client::Client> fetch_region(const ServerAccess& server, const s
   constexpr uint64_t kViewId = 1;
   c->send(client::make_set_view(at[0], at[1], at[2], radius, kViewId, lod_level, lod_distance));
   c->receive_view(kViewId, timeout);
-  if (c->chunks().empty()) throw std::runtime_error("no surface around that point");
+  bool any = !c->chunks().empty();
+  for (uint32_t level = 1; level <= lod_level; ++level) any = any || !c->lod_chunks(level).empty();
+  if (!any) throw std::runtime_error("no surface around that point");
   return c;
 }
 

@@ -164,7 +164,11 @@ int main(int argc, char** argv) {
       "evict-after", po::value<long>(&evict_after_s)->default_value(120),
       "seconds before an unused chunk (unmodified, or checkpointed) is evicted")(
       "max-view-radius", po::value<uint32_t>(&net.max_view_radius)->default_value(12),
-      "largest view radius in chunks")("idle-timeout-ms",
+      "largest view radius in chunks")(
+      "max-lod-level", po::value<uint32_t>(&net.max_lod_level)->default_value(6),
+      "coarsest level of detail a view may ask for (0: none; level 6 chunks are 2,048 voxels)")(
+      "max-lod-distance", po::value<float>(&net.max_lod_distance)->default_value(2.0f),
+      "largest SetView.lod_distance (1..4; larger: more coarse chunks per view)")("idle-timeout-ms",
                                        po::value<long>(&idle_ms)->default_value(60000),
                                        "disconnect clients silent this long")(
       "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000),
@@ -196,8 +200,10 @@ int main(int argc, char** argv) {
       write_ms <= 0 || frame_ms <= 0 || evict_after_s < 1 || metrics_port > 65535 ||
       !(checkpoint_s >= 0.01 && checkpoint_s <= 86400) ||
       (vm.count("metrics-port") && metrics_port < 0) || net.max_view_radius > 32 ||
+      net.max_lod_level > 6 || !(net.max_lod_distance >= 1.0f && net.max_lod_distance <= 4.0f) ||
       net.max_clients < 1 || net.max_handshaking < 1) {
     std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, "
+                 "--max-lod-level <= 6, --max-lod-distance 1..4, "
                  "--max-clients >= 1, "
                  "--max-handshaking >= 1, timeouts > 0, --checkpoint-interval 0.01..86400\n";
     return 2;

@@ -122,6 +122,23 @@ TEST(LodRemeshQueue, PastItsBoundTheCoarsestChunksAreDroppedAndCounted) {
   EXPECT_TRUE(
       std::all_of(taken.begin(), taken.end(), [](const LodChunk& c) { return c.level <= 2; }));
   EXPECT_FALSE(queue.next_due().has_value());
+  EXPECT_EQ(queue.take_dropped().size(), queue.dropped()) << "the caller drops their meshes";
+  EXPECT_TRUE(queue.take_dropped().empty());
+}
+
+// Under a steady stream of edits near the eye, a coarse chunk that fell due earlier is
+// not passed over by finer ones marked after it (it was: finest first starved level 2+).
+TEST(LodRemeshQueue, DueChunksAreTakenInTheOrderTheyFellDueSoNoLevelStarves) {
+  LodRemeshQueue queue(4, 250ms, 1000);
+  const Clock::time_point t0{std::chrono::seconds(10)};
+  const auto coarse_only = [](const LodChunk& c) { return c.level == 3; };
+  queue.mark({{5000, 0, 0}, {5000, 0, 0}}, t0, coarse_only);
+  for (int i = 1; i <= 50; ++i)
+    queue.mark({{i * 70, 0, 0}, {i * 70, 0, 0}}, t0 + i * 1ms,
+               [](const LodChunk& c) { return c.level == 1; });
+  const auto first = queue.take_due(t0 + 60ms, 1);
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_EQ(first[0].level, 3);
 }
 
 }  // namespace

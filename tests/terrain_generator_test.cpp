@@ -92,6 +92,36 @@ TEST(TerrainGenerator, ColumnsAndGridsOfPointsEqualPointSamples) {
   }
 }
 
+// Grids wholly in the sky or in deep rock are filled without heights: still bit for bit
+// the point samples, right up to the bounds (the hills' extremes over many columns).
+TEST(TerrainGenerator, GridsInTheSkyOrDeepRockEqualPointSamples) {
+  for (const uint64_t seed : {1u, 9u}) {
+    const TerrainGenerator gen(seed);
+    const TerrainSampler sampler(gen);
+    float lowest = 1e9f, highest = -1e9f;
+    for (int z = -4000; z <= 4000; z += 37)
+      for (int x = -4000; x <= 4000; x += 41) {
+        lowest = std::min(lowest, gen.height_at(x, z));
+        highest = std::max(highest, gen.height_at(x, z));
+      }
+    // Every y from well below the lowest hill minus the cave band to well above the top.
+    for (int y0 = static_cast<int>(lowest) - 200; y0 <= static_cast<int>(highest) + 60; y0 += 7) {
+      for (const int step : {1, 4, 16}) {
+        const std::array<int32_t, 3> origin{-301, y0, 977};
+        const std::array<int, 3> n{3, 3, 3};
+        std::vector<Sample> grid(27);
+        sampler.sample_grid(origin, step, n, grid.data());
+        for (int k = 0; k < 3; ++k)
+          for (int j = 0; j < 3; ++j)
+            for (int i = 0; i < 3; ++i)
+              ASSERT_EQ(grid[static_cast<size_t>(i + 3 * (j + 3 * k))],
+                        gen.sample_at(origin[0] + step * i, y0 + step * j, origin[2] + step * k))
+                  << "seed " << seed << " y " << y0 << " step " << step;
+      }
+    }
+  }
+}
+
 TEST(TerrainGenerator, SkyAndDeepRockAreUniform) {
   const TerrainGenerator gen(9);
   const Chunk sky = gen.generate({0, 10, 0});

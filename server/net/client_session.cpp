@@ -315,7 +315,7 @@ void ClientSession::append_view_ready(std::vector<uint8_t>& out) {
 }
 
 void ClientSession::pump() {
-  if (writing_ || !socket_.is_open()) return;
+  if (writing_ || applying_view_ || !socket_.is_open()) return;
   write_buffer_.clear();
   write_edits_.clear();
   size_t messages = 0;
@@ -329,7 +329,7 @@ void ClientSession::pump() {
     while (write_buffer_.size() < config_.max_bytes_in_flight && append_next_mesh(write_buffer_)) {
       ++messages;
     }
-    // Coarser levels after every level-0 mesh due (updates of held chunks first).
+    // Coarser levels after every level-0 mesh due (PROTOCOL 4.10), nearest first.
     while (write_buffer_.size() < config_.max_bytes_in_flight &&
            append_next_lod_mesh(write_buffer_)) {
       ++messages;

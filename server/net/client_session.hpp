@@ -44,7 +44,7 @@ struct ServerConfig {
   // Level of detail (SetView.lod_level, lod_distance): the coarsest level a view may ask
   // for (at most the pipeline's lod.levels - 1; 0: none) and the largest split distance.
   uint32_t max_lod_level = 6;
-  float max_lod_distance = 4.0f;
+  float max_lod_distance = 2.0f;
   size_t max_frame_bytes = 64 * 1024;       // largest client frame accepted
   size_t max_bytes_in_flight = 256 * 1024;  // per session, in one write
   // Queued results/errors before a client counts as not reading.
@@ -192,6 +192,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   auth::Role role_ = auth::Role::kPlayer;
   bool closing_ = false;
   bool writing_ = false;
+  bool applying_view_ = false;  // apply_view() in progress: pump() waits for its end
   size_t edits_in_flight_ = 0;  // submitted, result not yet queued
   static constexpr size_t kMaxRegionCommandsInFlight = 16;
   size_t region_commands_in_flight_ = 0;           // sent to the pipeline, not yet answered
@@ -202,11 +203,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
 
   SendScheduler scheduler_;
   // Level of detail: the client's layout (none: a level-0 view), what it holds of levels
-  // >= 1, the layout's level-0 chunks, and the two halves of the view-complete marker.
+  // >= 1, and the two halves of the view-complete marker.
   std::optional<world::LodView> lod_view_;
   world::LodSettings lod_settings_;
   LodSendQueue lod_queue_;
-  std::shared_ptr<const std::set<world::ChunkCoord>> lod_level0_;
   std::atomic<bool> lod_active_{false};
   std::optional<SendScheduler::ViewComplete> level0_done_;
   std::optional<LodSendQueue::Complete> lod_done_;

@@ -6,6 +6,8 @@ namespace vox::net {
 
 using world::LodChunk;
 
+bool LodSendQueue::resolved(const Held& h) { return h.version && h.version_seams == h.seams; }
+
 void LodSendQueue::queue(const LodChunk& c, Held& h) {
   if (h.queued) return;
   h.queued = true;
@@ -21,14 +23,17 @@ std::vector<LodChunk> LodSendQueue::apply(const world::LodViewChange& change,
     const auto it = chunks_.find(c);
     if (it == chunks_.end()) continue;
     if (it->second.sent) unloaded.push_back(c);
-    if (!it->second.version) --unresolved_;
+    if (!resolved(it->second)) --unresolved_;
     chunks_.erase(it);
   }
   for (const auto& [c, seams] : change.send) {
     if (c.level < 1) continue;  // level 0 goes through the SendScheduler
     auto [it, inserted] = chunks_.try_emplace(c);
-    if (inserted) ++unresolved_;
+    const bool was = !inserted && resolved(it->second);
     it->second.seams = world::normalized(seams);
+    // New, or new seams: unresolved until the mesh with these seams is recorded.
+    if (inserted || (was && !resolved(it->second))) ++unresolved_;
+    if (!inserted && !was && resolved(it->second)) --unresolved_;  // back to the held seams
   }
   heap_.clear();
   for (auto& [c, h] : chunks_) {
@@ -50,7 +55,7 @@ bool LodSendQueue::resync(const LodChunk& c) {
   const auto it = chunks_.find(c);
   if (it == chunks_.end()) return false;
   Held& h = it->second;
-  if (h.version) ++unresolved_;
+  if (resolved(h)) ++unresolved_;
   h.version = nullptr;
   h.sent = false;
   h.wire_version = 0;
@@ -82,10 +87,11 @@ std::optional<LodSendQueue::Send> LodSendQueue::next(const Lookup& lookup) {
     h.queued = false;
     pipeline::MeshVersionPtr v = lookup({c, h.seams});
     if (!v || v == h.version) continue;  // not meshed yet (marked when it is), or held
-    if (!h.version) --unresolved_;
+    if (!resolved(h)) --unresolved_;
     const pipeline::MeshVersionPtr base = h.sent ? h.version : nullptr;
     h.version = v;
-    if (!h.sent && !h.resync && v->mesh.empty()) continue;  // nothing to show yet
+    h.version_seams = h.seams;
+    if (!h.sent && !h.resync && v->triangles == 0) continue;  // nothing to show yet
     Send s{c, std::move(v), base, next_wire_version_++, base ? h.wire_version : 0};
     h.wire_version = s.wire_version;
     h.sent = true;

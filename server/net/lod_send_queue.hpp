@@ -48,8 +48,8 @@ class LodSendQueue {
   // without triangles is recorded, not sent. nullopt when nothing is left.
   std::optional<Send> next(const Lookup& lookup);
 
-  // Once after each apply() (or the first mark after one), when every chunk of the layout
-  // has been sent or found empty.
+  // Once after each apply(), when every chunk of the layout has been sent, with the seams
+  // it needs now, or found empty.
   struct Complete {
     uint32_t sent = 0, empty = 0;
   };
@@ -59,20 +59,23 @@ class LodSendQueue {
 
  private:
   struct Held {
-    world::LodSeams seams;
+    world::LodSeams seams;             // wanted
     pipeline::MeshVersionPtr version;  // recorded (null: nothing yet)
+    world::LodSeams version_seams;     // the seams of `version`
     uint64_t wire_version = 0;         // of the mesh the client holds (0: none)
     double distance = 0;
     bool sent = false, queued = false, resync = false;
   };
   using Entry = std::pair<std::pair<double, int>, world::LodChunk>;  // (distance, level), chunk
   void queue(const world::LodChunk& c, Held& h);
+  // The client holds (or was found empty) the mesh of the seams it needs now.
+  static bool resolved(const Held& h);
 
   std::map<world::LodChunk, Held> chunks_;
   std::vector<Entry> heap_;  // min-heap; entries of chunks no longer queued are skipped
   std::array<double, 3> eye_{};
   uint64_t next_wire_version_ = 1;
-  size_t unresolved_ = 0;  // chunks with no version recorded
+  size_t unresolved_ = 0;  // chunks not resolved()
   bool announced_ = true;
 };
 

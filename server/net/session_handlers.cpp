@@ -206,6 +206,9 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
 }
 
 void ClientSession::apply_view(const PendingView& v) {
+  // Unloads queued on the way must not pump: a pump between here and the scheduler's
+  // new view could take the old view's completion for this one's.
+  applying_view_ = true;
   view_id_ = v.view_id;
   level0_done_.reset();
   lod_done_.reset();
@@ -226,6 +229,7 @@ void ClientSession::apply_view(const PendingView& v) {
   // The pipeline loads what is missing (this view replaces the session's previous one);
   // newly published meshes arrive through on_chunks_published.
   pipeline_.set_view(id_, v.center, r, std::hash<std::string>{}(address_) | 1, keep);  // never 0
+  applying_view_ = false;
   update_memory();
   pump();
 }
@@ -245,7 +249,7 @@ void ClientSession::handle_resync(const wire::Resync& resync) {
   if (resync.coords_size() > 1) message_budget_.charge(resync.coords_size() - 1, Clock::now());
   if (!scheduler_.has_view()) return;
   size_t queued = 0;
-  const int level = static_cast<int>(std::min<uint32_t>(resync.level(), 64));
+  const int level = static_cast<int>(std::min<uint32_t>(resync.level(), config_.max_lod_level + 1));
   for (const auto& c : resync.coords()) {
     queued += level == 0 ? scheduler_.resync(from_wire(c))
                          : lod_queue_.resync(world::LodChunk{level, from_wire(c)});

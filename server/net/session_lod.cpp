@@ -77,7 +77,6 @@ int ClientSession::apply_lod_view(const PendingView& v, std::function<bool(Chunk
     const int64_t dx = c.c.x - v.center.x, dy = c.c.y - v.center.y, dz = c.c.z - v.center.z;
     r2 = std::max(r2, dx * dx + dy * dy + dz * dz);
   }
-  lod_level0_ = level0;
   keep = [level0](ChunkCoord c) { return level0->count(c) > 0; };
   lod_active_.store(true, std::memory_order_relaxed);
   pipeline_.set_lod_view(id_, lod_queue_.wants());
@@ -93,7 +92,6 @@ void ClientSession::drop_lod_view() {
   queue_lod_unload(lod_queue_.apply(gone, {}));
   lod_queue_.clear();
   lod_view_.reset();
-  lod_level0_.reset();
   lod_active_.store(false, std::memory_order_relaxed);
   pipeline_.set_lod_view(id_, {});
 }

@@ -1,5 +1,6 @@
 #include "server/pipeline/lod_remesh_queue.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace vox::pipeline {
@@ -41,10 +42,16 @@ void LodRemeshQueue::mark(const world::VoxelBox& changed, Clock::time_point now,
   std::vector<world::LodChunk> chunks;
   affected(changed, chunks);
   for (const world::LodChunk& c : chunks) {
-    if (viewed(c)) pending_.insert(c);
+    if (!viewed(c) || pending_.count(c)) continue;
+    const Clock::time_point due = std::max(now, due_time(c));
+    pending_.emplace(c, due);
+    by_due_.insert({due, c});
   }
   while (pending_.size() > max_pending_) {  // the coarsest go first
-    pending_.erase(std::prev(pending_.end()));
+    const auto last = std::prev(pending_.end());
+    by_due_.erase({last->second, last->first});
+    dropped_chunks_.push_back(last->first);
+    pending_.erase(last);
     ++dropped_;
   }
   if (last_taken_.size() > 2 * max_pending_) forget_old_takes(now);
@@ -52,34 +59,37 @@ void LodRemeshQueue::mark(const world::VoxelBox& changed, Clock::time_point now,
 
 LodRemeshQueue::Clock::time_point LodRemeshQueue::due_time(const world::LodChunk& c) const {
   const auto it = last_taken_.find(c);
-  return it == last_taken_.end() ? Clock::time_point::min() : it->second + interval_;
+  return it == last_taken_.end() ? Clock::time_point{} : it->second + interval_;
 }
 
 std::vector<world::LodChunk> LodRemeshQueue::take_due(Clock::time_point now, size_t max) {
   std::vector<world::LodChunk> out;
-  for (auto it = pending_.begin(); it != pending_.end() && out.size() < max;) {
-    if (due_time(*it) > now) {
-      ++it;
-      continue;
-    }
-    out.push_back(*it);
-    last_taken_[*it] = now;
-    it = pending_.erase(it);
+  while (!by_due_.empty() && out.size() < max && by_due_.begin()->first <= now) {
+    const world::LodChunk c = by_due_.begin()->second;
+    by_due_.erase(by_due_.begin());
+    pending_.erase(c);
+    out.push_back(c);
+    last_taken_[c] = now;
   }
   return out;
 }
 
 std::optional<LodRemeshQueue::Clock::time_point> LodRemeshQueue::next_due() const {
-  std::optional<Clock::time_point> earliest;
-  for (const world::LodChunk& c : pending_) {
-    const Clock::time_point t = due_time(c);
-    if (!earliest || t < *earliest) earliest = t;
-  }
-  return earliest;
+  if (by_due_.empty()) return std::nullopt;
+  return by_due_.begin()->first;
+}
+
+std::vector<world::LodChunk> LodRemeshQueue::take_dropped() {
+  std::vector<world::LodChunk> out;
+  out.swap(dropped_chunks_);
+  return out;
 }
 
 void LodRemeshQueue::forget(const world::LodChunk& c) {
-  pending_.erase(c);
+  if (const auto it = pending_.find(c); it != pending_.end()) {
+    by_due_.erase({it->second, c});
+    pending_.erase(it);
+  }
   last_taken_.erase(c);
 }
 

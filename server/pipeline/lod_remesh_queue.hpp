@@ -9,9 +9,11 @@
 // - A chunk is re-meshed at most once per interval: marked again before its interval has
 //   passed since it was last taken, it waits until then, and many marks make one re-mesh.
 //   So an explosion storm does not re-mesh the horizon every batch, and an edit reaches
-//   every level within one interval (plus the re-mesh itself).
+//   every level within one interval (plus the re-mesh itself). Due chunks are taken in
+//   the order they fell due (finest first between equals), so no level starves another.
 // - At most max_pending chunks wait; past that the coarsest are dropped first (whoever
-//   views them gets a fresh mesh on the next change or view), and `dropped` counts them.
+//   views them gets a fresh mesh: the caller drops their meshes, take_dropped()), and
+//   `dropped` counts them.
 //
 // One thread at a time (the pipeline thread).
 #pragma once
@@ -43,10 +45,13 @@ class LodRemeshQueue {
   void mark(const world::VoxelBox& changed, Clock::time_point now,
             const std::function<bool(const world::LodChunk&)>& viewed);
   // Takes up to `max` chunks that are due at `now` (marked, and not taken within the
-  // interval), finest level first, and notes them taken at `now`.
+  // interval), the earliest due first (finest first between equals), and notes them taken
+  // at `now`.
   std::vector<world::LodChunk> take_due(Clock::time_point now, size_t max);
-  // When the earliest waiting chunk is due; none when nothing waits.
+  // When the earliest waiting chunk is due; none when nothing waits. O(1).
   std::optional<Clock::time_point> next_due() const;
+  // The chunks dropped since the last call (past max_pending): their meshes are stale.
+  std::vector<world::LodChunk> take_dropped();
   // Forgets a chunk nobody views any more (pending or not).
   void forget(const world::LodChunk& c);
 
@@ -60,7 +65,9 @@ class LodRemeshQueue {
   int levels_;
   Clock::duration interval_;
   size_t max_pending_;
-  std::set<world::LodChunk> pending_;  // ordered: finest level first
+  std::map<world::LodChunk, Clock::time_point> pending_;  // -> due; ordered: finest first
+  std::set<std::pair<Clock::time_point, world::LodChunk>> by_due_;  // the same, by due time
+  std::vector<world::LodChunk> dropped_chunks_;
   std::map<world::LodChunk, Clock::time_point> last_taken_;
   uint64_t dropped_ = 0;
 };

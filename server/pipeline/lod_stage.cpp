@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <stdexcept>
 
 #include "proto/mesh_codec.hpp"
@@ -31,6 +32,10 @@ namespace {
 
 // Keys an owner gets per round-robin turn.
 constexpr size_t kOwnerTurn = 4;
+// Evicted modified chunks one pass reads back from the store at most, and how long after a
+// failed read the stage waits before trying again.
+constexpr size_t kStoreReadsPerPass = 32;
+constexpr auto kStoreRetry = std::chrono::seconds(1);
 
 // The level-0 chunks whose samples a mesh of `c` reads: its padded block and seams span
 // voxels [lo - 2^k, lo + 33 * 2^k].
@@ -121,9 +126,18 @@ void LodStage::edited(const world::VoxelBox& box, Clock::time_point now) {
 }
 
 bool LodStage::has_work(Clock::time_point now) const {
-  if (missing_ && !owners_.empty()) return true;
+  if (now < store_retry_at_) return false;  // the store failed a read: not before then
+  if ((missing_ && !owners_.empty()) || !retry_.empty()) return true;
   const auto due = remesh_.next_due();
   return due && *due <= now;
+}
+
+std::optional<Clock::time_point> LodStage::next_due() const {
+  std::optional<Clock::time_point> due = remesh_.next_due();
+  if ((missing_ && !owners_.empty()) || !retry_.empty())
+    due = due ? std::min(*due, store_retry_at_) : store_retry_at_;
+  if (due && *due < store_retry_at_) due = store_retry_at_;
+  return due;
 }
 
 void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
@@ -157,7 +171,8 @@ void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
   if (out.size() < max) missing_ = false;  // every owner's keys are published or taken
 }
 
-bool LodStage::make_resident(const LodChunk& c, Clock::time_point now) {
+LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point now,
+                                           size_t& reads_left) {
   const auto [lo, hi] = footprint(c);
   std::vector<ChunkCoord> missing;
   const int64_t box =
@@ -173,36 +188,67 @@ bool LodStage::make_resident(const LodChunk& c, Clock::time_point now) {
     for (const ChunkCoord m : modified_)
       if (within(m, lo, hi)) look(m);
   }
+  std::erase_if(missing, [&](ChunkCoord m) {
+    if (state_.stored.count(m)) return false;
+    modified_.erase(m);  // generated terrain: nothing to lay over it
+    return true;
+  });
+  if (missing.size() > reads_left) {
+    reads_left = 0;  // later passes read the rest (a pass never stalls on the store)
+    return Resident::kLater;
+  }
   for (const ChunkCoord m : missing) {
-    if (!state_.stored.count(m)) {
-      modified_.erase(m);  // generated terrain: nothing to lay over it
-      continue;
-    }
     try {
       state_.load_stored(m, now);
+      --reads_left;
     } catch (const std::exception& e) {
       if (!store_failing_)
-        spdlog::error("lod: cannot read chunk ({},{},{}) from the store: {}", m.x, m.y, m.z,
-                      e.what());
+        spdlog::error("lod: cannot read chunk ({},{},{}) from the store: {}; coarse meshes over it "
+                      "wait",
+                      m.x, m.y, m.z, e.what());
       store_failing_ = true;
-      return false;
+      return Resident::kFailed;
     }
   }
   store_failing_ = false;
-  return true;
+  return Resident::kReady;
 }
 
 std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
+  if (now < store_retry_at_) return {};
+  // Chunks the re-mesh queue dropped: their meshes are stale, mesh them afresh.
+  for (const LodChunk& c : remesh_.take_dropped()) {
+    if (const auto v = variants_.find(c); v != variants_.end())
+      for (const world::LodSeams s : v->second) meshes_.erase({c, s});
+    missing_ = true;
+  }
+  std::vector<LodChunk> chunks;
+  chunks.swap(retry_);  // put off by the store first
+  std::sort(chunks.begin(), chunks.end());
+  chunks.erase(std::unique(chunks.begin(), chunks.end()), chunks.end());
+  if (chunks.size() < max_chunks) {
+    for (const LodChunk& c : remesh_.take_due(now, max_chunks - chunks.size())) chunks.push_back(c);
+  }
   std::vector<LodKey> keys;
-  for (const LodChunk& c : remesh_.take_due(now, max_chunks)) {
+  for (const LodChunk& c : chunks) {
     const auto v = variants_.find(c);
     if (v == variants_.end()) continue;
     for (const world::LodSeams s : v->second) keys.push_back({c, s});
   }
   if (keys.size() < max_chunks) take_missing(max_chunks, keys);
-  std::erase_if(keys, [&](const LodKey& k) { return !make_resident(k.chunk, now); });
-  if (keys.empty()) return {};
-  return mesh_and_publish(keys);
+  size_t reads_left = kStoreReadsPerPass;
+  std::vector<LodKey> ready;
+  for (const LodKey& k : keys) {
+    const Resident r = make_resident(k.chunk, now, reads_left);
+    if (r == Resident::kReady) {
+      ready.push_back(k);
+      continue;
+    }
+    retry_.push_back(k.chunk);  // whether a re-mesh or a missing mesh: all its variants
+    if (r == Resident::kFailed) store_retry_at_ = now + kStoreRetry;
+  }
+  if (ready.empty()) return {};
+  return mesh_and_publish(ready);
 }
 
 std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) {
@@ -213,22 +259,31 @@ std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) 
         return *chunk;
       });
   std::vector<std::shared_ptr<MeshVersion>> fresh(keys.size());
+  std::atomic<size_t> failed{0};
   state_.arena.execute([&] {
     tbb::parallel_for(size_t{0}, keys.size(), [&](size_t i) {
       LodWorker& w = *workers_.local();
       const LodKey& k = keys[i];
-      mesh::gather_lod_block(sampler, k.chunk, k.seams, w.block);
+      try {
+        mesh::gather_lod_block(sampler, k.chunk, k.seams, w.block);
+      } catch (const std::exception& e) {  // a coordinate out of range, a lookup failing
+        failed.fetch_add(1, std::memory_order_relaxed);
+        return;
+      }
       mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
       auto v = std::make_shared<MeshVersion>();
       v->coord = k.chunk.c;
       proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
       const MeshVersionPtr old = meshes_.get(k);
       if (old && old->encoding == v->encoding) return;  // unchanged
-      v->mesh = w.mesh;
+      v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
       w.zstd.compress(v->encoding, {}, v->full_frame);
       fresh[i] = std::move(v);
     });
   });
+  if (failed.load() > 0)
+    spdlog::error("lod: {} coarse chunks could not be sampled; they stay unpublished",
+                  failed.load());
   std::vector<LodKey> published;
   for (size_t i = 0; i < keys.size(); ++i) {
     if (!fresh[i]) continue;

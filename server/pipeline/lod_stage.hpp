@@ -59,9 +59,11 @@ class LodStage {
   void edited(const world::VoxelBox& box, Clock::time_point now);
   // Whether run() has something to do now, and when a re-mesh falls due.
   bool has_work(Clock::time_point now) const;
-  std::optional<Clock::time_point> next_due() const { return remesh_.next_due(); }
-  // Meshes up to `max_chunks` meshes (re-meshes due first, then missing ones, the owners
-  // round robin) in parallel; publishes those that changed; returns their keys.
+  std::optional<Clock::time_point> next_due() const;
+  // Meshes up to `max_chunks` meshes (those the store put off, then re-meshes due, then
+  // missing ones, the owners round robin) in parallel; publishes those that changed;
+  // returns their keys. Reads at most 32 evicted chunks back from the store per pass;
+  // after a failed read, does nothing for a second.
   std::vector<LodKey> run(Clock::time_point now, size_t max_chunks);
 
   size_t wanted() const { return refs_.size(); }
@@ -75,8 +77,10 @@ class LodStage {
   void want(const LodKey& k);
   void unwant(const LodKey& k);
   void take_missing(size_t max, std::vector<LodKey>& out);
-  // Makes the modified chunks a mesh of `c` reads resident; false when the store fails.
-  bool make_resident(const world::LodChunk& c, Clock::time_point now);
+  // Makes the modified chunks a mesh of `c` reads resident, reading at most `reads_left`
+  // from the store (kLater: more than that are needed; kFailed: the store failed).
+  enum class Resident { kReady, kLater, kFailed };
+  Resident make_resident(const world::LodChunk& c, Clock::time_point now, size_t& reads_left);
   std::vector<LodKey> mesh_and_publish(const std::vector<LodKey>& keys);
 
   const world::TerrainGenerator& generator_;
@@ -95,7 +99,9 @@ class LodStage {
   uint64_t next_version_ = 1;
   tbb::enumerable_thread_specific<std::unique_ptr<LodWorker>> workers_;
   size_t next_owner_ = 0;  // round robin
-  bool store_failing_ = false;
+  bool store_failing_ = false;                // a read failed (logged once)
+  Clock::time_point store_retry_at_{};        // after a failed read: not before this
+  std::vector<world::LodChunk> retry_;        // put off by the store: meshed first next time
 };
 
 }  // namespace vox::pipeline

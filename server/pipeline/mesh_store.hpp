@@ -20,7 +20,8 @@ namespace vox::pipeline {
 struct MeshVersion {
   world::ChunkCoord coord;
   uint64_t version = 0;             // increases with every publication (so also per chunk)
-  mesh::ChunkMesh mesh;             // chunk-local positions
+  mesh::ChunkMesh mesh;             // chunk-local positions (level of detail: not kept)
+  uint32_t triangles = 0;           // of the mesh (a level-of-detail version has only this)
   std::vector<uint8_t> encoding;    // the wire encoding (docs/PROTOCOL.md section 2)
   std::vector<uint8_t> full_frame;  // zstd frame of `encoding`: a full ChunkMesh payload
   // When the oldest edit this version shows was submitted to the pipeline; the epoch when

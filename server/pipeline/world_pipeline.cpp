@@ -274,8 +274,9 @@ void WorldPipeline::run() {
         if ((store_read_failing_ && !waiting_meshes_.empty()) || regions_doubtful_)
           wait = std::min(
               wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
-        // A coarse chunk's re-mesh falls due.
-        if (const auto due = lod_->next_due())
+        // A coarse chunk's re-mesh falls due (while a batch waits for the store, its
+        // landing wakes us: the stage does not run before).
+        if (const auto due = lod_->next_due(); due && pending_.empty())
           wait = std::min(wait, std::chrono::ceil<std::chrono::milliseconds>(
                                     std::max(Clock::duration::zero(), *due - Clock::now())));
         queue_cv_.wait_for(lock, wait);

@@ -385,7 +385,7 @@ class WorldPipeline {
   const MemoryBudget budget_;
   MeshStore meshes_;
 
-  // Guards scheduler_, stopping_, view_updates_ and generated_ready_. Held while taking
+  // Guards scheduler_, stopping_, view_updates_, lod_updates_ and generated_ready_. Held while taking
   // loads, it may nest the prefetcher's (leaf) mutex, never the other way round.
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
@@ -412,6 +412,10 @@ class WorldPipeline {
   // Level-of-detail views set or dropped since the last batch (empty: dropped); under
   // queue_mutex_.
   std::unordered_map<LoadOwner, std::vector<LodKey>> lod_updates_;
+  // Since when the stage had work but a batch waiting for the store held it back
+  // (pipeline thread); past kLodStarvation the pass waits for the appends.
+  std::optional<Clock::time_point> lod_starved_since_;
+  static constexpr auto kLodStarvation = std::chrono::milliseconds(250);
   // Chunks a load pass planned to mesh whose terrain is still being generated, with the
   // pass that planned them, and the load callbacks waiting for them (pipeline thread).
   // Bounded by the owners' load budgets, which paid for them.

@@ -29,13 +29,27 @@ bool WorldPipeline::lod_ready(Clock::time_point now) const {
 }
 
 void WorldPipeline::lod_pass(Clock::time_point now, bool edits_waiting) {
+  std::unordered_map<LoadOwner, std::vector<LodKey>> updates;
   {
     std::lock_guard lock(queue_mutex_);
-    for (auto& [owner, keys] : lod_updates_) lod_->set_wants(owner, std::move(keys));
-    lod_updates_.clear();
+    updates.swap(lod_updates_);
     edits_waiting = edits_waiting || scheduler_.has_ordered();
   }
-  if (!pending_.empty() || !lod_->has_work(now)) return;
+  for (auto& [owner, keys] : updates) lod_->set_wants(owner, std::move(keys));  // outside the lock
+  if (!lod_->has_work(now)) {
+    lod_starved_since_.reset();
+    return;
+  }
+  if (!pending_.empty()) {
+    // Edits keep a batch waiting for the store: after a while, wait for the appends so the
+    // coarse levels do not starve.
+    if (!lod_starved_since_) lod_starved_since_ = now;
+    if (now - *lod_starved_since_ < kLodStarvation) return;
+    PipelineStats counts;
+    finish_pending(counts, 0);
+    if (!pending_.empty()) return;
+  }
+  lod_starved_since_.reset();
   const std::vector<LodKey> published = lod_->run(
       now, edits_waiting ? config_.lod_pass_chunks_while_edits_wait : config_.lod_pass_chunks);
   if (published.empty()) return;

@@ -30,6 +30,7 @@ std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& 
   version->mesh.normals.assign(w.mesh.normals.begin(), w.mesh.normals.end());
   version->mesh.materials.assign(w.mesh.materials.begin(), w.mesh.materials.end());
   version->mesh.indices.assign(w.mesh.indices.begin(), w.mesh.indices.end());
+  version->triangles = static_cast<uint32_t>(w.mesh.triangle_count());
   // Encoded once here, while the mesher's topology is at hand; every client shares it.
   proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
   w.zstd.compress(version->encoding, {}, version->full_frame);

@@ -33,7 +33,16 @@ TerrainGenerator::TerrainGenerator(uint64_t seed, TerrainParams params)
     : seed_(seed),
       params_(params),
       hills_(seed * 0x9E3779B97F4A7C15ull + 1),
-      caves_(seed * 0xC2B2AE3D27D4EB4Full + 2) {}
+      caves_(seed * 0xC2B2AE3D27D4EB4Full + 2) {
+  const float reach = std::fabs(params_.hill_height) * 1.5f;
+  air_above_ = params_.sea_level + reach + 1.0f / kSurfaceRamp + 1.0f;
+  rock_below_ = params_.sea_level - reach -
+                std::max({params_.cave_bottom_depth, params_.cave_top_depth, 6.0f,
+                          1.0f / kSurfaceRamp}) -
+                1.0f;
+  air_ = make_sample(0.0f, static_cast<int32_t>(air_above_) + 1, nullptr);
+  rock_ = make_sample(1e6f, 0, nullptr);
+}
 
 float TerrainGenerator::height_at(int32_t x, int32_t z) const {
   const float f = 1.0f / params_.hill_wavelength;
@@ -107,6 +116,12 @@ void TerrainGenerator::sample_grid(const std::array<int32_t, 3>& origin, int32_t
                                    const std::array<int, 3>& n, Sample* out,
                                    std::vector<float>& lattice) const {
   const ptrdiff_t row = n[0], layer = static_cast<ptrdiff_t>(n[0]) * n[1];
+  const auto y_lo = static_cast<float>(origin[1]),
+             y_hi = static_cast<float>(int64_t{origin[1]} + int64_t{step} * (n[1] - 1));
+  if (y_lo > air_above_ || y_hi < rock_below_) {
+    std::fill(out, out + layer * n[2], y_lo > air_above_ ? air_ : rock_);
+    return;
+  }
   if (step >= kCaveStep) {  // coarse: no lattice value is shared between samples
     for (int k = 0; k < n[2]; ++k)
       for (int i = 0; i < n[0]; ++i)

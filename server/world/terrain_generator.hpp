@@ -71,6 +71,12 @@ class TerrainGenerator {
   TerrainParams params_;
   GradientNoise hills_;
   GradientNoise caves_;
+  // Grids wholly above air_above_ are air, wholly below rock_below_ solid rock, whatever
+  // the column heights (|fbm2| <= 1.5: each noise2 is a lerp of gradients |x +- y| <= 2,
+  // times 0.7071): sample_grid fills them without computing a height (level-of-detail
+  // chunks far above or below the hills).
+  float air_above_ = 0, rock_below_ = 0;
+  Sample air_{}, rock_{};
 };
 
 }  // namespace vox::world

@@ -365,7 +365,7 @@ class T6LevelOfDetail(Case):
     def test_lod_view_is_one_surface_across_levels(self):
         c = self.connect("lod")
         w = c.welcome
-        self.assertEqual((w.max_lod_level, w.max_lod_distance), (6, 4.0))
+        self.assertEqual((w.max_lod_level, w.max_lod_distance), (6, 2.0))
         view = c.set_view(ORIGIN_VIEW, 1, lod_level=2, lod_distance=1.0)
         ready = c.wait_view_ready(view, h.VIEW_TIMEOUT)
         self.assertEqual(ready.lod_chunks_sent, len(c.lod_chunks))
