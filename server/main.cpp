@@ -168,15 +168,15 @@ int main(int argc, char** argv) {
       "max-lod-level", po::value<uint32_t>(&net.max_lod_level)->default_value(6),
       "coarsest level of detail a view may ask for (0: none; level 6 chunks are 2,048 voxels)")(
       "max-lod-distance", po::value<float>(&net.max_lod_distance)->default_value(2.0f),
-      "largest SetView.lod_distance (1..4; larger: more coarse chunks per view)")("idle-timeout-ms",
-                                       po::value<long>(&idle_ms)->default_value(60000),
-                                       "disconnect clients silent this long")(
-      "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000),
-      "time allowed for Hello")("write-timeout-ms",
-                                po::value<long>(&write_ms)->default_value(10000),
-                                "disconnect clients that stop reading")(
-      "stats-interval", po::value<int>(&stats_seconds)->default_value(10),
-      "seconds between stats lines (0: none)")(
+      "largest SetView.lod_distance (1..4; larger: more coarse chunks per view)")(
+      "idle-timeout-ms", po::value<long>(&idle_ms)->default_value(60000),
+      "disconnect clients silent this long")("handshake-timeout-ms",
+                                             po::value<long>(&handshake_ms)->default_value(5000),
+                                             "time allowed for Hello")(
+      "write-timeout-ms", po::value<long>(&write_ms)->default_value(10000),
+      "disconnect clients that stop reading")("stats-interval",
+                                              po::value<int>(&stats_seconds)->default_value(10),
+                                              "seconds between stats lines (0: none)")(
       "log-level", po::value<std::string>(&log_level)->default_value("info"),
       "trace, debug, info, warn, error")(
       "auth-public-key", po::value<std::string>(&auth_key_file),

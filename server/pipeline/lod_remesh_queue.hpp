@@ -65,7 +65,7 @@ class LodRemeshQueue {
   int levels_;
   Clock::duration interval_;
   size_t max_pending_;
-  std::map<world::LodChunk, Clock::time_point> pending_;  // -> due; ordered: finest first
+  std::map<world::LodChunk, Clock::time_point> pending_;            // -> due; ordered: finest first
   std::set<std::pair<Clock::time_point, world::LodChunk>> by_due_;  // the same, by due time
   std::vector<world::LodChunk> dropped_chunks_;
   std::map<world::LodChunk, Clock::time_point> last_taken_;

@@ -203,9 +203,10 @@ LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point 
       --reads_left;
     } catch (const std::exception& e) {
       if (!store_failing_)
-        spdlog::error("lod: cannot read chunk ({},{},{}) from the store: {}; coarse meshes over it "
-                      "wait",
-                      m.x, m.y, m.z, e.what());
+        spdlog::error(
+            "lod: cannot read chunk ({},{},{}) from the store: {}; coarse meshes over it "
+            "wait",
+            m.x, m.y, m.z, e.what());
       store_failing_ = true;
       return Resident::kFailed;
     }
@@ -275,7 +276,7 @@ std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) 
       v->coord = k.chunk.c;
       proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
       const MeshVersionPtr old = meshes_.get(k);
-      if (old && old->encoding == v->encoding) return;  // unchanged
+      if (old && old->encoding == v->encoding) return;                // unchanged
       v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
       w.zstd.compress(v->encoding, {}, v->full_frame);
       fresh[i] = std::move(v);

@@ -98,10 +98,10 @@ class LodStage {
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> modified_;
   uint64_t next_version_ = 1;
   tbb::enumerable_thread_specific<std::unique_ptr<LodWorker>> workers_;
-  size_t next_owner_ = 0;  // round robin
-  bool store_failing_ = false;                // a read failed (logged once)
-  Clock::time_point store_retry_at_{};        // after a failed read: not before this
-  std::vector<world::LodChunk> retry_;        // put off by the store: meshed first next time
+  size_t next_owner_ = 0;               // round robin
+  bool store_failing_ = false;          // a read failed (logged once)
+  Clock::time_point store_retry_at_{};  // after a failed read: not before this
+  std::vector<world::LodChunk> retry_;  // put off by the store: meshed first next time
 };
 
 }  // namespace vox::pipeline

@@ -309,7 +309,7 @@ void WorldPipeline::run() {
     LoadPlan plan;
     std::vector<LoadSlice> loads = take_loads(plan, now);
     process_loads(loads, plan, now, counts);
-    lod_pass(Clock::now(), ordered_count > 0);
+    lod_pass(Clock::now());
     // Column heights are shared within a batch only (edits and loads both fill them).
     state_->column_heights.clear();
     {

@@ -94,12 +94,13 @@ struct PipelineConfig {
   // After a failed append, edits are refused kStorageUnavailable without trying the store
   // again for this long.
   std::chrono::milliseconds store_retry{1000};
-  // Level of detail (issue 16): levels 0 .. lod_levels-1 may be viewed; meshes of levels
-  // >= 1 per pass (while edits wait: the smaller number), each re-meshed at most once per
-  // interval after edits.
+  // Level of detail (issue 16): the stage's settings; between batches it meshes groups of
+  // lod_group_chunks (in parallel) for up to lod_pass_time, stopping as soon as an edit
+  // waits (then one group only): coarse levels never hold an edit up for long, and lag
+  // behind when the server is saturated.
   LodStageConfig lod;
-  size_t lod_pass_chunks = 8;
-  size_t lod_pass_chunks_while_edits_wait = 2;
+  size_t lod_group_chunks = 2;
+  std::chrono::milliseconds lod_pass_time{10};
 };
 
 struct EditResult {
@@ -344,9 +345,10 @@ class WorldPipeline {
   // Level of detail (world_pipeline_lod.cpp; pipeline thread): whether the stage may run
   // now (no batch waits for the store), and one pass of it.
   bool lod_ready(Clock::time_point now) const;
-  void lod_pass(Clock::time_point now, bool edits_waiting);
+  void lod_pass(Clock::time_point now);
   // After a durable batch: its accepted edits reach the coarse levels.
   void lod_edited(const Batch& b, Clock::time_point now);
+  void notify_lod(const std::vector<LodKey>& published);
   // The newest mesh of `c`: a pending batch's, else the published one.
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
   // Whether a pending batch changed samples that meshes of `chunks` read: a load pass
@@ -385,8 +387,8 @@ class WorldPipeline {
   const MemoryBudget budget_;
   MeshStore meshes_;
 
-  // Guards scheduler_, stopping_, view_updates_, lod_updates_ and generated_ready_. Held while taking
-  // loads, it may nest the prefetcher's (leaf) mutex, never the other way round.
+  // Guards scheduler_, stopping_, view_updates_, lod_updates_ and generated_ready_. Held while
+  // taking loads, it may nest the prefetcher's (leaf) mutex, never the other way round.
   mutable std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
   BatchScheduler scheduler_;

@@ -28,12 +28,13 @@ bool WorldPipeline::lod_ready(Clock::time_point now) const {
   return pending_.empty() && (!lod_updates_.empty() || lod_->has_work(now));
 }
 
-void WorldPipeline::lod_pass(Clock::time_point now, bool edits_waiting) {
+void WorldPipeline::lod_pass(Clock::time_point now) {
   std::unordered_map<LoadOwner, std::vector<LodKey>> updates;
+  bool edits_waiting = false;
   {
     std::lock_guard lock(queue_mutex_);
     updates.swap(lod_updates_);
-    edits_waiting = edits_waiting || scheduler_.has_ordered();
+    edits_waiting = scheduler_.has_ordered();
   }
   for (auto& [owner, keys] : updates) lod_->set_wants(owner, std::move(keys));  // outside the lock
   if (!lod_->has_work(now)) {
@@ -50,8 +51,18 @@ void WorldPipeline::lod_pass(Clock::time_point now, bool edits_waiting) {
     if (!pending_.empty()) return;
   }
   lod_starved_since_.reset();
-  const std::vector<LodKey> published = lod_->run(
-      now, edits_waiting ? config_.lod_pass_chunks_while_edits_wait : config_.lod_pass_chunks);
+  const Clock::time_point start = Clock::now();
+  for (;;) {
+    notify_lod(lod_->run(Clock::now(), config_.lod_group_chunks));
+    if (edits_waiting || Clock::now() - start >= config_.lod_pass_time ||
+        !lod_->has_work(Clock::now()))
+      return;
+    std::lock_guard lock(queue_mutex_);
+    if (scheduler_.has_ordered() || stopping_) return;  // an edit arrived: it goes first
+  }
+}
+
+void WorldPipeline::notify_lod(const std::vector<LodKey>& published) {
   if (published.empty()) return;
   std::vector<LodSubscriber> subscribers;
   {

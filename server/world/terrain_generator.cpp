@@ -36,10 +36,10 @@ TerrainGenerator::TerrainGenerator(uint64_t seed, TerrainParams params)
       caves_(seed * 0xC2B2AE3D27D4EB4Full + 2) {
   const float reach = std::fabs(params_.hill_height) * 1.5f;
   air_above_ = params_.sea_level + reach + 1.0f / kSurfaceRamp + 1.0f;
-  rock_below_ = params_.sea_level - reach -
-                std::max({params_.cave_bottom_depth, params_.cave_top_depth, 6.0f,
-                          1.0f / kSurfaceRamp}) -
-                1.0f;
+  rock_below_ =
+      params_.sea_level - reach -
+      std::max({params_.cave_bottom_depth, params_.cave_top_depth, 6.0f, 1.0f / kSurfaceRamp}) -
+      1.0f;
   air_ = make_sample(0.0f, static_cast<int32_t>(air_above_) + 1, nullptr);
   rock_ = make_sample(1e6f, 0, nullptr);
 }
