@@ -1,5 +1,7 @@
 #include "proto/framing.hpp"
 
+#include <google/protobuf/message_lite.h>
+
 namespace vox::proto {
 
 void append_frame(std::span<const uint8_t> body, std::vector<uint8_t>& out) {
@@ -41,6 +43,14 @@ std::optional<std::vector<uint8_t>> FrameDecoder::next() {
     start_ = 0;
   }
   return frame;
+}
+
+void append_framed(const google::protobuf::MessageLite& message, std::vector<uint8_t>& out) {
+  const size_t n = message.ByteSizeLong();
+  const size_t at = out.size();
+  out.resize(at + kFrameHeaderBytes + n);
+  for (size_t i = 0; i < kFrameHeaderBytes; ++i) out[at + i] = static_cast<uint8_t>(n >> (8 * i));
+  message.SerializeWithCachedSizesToArray(out.data() + at + kFrameHeaderBytes);
 }
 
 }  // namespace vox::proto

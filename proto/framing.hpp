@@ -9,11 +9,17 @@
 #include <string>
 #include <vector>
 
+namespace google::protobuf {
+class MessageLite;
+}
+
 namespace vox::proto {
 
 inline constexpr size_t kFrameHeaderBytes = 4;
 
 void append_frame(std::span<const uint8_t> body, std::vector<uint8_t>& out);
+// The message framed, appended to `out` (serialized in place, no temporary).
+void append_framed(const google::protobuf::MessageLite& message, std::vector<uint8_t>& out);
 uint32_t read_frame_length(const uint8_t* header);
 
 // Feed bytes as they arrive; pop complete frames.

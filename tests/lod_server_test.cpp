@@ -31,25 +31,7 @@ struct Eye {
 // unloads); the messages in order, the ViewReady last.
 std::vector<wire::Envelope> lod_view(client::Client& c, Eye e, uint32_t radius, uint64_t id,
                                      uint32_t level, float distance = 1.0f) {
-  c.send(client::make_set_view(e.x, e.y, e.z, radius, id, level, distance));
-  std::vector<wire::Envelope> out;
-  const auto deadline = client::Clock::now() + 120s * test::kSlow;
-  while (client::Clock::now() < deadline) {
-    auto m = c.receive(
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));
-    if (!m) break;
-    if (m->has_chunk_mesh()) {
-      const auto error = c.apply(m->chunk_mesh());
-      EXPECT_FALSE(error) << *error;
-    }
-    if (m->has_chunk_unload()) c.forget(m->chunk_unload());
-    EXPECT_FALSE(m->has_error()) << m->error().message();
-    const bool done = m->has_view_ready() && m->view_ready().view_id() == id;
-    out.push_back(std::move(*m));
-    if (done) return out;
-  }
-  ADD_FAILURE() << "no ViewReady for view " << id;
-  return out;
+  return test::view_messages(c, e.x, e.y, e.z, radius, id, level, distance);
 }
 
 // The layout the server lays out for that SetView (session_lod.cpp's settings).

@@ -60,11 +60,13 @@ std::optional<wire::Envelope> wait_for(client::Client& c, Pred pred,
 // Sets the view and receives until its ViewReady (then every chunk of it is held): the
 // messages in arrival order, the ViewReady last. Meshes are applied; a mesh that does not
 // apply, an Error or no ViewReady in time fails the test.
+// `lod_level` > 0: a level-of-detail view (PROTOCOL 4.10); coarse chunks are applied too.
 inline std::vector<wire::Envelope> view_messages(client::Client& c, float x, float y, float z,
-                                                 uint32_t radius, uint64_t view_id = 1) {
-  c.send(client::make_set_view(x, y, z, radius, view_id));
+                                                 uint32_t radius, uint64_t view_id = 1,
+                                                 uint32_t lod_level = 0, float lod_distance = 0) {
+  c.send(client::make_set_view(x, y, z, radius, view_id, lod_level, lod_distance));
   std::vector<wire::Envelope> out;
-  const auto deadline = client::Clock::now() + 60s * kSlow;
+  const auto deadline = client::Clock::now() + 120s * kSlow;
   while (client::Clock::now() < deadline) {
     auto m = c.receive(
         std::chrono::duration_cast<std::chrono::milliseconds>(deadline - client::Clock::now()));

@@ -14,19 +14,9 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-// Appends the framed message to `out` (serialized in place, no temporary).
-void append_framed(const wire::Envelope& message, std::vector<uint8_t>& out) {
-  const size_t n = message.ByteSizeLong();
-  const size_t at = out.size();
-  out.resize(at + proto::kFrameHeaderBytes + n);
-  for (size_t i = 0; i < proto::kFrameHeaderBytes; ++i)
-    out[at + i] = static_cast<uint8_t>(n >> (8 * i));
-  message.SerializeWithCachedSizesToArray(out.data() + at + proto::kFrameHeaderBytes);
-}
-
 std::vector<uint8_t> frame_of(const wire::Envelope& message) {
   std::vector<uint8_t> out;
-  append_framed(message, out);
+  proto::append_framed(message, out);
   return out;
 }
 
@@ -286,7 +276,7 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
     m->set_base_version(0);
     m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
   }
-  append_framed(mesh_message_, out);
+  proto::append_framed(mesh_message_, out);
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
 }
@@ -309,7 +299,7 @@ void ClientSession::append_view_ready(std::vector<uint8_t>& out) {
     r->set_lod_chunks_sent(lod_done_->sent);
     r->set_lod_chunks_empty(lod_done_->empty);
   }
-  append_framed(ready, out);
+  proto::append_framed(ready, out);
   level0_done_.reset();
   lod_done_.reset();
 }

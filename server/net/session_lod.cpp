@@ -14,20 +14,6 @@ namespace vox::net {
 using world::ChunkCoord;
 using world::LodChunk;
 
-namespace {
-
-// Appends the framed message to `out`.
-void append_framed(const wire::Envelope& message, std::vector<uint8_t>& out) {
-  const size_t n = message.ByteSizeLong();
-  const size_t at = out.size();
-  out.resize(at + proto::kFrameHeaderBytes + n);
-  for (size_t i = 0; i < proto::kFrameHeaderBytes; ++i)
-    out[at + i] = static_cast<uint8_t>(n >> (8 * i));
-  message.SerializeWithCachedSizesToArray(out.data() + at + proto::kFrameHeaderBytes);
-}
-
-}  // namespace
-
 bool ClientSession::check_lod(const wire::SetView& view, PendingView& v) {
   const uint32_t max_level = std::min<uint32_t>(
       config_.max_lod_level, static_cast<uint32_t>(std::max(0, pipeline_.config().lod.levels - 1)));
@@ -125,7 +111,7 @@ bool ClientSession::append_next_lod_mesh(std::vector<uint8_t>& out) {
     m->set_base_version(0);
     m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
   }
-  append_framed(mesh_message_, out);
+  proto::append_framed(mesh_message_, out);
   m->set_level(0);  // the message is reused for level-0 meshes
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
