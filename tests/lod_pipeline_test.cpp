@@ -160,7 +160,9 @@ TEST(LodPipeline, AStormOfEditsRemeshesEachCoarseChunkAtMostOncePerInterval) {
   for (const auto& [c, times] : per_chunk) {
     republished += times.size() > 1;
     for (size_t i = 1; i < times.size(); ++i)
-      EXPECT_GE(times[i] - times[i - 1], 240ms) << "a coarse chunk re-meshed twice in an interval";
+      // Publication times: taken >= 250 ms apart, published after meshing (jitter of a
+      // pass; LodRemeshQueue's own test checks the take times exactly).
+      EXPECT_GE(times[i] - times[i - 1], 180ms) << "a coarse chunk re-meshed twice in an interval";
   }
   EXPECT_GT(republished, 0u) << "a 1.2 s storm re-meshes a chunk more than once";
 }
@@ -181,7 +183,7 @@ TEST(LodPipeline, ALeavingOwnersMeshesAreDroppedAtOnce) {
   while (p.stats().lod_mesh_count > 0 && Clock::now() - dropped < 5s)
     std::this_thread::sleep_for(5ms);
   EXPECT_EQ(p.stats().lod_mesh_count, 0u);
-  EXPECT_EQ(p.stats().lod_mesh_bytes, 0u);
+  EXPECT_EQ(p.lod_meshes().memory_bytes(), 0u);
   EXPECT_LT(Clock::now() - dropped, 1s);
 }
 

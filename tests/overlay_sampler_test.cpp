@@ -128,5 +128,33 @@ TEST(OverlaySampler, AnEditAtLevelZeroShowsInEveryCoarserLevel) {
   }
 }
 
+// The generator grids kept for reuse (grid_cache.hpp): a grid sampled twice through a
+// cache is the same, the second time from the cache; the cache stays within its bytes,
+// dropping the least recently used grid.
+TEST(GridCache, AGridFromTheCacheEqualsTheGeneratorsAndTheCacheStaysBounded) {
+  const TerrainGenerator generator(3);
+  const OverlaySampler::ModifiedSet none;
+  GridCache cache(64 * 1024);
+  const OverlaySampler sampler(
+      generator, none, [](ChunkCoord) -> const Chunk& { throw std::logic_error("no lookup"); },
+      &cache);
+  const std::array<int, 3> n{10, 10, 10};
+  std::vector<Sample> first(1000), second(1000), direct(1000);
+  std::vector<float> lattice;
+  for (int i = 0; i < 40; ++i) {
+    const std::array<int32_t, 3> origin{i * 17, -5, 3};
+    sampler.sample_grid(origin, 2, n, first.data());
+    sampler.sample_grid(origin, 2, n, second.data());
+    generator.sample_grid(origin, 2, n, direct.data(), lattice);
+    ASSERT_EQ(first, direct);
+    ASSERT_EQ(second, direct);
+    EXPECT_LE(cache.bytes(), 64u * 1024);
+  }
+  EXPECT_GT(cache.bytes(), 32u * 1024);
+  Sample probe[1000];
+  EXPECT_TRUE(cache.get({{39 * 17, -5, 3}, 2, n}, probe)) << "the newest grid is kept";
+  EXPECT_FALSE(cache.get({{0, -5, 3}, 2, n}, probe)) << "the oldest was dropped";
+}
+
 }  // namespace
 }  // namespace vox::world

@@ -64,7 +64,8 @@ LodStage::LodStage(const world::TerrainGenerator& generator, WorldState& state,
       state_(state),
       config_(config),
       remesh_(config.levels, config.remesh_interval, config.max_pending_remesh),
-      workers_([] { return std::make_unique<LodWorker>(); }) {}
+      workers_([] { return std::make_unique<LodWorker>(); }),
+      grids_(config.grid_cache_bytes) {}
 
 void LodStage::learn_modified() {
   modified_.insert(state_.stored.begin(), state_.stored.end());
@@ -254,11 +255,13 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
 
 std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) {
   const world::OverlaySampler sampler(
-      generator_, modified_, [this](ChunkCoord c) -> const world::Chunk& {
+      generator_, modified_,
+      [this](ChunkCoord c) -> const world::Chunk& {
         const world::Chunk* chunk = state_.chunks.find(c);
         if (!chunk) throw std::logic_error("lod: a modified chunk is not resident");
         return *chunk;
-      });
+      },
+      &grids_);
   std::vector<std::shared_ptr<MeshVersion>> fresh(keys.size());
   std::atomic<size_t> failed{0};
   state_.arena.execute([&] {

@@ -26,6 +26,7 @@
 #include "server/pipeline/lod_mesh_store.hpp"
 #include "server/pipeline/lod_remesh_queue.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/grid_cache.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace vox::pipeline {
@@ -38,6 +39,8 @@ struct LodStageConfig {
   int levels = 7;  // levels 0 .. levels-1 (level 0 is the pipeline's own)
   std::chrono::milliseconds remesh_interval{250};  // a chunk re-meshed at most this often
   size_t max_pending_remesh = 65536;
+  // Generator grids kept for re-meshing (an edit's re-mesh then computes no noise).
+  size_t grid_cache_bytes = size_t{64} << 20;
 };
 
 class LodStage {
@@ -67,6 +70,8 @@ class LodStage {
   std::vector<LodKey> run(Clock::time_point now, size_t max_chunks);
 
   size_t wanted() const { return refs_.size(); }
+  // Bytes of the meshes and of the generator grids kept (any thread).
+  size_t memory_bytes() const { return meshes_.memory_bytes() + grids_.bytes(); }
   uint64_t remesh_dropped() const { return remesh_.dropped(); }
 
  private:
@@ -98,6 +103,7 @@ class LodStage {
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> modified_;
   uint64_t next_version_ = 1;
   tbb::enumerable_thread_specific<std::unique_ptr<LodWorker>> workers_;
+  world::GridCache grids_;
   size_t next_owner_ = 0;               // round robin
   bool store_failing_ = false;          // a read failed (logged once)
   Clock::time_point store_retry_at_{};  // after a failed read: not before this

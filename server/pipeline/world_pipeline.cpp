@@ -216,7 +216,7 @@ PipelineStats WorldPipeline::stats() const {
   s.mesh_count = meshes_.size();
   s.mesh_bytes = meshes_.memory_bytes();
   s.lod_mesh_count = lod_->meshes().size();
-  s.lod_mesh_bytes = lod_->meshes().memory_bytes();
+  s.lod_mesh_bytes = lod_->memory_bytes();
   s.other_bytes = other_bytes_.load(std::memory_order_relaxed);
   s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + s.other_bytes;
   s.loads_blocked = loads_blocked_.load(std::memory_order_relaxed);

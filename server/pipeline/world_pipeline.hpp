@@ -140,8 +140,9 @@ struct PipelineStats {
   size_t cached_columns =
       0;                   // column heights left by earlier batches at the last batch's start (0)
   size_t other_bytes = 0;  // reported by set_other_bytes (sessions)
-  size_t lod_mesh_count = 0, lod_mesh_bytes = 0;  // level-of-detail meshes (levels >= 1)
-  size_t accounted_bytes = 0;                     // chunks + meshes + other
+  // Level-of-detail meshes (levels >= 1); their bytes include the generator grids kept.
+  size_t lod_mesh_count = 0, lod_mesh_bytes = 0;
+  size_t accounted_bytes = 0;  // chunks + meshes + other
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
   // The durable world: chunks the store has a checkpoint of, resident chunks changed since
   // (not evictable), checkpoints written, and the newest one's sequence number.

@@ -26,7 +26,7 @@ size_t WorldPipeline::accounted_bytes() const {
 }
 
 size_t WorldPipeline::resident_bytes() const {
-  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + lod_->meshes().memory_bytes() +
+  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + lod_->memory_bytes() +
          other_bytes_.load(std::memory_order_relaxed);
 }
 

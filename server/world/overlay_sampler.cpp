@@ -19,7 +19,11 @@ std::pair<int, int> indices_within(int64_t origin, int64_t step, int n, int64_t 
 void OverlaySampler::sample_grid(const std::array<int32_t, 3>& origin, int32_t step,
                                  const std::array<int, 3>& n, Sample* out) const {
   thread_local std::vector<float> lattice;  // a vector: only its three pointers are TLS
-  generator_.sample_grid(origin, step, n, out, lattice);
+  const GridCache::Key key{origin, step, n};
+  if (!cache_ || !cache_->get(key, out)) {
+    generator_.sample_grid(origin, step, n, out, lattice);
+    if (cache_) cache_->put(key, out);
+  }
   if (modified_.empty()) return;
   // The chunks the grid's box touches; the modified ones among them, found from whichever
   // is smaller: the box or the set.

@@ -8,6 +8,7 @@
 #include <unordered_set>
 
 #include "server/world/chunk.hpp"
+#include "server/world/grid_cache.hpp"
 #include "server/world/point_sampler.hpp"
 #include "server/world/terrain_generator.hpp"
 
@@ -21,9 +22,11 @@ class OverlaySampler : public PointSampler {
   using Lookup = std::function<const Chunk&(ChunkCoord)>;
 
   // `modified`: every chunk that differs from the generated terrain. Both are read during
-  // sample_grid only; the caller keeps them unchanged meanwhile.
-  OverlaySampler(const TerrainGenerator& generator, const ModifiedSet& modified, Lookup lookup)
-      : generator_(generator), modified_(modified), lookup_(std::move(lookup)) {}
+  // sample_grid only; the caller keeps them unchanged meanwhile. `cache` (optional) keeps
+  // the generator's grids for the next call with the same grid.
+  OverlaySampler(const TerrainGenerator& generator, const ModifiedSet& modified, Lookup lookup,
+                 GridCache* cache = nullptr)
+      : generator_(generator), modified_(modified), lookup_(std::move(lookup)), cache_(cache) {}
 
   // Any thread, as long as `lookup` may be called from it.
   void sample_grid(const std::array<int32_t, 3>& origin, int32_t step, const std::array<int, 3>& n,
@@ -36,6 +39,7 @@ class OverlaySampler : public PointSampler {
   const TerrainGenerator& generator_;
   const ModifiedSet& modified_;
   Lookup lookup_;
+  GridCache* cache_;
 };
 
 }  // namespace vox::world
