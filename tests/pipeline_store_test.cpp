@@ -161,6 +161,40 @@ TEST(PipelineStore, ACoarseChunkOverEvictedModifiedChunksShowsTheirEdits) {
   std::filesystem::remove_all(dir);
 }
 
+// A coarse chunk whose footprint holds more evicted modified chunks than one pass may read
+// back (32) still gets its mesh: each pass reads some (it was put off for ever before).
+TEST(PipelineStore, ACoarseChunkOverMoreEvictedChunksThanOnePassReadsIsStillMeshed) {
+  const auto dir = temp_world("lod_many");
+  auto store = store::open_world_store(dir.string(), {.seed = 3});
+  WorldPipeline p(PipelineConfig{.seed = 3,
+                                 .threads = 2,
+                                 .evict_after = 300ms,
+                                 .evict_min_age = 1ms,
+                                 .store = store.get(),
+                                 .checkpoint = {.interval = 20ms}});
+  WorldPipeline memory(PipelineConfig{.seed = 3, .threads = 2});
+  const world::TerrainGenerator gen(3);
+  for (int i = 0; i < 7; ++i)
+    for (int j = 0; j < 7; ++j) {  // 49 chunks, each with a dent
+      const float x = 16.0f + 32.0f * i, z = 16.0f + 32.0f * j;
+      const world::Edit e = world::Brush{
+          {x, gen.height_at(static_cast<int>(x), static_cast<int>(z)), z}, 3, 1.0f, true};
+      ASSERT_TRUE(p.submit(e).get().accepted);
+      ASSERT_TRUE(memory.submit(e).get().accepted);
+    }
+  ASSERT_TRUE(eventually([&] { return p.stats().modified_chunks == 0; }))
+      << "checkpointed chunks were not evicted";
+  const LodKey key{{3, {0, world::floor_div(static_cast<int>(gen.height_at(100, 100)), 256), 0}},
+                   {}};
+  p.set_lod_view(1, {key});
+  memory.set_lod_view(1, {key});
+  ASSERT_TRUE(eventually([&] { return p.lod_meshes().get(key) && memory.lod_meshes().get(key); }))
+      << "the coarse chunk was never meshed";
+  EXPECT_EQ(p.lod_meshes().get(key)->encoding, memory.lod_meshes().get(key)->encoding);
+  p.stop();
+  std::filesystem::remove_all(dir);
+}
+
 // A checkpoint the store refuses (here the last one, at stop) loses nothing: the log still
 // has the edits, and the next start replays them and checkpoints them.
 TEST(PipelineStore, ACheckpointTheStoreRefusedLosesNothing) {

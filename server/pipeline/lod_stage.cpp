@@ -194,10 +194,10 @@ LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point 
     modified_.erase(m);  // generated terrain: nothing to lay over it
     return true;
   });
-  if (missing.size() > reads_left) {
-    reads_left = 0;  // later passes read the rest (a pass never stalls on the store)
-    return Resident::kLater;
-  }
+  // At most reads_left this pass: later passes read the rest (a pass never stalls on the
+  // store, and a footprint needing more than one pass's reads still gets there).
+  const bool all = missing.size() <= reads_left;
+  if (!all) missing.resize(reads_left);
   for (const ChunkCoord m : missing) {
     try {
       state_.load_stored(m, now);
@@ -213,7 +213,7 @@ LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point 
     }
   }
   store_failing_ = false;
-  return Resident::kReady;
+  return all ? Resident::kReady : Resident::kLater;
 }
 
 std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {

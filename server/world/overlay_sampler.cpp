@@ -22,7 +22,8 @@ void OverlaySampler::sample_grid(const std::array<int32_t, 3>& origin, int32_t s
   const GridCache::Key key{origin, step, n};
   if (!cache_ || !cache_->get(key, out)) {
     generator_.sample_grid(origin, step, n, out, lattice);
-    if (cache_) cache_->put(key, out);
+    // Sky and deep rock cost no noise: keep the cache for grids that did.
+    if (cache_ && !generator_.grid_is_uniform(origin[1], step, n[1])) cache_->put(key, out);
   }
   if (modified_.empty()) return;
   // The chunks the grid's box touches; the modified ones among them, found from whichever

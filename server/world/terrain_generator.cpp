@@ -112,14 +112,17 @@ void TerrainGenerator::sample_column(int32_t x, int32_t z, int32_t y0, int32_t s
   }
 }
 
+bool TerrainGenerator::grid_is_uniform(int32_t y0, int32_t step, int ny) const {
+  return static_cast<float>(y0) > air_above_ ||
+         static_cast<float>(int64_t{y0} + int64_t{step} * (ny - 1)) < rock_below_;
+}
+
 void TerrainGenerator::sample_grid(const std::array<int32_t, 3>& origin, int32_t step,
                                    const std::array<int, 3>& n, Sample* out,
                                    std::vector<float>& lattice) const {
   const ptrdiff_t row = n[0], layer = static_cast<ptrdiff_t>(n[0]) * n[1];
-  const auto y_lo = static_cast<float>(origin[1]),
-             y_hi = static_cast<float>(int64_t{origin[1]} + int64_t{step} * (n[1] - 1));
-  if (y_lo > air_above_ || y_hi < rock_below_) {
-    std::fill(out, out + layer * n[2], y_lo > air_above_ ? air_ : rock_);
+  if (grid_is_uniform(origin[1], step, n[1])) {
+    std::fill(out, out + layer * n[2], static_cast<float>(origin[1]) > air_above_ ? air_ : rock_);
     return;
   }
   if (step >= kCaveStep) {  // coarse: no lattice value is shared between samples

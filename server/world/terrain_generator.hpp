@@ -56,6 +56,9 @@ class TerrainGenerator {
   // (a reusable buffer).
   void sample_grid(const std::array<int32_t, 3>& origin, int32_t step, const std::array<int, 3>& n,
                    Sample* out, std::vector<float>& lattice) const;
+  // Whether the grid lies wholly in the sky or in deep rock (sample_grid fills it with one
+  // sample, computing no height).
+  bool grid_is_uniform(int32_t y0, int32_t step, int ny) const;
 
   uint64_t seed() const { return seed_; }
   const TerrainParams& params() const { return params_; }
