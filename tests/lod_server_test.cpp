@@ -191,7 +191,10 @@ TEST(LodServer, AResyncOfACoarseChunkSendsItInFull) {
   const Eye eye{16.5f, surface_y(16, 16) + 2.0f, 16.5f};
   lod_view(*c, eye, 1, 1, 2);
   ASSERT_FALSE(c->lod_chunks(1).empty());
-  const auto [x, y, z] = c->lod_chunks(1).begin()->first;
+  // Plain copies: a lambda may not capture structured bindings before C++20 in clang 15.
+  const int x = std::get<0>(c->lod_chunks(1).begin()->first),
+            y = std::get<1>(c->lod_chunks(1).begin()->first),
+            z = std::get<2>(c->lod_chunks(1).begin()->first);
   wire::ChunkCoord coord;
   coord.set_x(x);
   coord.set_y(y);
