@@ -1,7 +1,6 @@
 #include "server/pipeline/lod_stage.hpp"
 
 #include <spdlog/spdlog.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <atomic>
@@ -14,6 +13,7 @@
 #include "server/pipeline/world_state.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/overlay_sampler.hpp"
+#include "server/world/parallel.hpp"
 
 namespace vox::pipeline {
 
@@ -264,26 +264,24 @@ std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) 
       &grids_);
   std::vector<std::shared_ptr<MeshVersion>> fresh(keys.size());
   std::atomic<size_t> failed{0};
-  state_.arena.execute([&] {
-    tbb::parallel_for(size_t{0}, keys.size(), [&](size_t i) {
-      LodWorker& w = *workers_.local();
-      const LodKey& k = keys[i];
-      try {
-        mesh::gather_lod_block(sampler, k.chunk, k.seams, w.block);
-      } catch (const std::exception& e) {  // a coordinate out of range, a lookup failing
-        failed.fetch_add(1, std::memory_order_relaxed);
-        return;
-      }
-      mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
-      auto v = std::make_shared<MeshVersion>();
-      v->coord = k.chunk.c;
-      proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
-      const MeshVersionPtr old = meshes_.get(k);
-      if (old && old->encoding == v->encoding) return;                // unchanged
-      v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
-      w.zstd.compress(v->encoding, {}, v->full_frame);
-      fresh[i] = std::move(v);
-    });
+  parallel_for_index(state_.arena, keys.size(), [&](size_t i) {
+    LodWorker& w = *workers_.local();
+    const LodKey& k = keys[i];
+    try {
+      mesh::gather_lod_block(sampler, k.chunk, k.seams, w.block);
+    } catch (const std::exception&) {  // a coordinate out of range, a lookup failing
+      failed.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
+    auto v = std::make_shared<MeshVersion>();
+    v->coord = k.chunk.c;
+    proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
+    const MeshVersionPtr old = meshes_.get(k);
+    if (old && old->encoding == v->encoding) return;                // unchanged
+    v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
+    w.zstd.compress(v->encoding, {}, v->full_frame);
+    fresh[i] = std::move(v);
   });
   if (failed.load() > 0)
     spdlog::error("lod: {} coarse chunks could not be sampled; they stay unpublished",
