@@ -264,25 +264,23 @@ void SimPlayer::on_chunk_mesh(const wire::ChunkMesh& m) {
 }
 
 // Expands the payload against the held base and decodes it, unless the expanded bytes
-// are a version another player already decoded (DecodeMemo).
+// are an encoding another player already decoded (DecodeMemo).
 std::optional<std::string> SimPlayer::apply_mesh(const wire::ChunkMesh& m) {
+  if (m.level() > 20) return "a chunk of level " + std::to_string(m.level());
   DecodeScratch& d = decode_scratch();
-  if (m.level() > 0) {  // coarse chunks: decoded every time (the memo is keyed by level-0 coords)
-    if (m.level() > 20) return "a chunk of level " + std::to_string(m.level());
-    return lod_cache_[m.level()].apply(m, d.zstd, d.scratch, d.decoded);
-  }
-  if (auto error = cache_.expand(m, d.zstd, d.expanded)) return error;
+  client::ChunkCache& cache = m.level() == 0 ? cache_ : lod_cache_[m.level()];
+  if (auto error = cache.expand(m, d.zstd, d.expanded)) return error;
   const std::span<const uint8_t> encoding(d.expanded.data(), d.expanded.size());
-  const ChunkKey key = client::key_of(m.coord());
+  const MemoKey key{m.level(), client::key_of(m.coord())};
   DecodeMemo* memo = test_.decode_memo();
-  if (!memo || !memo->known_good(key, m.version(), encoding)) {
+  if (!memo || !memo->known_good(key, encoding)) {
     if (auto error = proto::decode_mesh(encoding, {}, d.scratch, d.decoded)) {
-      cache_.drop(key);
+      cache.drop(key.chunk);
       return error->message;
     }
-    if (memo) memo->remember(key, m.version(), encoding);
+    if (memo) memo->remember(key, encoding);
   }
-  cache_.hold(key, m.version(), encoding);
+  cache.hold(key.chunk, m.version(), encoding);
   return std::nullopt;
 }
 

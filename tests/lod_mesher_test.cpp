@@ -267,6 +267,42 @@ TEST(LodMesher, ANoisyFieldAcrossLevelsIsClosed) {
   }
 }
 
+// The pipeline gathers a chunk's samples once for every seams variant wanted and meshes
+// each variant from them: a variant meshed from a block gathered for more seams is the
+// mesh of a block gathered for its own seams alone.
+TEST(LodMesher, AVariantMeshedFromABlockGatheredForMoreSeamsIsTheSameMesh) {
+  const world::GradientNoise noise(5);
+  const FieldSampler sampler([&](float x, float y, float z) {
+    return noise.noise3(x / 13.0f, y / 9.0f, z / 11.0f) + 0.05f * (40.0f - y) / 40.0f;
+  });
+  const LodChunk c{1, {0, 0, 0}};
+  LodBlock all;
+  gather_lod_block(sampler, c, {.faces = 63, .edges = 0xFFF}, all);
+  std::mt19937 rng(3);
+  for (int round = 0; round < 12; ++round) {
+    const LodSeams seams =
+        world::normalized({.faces = static_cast<uint8_t>(rng() & 63),
+                           .edges = static_cast<uint16_t>(round % 3 == 0 ? rng() & 0xFFF : 0)});
+    LodBlock own;
+    gather_lod_block(sampler, c, seams, own);
+    all.seams = seams;
+    LodScratch sa, so;
+    ChunkMesh ma, mo;
+    mesh_lod_chunk(all, sa, ma);
+    mesh_lod_chunk(own, so, mo);
+    ASSERT_GT(mo.triangle_count(), 0u);
+    EXPECT_TRUE(
+        std::equal(ma.indices.begin(), ma.indices.end(), mo.indices.begin(), mo.indices.end()))
+        << "seams " << int{seams.faces} << "/" << seams.edges;
+    ASSERT_EQ(ma.vertex_count(), mo.vertex_count());
+    for (size_t i = 0; i < ma.vertex_count(); ++i) {
+      ASSERT_EQ(ma.positions[i], mo.positions[i]);
+      ASSERT_EQ(ma.normals[i], mo.normals[i]);
+      ASSERT_EQ(ma.materials[i], mo.materials[i]);
+    }
+  }
+}
+
 // Terrain is open where the layout ends; everywhere else, and so on every seam, the chunks
 // of different levels meet edge to edge.
 TEST(LodMesher, TerrainAcrossFourLevelsIsOpenOnlyAtTheLayoutsOuterFaces) {

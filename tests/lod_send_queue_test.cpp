@@ -147,5 +147,37 @@ TEST(LodSendQueue, UnloadListsOnlyWhatWasSentAndResyncSendsInFull) {
   EXPECT_TRUE(q.complete());
 }
 
+// A walking player's SetViews mostly leave the layout as it was: an empty change then
+// re-orders what is queued at the new distances and queues nothing else, and the view is
+// complete again once that is sent.
+TEST(LodSendQueue, AnUnchangedLayoutReordersTheQueuedChunksAndQueuesNothingElse) {
+  LodSendQueue q;
+  const LodChunk a{1, {1, 0, 0}}, b{1, {-2, 0, 0}}, held{1, {0, 3, 0}};
+  Published p;
+  q.apply(sends({{a, {}}, {b, {}}, {held, {}}}), kEye);
+  p.publish({held, {}});
+  q.mark_stale({held, {}});
+  ASSERT_TRUE(q.next(p.lookup()));
+  ASSERT_TRUE(q.take_complete() == std::nullopt);
+  p.publish({a, {}});
+  p.publish({b, {}});
+  q.mark_stale({a, {}});
+  q.mark_stale({b, {}});
+  q.apply({}, {-60, 10, 10});  // the eye moved next to b
+  const auto first = q.next(p.lookup());
+  ASSERT_TRUE(first);
+  EXPECT_EQ(first->chunk, b) << "re-ordered at the new distances";
+  const auto second = q.next(p.lookup());
+  ASSERT_TRUE(second);
+  EXPECT_EQ(second->chunk, a);
+  EXPECT_FALSE(q.next(p.lookup())) << "the held chunk is not sent again";
+  const auto complete = q.take_complete();
+  ASSERT_TRUE(complete);
+  EXPECT_EQ(complete->sent, 3u);
+  q.apply({}, kEye);
+  EXPECT_FALSE(q.next(p.lookup()));
+  EXPECT_TRUE(q.take_complete()) << "each view is announced complete";
+}
+
 }  // namespace
 }  // namespace vox::net

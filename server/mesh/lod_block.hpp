@@ -25,6 +25,8 @@ struct LodBlock {
   }
 
   world::LodChunk chunk;
+  // The seams to mesh. A block gathered for more seams may be meshed with fewer: set this
+  // to any subset (normalized) of what it was gathered for.
   world::LodSeams seams;
   PaddedBlock coarse;  // the chunk's own level, block coordinates -1..33
   // The finer level at half-cell points; only the points on split faces and edges and

@@ -17,6 +17,32 @@ constexpr int kSeamStride[3] = {1, kSeamSide, kSeamSide* kSeamSide};
 constexpr int kCellFaceAxis[6] = {2, 2, 1, 1, 0, 0};
 constexpr int kCellFaceSide[6] = {0, 1, 0, 1, 0, 1};
 
+// The seam points of a cell's corners, of each Bourke edge's midpoint, and of the centre
+// of each face kCellFaceAxis/kCellFaceSide names.
+constexpr uint32_t kCornerPoints = [] {
+  uint32_t m = 0;
+  for (const auto& c : kCubeCorner) m |= 1u << seam_point(2 * c[0], 2 * c[1], 2 * c[2]);
+  return m;
+}();
+constexpr std::array<int, 12> kEdgeMidpoint = [] {
+  std::array<int, 12> m{};
+  for (int e = 0; e < 12; ++e) {
+    const auto& a = kCubeCorner[kEdgeCorners[e][0]];
+    const auto& b = kCubeCorner[kEdgeCorners[e][1]];
+    m[e] = seam_point(a[0] + b[0], a[1] + b[1], a[2] + b[2]);
+  }
+  return m;
+}();
+constexpr std::array<int, 6> kFaceCentre = [] {
+  std::array<int, 6> m{};
+  for (int f = 0; f < 6; ++f) {
+    int q[3] = {1, 1, 1};
+    q[kCellFaceAxis[f]] = 2 * kCellFaceSide[f];
+    m[f] = seam_point(q[0], q[1], q[2]);
+  }
+  return m;
+}();
+
 // The marching-cubes vertex of the whole edge from coarse sample p along `axis`.
 uint32_t whole_edge_vertex(const MeshScratch& s, const std::array<int, 3>& p, int axis) {
   const int r = detail::row_of(p[1], p[2]);
@@ -44,11 +70,11 @@ class SeamMesher {
 
   void mesh_cell(int x, int y, int z) {
     const SeamCellSplits splits = seam_cell_splits(in_.seams, x, y, z);
-    uint32_t needed = 0, solid = 0;
-    for (int p = 0; p < 27; ++p) {
+    const uint32_t needed = needed_points(splits);
+    uint32_t solid = 0;
+    for (uint32_t bits = needed; bits != 0; bits &= bits - 1) {
+      const int p = std::countr_zero(bits);
       const auto q = seam_point_xyz(p);
-      if (!is_needed(splits, q)) continue;
-      needed |= 1u << p;
       if (density({2 * x + q[0], 2 * y + q[1], 2 * z + q[2]}) > 0) solid |= 1u << p;
     }
     if (solid == 0 || solid == needed) return;
@@ -69,25 +95,15 @@ class SeamMesher {
   }
 
  private:
-  static bool is_needed(SeamCellSplits splits, const std::array<int, 3>& q) {
-    const int odd = (q[0] & 1) + (q[1] & 1) + (q[2] & 1);
-    if (odd == 0) return true;  // a corner
-    if (odd == 1) {             // an edge's midpoint
-      for (int e = 0; e < 12; ++e) {
-        if (((splits.edges >> e) & 1) == 0) continue;
-        const auto& a = kCubeCorner[kEdgeCorners[e][0]];
-        const auto& b = kCubeCorner[kEdgeCorners[e][1]];
-        if (a[0] + b[0] == q[0] && a[1] + b[1] == q[1] && a[2] + b[2] == q[2]) return true;
-      }
-      return false;
-    }
-    if (odd == 2) {  // a face's centre
-      for (int f = 0; f < 6; ++f) {
-        if (((splits.faces >> f) & 1) == 0) continue;
-        if (q[kCellFaceAxis[f]] == 2 * kCellFaceSide[f]) return true;
-      }
-    }
-    return false;
+  // The seam points a cell reads: its corners, the midpoints of its split edges and the
+  // centres of its faces with centres.
+  static uint32_t needed_points(SeamCellSplits splits) {
+    uint32_t needed = kCornerPoints;
+    for (uint32_t e = splits.edges; e != 0; e &= e - 1)
+      needed |= 1u << kEdgeMidpoint[std::countr_zero(e)];
+    for (uint32_t f = splits.faces; f != 0; f &= f - 1)
+      needed |= 1u << kFaceCentre[std::countr_zero(f)];
+    return needed;
   }
 
   // The sample at half-cell point h of the chunk (coarse lattice points from the coarse

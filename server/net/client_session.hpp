@@ -12,6 +12,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <unordered_set>
 #include <vector>
 
 #include "proto/framing.hpp"
@@ -206,6 +207,8 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   // >= 1, and the two halves of the view-complete marker.
   std::optional<world::LodView> lod_view_;
   world::LodSettings lod_settings_;
+  // The level-0 chunks of lod_view_'s layout (shared with the SendScheduler's filter).
+  std::shared_ptr<const std::unordered_set<world::ChunkCoord, world::ChunkCoordHash>> lod_level0_;
   LodSendQueue lod_queue_;
   std::atomic<bool> lod_active_{false};
   std::optional<SendScheduler::ViewComplete> level0_done_;

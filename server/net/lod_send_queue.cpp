@@ -35,11 +35,17 @@ std::vector<LodChunk> LodSendQueue::apply(const world::LodViewChange& change,
     if (inserted || (was && !resolved(it->second))) ++unresolved_;
     if (!inserted && !was && resolved(it->second)) --unresolved_;  // back to the held seams
   }
+  // Chunks neither queued nor changed wait for mark_stale(): only the others are queued
+  // again, at their new distances.
   heap_.clear();
   for (auto& [c, h] : chunks_) {
     h.distance = world::distance_to(c, eye_);
+    if (!h.queued) continue;
     h.queued = false;
     queue(c, h);
+  }
+  for (const auto& [c, seams] : change.send) {
+    if (const auto it = chunks_.find(c); it != chunks_.end()) queue(c, it->second);
   }
   announced_ = false;
   return unloaded;
@@ -68,8 +74,9 @@ std::vector<pipeline::LodKey> LodSendQueue::wants() const {
   std::vector<std::pair<double, pipeline::LodKey>> order;
   order.reserve(chunks_.size());
   for (const auto& [c, h] : chunks_) order.push_back({h.distance, {c, h.seams}});
-  std::stable_sort(order.begin(), order.end(),
-                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::sort(order.begin(), order.end(), [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first : a.second.chunk < b.second.chunk;
+  });
   std::vector<pipeline::LodKey> keys;
   keys.reserve(order.size());
   for (const auto& [d, k] : order) keys.push_back(k);

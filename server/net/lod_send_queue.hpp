@@ -10,8 +10,8 @@
 #include <array>
 #include <cstdint>
 #include <functional>
-#include <map>
 #include <optional>
+#include <unordered_map>
 #include <vector>
 
 #include "server/pipeline/lod_mesh_store.hpp"
@@ -23,8 +23,9 @@ class LodSendQueue {
  public:
   using Lookup = std::function<pipeline::MeshVersionPtr(const pipeline::LodKey&)>;
 
-  // The client's layout changed (LodView::update) around `eye`; every held chunk is
-  // re-ordered. Returns the chunks that left it while the client held a mesh of them.
+  // The client's layout changed (LodView::update; or not: an empty change) around `eye`;
+  // the queued chunks are re-ordered. Returns the chunks that left it while the client held a mesh
+  // of them.
   std::vector<world::LodChunk> apply(const world::LodViewChange& change,
                                      const std::array<double, 3>& eye);
   // A new version of `k` was published; ignored unless the client's layout has that
@@ -71,7 +72,7 @@ class LodSendQueue {
   // The client holds (or was found empty) the mesh of the seams it needs now.
   static bool resolved(const Held& h);
 
-  std::map<world::LodChunk, Held> chunks_;
+  std::unordered_map<world::LodChunk, Held, world::LodChunkHash> chunks_;
   std::vector<Entry> heap_;  // min-heap; entries of chunks no longer queued are skipped
   std::array<double, 3> eye_{};
   uint64_t next_wire_version_ = 1;

@@ -55,17 +55,22 @@ int ClientSession::apply_lod_view(const PendingView& v, std::function<bool(Chunk
   }
   const world::LodViewChange change = lod_view_->update(v.eye);  // eye checked: finite, bounded
   queue_lod_unload(lod_queue_.apply(change, v.eye));
-  auto level0 = std::make_shared<std::set<ChunkCoord>>();
+  if (!change.empty() || !lod_level0_) {
+    // The layout changed: its level-0 chunks and the pipeline's wants with it (a walking
+    // player's SetViews mostly leave the layout as it was).
+    auto level0 = std::make_shared<std::unordered_set<ChunkCoord, world::ChunkCoordHash>>();
+    for (const LodChunk& c : lod_view_->layout().chunks())
+      if (c.level == 0) level0->insert(c.c);
+    lod_level0_ = std::move(level0);
+    pipeline_.set_lod_view(id_, lod_queue_.wants());
+  }
   int64_t r2 = 0;
-  for (const LodChunk& c : lod_view_->layout().chunks()) {
-    if (c.level != 0) continue;
-    level0->insert(c.c);
-    const int64_t dx = c.c.x - v.center.x, dy = c.c.y - v.center.y, dz = c.c.z - v.center.z;
+  for (const ChunkCoord c : *lod_level0_) {
+    const int64_t dx = c.x - v.center.x, dy = c.y - v.center.y, dz = c.z - v.center.z;
     r2 = std::max(r2, dx * dx + dy * dy + dz * dz);
   }
-  keep = [level0](ChunkCoord c) { return level0->count(c) > 0; };
+  keep = [level0 = lod_level0_](ChunkCoord c) { return level0->count(c) > 0; };
   lod_active_.store(true, std::memory_order_relaxed);
-  pipeline_.set_lod_view(id_, lod_queue_.wants());
   return static_cast<int>(std::ceil(std::sqrt(static_cast<double>(r2))));
 }
 
@@ -78,6 +83,7 @@ void ClientSession::drop_lod_view() {
   queue_lod_unload(lod_queue_.apply(gone, {}));
   lod_queue_.clear();
   lod_view_.reset();
+  lod_level0_.reset();
   lod_active_.store(false, std::memory_order_relaxed);
   pipeline_.set_lod_view(id_, {});
 }

@@ -253,7 +253,7 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
   return mesh_and_publish(ready);
 }
 
-std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) {
+std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
   const world::OverlaySampler sampler(
       generator_, modified_,
       [this](ChunkCoord c) -> const world::Chunk& {
@@ -262,26 +262,31 @@ std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) 
         return *chunk;
       },
       &grids_);
+  // One task per chunk: its samples are gathered once, for every seams variant wanted (a
+  // point holds the same sample whichever seams read it), and each variant meshed from them.
+  std::sort(keys.begin(), keys.end(),
+            [](const LodKey& a, const LodKey& b) { return a.chunk < b.chunk; });
+  std::vector<size_t> starts;
+  for (size_t i = 0; i < keys.size(); ++i)
+    if (i == 0 || !(keys[i].chunk == keys[i - 1].chunk)) starts.push_back(i);
+  starts.push_back(keys.size());
   std::vector<std::shared_ptr<MeshVersion>> fresh(keys.size());
   std::atomic<size_t> failed{0};
-  parallel_for_index(state_.arena, keys.size(), [&](size_t i) {
+  parallel_for_index(state_.arena, starts.size() - 1, [&](size_t g) {
     LodWorker& w = *workers_.local();
-    const LodKey& k = keys[i];
+    const size_t begin = starts[g], end = starts[g + 1];
+    world::LodSeams all;
+    for (size_t i = begin; i < end; ++i) {
+      all.faces |= keys[i].seams.faces;
+      all.edges |= keys[i].seams.edges;
+    }
     try {
-      mesh::gather_lod_block(sampler, k.chunk, k.seams, w.block);
+      mesh::gather_lod_block(sampler, keys[begin].chunk, all, w.block);
     } catch (const std::exception&) {  // a coordinate out of range, a lookup failing
-      failed.fetch_add(1, std::memory_order_relaxed);
+      failed.fetch_add(end - begin, std::memory_order_relaxed);
       return;
     }
-    mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
-    auto v = std::make_shared<MeshVersion>();
-    v->coord = k.chunk.c;
-    proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
-    const MeshVersionPtr old = meshes_.get(k);
-    if (old && old->encoding == v->encoding) return;                // unchanged
-    v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
-    w.zstd.compress(v->encoding, {}, v->full_frame);
-    fresh[i] = std::move(v);
+    for (size_t i = begin; i < end; ++i) fresh[i] = mesh_variant(keys[i], w);
   });
   if (failed.load() > 0)
     spdlog::error("lod: {} coarse chunks could not be sampled; they stay unpublished",
@@ -294,6 +299,19 @@ std::vector<LodKey> LodStage::mesh_and_publish(const std::vector<LodKey>& keys) 
     published.push_back(keys[i]);
   }
   return published;
+}
+
+std::shared_ptr<MeshVersion> LodStage::mesh_variant(const LodKey& k, LodWorker& w) const {
+  w.block.seams = world::normalized(k.seams);
+  mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
+  auto v = std::make_shared<MeshVersion>();
+  v->coord = k.chunk.c;
+  proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
+  const MeshVersionPtr old = meshes_.get(k);
+  if (old && old->encoding == v->encoding) return nullptr;        // unchanged
+  v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
+  w.zstd.compress(v->encoding, {}, v->full_frame);
+  return v;
 }
 
 }  // namespace vox::pipeline

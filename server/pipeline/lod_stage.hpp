@@ -86,7 +86,10 @@ class LodStage {
   // from the store (kLater: more than that are needed; kFailed: the store failed).
   enum class Resident { kReady, kLater, kFailed };
   Resident make_resident(const world::LodChunk& c, Clock::time_point now, size_t& reads_left);
-  std::vector<LodKey> mesh_and_publish(const std::vector<LodKey>& keys);
+  std::vector<LodKey> mesh_and_publish(std::vector<LodKey> keys);
+  // Meshes `k` from the samples in w.block (gathered for its seams or more); null when
+  // the published mesh is the same. Any worker thread.
+  std::shared_ptr<MeshVersion> mesh_variant(const LodKey& k, LodWorker& w) const;
 
   const world::TerrainGenerator& generator_;
   WorldState& state_;

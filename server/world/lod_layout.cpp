@@ -31,7 +31,7 @@ constexpr std::array<std::array<int, 3>, 18> kNeighbourDirections = [] {
 // leaves two or more levels finer than the asker: n is split and one of its children that
 // touch the asker is split too.
 bool has_finer_than_one_level(const LodChunk& n, const std::array<int, 3>& d,
-                              const std::set<LodChunk>& split) {
+                              const LodChunkSet& split) {
   if (n.level < 2 || !split.contains(n)) return false;
   for (int i = 0; i < 8; ++i) {
     const int bits[3] = {i & 1, (i >> 1) & 1, i >> 2};
@@ -67,8 +67,8 @@ LodLayout::LodLayout(LodSettings settings) : settings_(settings) {
 }
 
 void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
-                       const std::set<LodChunk>& was_split, std::set<LodChunk>& leaves,
-                       std::set<LodChunk>& split) const {
+                       const LodChunkSet& was_split, LodChunkSet& leaves,
+                       LodChunkSet& split) const {
   const double band = was_split.contains(node) ? 1.0 + settings_.hysteresis : 1.0;
   const double factor = node.level == 1 && settings_.near_split_distance > 0
                             ? settings_.near_split_distance
@@ -82,7 +82,7 @@ void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
   for (int i = 0; i < 8; ++i) refine(child(node, i), eye, was_split, leaves, split);
 }
 
-void LodLayout::balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split) {
+void LodLayout::balance(LodChunkSet& leaves, LodChunkSet& split) {
   for (bool changed = true; changed;) {
     changed = false;
     std::vector<LodChunk> to_split;
@@ -112,7 +112,7 @@ bool LodLayout::update(const std::array<double, 3>& eye) {
   std::array<int32_t, 3> centre{};
   for (int a = 0; a < 3; ++a)
     centre[a] = static_cast<int32_t>(std::floor(eye[a] / static_cast<double>(side)));
-  std::set<LodChunk> leaves, split;
+  LodChunkSet leaves, split;
   const int r = settings_.top_radius;
   for (int z = -r; z <= r; ++z)
     for (int y = -r; y <= r; ++y)

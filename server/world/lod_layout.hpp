@@ -15,7 +15,7 @@
 #include <array>
 #include <compare>
 #include <cstdint>
-#include <set>
+#include <unordered_set>
 
 #include "server/world/chunk_coord.hpp"
 #include "server/world/lod_seams.hpp"
@@ -30,6 +30,15 @@ struct LodChunk {
   int64_t side() const { return int64_t{kChunkSize} << level; }  // in voxels
   std::array<int64_t, 3> lo() const { return {c.x * side(), c.y * side(), c.z * side()}; }
 };
+
+struct LodChunkHash {
+  size_t operator()(const LodChunk& c) const {
+    return ChunkCoordHash{}(c.c) ^ (static_cast<size_t>(c.level) * 0x9E3779B97F4A7C15ull);
+  }
+};
+// Chunks of a layout: hashed (a layout is rebuilt on every SetView of a walking player,
+// and an ordered tree's lookups were 7 % of a loaded server's CPU).
+using LodChunkSet = std::unordered_set<LodChunk, LodChunkHash>;
 
 // Distance from `eye` (voxels) to the chunk's box, 0 inside.
 double distance_to(const LodChunk& c, const std::array<double, 3>& eye);
@@ -60,23 +69,22 @@ class LodLayout {
   // Lays the chunks out around `eye` (voxel coordinates; throws std::invalid_argument
   // when not finite or beyond 1e9); returns whether the layout changed.
   bool update(const std::array<double, 3>& eye);
-  const std::set<LodChunk>& chunks() const { return leaves_; }
+  const LodChunkSet& chunks() const { return leaves_; }
   // Where leaf `c` meets finer leaves (lod_seams.hpp); none for a chunk that is not in
   // the layout.
   LodSeams seams(const LodChunk& c) const;
   const LodSettings& settings() const { return settings_; }
 
  private:
-  void refine(const LodChunk& node, const std::array<double, 3>& eye,
-              const std::set<LodChunk>& was_split, std::set<LodChunk>& leaves,
-              std::set<LodChunk>& split) const;
+  void refine(const LodChunk& node, const std::array<double, 3>& eye, const LodChunkSet& was_split,
+              LodChunkSet& leaves, LodChunkSet& split) const;
   // Splits leaves that have a face or edge neighbour two or more levels finer, until none
   // has.
-  static void balance(std::set<LodChunk>& leaves, std::set<LodChunk>& split);
+  static void balance(LodChunkSet& leaves, LodChunkSet& split);
 
   LodSettings settings_;
-  std::set<LodChunk> leaves_;
-  std::set<LodChunk> split_;  // the inner nodes of the octree
+  LodChunkSet leaves_;
+  LodChunkSet split_;  // the inner nodes of the octree
 };
 
 }  // namespace vox::world

@@ -5,8 +5,9 @@
 namespace vox::world {
 
 LodViewChange LodView::update(const std::array<double, 3>& eye) {
-  layout_.update(eye);
   LodViewChange change;
+  // The same leaves: the same seams too (the inner nodes are the leaves' ancestors).
+  if (!layout_.update(eye) && !layout_.chunks().empty()) return change;
   std::map<LodChunk, LodSeams> now;
   for (const LodChunk& c : layout_.chunks()) {
     const LodSeams seams = layout_.seams(c);

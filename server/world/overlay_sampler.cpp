@@ -59,14 +59,23 @@ void OverlaySampler::overlay(ChunkCoord c, const std::array<int32_t, 3>& origin,
     if (range[a].first > range[a].second) return;  // no grid point in the chunk
   }
   const Chunk& chunk = lookup_(c);
+  const Density* density = chunk.densities();
+  const Material* material = chunk.materials();
+  const int32_t base[3] = {origin[0] - c.x * kChunkSize, origin[1] - c.y * kChunkSize,
+                           origin[2] - c.z * kChunkSize};
   for (int k = range[2].first; k <= range[2].second; ++k)
-    for (int j = range[1].first; j <= range[1].second; ++j)
-      for (int i = range[0].first; i <= range[0].second; ++i) {
-        const int x = origin[0] + step * i - c.x * kChunkSize,
-                  y = origin[1] + step * j - c.y * kChunkSize,
-                  z = origin[2] + step * k - c.z * kChunkSize;
-        out[i + n[0] * (j + static_cast<size_t>(n[1]) * k)] = chunk.at(x, y, z);
+    for (int j = range[1].first; j <= range[1].second; ++j) {
+      Sample* row = out + n[0] * (j + static_cast<size_t>(n[1]) * k);
+      if (!density) {  // a uniform chunk
+        std::fill(row + range[0].first, row + range[0].second + 1, chunk.uniform_value());
+        continue;
       }
+      const int line = Chunk::index(0, base[1] + step * j, base[2] + step * k);
+      for (int i = range[0].first; i <= range[0].second; ++i) {
+        const int at = line + base[0] + step * i;
+        row[i] = {density[at], material[at]};
+      }
+    }
 }
 
 }  // namespace vox::world
