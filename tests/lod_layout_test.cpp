@@ -121,6 +121,28 @@ TEST(LodLayout, MovingBackAndForthAcrossABoundaryDoesNotReload) {
   EXPECT_TRUE(changed);
 }
 
+// A walking player's SetViews mostly leave the layout as it was, and a settled layout
+// skips the work while the eye stays within the margin it computed: along a random walk
+// it is always the layout worked out in full.
+TEST(LodLayout, ASettledLayoutIsTheLayoutWorkedOutInFullAlongAWalk) {
+  const LodSettings settings{
+      .levels = 5, .top_radius = 1, .split_distance = 2.0, .near_split_distance = 2.0};
+  LodLayout quick(settings), full(settings);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> step(-3.0, 3.0);
+  std::array<double, 3> eye{-300.25, 40.5, 900.75};
+  int settled = 0;
+  for (int i = 0; i < 1000; ++i) {
+    for (double& v : eye) v += step(rng) * (i % 100 == 0 ? 40.0 : 1.0);  // now and then a jump
+    settled += quick.settled() ? 1 : 0;
+    const bool changed = quick.update(eye);
+    full.forget_settled();
+    EXPECT_EQ(changed, full.update(eye)) << i;
+    ASSERT_EQ(quick.chunks(), full.chunks()) << "step " << i;
+  }
+  EXPECT_GT(settled, 400) << "most steps are skipped";
+}
+
 TEST(LodLayout, FarFromTheEyeTheChunksAreCoarse) {
   LodLayout layout({.levels = 7, .top_radius = 1, .split_distance = 2.0});
   layout.update({0.5, 0.5, 0.5});

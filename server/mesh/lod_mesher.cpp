@@ -66,11 +66,23 @@ int64_t squared(const std::array<int64_t, 3>& n) { return n[0] * n[0] + n[1] * n
 
 class SeamMesher {
  public:
-  SeamMesher(const LodBlock& in, LodScratch& s, ChunkMesh& out) : in_(in), s_(s), out_(out) {}
+  SeamMesher(const LodBlock& in, LodScratch& s, ChunkMesh& out) : in_(in), s_(s), out_(out) {
+    // A cell's splits depend only on where it lies on each axis: at the low end, inside or
+    // at the high end of the chunk (27 places), so they are worked out once per place.
+    constexpr int kEnds[3] = {0, 1, kChunkSize - 1};
+    for (int z = 0; z < 3; ++z)
+      for (int y = 0; y < 3; ++y)
+        for (int x = 0; x < 3; ++x) {
+          const int place = x + 3 * y + 9 * z;
+          splits_[place] = seam_cell_splits(in.seams, kEnds[x], kEnds[y], kEnds[z]);
+          needed_[place] = needed_points(splits_[place]);
+        }
+  }
 
   void mesh_cell(int x, int y, int z) {
-    const SeamCellSplits splits = seam_cell_splits(in_.seams, x, y, z);
-    const uint32_t needed = needed_points(splits);
+    const int place = place_of(x) + 3 * place_of(y) + 9 * place_of(z);
+    const SeamCellSplits splits = splits_[place];
+    const uint32_t needed = needed_[place];
     uint32_t solid = 0;
     for (uint32_t bits = needed; bits != 0; bits &= bits - 1) {
       const int p = std::countr_zero(bits);
@@ -95,6 +107,8 @@ class SeamMesher {
   }
 
  private:
+  static int place_of(int v) { return v == 0 ? 0 : v == kChunkSize - 1 ? 2 : 1; }
+
   // The seam points a cell reads: its corners, the midpoints of its split edges and the
   // centres of its faces with centres.
   static uint32_t needed_points(SeamCellSplits splits) {
@@ -241,6 +255,8 @@ class SeamMesher {
   const LodBlock& in_;
   LodScratch& s_;
   ChunkMesh& out_;
+  std::array<SeamCellSplits, 27> splits_;  // by place (mesh_cell)
+  std::array<uint32_t, 27> needed_;
 };
 
 }  // namespace

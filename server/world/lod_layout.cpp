@@ -67,19 +67,25 @@ LodLayout::LodLayout(LodSettings settings) : settings_(settings) {
 }
 
 void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
-                       const LodChunkSet& was_split, LodChunkSet& leaves,
-                       LodChunkSet& split) const {
+                       const LodChunkSet& was_split, LodChunkSet& leaves, LodChunkSet& split,
+                       double& margin) const {
   const double band = was_split.contains(node) ? 1.0 + settings_.hysteresis : 1.0;
   const double factor = node.level == 1 && settings_.near_split_distance > 0
                             ? settings_.near_split_distance
                             : settings_.split_distance;
   const double limit = factor * band * static_cast<double>(node.side());
-  if (node.level == 0 || distance_to(node, eye) >= limit) {
+  if (node.level == 0) {
+    leaves.insert(node);
+    return;
+  }
+  const double distance = distance_to(node, eye);
+  margin = std::min(margin, std::abs(distance - limit));
+  if (distance >= limit) {
     leaves.insert(node);
     return;
   }
   split.insert(node);
-  for (int i = 0; i < 8; ++i) refine(child(node, i), eye, was_split, leaves, split);
+  for (int i = 0; i < 8; ++i) refine(child(node, i), eye, was_split, leaves, split, margin);
 }
 
 void LodLayout::balance(LodChunkSet& leaves, LodChunkSet& split) {
@@ -107,19 +113,33 @@ bool LodLayout::update(const std::array<double, 3>& eye) {
   for (const double v : eye) {
     if (!(std::abs(v) < 1e9)) throw std::invalid_argument("LodLayout: eye outside the world");
   }
+  if (settled_margin_ > 0) {  // the last layout was settled: is the eye still within it?
+    double d2 = 0;
+    for (int a = 0; a < 3; ++a) d2 += (eye[a] - settled_eye_[a]) * (eye[a] - settled_eye_[a]);
+    if (std::sqrt(d2) < settled_margin_) return false;
+  }
   const int top = settings_.levels - 1;
-  const int64_t side = int64_t{kChunkSize} << top;
+  const double side = static_cast<double>(int64_t{kChunkSize} << top);
   std::array<int32_t, 3> centre{};
-  for (int a = 0; a < 3; ++a)
-    centre[a] = static_cast<int32_t>(std::floor(eye[a] / static_cast<double>(side)));
+  double margin = INFINITY;  // how far the eye may move before a decision below changes
+  for (int a = 0; a < 3; ++a) {
+    centre[a] = static_cast<int32_t>(std::floor(eye[a] / side));
+    margin = std::min({margin, eye[a] - centre[a] * side, (centre[a] + 1) * side - eye[a]});
+  }
   LodChunkSet leaves, split;
   const int r = settings_.top_radius;
   for (int z = -r; z <= r; ++z)
     for (int y = -r; y <= r; ++y)
       for (int x = -r; x <= r; ++x)
-        refine({top, {centre[0] + x, centre[1] + y, centre[2] + z}}, eye, split_, leaves, split);
+        refine({top, {centre[0] + x, centre[1] + y, centre[2] + z}}, eye, split_, leaves, split,
+               margin);
   balance(leaves, split);
   const bool changed = leaves != leaves_;
+  // Unchanged, the layout is settled: it was worked out from the inner nodes it has, so
+  // while the eye stays within `margin` of here every decision, and so the layout, stays
+  // the same (a distance to a box moves no more than the eye does).
+  settled_margin_ = changed ? 0.0 : margin;
+  settled_eye_ = eye;
   leaves_ = std::move(leaves);
   split_ = std::move(split);
   return changed;

@@ -74,10 +74,15 @@ class LodLayout {
   // the layout.
   LodSeams seams(const LodChunk& c) const;
   const LodSettings& settings() const { return settings_; }
+  // Whether the last update() found the layout unchanged and settled it: then updates
+  // within a margin of that eye (the nearest split decision or top-level boundary)
+  // return false at once. forget_settled() makes the next update work it out in full.
+  bool settled() const { return settled_margin_ > 0; }
+  void forget_settled() { settled_margin_ = 0; }
 
  private:
   void refine(const LodChunk& node, const std::array<double, 3>& eye, const LodChunkSet& was_split,
-              LodChunkSet& leaves, LodChunkSet& split) const;
+              LodChunkSet& leaves, LodChunkSet& split, double& margin) const;
   // Splits leaves that have a face or edge neighbour two or more levels finer, until none
   // has.
   static void balance(LodChunkSet& leaves, LodChunkSet& split);
@@ -85,6 +90,10 @@ class LodLayout {
   LodSettings settings_;
   LodChunkSet leaves_;
   LodChunkSet split_;  // the inner nodes of the octree
+  // When the last update left the layout unchanged: the eye then, and how far it may move
+  // from there before any split decision changes (0: not settled).
+  std::array<double, 3> settled_eye_{};
+  double settled_margin_ = 0;
 };
 
 }  // namespace vox::world
