@@ -32,7 +32,7 @@ struct MemoKey {
 class DecodeMemo {
  public:
   // Encodings remembered per (level, chunk).
-  static constexpr size_t kKept = 3;
+  static constexpr size_t kKept = 8;
 
   // True when `encoding` is byte for byte a remembered good encoding of `key`. Any thread.
   bool known_good(const MemoKey& key, std::span<const uint8_t> encoding) const;

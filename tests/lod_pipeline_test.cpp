@@ -4,9 +4,11 @@
 // meshes go at once.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <thread>
 
 #include "proto/mesh_codec.hpp"
 #include "server/mesh/lod_block.hpp"
@@ -165,6 +167,62 @@ TEST(LodPipeline, AStormOfEditsRemeshesEachCoarseChunkAtMostOncePerInterval) {
       EXPECT_GE(times[i] - times[i - 1], 180ms) << "a coarse chunk re-meshed twice in an interval";
   }
   EXPECT_GT(republished, 0u) << "a 1.2 s storm re-meshes a chunk more than once";
+}
+
+// The bug: re-meshes went before missing meshes in every pass, so while a storm kept
+// re-meshes due (200 players editing where they stood) no new layout was ever meshed and
+// no LOD view completed.
+TEST(LodPipeline, ANewLayoutIsMeshedWhileAStormKeepsReMeshesDue) {
+  PipelineConfig config{.seed = kSeed, .threads = 2};
+  config.lod.remesh_interval = 10ms;
+  config.lod_group_chunks = 1;
+  WorldPipeline p(config);
+  Publications pub;
+  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  const world::TerrainGenerator generator(kSeed);
+  const float h = generator.height_at(200, 30);
+  // Many owners around the storm: each coarse chunk there has several seams variants.
+  std::vector<LodKey> stormy;
+  for (int o = 0; o < 6; ++o) {
+    const auto keys = layout_keys({-120.5 + 48 * o, h, 0.5 + 20 * (o % 3)});
+    p.set_lod_view(10 + o, keys);
+    stormy.insert(stormy.end(), keys.begin(), keys.end());
+  }
+  ASSERT_TRUE(pub.wait(
+      [&](const auto&) {
+        for (const LodKey& k : stormy)
+          if (!p.lod_meshes().get(k)) return false;
+        return true;
+      },
+      60s));
+  std::atomic<bool> stop{false};
+  std::thread storm([&] {  // explosions all over the stormy layout's coarse chunks
+    std::vector<std::future<EditResult>> results;
+    for (int i = 0; !stop.load(); ++i) {
+      const float x = static_cast<float>((i * 37) % 300 - 150),
+                  z = static_cast<float>((i * 91) % 300 - 150);
+      results.push_back(p.submit(world::Explosion{{x, generator.height_at(x, z), z}, 12, 2.0f}));
+      if (results.size() >= 8) {
+        for (auto& r : results) r.get();
+        results.clear();
+      }
+      std::this_thread::sleep_for(1ms);
+    }
+    for (auto& r : results) r.get();
+  });
+  std::this_thread::sleep_for(300ms);  // re-meshes keep falling due
+  const auto fresh = layout_keys({5000.5, 0.5, -3000.5});
+  p.set_lod_view(2, fresh);
+  const bool all = pub.wait(
+      [&](const auto&) {
+        for (const LodKey& k : fresh)
+          if (!p.lod_meshes().get(k)) return false;
+        return true;
+      },
+      30s);
+  stop = true;
+  storm.join();
+  EXPECT_TRUE(all) << "the new layout starved behind the storm's re-meshes";
 }
 
 TEST(LodPipeline, ALeavingOwnersMeshesAreDroppedAtOnce) {

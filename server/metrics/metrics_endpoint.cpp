@@ -210,6 +210,18 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     gauge(out, "voxeld_lod_meshes_loaded",
           "Level-of-detail meshes (levels >= 1) some client's layout wants",
           double(s.lod_mesh_count));
+    auto meshed = family("voxeld_lod_meshes_made_total",
+                         "Level-of-detail meshes made (new or re-meshed after edits), by level",
+                         MetricType::Counter);
+    auto published = family("voxeld_lod_meshes_published_total",
+                            "Of those, the ones that differed from the last (sent to clients)",
+                            MetricType::Counter);
+    for (size_t level = 1; level < s.lod_meshed.size(); ++level) {
+      add(meshed, double(s.lod_meshed[level]), {{"level", std::to_string(level)}});
+      add(published, double(s.lod_published[level]), {{"level", std::to_string(level)}});
+    }
+    out.push_back(std::move(meshed));
+    out.push_back(std::move(published));
     auto accounted =
         family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
     add(accounted, double(s.chunk_bytes), {{"part", "chunks"}});

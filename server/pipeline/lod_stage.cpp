@@ -228,8 +228,13 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
   chunks.swap(retry_);  // put off by the store first
   std::sort(chunks.begin(), chunks.end());
   chunks.erase(std::unique(chunks.begin(), chunks.end()), chunks.end());
-  if (chunks.size() < max_chunks) {
-    for (const LodChunk& c : remesh_.take_due(now, max_chunks - chunks.size())) chunks.push_back(c);
+  // Re-meshes and missing meshes share the pass (half each when both wait): a storm that
+  // keeps re-meshes due must not keep a new layout from being meshed.
+  const bool missing = missing_ && !owners_.empty();
+  const size_t remesh_quota = missing ? std::max<size_t>(1, max_chunks / 2) : max_chunks;
+  if (chunks.size() < remesh_quota) {
+    for (const LodChunk& c : remesh_.take_due(now, remesh_quota - chunks.size()))
+      chunks.push_back(c);
   }
   std::vector<LodKey> keys;
   for (const LodChunk& c : chunks) {
@@ -237,7 +242,7 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
     if (v == variants_.end()) continue;
     for (const world::LodSeams s : v->second) keys.push_back({c, s});
   }
-  if (keys.size() < max_chunks) take_missing(max_chunks, keys);
+  if (missing) take_missing(keys.size() + std::max<size_t>(1, max_chunks - chunks.size()), keys);
   size_t reads_left = kStoreReadsPerPass;
   std::vector<LodKey> ready;
   for (const LodKey& k : keys) {
@@ -293,7 +298,10 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
                   failed.load());
   std::vector<LodKey> published;
   for (size_t i = 0; i < keys.size(); ++i) {
+    const int level = std::min(keys[i].chunk.level, kCountedLevels - 1);
+    meshed_[level].fetch_add(1, std::memory_order_relaxed);
     if (!fresh[i]) continue;
+    published_[level].fetch_add(1, std::memory_order_relaxed);
     fresh[i]->version = next_version_++;
     meshes_.publish(keys[i], std::move(fresh[i]));
     published.push_back(keys[i]);

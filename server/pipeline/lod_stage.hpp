@@ -13,6 +13,8 @@
 
 #include <tbb/enumerable_thread_specific.h>
 
+#include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -73,6 +75,10 @@ class LodStage {
   // Bytes of the meshes and of the generator grids kept (any thread).
   size_t memory_bytes() const { return meshes_.memory_bytes() + grids_.bytes(); }
   uint64_t remesh_dropped() const { return remesh_.dropped(); }
+  // Meshes made of each level (changed or not) and published, since the start (any thread).
+  static constexpr int kCountedLevels = 21;
+  uint64_t meshed(int level) const { return meshed_[level].load(std::memory_order_relaxed); }
+  uint64_t published(int level) const { return published_[level].load(std::memory_order_relaxed); }
 
  private:
   struct Owner {
@@ -111,6 +117,7 @@ class LodStage {
   bool store_failing_ = false;          // a read failed (logged once)
   Clock::time_point store_retry_at_{};  // after a failed read: not before this
   std::vector<world::LodChunk> retry_;  // put off by the store: meshed first next time
+  std::array<std::atomic<uint64_t>, kCountedLevels> meshed_{}, published_{};
 };
 
 }  // namespace vox::pipeline
