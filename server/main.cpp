@@ -100,6 +100,7 @@ int main(int argc, char** argv) {
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000,
        evict_after_s = 120;
   double checkpoint_s = 10;
+  long lod_remesh_ms = 250;
   po::options_description opts("voxeld options");
   opts.add_options()("help,h", "show this help")(
       "port", po::value<uint16_t>(&net.port)->default_value(7777), "TCP port (0: pick a free one)")(
@@ -169,14 +170,17 @@ int main(int argc, char** argv) {
       "coarsest level of detail a view may ask for (0: none; level 6 chunks are 2,048 voxels)")(
       "max-lod-distance", po::value<float>(&net.max_lod_distance)->default_value(2.0f),
       "largest SetView.lod_distance (1..4; larger: more coarse chunks per view)")(
-      "idle-timeout-ms", po::value<long>(&idle_ms)->default_value(60000),
-      "disconnect clients silent this long")("handshake-timeout-ms",
-                                             po::value<long>(&handshake_ms)->default_value(5000),
-                                             "time allowed for Hello")(
-      "write-timeout-ms", po::value<long>(&write_ms)->default_value(10000),
-      "disconnect clients that stop reading")("stats-interval",
-                                              po::value<int>(&stats_seconds)->default_value(10),
-                                              "seconds between stats lines (0: none)")(
+      "lod-remesh-interval-ms", po::value<long>(&lod_remesh_ms)->default_value(250),
+      "an edited coarse chunk is re-meshed at most this often (10..750; its update reaches "
+      "players within about this plus a pass)")("idle-timeout-ms",
+                                                po::value<long>(&idle_ms)->default_value(60000),
+                                                "disconnect clients silent this long")(
+      "handshake-timeout-ms", po::value<long>(&handshake_ms)->default_value(5000),
+      "time allowed for Hello")("write-timeout-ms",
+                                po::value<long>(&write_ms)->default_value(10000),
+                                "disconnect clients that stop reading")(
+      "stats-interval", po::value<int>(&stats_seconds)->default_value(10),
+      "seconds between stats lines (0: none)")(
       "log-level", po::value<std::string>(&log_level)->default_value("info"),
       "trace, debug, info, warn, error")(
       "auth-public-key", po::value<std::string>(&auth_key_file),
@@ -201,13 +205,14 @@ int main(int argc, char** argv) {
       !(checkpoint_s >= 0.01 && checkpoint_s <= 86400) ||
       (vm.count("metrics-port") && metrics_port < 0) || net.max_view_radius > 32 ||
       net.max_lod_level > 6 || !(net.max_lod_distance >= 1.0f && net.max_lod_distance <= 4.0f) ||
-      net.max_clients < 1 || net.max_handshaking < 1) {
+      lod_remesh_ms < 10 || lod_remesh_ms > 750 || net.max_clients < 1 || net.max_handshaking < 1) {
     std::cerr << "voxeld: --io-threads must be 1..64, --threads >= 0, --max-view-radius <= 32, "
-                 "--max-lod-level <= 6, --max-lod-distance 1..4, "
+                 "--max-lod-level <= 6, --max-lod-distance 1..4, --lod-remesh-interval-ms 10..750, "
                  "--max-clients >= 1, "
                  "--max-handshaking >= 1, timeouts > 0, --checkpoint-interval 0.01..86400\n";
     return 2;
   }
+  world.lod.remesh_interval = std::chrono::milliseconds(lod_remesh_ms);
   // The burst (8x) must hold one work unit, or no view of the address would ever load.
   if (!(world.load_work_per_address == 0 || world.load_work_per_address >= 0.125)) {
     std::cerr << "voxeld: --load-budget-per-address must be 0 (unlimited) or at least 0.125\n";

@@ -210,15 +210,20 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     gauge(out, "voxeld_lod_meshes_loaded",
           "Level-of-detail meshes (levels >= 1) some client's layout wants",
           double(s.lod_mesh_count));
-    auto meshed = family("voxeld_lod_meshes_made_total",
-                         "Level-of-detail meshes made (new or re-meshed after edits), by level",
-                         MetricType::Counter);
+    auto meshed = family(
+        "voxeld_lod_meshes_made_total",
+        "Level-of-detail meshes made, by level and cause: new to a layout, or re-meshed after "
+        "an edit",
+        MetricType::Counter);
     auto published = family("voxeld_lod_meshes_published_total",
                             "Of those, the ones that differed from the last (sent to clients)",
                             MetricType::Counter);
     for (size_t level = 1; level < s.lod_meshed.size(); ++level) {
-      add(meshed, double(s.lod_meshed[level]), {{"level", std::to_string(level)}});
-      add(published, double(s.lod_published[level]), {{"level", std::to_string(level)}});
+      const std::string l = std::to_string(level);
+      add(meshed, double(s.lod_remeshed[level]), {{"level", l}, {"cause", "edit"}});
+      add(meshed, double(s.lod_meshed[level] - s.lod_remeshed[level]),
+          {{"level", l}, {"cause", "new"}});
+      add(published, double(s.lod_published[level]), {{"level", l}});
     }
     out.push_back(std::move(meshed));
     out.push_back(std::move(published));

@@ -241,6 +241,8 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
     const auto v = variants_.find(c);
     if (v == variants_.end()) continue;
     for (const world::LodSeams s : v->second) keys.push_back({c, s});
+    remeshed_[std::min(c.level, kCountedLevels - 1)].fetch_add(v->second.size(),
+                                                               std::memory_order_relaxed);
   }
   if (missing) take_missing(keys.size() + std::max<size_t>(1, max_chunks - chunks.size()), keys);
   size_t reads_left = kStoreReadsPerPass;

@@ -75,9 +75,11 @@ class LodStage {
   // Bytes of the meshes and of the generator grids kept (any thread).
   size_t memory_bytes() const { return meshes_.memory_bytes() + grids_.bytes(); }
   uint64_t remesh_dropped() const { return remesh_.dropped(); }
-  // Meshes made of each level (changed or not) and published, since the start (any thread).
+  // Meshes made of each level (changed or not), of those the re-meshes after edits (the
+  // rest were new to the layouts), and those published, since the start (any thread).
   static constexpr int kCountedLevels = 21;
   uint64_t meshed(int level) const { return meshed_[level].load(std::memory_order_relaxed); }
+  uint64_t remeshed(int level) const { return remeshed_[level].load(std::memory_order_relaxed); }
   uint64_t published(int level) const { return published_[level].load(std::memory_order_relaxed); }
 
  private:
@@ -117,7 +119,7 @@ class LodStage {
   bool store_failing_ = false;          // a read failed (logged once)
   Clock::time_point store_retry_at_{};  // after a failed read: not before this
   std::vector<world::LodChunk> retry_;  // put off by the store: meshed first next time
-  std::array<std::atomic<uint64_t>, kCountedLevels> meshed_{}, published_{};
+  std::array<std::atomic<uint64_t>, kCountedLevels> meshed_{}, remeshed_{}, published_{};
 };
 
 }  // namespace vox::pipeline

@@ -219,6 +219,7 @@ PipelineStats WorldPipeline::stats() const {
   s.lod_mesh_bytes = lod_->memory_bytes();
   for (int level = 0; level < config_.lod.levels && level < LodStage::kCountedLevels; ++level) {
     s.lod_meshed.push_back(lod_->meshed(level));
+    s.lod_remeshed.push_back(lod_->remeshed(level));
     s.lod_published.push_back(lod_->published(level));
   }
   s.other_bytes = other_bytes_.load(std::memory_order_relaxed);

@@ -142,8 +142,9 @@ struct PipelineStats {
   size_t other_bytes = 0;  // reported by set_other_bytes (sessions)
   // Level-of-detail meshes (levels >= 1); their bytes include the generator grids kept.
   size_t lod_mesh_count = 0, lod_mesh_bytes = 0;
-  // Per level (index 1 ..): LOD meshes made, and those published (they had changed).
-  std::vector<uint64_t> lod_meshed, lod_published;
+  // Per level (index 1 ..): LOD meshes made, of those re-meshed after edits, and those
+  // published (they had changed).
+  std::vector<uint64_t> lod_meshed, lod_remeshed, lod_published;
   size_t accounted_bytes = 0;  // chunks + meshes + other
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
   // The durable world: chunks the store has a checkpoint of, resident chunks changed since
