@@ -39,6 +39,8 @@ void DecodeMemo::remember(const MemoKey& key, std::span<const uint8_t> encoding)
   if (it == recent.end()) it = recent.end() - 1;  // a new one: the oldest goes
   std::rotate(recent.begin(), it, it + 1);        // to the front
   if (!same(recent.front().get(), encoding)) recent.front() = std::move(copy);
+  if (key.level == 0)  // a long soak edits thousands of chunks: keep the newest few only
+    std::fill(recent.begin() + kKeptLevel0, recent.end(), nullptr);
 }
 
 }  // namespace vox::loadtest

@@ -31,8 +31,10 @@ struct MemoKey {
 
 class DecodeMemo {
  public:
-  // Encodings remembered per (level, chunk).
+  // Encodings remembered per (level, chunk): a coarse chunk's seams variants, a level-0
+  // chunk's newest versions (players receive them in order, a few apart at most).
   static constexpr size_t kKept = 8;
+  static constexpr size_t kKeptLevel0 = 2;
 
   // True when `encoding` is byte for byte a remembered good encoding of `key`. Any thread.
   bool known_good(const MemoKey& key, std::span<const uint8_t> encoding) const;

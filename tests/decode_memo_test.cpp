@@ -39,5 +39,16 @@ TEST(DecodeMemo, KeepsSeveralVariantsOfOneCoarseChunkAndForgetsTheOldest) {
   EXPECT_FALSE(memo.known_good(key, variants[1])) << "the oldest went";
 }
 
+TEST(DecodeMemo, KeepsOnlyTheNewestFewVersionsOfALevelZeroChunk) {
+  DecodeMemo memo;
+  const MemoKey key{0, {4, 0, 4}};
+  std::vector<std::vector<uint8_t>> versions;
+  for (uint8_t i = 0; i < 4; ++i) versions.push_back({i, 1});
+  for (const auto& v : versions) memo.remember(key, v);
+  EXPECT_TRUE(memo.known_good(key, versions[3]));
+  EXPECT_TRUE(memo.known_good(key, versions[2]));
+  EXPECT_FALSE(memo.known_good(key, versions[1])) << "only " << DecodeMemo::kKeptLevel0 << " kept";
+}
+
 }  // namespace
 }  // namespace vox::loadtest

@@ -221,7 +221,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     for (size_t level = 1; level < s.lod_meshed.size(); ++level) {
       const std::string l = std::to_string(level);
       add(meshed, double(s.lod_remeshed[level]), {{"level", l}, {"cause", "edit"}});
-      add(meshed, double(s.lod_meshed[level] - s.lod_remeshed[level]),
+      add(meshed,
+          double(s.lod_meshed[level] - std::min(s.lod_meshed[level], s.lod_remeshed[level])),
           {{"level", l}, {"cause", "new"}});
       add(published, double(s.lod_published[level]), {{"level", l}});
     }

@@ -10,6 +10,7 @@
 #include "proto/zstd_codec.hpp"
 #include "server/mesh/lod_block.hpp"
 #include "server/mesh/lod_mesher.hpp"
+#include "server/pipeline/lod_pass_quota.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/overlay_sampler.hpp"
@@ -228,36 +229,39 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
   chunks.swap(retry_);  // put off by the store first
   std::sort(chunks.begin(), chunks.end());
   chunks.erase(std::unique(chunks.begin(), chunks.end()), chunks.end());
-  // Re-meshes and missing meshes share the pass (half each when both wait): a storm that
-  // keeps re-meshes due must not keep a new layout from being meshed.
+  // Re-meshes and missing meshes share the pass (lod_pass_quota.hpp).
   const bool missing = missing_ && !owners_.empty();
-  const size_t remesh_quota = missing ? std::max<size_t>(1, max_chunks / 2) : max_chunks;
-  if (chunks.size() < remesh_quota) {
-    for (const LodChunk& c : remesh_.take_due(now, remesh_quota - chunks.size()))
-      chunks.push_back(c);
+  if (const size_t due = lod_remesh_quota(max_chunks, chunks.size(), missing); due > 0) {
+    for (const LodChunk& c : remesh_.take_due(now, due)) chunks.push_back(c);
   }
   std::vector<LodKey> keys;
   for (const LodChunk& c : chunks) {
     const auto v = variants_.find(c);
     if (v == variants_.end()) continue;
     for (const world::LodSeams s : v->second) keys.push_back({c, s});
-    remeshed_[std::min(c.level, kCountedLevels - 1)].fetch_add(v->second.size(),
-                                                               std::memory_order_relaxed);
   }
-  if (missing) take_missing(keys.size() + std::max<size_t>(1, max_chunks - chunks.size()), keys);
+  const size_t remesh_keys = keys.size();  // re-meshes (and meshes the store put off)
+  if (missing) take_missing(keys.size() + lod_missing_quota(max_chunks, chunks.size(), true), keys);
   size_t reads_left = kStoreReadsPerPass;
   std::vector<LodKey> ready;
-  for (const LodKey& k : keys) {
+  std::array<uint64_t, kCountedLevels> remeshed{};
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const LodKey& k = keys[i];
     const Resident r = make_resident(k.chunk, now, reads_left);
     if (r == Resident::kReady) {
       ready.push_back(k);
+      if (i < remesh_keys) ++remeshed[std::min(k.chunk.level, kCountedLevels - 1)];
       continue;
     }
     retry_.push_back(k.chunk);  // whether a re-mesh or a missing mesh: all its variants
     if (r == Resident::kFailed) store_retry_at_ = now + kStoreRetry;
   }
   if (ready.empty()) return {};
-  return mesh_and_publish(ready);
+  std::vector<LodKey> published = mesh_and_publish(std::move(ready));
+  // Counted after meshed_ (mesh_and_publish): a reader never sees more re-meshes than meshes.
+  for (int level = 0; level < kCountedLevels; ++level)
+    if (remeshed[level] > 0) remeshed_[level].fetch_add(remeshed[level], std::memory_order_relaxed);
+  return published;
 }
 
 std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
