@@ -179,5 +179,24 @@ TEST(LodSendQueue, AnUnchangedLayoutReordersTheQueuedChunksAndQueuesNothingElse)
   EXPECT_TRUE(q.take_complete()) << "each view is announced complete";
 }
 
+// A chunk looked at before its mesh existed waits for mark_stale(); an unchanged layout in
+// between must not lose it.
+TEST(LodSendQueue, AChunkNotMeshedYetIsSentWhenPublishedAfterAnUnchangedLayout) {
+  LodSendQueue q;
+  const LodChunk c{2, {1, 0, 0}};
+  Published p;
+  q.apply(sends({{c, {}}}), kEye);
+  EXPECT_FALSE(q.next(p.lookup())) << "not meshed yet";
+  q.apply({}, {12, 10, 10});
+  EXPECT_FALSE(q.next(p.lookup()));
+  EXPECT_FALSE(q.take_complete());
+  p.publish({c, {}});
+  q.mark_stale({c, {}});
+  const auto sent = q.next(p.lookup());
+  ASSERT_TRUE(sent);
+  EXPECT_EQ(sent->chunk, c);
+  EXPECT_TRUE(q.take_complete());
+}
+
 }  // namespace
 }  // namespace vox::net
