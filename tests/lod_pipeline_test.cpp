@@ -70,8 +70,8 @@ proto::Bytes direct_encoding(const world::PointSampler& sampler, const LodKey& k
 }
 
 TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
-  Publications pub;
   p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
   const auto keys = layout_keys({20.5, 10.5, -40.5});
   p.set_lod_view(1, keys);
@@ -91,8 +91,8 @@ TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
 }
 
 TEST(LodPipeline, AnEditReachesTheCoarseChunksOverItAsAFreshMeshOfTheEditedWorld) {
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
-  Publications pub;
   p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
   const world::TerrainGenerator generator(kSeed);
   const float h = generator.height_at(200, -40);  // beyond level 0 (about 64 voxels)
@@ -135,8 +135,8 @@ TEST(LodPipeline, AnEditReachesTheCoarseChunksOverItAsAFreshMeshOfTheEditedWorld
 TEST(LodPipeline, AStormOfEditsRemeshesEachCoarseChunkAtMostOncePerInterval) {
   PipelineConfig config{.seed = kSeed, .threads = 2};
   config.lod.remesh_interval = 250ms;
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(config);
-  Publications pub;
   p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
   const world::TerrainGenerator generator(kSeed);
   const float h = generator.height_at(200, 30);
@@ -176,8 +176,8 @@ TEST(LodPipeline, ANewLayoutIsMeshedWhileAStormKeepsReMeshesDue) {
   PipelineConfig config{.seed = kSeed, .threads = 2};
   config.lod.remesh_interval = 10ms;
   config.lod_group_chunks = 1;
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(config);
-  Publications pub;
   p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
   const world::TerrainGenerator generator(kSeed);
   const float h = generator.height_at(200, 30);
@@ -226,8 +226,8 @@ TEST(LodPipeline, ANewLayoutIsMeshedWhileAStormKeepsReMeshesDue) {
 }
 
 TEST(LodPipeline, ALeavingOwnersMeshesAreDroppedAtOnce) {
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
-  Publications pub;
   p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
   const auto keys = layout_keys({0.5, 0.5, 0.5});
   p.set_lod_view(1, keys);
