@@ -282,6 +282,7 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
     if (i == 0 || !(keys[i].chunk == keys[i - 1].chunk)) starts.push_back(i);
   starts.push_back(keys.size());
   std::vector<std::shared_ptr<MeshVersion>> fresh(keys.size());
+  std::vector<uint8_t> made(keys.size(), 0);  // sampled and meshed (fresh: and changed)
   std::atomic<size_t> failed{0};
   parallel_for_index(state_.arena, starts.size() - 1, [&](size_t g) {
     LodWorker& w = *workers_.local();
@@ -297,7 +298,10 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
       failed.fetch_add(end - begin, std::memory_order_relaxed);
       return;
     }
-    for (size_t i = begin; i < end; ++i) fresh[i] = mesh_variant(keys[i], w);
+    for (size_t i = begin; i < end; ++i) {
+      fresh[i] = mesh_variant(keys[i], w);
+      made[i] = 1;
+    }
   });
   if (failed.load() > 0)
     spdlog::error("lod: {} coarse chunks could not be sampled; they stay unpublished",
@@ -305,7 +309,7 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
   std::vector<LodKey> published;
   for (size_t i = 0; i < keys.size(); ++i) {
     const int level = std::min(keys[i].chunk.level, kCountedLevels - 1);
-    meshed_[level].fetch_add(1, std::memory_order_relaxed);
+    meshed_[level].fetch_add(made[i], std::memory_order_relaxed);
     if (!fresh[i]) continue;
     published_[level].fetch_add(1, std::memory_order_relaxed);
     fresh[i]->version = next_version_++;

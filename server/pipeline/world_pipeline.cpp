@@ -215,13 +215,7 @@ PipelineStats WorldPipeline::stats() const {
   }
   s.mesh_count = meshes_.size();
   s.mesh_bytes = meshes_.memory_bytes();
-  s.lod_mesh_count = lod_->meshes().size();
-  s.lod_mesh_bytes = lod_->memory_bytes();
-  for (int level = 0; level < config_.lod.levels && level < LodStage::kCountedLevels; ++level) {
-    s.lod_meshed.push_back(lod_->meshed(level));
-    s.lod_remeshed.push_back(lod_->remeshed(level));
-    s.lod_published.push_back(lod_->published(level));
-  }
+  lod_stats(s);
   s.other_bytes = other_bytes_.load(std::memory_order_relaxed);
   s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + s.other_bytes;
   s.loads_blocked = loads_blocked_.load(std::memory_order_relaxed);

@@ -353,6 +353,7 @@ class WorldPipeline {
   // After a durable batch: its accepted edits reach the coarse levels.
   void lod_edited(const Batch& b, Clock::time_point now);
   void notify_lod(const std::vector<LodKey>& published);
+  void lod_stats(PipelineStats& s) const;  // its part of stats(); any thread
   // The newest mesh of `c`: a pending batch's, else the published one.
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
   // Whether a pending batch changed samples that meshes of `chunks` read: a load pass

@@ -72,6 +72,16 @@ void WorldPipeline::notify_lod(const std::vector<LodKey>& published) {
   for (const auto& s : subscribers) s(published);
 }
 
+void WorldPipeline::lod_stats(PipelineStats& s) const {  // any thread
+  s.lod_mesh_count = lod_->meshes().size();
+  s.lod_mesh_bytes = lod_->memory_bytes();
+  for (int level = 0; level < config_.lod.levels && level < LodStage::kCountedLevels; ++level) {
+    s.lod_meshed.push_back(lod_->meshed(level));
+    s.lod_remeshed.push_back(lod_->remeshed(level));
+    s.lod_published.push_back(lod_->published(level));
+  }
+}
+
 void WorldPipeline::lod_edited(const Batch& b, Clock::time_point now) {
   for (size_t t = 0; t < b.tasks.size(); ++t) {
     const auto* task = std::get_if<EditTask>(&b.tasks[t]);
