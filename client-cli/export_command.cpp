@@ -1,17 +1,16 @@
 // voxel-cli export: fetch the meshes around a point, decode them and write one welded
 // mesh (.obj, .ply or .glb).
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <iomanip>
 #include <ostream>
-#include <unordered_map>
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
 #include "client-cli/mesh_file.hpp"
 #include "client-cli/region_fetch.hpp"
 #include "client/voxel_client.hpp"
+#include "server/mesh/lod_welder.hpp"
 #include "server/mesh/mesh_welder.hpp"
 
 namespace vox::cli {
@@ -20,51 +19,21 @@ using namespace std::chrono_literals;
 
 namespace {
 
-// The chunks of every level the client holds (a level-of-detail view), in world
-// positions, as one mesh: a vertex on a seam is bit-identical to its twin in the chunk
-// across (PROTOCOL.md 2.7), so vertices are joined by exact position; unused ones drop.
+// The chunks of every level the client holds (a level-of-detail view) welded into one mesh
+// in world positions (lod_welder.hpp).
 mesh::ChunkMesh weld_levels(const client::Client& c, uint32_t levels) {
-  struct PositionHash {
-    size_t operator()(const std::array<uint32_t, 3>& p) const {
-      return (uint64_t{p[0]} * 0x9E3779B97F4A7C15ull) ^ (uint64_t{p[1]} * 0xC2B2AE3D27D4EB4Full) ^
-             (uint64_t{p[2]} * 0x165667B19E3779F9ull);
-    }
-  };
-  std::unordered_map<std::array<uint32_t, 3>, uint32_t, PositionHash> index;
-  mesh::ChunkMesh out;
-  std::vector<uint32_t> remap;
+  std::vector<mesh::ChunkMesh> decoded;
+  std::vector<mesh::LodPart> parts;
   for (uint32_t level = 0; level <= levels; ++level) {
-    const float scale = static_cast<float>(1u << level), side = 32.0f * scale;
     for (const auto& [key, held] : level == 0 ? c.chunks() : c.lod_chunks(level)) {
-      auto decoded = proto::decode_mesh(held.encoding);
-      if (!decoded) throw std::runtime_error("bad mesh from the server: " + decoded.error());
-      const mesh::ChunkMesh& m = *decoded;
-      const float o[3] = {static_cast<float>(std::get<0>(key)) * side,
-                          static_cast<float>(std::get<1>(key)) * side,
-                          static_cast<float>(std::get<2>(key)) * side};
-      remap.assign(m.positions.size(), UINT32_MAX);
-      for (const uint32_t i : m.indices) {
-        if (remap[i] != UINT32_MAX) {
-          out.indices.push_back(remap[i]);
-          continue;
-        }
-        const mesh::Vec3f p{o[0] + m.positions[i].x * scale, o[1] + m.positions[i].y * scale,
-                            o[2] + m.positions[i].z * scale};
-        const std::array<uint32_t, 3> bits{std::bit_cast<uint32_t>(p.x),
-                                           std::bit_cast<uint32_t>(p.y),
-                                           std::bit_cast<uint32_t>(p.z)};
-        auto [it, added] = index.try_emplace(bits, static_cast<uint32_t>(out.positions.size()));
-        if (added) {
-          out.positions.push_back(p);
-          out.normals.push_back(m.normals[i]);
-          out.materials.push_back(m.materials[i]);
-        }
-        remap[i] = it->second;
-        out.indices.push_back(it->second);
-      }
+      auto mesh = proto::decode_mesh(held.encoding);
+      if (!mesh) throw std::runtime_error("bad mesh from the server: " + mesh.error());
+      decoded.push_back(std::move(*mesh));
+      parts.push_back({level, {std::get<0>(key), std::get<1>(key), std::get<2>(key)}, nullptr});
     }
   }
-  return out;
+  for (size_t i = 0; i < parts.size(); ++i) parts[i].mesh = &decoded[i];
+  return mesh::weld_lod_parts(std::move(parts));
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 // voxel-cli's network commands against a real voxeld on loopback.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -112,6 +114,86 @@ TEST_F(CliNetwork, WatchPrintsUpdatesAndASummary) {
       << err_.str();
   EXPECT_NE(out_.str().find("full"), std::string::npos) << out_.str();
   EXPECT_NE(out_.str().find("watched"), std::string::npos);
+}
+
+// The OBJ file's positions and triangles (1-based indices made 0-based).
+struct ObjMesh {
+  std::vector<std::array<float, 3>> positions;
+  std::vector<std::array<uint32_t, 3>> triangles;
+};
+
+ObjMesh read_obj(const std::string& text) {
+  ObjMesh m;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    std::istringstream l(line);
+    std::string tag;
+    l >> tag;
+    if (tag == "v") {
+      std::array<float, 3> p{};
+      l >> p[0] >> p[1] >> p[2];
+      m.positions.push_back(p);
+    } else if (tag == "f") {
+      std::array<uint32_t, 3> t{};
+      for (uint32_t& i : t) {
+        std::string corner;
+        l >> corner;
+        i = static_cast<uint32_t>(std::stoul(corner.substr(0, corner.find('/')))) - 1;
+      }
+      m.triangles.push_back(t);
+    }
+  }
+  return m;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+TEST_F(CliNetwork, AFarViewExportIsTheSameFileEachTimeAndOpenOnlyAtTheViewsSides) {
+  const std::string at = surface_at(16, 16);
+  for (const char* name : {"far1.obj", "far2.obj"}) {
+    ASSERT_EQ(run({"export", "--at", at, "--radius", "1", "--lod-distance", "1", "--lod-level", "2",
+                   "--out", path(name)}),
+              0)
+        << err_.str();
+    EXPECT_NE(out_.str().find("chunks of levels 0-2"), std::string::npos) << out_.str();
+  }
+  const std::string first = read_file(path("far1.obj"));
+  // Chunks arrive in a different order each time; the file does not depend on it.
+  EXPECT_EQ(first, read_file(path("far2.obj")));
+
+  // One welded mesh: an edge in one triangle only lies on the view's outer sides, which the
+  // terrain reaches along x and z (no crack between chunks of different levels).
+  const ObjMesh m = read_obj(first);
+  ASSERT_GT(m.triangles.size(), 1000u);
+  std::array<float, 2> lo{1e30f, 1e30f}, hi{-1e30f, -1e30f};
+  for (const auto& p : m.positions)
+    for (int k = 0; k < 2; ++k) {
+      lo[k] = std::min(lo[k], p[2 * k]);
+      hi[k] = std::max(hi[k], p[2 * k]);
+    }
+  std::map<std::pair<uint32_t, uint32_t>, int> edges;
+  for (const auto& t : m.triangles)
+    for (int k = 0; k < 3; ++k) ++edges[std::minmax(t[k], t[(k + 1) % 3])];
+  const auto on_side = [&](uint32_t v) {
+    const auto& p = m.positions[v];
+    for (int k = 0; k < 2; ++k)
+      if (std::fabs(p[2 * k] - lo[k]) < 1e-3f || std::fabs(p[2 * k] - hi[k]) < 1e-3f) return true;
+    return false;
+  };
+  size_t open = 0;
+  for (const auto& [e, count] : edges) {
+    EXPECT_LE(count, 2) << "edge " << e.first << "-" << e.second;
+    if (count == 1) {
+      ++open;
+      EXPECT_TRUE(on_side(e.first) && on_side(e.second))
+          << "an open edge inside the view at (" << m.positions[e.first][0] << ", "
+          << m.positions[e.first][1] << ", " << m.positions[e.first][2] << ")";
+    }
+  }
+  EXPECT_GT(open, 0u) << "the terrain reaches the view's sides";
 }
 
 uint32_t u32(const std::vector<uint8_t>& b, size_t at) {
