@@ -8,6 +8,7 @@
 #include <cmath>
 #include <map>
 #include <span>
+#include <stdexcept>
 
 #include "proto/mesh_codec.hpp"
 #include "proto/zstd_codec.hpp"
@@ -16,6 +17,7 @@
 #include "server/world/chunk_map.hpp"
 #include "server/world/lod_layout.hpp"
 #include "server/world/lod_view.hpp"
+#include "server/world/overlay_sampler.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "server/world/terrain_sampler.hpp"
 
@@ -161,6 +163,52 @@ BENCHMARK(BM_LodView2048)
     ->ArgNames({"split_x10", "near_split_x10"})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
+
+// A coarse chunk re-meshed after an edit, as the server's LOD stage does it: its samples
+// gathered once for the union of the seams variants players want (the generated grids
+// from a warm cache, as the stage keeps them), its regular vertices made once, then each
+// variant meshed, encoded and compressed. The level-1 chunks of the near-split-2.0 view
+// with a surface, four variants each (no seams, -x, +z, -x and +z). Counter: variants/s.
+void BM_LodRemeshVariants(benchmark::State& state) {
+  world::LodLayout layout(
+      {.levels = 7, .top_radius = 1, .split_distance = 1.0, .near_split_distance = 2.0});
+  layout.update(eye());
+  LodWork w;
+  world::GridCache grids(size_t{256} << 20);
+  const world::OverlaySampler::ModifiedSet none;
+  const world::OverlaySampler sampler(
+      generator(), none,
+      [](world::ChunkCoord) -> const world::Chunk& { throw std::logic_error("unmodified"); },
+      &grids);
+  const world::LodSeams gathered{world::kMinusX | world::kPlusZ, 0};
+  std::vector<world::LodChunk> chunks;
+  for (const world::LodChunk& c : layout.chunks()) {
+    if (c.level != 1) continue;
+    mesh::gather_lod_block(sampler, c, gathered, w.block);  // warms the cache
+    mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
+    if (!w.mesh.empty()) chunks.push_back(c);
+  }
+  const world::LodSeams variants[] = {
+      {0, 0}, {world::kMinusX, 0}, {world::kPlusZ, 0}, {world::kMinusX | world::kPlusZ, 0}};
+  size_t meshed = 0;
+  for (auto _ : state) {
+    for (const world::LodChunk& c : chunks) {
+      mesh::gather_lod_block(sampler, c, gathered, w.block);
+      mesh::mesh_lod_vertices(w.block, w.lod);
+      for (const world::LodSeams s : variants) {
+        w.block.seams = world::normalized(s);
+        mesh::mesh_lod_variant(w.block, w.lod, w.mesh);
+        proto::encode_lod_mesh(w.mesh, w.lod, w.scratch, w.encoding);
+        w.zstd.compress(w.encoding, {}, w.frame);
+        ++meshed;
+      }
+    }
+  }
+  state.counters["variants"] =
+      benchmark::Counter(static_cast<double>(meshed), benchmark::Counter::kIsRate);
+  state.counters["chunks"] = static_cast<double>(chunks.size());
+}
+BENCHMARK(BM_LodRemeshVariants)->Unit(benchmark::kMillisecond);
 
 // A player walking 512 voxels along x at the surface, 4 voxels per update (the layout of the
 // near-split-2.0 view): what the changes cost on the wire. A chunk the client holds with

@@ -11,6 +11,7 @@
 #include <random>
 #include <set>
 
+#include "proto/mesh_codec.hpp"
 #include "server/mesh/marching_cubes_tables.hpp"
 #include "server/world/gradient_noise.hpp"
 #include "server/world/terrain_sampler.hpp"
@@ -267,9 +268,10 @@ TEST(LodMesher, ANoisyFieldAcrossLevelsIsClosed) {
   }
 }
 
-// The pipeline gathers a chunk's samples once for every seams variant wanted and meshes
-// each variant from them: a variant meshed from a block gathered for more seams is the
-// mesh of a block gathered for its own seams alone.
+// The pipeline gathers a chunk's samples once for every seams variant wanted, makes the
+// regular vertices once and meshes each variant from them: a variant made that way, after
+// other variants, is the mesh (and the encoding) of a block gathered and meshed for its
+// own seams alone.
 TEST(LodMesher, AVariantMeshedFromABlockGatheredForMoreSeamsIsTheSameMesh) {
   const world::GradientNoise noise(5);
   const FieldSampler sampler([&](float x, float y, float z) {
@@ -278,6 +280,8 @@ TEST(LodMesher, AVariantMeshedFromABlockGatheredForMoreSeamsIsTheSameMesh) {
   const LodChunk c{1, {0, 0, 0}};
   LodBlock all;
   gather_lod_block(sampler, c, {.faces = 63, .edges = 0xFFF}, all);
+  LodScratch sa;
+  mesh_lod_vertices(all, sa);
   std::mt19937 rng(3);
   for (int round = 0; round < 12; ++round) {
     const LodSeams seams =
@@ -286,10 +290,15 @@ TEST(LodMesher, AVariantMeshedFromABlockGatheredForMoreSeamsIsTheSameMesh) {
     LodBlock own;
     gather_lod_block(sampler, c, seams, own);
     all.seams = seams;
-    LodScratch sa, so;
+    LodScratch so;
     ChunkMesh ma, mo;
-    mesh_lod_chunk(all, sa, ma);
+    mesh_lod_variant(all, sa, ma);
     mesh_lod_chunk(own, so, mo);
+    proto::CodecScratch codec;
+    proto::Bytes ea, eo;
+    proto::encode_lod_mesh(ma, sa, codec, ea);
+    proto::encode_lod_mesh(mo, so, codec, eo);
+    EXPECT_EQ(ea, eo) << "seams " << int{seams.faces} << "/" << seams.edges;
     ASSERT_GT(mo.triangle_count(), 0u);
     EXPECT_TRUE(
         std::equal(ma.indices.begin(), ma.indices.end(), mo.indices.begin(), mo.indices.end()))

@@ -75,21 +75,23 @@ class SeamMesher {
         for (int x = 0; x < 3; ++x) {
           const int place = x + 3 * y + 9 * z;
           splits_[place] = seam_cell_splits(in.seams, kEnds[x], kEnds[y], kEnds[z]);
-          needed_[place] = needed_points(splits_[place]);
+          points_[place] = place_points(needed_points(splits_[place]));
         }
   }
 
   void mesh_cell(int x, int y, int z) {
     const int place = place_of(x) + 3 * place_of(y) + 9 * place_of(z);
     const SeamCellSplits splits = splits_[place];
-    const uint32_t needed = needed_[place];
+    const PlacePoints& points = points_[place];
+    // Every seam cell reads its points, most of them to find no surface: the hot loop.
+    const Density* coarse = in_.coarse.density.get() + PaddedBlock::index(x, y, z);
+    const Density* fine = in_.seam_density.get() + LodBlock::seam_index(2 * x, 2 * y, 2 * z);
     uint32_t solid = 0;
-    for (uint32_t bits = needed; bits != 0; bits &= bits - 1) {
-      const int p = std::countr_zero(bits);
-      const auto q = seam_point_xyz(p);
-      if (density({2 * x + q[0], 2 * y + q[1], 2 * z + q[2]}) > 0) solid |= 1u << p;
-    }
-    if (solid == 0 || solid == needed) return;
+    for (int i = 0; i < 8; ++i)
+      solid |= static_cast<uint32_t>(coarse[points.corner_offset[i]] > 0) << points.corner_bit[i];
+    for (int i = 0; i < points.fine_count; ++i)
+      solid |= static_cast<uint32_t>(fine[points.fine_offset[i]] > 0) << points.fine_bit[i];
+    if (solid == 0 || solid == points.needed) return;
     SeamCellContour contour;
     contour_seam_cell(splits, solid, contour);
     int begin = 0;
@@ -109,6 +111,37 @@ class SeamMesher {
  private:
   static int place_of(int v) { return v == 0 ? 0 : v == kChunkSize - 1 ? 2 : 1; }
 
+  // A place's seam points, as offsets from the cell's lowest corner: the 8 corners in the
+  // coarse block, the others (each with an odd half-cell coordinate) in the seam grid.
+  struct PlacePoints {
+    uint32_t needed = 0;
+    int fine_count = 0;
+    std::array<int, 8> corner_offset{};
+    std::array<uint8_t, 8> corner_bit{};
+    std::array<int, 19> fine_offset{};
+    std::array<uint8_t, 19> fine_bit{};
+  };
+
+  static PlacePoints place_points(uint32_t needed) {
+    PlacePoints out;
+    out.needed = needed;
+    int corners = 0;
+    for (uint32_t bits = needed; bits != 0; bits &= bits - 1) {
+      const int p = std::countr_zero(bits);
+      const auto q = seam_point_xyz(p);
+      if (((q[0] | q[1] | q[2]) & 1) == 0) {
+        out.corner_offset[corners] =
+            PaddedBlock::index(q[0] / 2, q[1] / 2, q[2] / 2) - PaddedBlock::index(0, 0, 0);
+        out.corner_bit[corners++] = static_cast<uint8_t>(p);
+      } else {
+        out.fine_offset[out.fine_count] =
+            LodBlock::seam_index(q[0], q[1], q[2]) - LodBlock::seam_index(0, 0, 0);
+        out.fine_bit[out.fine_count++] = static_cast<uint8_t>(p);
+      }
+    }
+    return out;
+  }
+
   // The seam points a cell reads: its corners, the midpoints of its split edges and the
   // centres of its faces with centres.
   static uint32_t needed_points(SeamCellSplits splits) {
@@ -118,14 +151,6 @@ class SeamMesher {
     for (uint32_t f = splits.faces; f != 0; f &= f - 1)
       needed |= 1u << kFaceCentre[std::countr_zero(f)];
     return needed;
-  }
-
-  // The sample at half-cell point h of the chunk (coarse lattice points from the coarse
-  // block, whose samples the seam grid repeats).
-  Density density(const std::array<int, 3>& h) const {
-    if (((h[0] | h[1] | h[2]) & 1) == 0)
-      return in_.coarse.density[PaddedBlock::index(h[0] / 2, h[1] / 2, h[2] / 2)];
-    return in_.seam_density[LodBlock::seam_index(h[0], h[1], h[2])];
   }
 
   uint32_t vertex_of(const std::array<int, 3>& cell, SeamCellEdge e) {
@@ -256,7 +281,7 @@ class SeamMesher {
   LodScratch& s_;
   ChunkMesh& out_;
   std::array<SeamCellSplits, 27> splits_;  // by place (mesh_cell)
-  std::array<uint32_t, 27> needed_;
+  std::array<PlacePoints, 27> points_;
 };
 
 }  // namespace
@@ -311,10 +336,23 @@ void seam_cell_rows(world::LodSeams seams, CellRows& out) {
   }
 }
 
+void mesh_lod_vertices(const LodBlock& in, LodScratch& s) {
+  s.on_corner = mesh_vertices(in.coarse, s.mc, s.regular);
+}
+
 void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
+  mesh_lod_vertices(in, s);
+  mesh_lod_variant(in, s, out);
+}
+
+void mesh_lod_variant(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
   s.seams = in.seams;
   seam_cell_rows(in.seams, s.seam_cells);
-  mesh_chunk(in.coarse, s.mc, out, in.seams.empty() ? nullptr : &s.seam_cells);
+  out.positions.assign(s.regular.positions.begin(), s.regular.positions.end());
+  out.normals.assign(s.regular.normals.begin(), s.regular.normals.end());
+  out.materials.assign(s.regular.materials.begin(), s.regular.materials.end());
+  mesh_triangles(s.mc, in.coarse.cells, s.regular.positions, s.on_corner,
+                 in.seams.empty() ? nullptr : &s.seam_cells, out.indices);
   s.regular_vertices = static_cast<uint32_t>(out.vertex_count());
   s.regular_triangles = static_cast<uint32_t>(out.triangle_count());
   s.seam_vertices.clear();

@@ -34,7 +34,11 @@ struct HalfEdge {
 // mesh's first regular_vertices vertices and regular_triangles triangles are the
 // marching-cubes ones; seam_vertices[i] is the edge of vertex regular_vertices + i.
 struct LodScratch {
-  world::LodSeams seams;  // of the chunk last meshed (normalized)
+  // The regular vertices of the block last given to mesh_lod_vertices, with its topology
+  // in mc, shared by every seams variant meshed from that block.
+  ChunkMesh regular;
+  bool on_corner = false;  // some regular vertex sits on a sample
+  world::LodSeams seams;   // of the variant last meshed (normalized)
   uint32_t regular_vertices = 0;
   uint32_t regular_triangles = 0;
   Buffer<HalfEdge> seam_vertices;
@@ -53,7 +57,13 @@ SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z);
 // cell (x, y, z) touches a split edge.
 void seam_cell_rows(world::LodSeams seams, CellRows& out);
 
-// The calling thread only (one scratch per thread).
+// The calling thread only (one scratch per thread). A chunk's seams variants share its
+// regular vertices (they differ in which cells are seam cells): mesh_lod_vertices makes
+// them once from the block, then mesh_lod_variant meshes the variant in.seams (any subset
+// of the seams the block was gathered for) from the same block, as often as needed.
+// mesh_lod_chunk does both.
+void mesh_lod_vertices(const LodBlock& in, LodScratch& scratch);
+void mesh_lod_variant(const LodBlock& in, LodScratch& scratch, ChunkMesh& out);
 void mesh_lod_chunk(const LodBlock& in, LodScratch& scratch, ChunkMesh& out);
 
 }  // namespace vox::mesh

@@ -66,6 +66,11 @@ inline Vec3f gradient(const Density* d, int i) {
 }  // namespace
 
 void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out, const CellRows* skip) {
+  const bool on_corner = mesh_vertices(in, s, out);
+  mesh_triangles(s, in.cells, out.positions, on_corner, skip, out.indices);
+}
+
+bool mesh_vertices(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   const int ny = in.cells[1], nz = in.cells[2];
   const Density* dens = in.density.get();
   const world::Material* mats = in.material.get();
@@ -123,16 +128,23 @@ void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out, const Cel
     }
   }
 
-  // --- 4. triangles of the cells whose corners differ ---------------------------------
-  out.indices.resize(max_triangles(s, in.cells) * 3);
-  const Vec3f* vpos = out.positions.data();
+  out.indices.clear();
+  return on_corner;
+}
+
+// --- 4. triangles of the cells whose corners differ -------------------------------------
+void mesh_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
+                    std::span<const Vec3f> positions, bool on_corner, const CellRows* skip,
+                    Buffer<uint32_t>& indices) {
+  indices.resize(max_triangles(s, cells) * 3);
+  const Vec3f* vpos = positions.data();
   const size_t triangles = emit_triangles(
-      s, in.cells, out.indices.data(),
+      s, cells, indices.data(),
       [&](uint32_t a, uint32_t b, uint32_t c) {
         return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
       },
       skip);
-  out.indices.resize(triangles * 3);
+  indices.resize(triangles * 3);
 }
 
 uint32_t index_cut_edges(MeshScratch& s, const std::array<int, 3>& cells) {

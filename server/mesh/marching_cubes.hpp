@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 
 #include "server/mesh/chunk_mesh.hpp"
 #include "server/mesh/padded_block.hpp"
@@ -35,6 +36,16 @@ struct MeshScratch {
 using CellRows = std::array<uint64_t, kRows>;
 void mesh_chunk(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out,
                 const CellRows* skip = nullptr);
+
+// mesh_chunk in two halves, for meshing one block's cells several times with different
+// `skip` sets (the seams variants of a level-of-detail chunk): mesh_vertices fills
+// scratch and out's vertices (out.indices left empty) and returns whether some vertex sits
+// on a sample (then zero-area triangles are looked for); mesh_triangles writes the
+// triangles of those vertices into `indices`, as mesh_chunk would.
+bool mesh_vertices(const PaddedBlock& in, MeshScratch& scratch, ChunkMesh& out);
+void mesh_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells,
+                    std::span<const Vec3f> positions, bool on_corner, const CellRows* skip,
+                    Buffer<uint32_t>& indices);
 
 // The topology half of the mesher, shared with the mesh codec's decoder, which rebuilds a
 // mesh from the solid bits. Both read scratch.solid for rows y <= cells[1], z <= cells[2]

@@ -274,7 +274,8 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
       },
       &grids_);
   // One task per chunk: its samples are gathered once, for every seams variant wanted (a
-  // point holds the same sample whichever seams read it), and each variant meshed from them.
+  // point holds the same sample whichever seams read it), its regular vertices made once,
+  // and each variant meshed from them.
   std::sort(keys.begin(), keys.end(),
             [](const LodKey& a, const LodKey& b) { return a.chunk < b.chunk; });
   std::vector<size_t> starts;
@@ -298,6 +299,7 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
       failed.fetch_add(end - begin, std::memory_order_relaxed);
       return;
     }
+    mesh::mesh_lod_vertices(w.block, w.lod);  // shared by the variants
     for (size_t i = begin; i < end; ++i) {
       fresh[i] = mesh_variant(keys[i], w);
       made[i] = 1;
@@ -321,7 +323,7 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
 
 std::shared_ptr<MeshVersion> LodStage::mesh_variant(const LodKey& k, LodWorker& w) const {
   w.block.seams = world::normalized(k.seams);
-  mesh::mesh_lod_chunk(w.block, w.lod, w.mesh);
+  mesh::mesh_lod_variant(w.block, w.lod, w.mesh);
   auto v = std::make_shared<MeshVersion>();
   v->coord = k.chunk.c;
   proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
