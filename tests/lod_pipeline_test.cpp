@@ -8,7 +8,9 @@
 #include <condition_variable>
 #include <map>
 #include <mutex>
+#include <set>
 #include <thread>
+#include <tuple>
 
 #include "proto/mesh_codec.hpp"
 #include "server/mesh/lod_block.hpp"
@@ -72,7 +74,7 @@ proto::Bytes direct_encoding(const world::PointSampler& sampler, const LodKey& k
 TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
-  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& k) { pub.add(k.keys); });
   const auto keys = layout_keys({20.5, 10.5, -40.5});
   p.set_lod_view(1, keys);
   ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= keys.size(); }));
@@ -90,10 +92,52 @@ TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
   EXPECT_GT(with_surface, 4u);
 }
 
+// What loaded a server with 200 LOD views: every publication went to every session, which
+// looked each key up in its own view; now each owner hears only of the keys it wants.
+struct KeyLess {
+  bool operator()(const LodKey& a, const LodKey& b) const {
+    return std::tie(a.chunk, a.seams.faces, a.seams.edges) <
+           std::tie(b.chunk, b.seams.faces, b.seams.edges);
+  }
+};
+using KeySet = std::set<LodKey, KeyLess>;
+
+TEST(LodPipeline, APublishedMeshIsRoutedOnlyToTheOwnersWhoseLayoutsWantIt) {
+  std::mutex mutex;
+  std::map<LoadOwner, KeySet> routed;
+  KeySet published;
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& publication) {
+    {
+      std::lock_guard lock(mutex);
+      published.insert(publication.keys.begin(), publication.keys.end());
+      for (const auto& [owner, keys] : publication.by_owner)
+        routed[owner].insert(keys.begin(), keys.end());
+    }
+    pub.add(publication.keys);
+  });
+  // Two layouts far apart (their own keys) and a third sharing the first's.
+  const auto near = layout_keys({20.5, 10.5, -40.5});
+  const auto far = layout_keys({5000.5, 10.5, 3000.5});
+  p.set_lod_view(1, near);
+  p.set_lod_view(2, far);
+  p.set_lod_view(3, {near.front()});
+  KeySet all(near.begin(), near.end());
+  all.insert(far.begin(), far.end());
+  ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= all.size(); }));
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(published, all);
+  EXPECT_EQ(routed[1], KeySet(near.begin(), near.end()));
+  EXPECT_EQ(routed[2], KeySet(far.begin(), far.end()));
+  EXPECT_EQ(routed[3], KeySet{near.front()});
+  EXPECT_EQ(routed.size(), 3u);
+}
+
 TEST(LodPipeline, AnEditReachesTheCoarseChunksOverItAsAFreshMeshOfTheEditedWorld) {
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
-  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& k) { pub.add(k.keys); });
   const world::TerrainGenerator generator(kSeed);
   const float h = generator.height_at(200, -40);  // beyond level 0 (about 64 voxels)
   const auto keys = layout_keys({20.5, h, -40.5});
@@ -137,7 +181,7 @@ TEST(LodPipeline, AStormOfEditsRemeshesEachCoarseChunkAtMostOncePerInterval) {
   config.lod.remesh_interval = 250ms;
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(config);
-  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& k) { pub.add(k.keys); });
   const world::TerrainGenerator generator(kSeed);
   const float h = generator.height_at(200, 30);
   const auto keys = layout_keys({0.5, h, 0.5});
@@ -178,7 +222,7 @@ TEST(LodPipeline, ANewLayoutIsMeshedWhileAStormKeepsReMeshesDue) {
   config.lod_group_chunks = 1;
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(config);
-  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& k) { pub.add(k.keys); });
   const world::TerrainGenerator generator(kSeed);
   const float h = generator.height_at(200, 30);
   // Many owners around the storm: each coarse chunk there has several seams variants.
@@ -228,7 +272,7 @@ TEST(LodPipeline, ANewLayoutIsMeshedWhileAStormKeepsReMeshesDue) {
 TEST(LodPipeline, ALeavingOwnersMeshesAreDroppedAtOnce) {
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
-  p.subscribe_lod([&](const std::vector<LodKey>& k) { pub.add(k); });
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& k) { pub.add(k.keys); });
   const auto keys = layout_keys({0.5, 0.5, 0.5});
   p.set_lod_view(1, keys);
   p.set_lod_view(2, keys);

@@ -71,18 +71,23 @@ void Server::start() {
       if (s->may_see(changed)) s->on_chunks_published(shared);
     }
   });
-  lod_subscription_ = pipeline_.subscribe_lod([this](const std::vector<pipeline::LodKey>& keys) {
-    // Pipeline thread: to every session with a level-of-detail view.
-    auto shared = std::make_shared<const std::vector<pipeline::LodKey>>(keys);
-    std::vector<std::shared_ptr<ClientSession>> live;
-    {
-      std::lock_guard lock(sessions_mutex_);
-      for (const auto& [id, weak] : sessions_) {
-        if (auto s = weak.lock(); s && s->has_lod_view()) live.push_back(std::move(s));
-      }
-    }
-    for (const auto& s : live) s->on_lod_published(shared);
-  });
+  lod_subscription_ =
+      pipeline_.subscribe_lod([this](const pipeline::WorldPipeline::LodPublication& publication) {
+        // Pipeline thread: to each session whose layout wants some of the keys, those keys.
+        std::vector<std::pair<std::shared_ptr<ClientSession>, const std::vector<pipeline::LodKey>*>>
+            live;
+        {
+          std::lock_guard lock(sessions_mutex_);
+          for (const auto& [owner, keys] : publication.by_owner) {
+            const auto it = sessions_.find(owner);
+            if (it == sessions_.end()) continue;
+            if (auto s = it->second.lock(); s && s->has_lod_view())
+              live.emplace_back(std::move(s), &keys);
+          }
+        }
+        for (const auto& [s, keys] : live)
+          s->on_lod_published(std::make_shared<const std::vector<pipeline::LodKey>>(*keys));
+      });
   spdlog::info(
       "voxeld listening on {}:{} (seed {}, max {} players, {} in handshake, {} per address)",
       config_.bind, port_, pipeline_.config().seed, config_.max_clients, config_.max_handshaking,

@@ -76,17 +76,25 @@ void LodStage::learn_modified() {
 
 LodStage::~LodStage() = default;
 
-void LodStage::want(const LodKey& k) {
-  if (refs_[k]++ == 0) {
+void LodStage::want(LoadOwner owner, const LodKey& k) {
+  std::vector<LoadOwner>& owners = wanters_[k];
+  if (owners.empty()) {
     variants_[k.chunk].push_back(k.seams);
     missing_ = true;
   }
+  owners.push_back(owner);
 }
 
-void LodStage::unwant(const LodKey& k) {
-  auto it = refs_.find(k);
-  if (it == refs_.end() || --it->second > 0) return;
-  refs_.erase(it);
+void LodStage::unwant(LoadOwner owner, const LodKey& k) {
+  auto it = wanters_.find(k);
+  if (it == wanters_.end()) return;
+  std::vector<LoadOwner>& owners = it->second;
+  if (const auto o = std::find(owners.begin(), owners.end(), owner); o != owners.end()) {
+    *o = owners.back();
+    owners.pop_back();
+  }
+  if (!owners.empty()) return;
+  wanters_.erase(it);
   meshes_.erase(k);
   auto v = variants_.find(k.chunk);
   std::erase(v->second, k.seams);
@@ -96,13 +104,27 @@ void LodStage::unwant(const LodKey& k) {
   }
 }
 
+std::vector<std::pair<LoadOwner, std::vector<LodKey>>> LodStage::route(
+    const std::vector<LodKey>& published) const {
+  std::unordered_map<LoadOwner, std::vector<LodKey>> by_owner;
+  for (const LodKey& k : published) {
+    const auto it = wanters_.find(k);
+    if (it == wanters_.end()) continue;
+    for (const LoadOwner o : it->second) by_owner[o].push_back(k);
+  }
+  std::vector<std::pair<LoadOwner, std::vector<LodKey>>> out(
+      std::make_move_iterator(by_owner.begin()), std::make_move_iterator(by_owner.end()));
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  return out;
+}
+
 void LodStage::set_wants(LoadOwner owner, std::vector<LodKey> keys) {
   std::erase_if(keys, [](const LodKey& k) { return k.chunk.level < 1; });
   for (LodKey& k : keys) k.seams = world::normalized(k.seams);
-  for (const LodKey& k : keys) want(k);  // before the old ones go: shared keys stay
+  for (const LodKey& k : keys) want(owner, k);  // before the old ones go: shared keys stay
   auto it = owners_.find(owner);
   if (it != owners_.end()) {
-    for (const LodKey& k : it->second.keys) unwant(k);
+    for (const LodKey& k : it->second.keys) unwant(owner, k);
     if (keys.empty()) {
       owners_.erase(it);
       return;

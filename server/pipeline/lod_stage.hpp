@@ -71,7 +71,12 @@ class LodStage {
   // after a failed read, does nothing for a second.
   std::vector<LodKey> run(Clock::time_point now, size_t max_chunks);
 
-  size_t wanted() const { return refs_.size(); }
+  // The owners whose layouts want each of these keys (pipeline thread): each owner with
+  // its keys, by owner.
+  std::vector<std::pair<LoadOwner, std::vector<LodKey>>> route(
+      const std::vector<LodKey>& published) const;
+
+  size_t wanted() const { return wanters_.size(); }
   // Bytes of the meshes and of the generator grids kept (any thread).
   size_t memory_bytes() const { return meshes_.memory_bytes() + grids_.bytes(); }
   uint64_t remesh_dropped() const { return remesh_.dropped(); }
@@ -87,8 +92,8 @@ class LodStage {
     std::vector<LodKey> keys;
     size_t cursor = 0;  // keys before it were published when last looked at
   };
-  void want(const LodKey& k);
-  void unwant(const LodKey& k);
+  void want(LoadOwner owner, const LodKey& k);
+  void unwant(LoadOwner owner, const LodKey& k);
   void take_missing(size_t max, std::vector<LodKey>& out);
   // Makes the modified chunks a mesh of `c` reads resident, reading at most `reads_left`
   // from the store (kLater: more than that are needed; kFailed: the store failed).
@@ -105,7 +110,8 @@ class LodStage {
   LodMeshStore meshes_;
   LodRemeshQueue remesh_;
   std::unordered_map<LoadOwner, Owner> owners_;
-  std::unordered_map<LodKey, uint32_t, LodKeyHash> refs_;  // owners wanting each key
+  // The owners wanting each key (an owner once per key it wants).
+  std::unordered_map<LodKey, std::vector<LoadOwner>, LodKeyHash> wanters_;
   // Per chunk, the seams variants wanted (each counted once however many owners).
   std::map<world::LodChunk, std::vector<world::LodSeams>> variants_;
   bool missing_ = false;  // an owner may want a key not published yet

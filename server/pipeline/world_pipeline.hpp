@@ -211,8 +211,14 @@ class WorldPipeline {
   // reaches the LOD subscribers.
   void set_lod_view(LoadOwner owner, std::vector<LodKey> keys);
   const LodMeshStore& lod_meshes() const { return lod_->meshes(); }  // any thread
-  // Like subscribe(), for level-of-detail meshes (unsubscribe() drops either).
-  using LodSubscriber = std::function<void(const std::vector<LodKey>&)>;
+  // Like subscribe(), for level-of-detail meshes (unsubscribe() drops either): the keys
+  // published, and routed to the owners whose layouts want them (by owner), so that a
+  // session hears only of its own keys.
+  struct LodPublication {
+    std::vector<LodKey> keys;
+    std::vector<std::pair<LoadOwner, std::vector<LodKey>>> by_owner;
+  };
+  using LodSubscriber = std::function<void(const LodPublication&)>;
   uint64_t subscribe_lod(LodSubscriber s);  // any thread
   // Runs fn on the pipeline thread between batches, and waits for it (tests, persistence).
   void inspect(std::function<void(const world::ChunkMap&)> fn);

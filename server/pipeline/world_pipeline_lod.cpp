@@ -69,7 +69,9 @@ void WorldPipeline::notify_lod(const std::vector<LodKey>& published) {
     std::lock_guard lock(subscribers_mutex_);
     for (const auto& [id, s] : lod_subscribers_) subscribers.push_back(s);
   }
-  for (const auto& s : subscribers) s(published);
+  if (subscribers.empty()) return;
+  const LodPublication publication{published, lod_->route(published)};
+  for (const auto& s : subscribers) s(publication);
 }
 
 void WorldPipeline::lod_stats(PipelineStats& s) const {  // any thread
