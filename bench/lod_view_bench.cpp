@@ -219,6 +219,26 @@ BENCHMARK(BM_LodRemeshVariants)
     ->ArgName("shared_vertices")
     ->Unit(benchmark::kMillisecond);
 
+// What a walking player's SetViews cost the server's network thread: the view of the
+// near-split-2.0 layout updated every 2 voxels along a 2,048-voxel walk (most updates are
+// within the settled margin; the others lay the layout out again and diff it).
+void BM_LodViewUpdatesAlongAWalk(benchmark::State& state) {
+  size_t changed = 0;
+  for (auto _ : state) {
+    world::LodView view(
+        {.levels = 7, .top_radius = 1, .split_distance = 1.0, .near_split_distance = 2.0});
+    auto e = eye();
+    changed = 0;
+    for (double walked = 0; walked <= 2048.0; walked += 2.0) {
+      e[0] = 40.5 + walked;
+      const world::LodViewChange change = view.update(e);
+      changed += change.send.empty() && change.unload.empty() ? 0 : 1;
+    }
+  }
+  state.counters["changed_updates"] = static_cast<double>(changed);
+}
+BENCHMARK(BM_LodViewUpdatesAlongAWalk)->Unit(benchmark::kMillisecond);
+
 // A player walking 512 voxels along x at the surface, 4 voxels per update (the layout of the
 // near-split-2.0 view): what the changes cost on the wire. A chunk the client holds with
 // other seams is sent as a zstd delta against its previous encoding (PROTOCOL §3); a new

@@ -12,8 +12,8 @@ namespace {
 const LodSettings kSettings{
     .levels = 5, .top_radius = 1, .split_distance = 1.0, .near_split_distance = 2.0};
 
-std::map<LodChunk, LodSeams> layout_with_seams(const LodLayout& layout) {
-  std::map<LodChunk, LodSeams> out;
+LodSeamsMap layout_with_seams(const LodLayout& layout) {
+  LodSeamsMap out;
   for (const LodChunk& c : layout.chunks()) out.emplace(c, layout.seams(c));
   return out;
 }
@@ -40,7 +40,7 @@ TEST(LodView, MovingSendsOnlyNewChunksAndChangedSeamsAndUnloadsWhatLeft) {
   std::mt19937 rng(2);
   std::uniform_real_distribution<double> step(-90.0, 90.0);
   std::array<double, 3> eye{10.5, 0.5, 10.5};
-  std::map<LodChunk, LodSeams> client;  // what the client holds, from the changes alone
+  LodSeamsMap client;  // what the client holds, from the changes alone
   size_t resent_for_seams = 0;
   for (int move = 0; move < 30; ++move) {
     const LodViewChange change = view.update(eye);

@@ -27,23 +27,21 @@ constexpr std::array<std::array<int, 3>, 18> kNeighbourDirections = [] {
   return d;
 }();
 
-// Whether the region of `n` (same level as the leaf asking, at offset `d` from it) holds
-// leaves two or more levels finer than the asker: n is split and one of its children that
-// touch the asker is split too.
-bool has_finer_than_one_level(const LodChunk& n, const std::array<int, 3>& d,
-                              const LodChunkSet& split) {
-  if (n.level < 2 || !split.contains(n)) return false;
-  for (int i = 0; i < 8; ++i) {
-    const int bits[3] = {i & 1, (i >> 1) & 1, i >> 2};
-    bool touches = true;
-    for (int a = 0; a < 3; ++a) {
-      if (d[a] > 0) touches &= bits[a] == 0;  // n lies above the asker on this axis
-      if (d[a] < 0) touches &= bits[a] == 1;
-    }
-    if (touches && split.contains(child(n, i))) return true;
-  }
-  return false;
+LodChunk parent(const LodChunk& c) {
+  return {c.level + 1, {floor_div(c.c.x, 2), floor_div(c.c.y, 2), floor_div(c.c.z, 2)}};
 }
+
+// The index in kNeighbourDirections of the opposite direction.
+constexpr std::array<int, 18> kOpposite = [] {
+  std::array<int, 18> o{};
+  for (int i = 0; i < 18; ++i)
+    for (int j = 0; j < 18; ++j)
+      if (kNeighbourDirections[j][0] == -kNeighbourDirections[i][0] &&
+          kNeighbourDirections[j][1] == -kNeighbourDirections[i][1] &&
+          kNeighbourDirections[j][2] == -kNeighbourDirections[i][2])
+        o[i] = j;
+  return o;
+}();
 
 }  // namespace
 
@@ -89,24 +87,45 @@ void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
 }
 
 void LodLayout::balance(LodChunkSet& leaves, LodChunkSet& split) {
-  for (bool changed = true; changed;) {
-    changed = false;
-    std::vector<LodChunk> to_split;
-    for (const LodChunk& leaf : leaves) {
-      for (const auto& d : kNeighbourDirections) {
-        if (has_finer_than_one_level(neighbour(leaf, d), d, split)) {
-          to_split.push_back(leaf);
-          break;
-        }
-      }
-    }
-    for (const LodChunk& leaf : to_split) {
+  // A leaf may not touch (across a face or an edge) a leaf two or more levels finer: that
+  // is, a split node of level j may not touch a leaf of level j + 1 or coarser. The leaves
+  // of level j + 1 touching split node m are the parents of m's face and edge neighbours
+  // (coarser ones are found from m's split ancestors). Splitting a leaf makes it a split
+  // node, looked at in turn.
+  std::vector<LodChunk> work(split.begin(), split.end());
+  while (!work.empty()) {
+    const LodChunk m = work.back();
+    work.pop_back();
+    for (const auto& d : kNeighbourDirections) {
+      const LodChunk p = parent(neighbour(m, d));
+      const auto leaf = leaves.find(p);
+      if (leaf == leaves.end()) continue;  // split already, coarser, or outside the layout
       leaves.erase(leaf);
-      split.insert(leaf);
-      for (int i = 0; i < 8; ++i) leaves.insert(child(leaf, i));
-      changed = true;
+      split.insert(p);
+      for (int i = 0; i < 8; ++i) leaves.insert(child(p, i));
+      work.push_back(p);
     }
   }
+}
+
+void LodLayout::find_seams() {
+  // Leaf c has a seam towards direction d when its same-level neighbour there is split:
+  // found from the split nodes, far fewer than the leaves.
+  seams_.clear();
+  seams_.reserve(leaves_.size());
+  for (const LodChunk& c : leaves_) seams_.emplace(c, LodSeams{});
+  for (const LodChunk& m : split_) {
+    for (int i = 0; i < 18; ++i) {
+      const auto it = seams_.find(neighbour(m, kNeighbourDirections[i]));
+      if (it == seams_.end()) continue;
+      const int towards = kOpposite[i];  // from the leaf to m
+      if (towards < 6)
+        it->second.faces = static_cast<uint8_t>(it->second.faces | (1u << towards));
+      else
+        it->second.edges = static_cast<uint16_t>(it->second.edges | (1u << (towards - 6)));
+    }
+  }
+  for (auto& [c, s] : seams_) s = normalized(s);
 }
 
 bool LodLayout::update(const std::array<double, 3>& eye) {
@@ -127,6 +146,8 @@ bool LodLayout::update(const std::array<double, 3>& eye) {
     margin = std::min({margin, eye[a] - centre[a] * side, (centre[a] + 1) * side - eye[a]});
   }
   LodChunkSet leaves, split;
+  leaves.reserve(leaves_.size());
+  split.reserve(split_.size());
   const int r = settings_.top_radius;
   for (int z = -r; z <= r; ++z)
     for (int y = -r; y <= r; ++y)
@@ -142,18 +163,13 @@ bool LodLayout::update(const std::array<double, 3>& eye) {
   settled_eye_ = eye;
   leaves_ = std::move(leaves);
   split_ = std::move(split);
+  if (changed || seams_.size() != leaves_.size()) find_seams();
   return changed;
 }
 
 LodSeams LodLayout::seams(const LodChunk& c) const {
-  LodSeams s;
-  if (!leaves_.contains(c)) return s;
-  for (int f = 0; f < 6; ++f)
-    if (split_.contains(neighbour(c, kFaceDirection[f]))) s.faces |= static_cast<uint8_t>(1u << f);
-  for (int e = 0; e < kChunkEdges; ++e)
-    if (split_.contains(neighbour(c, lod_edge_direction(e))))
-      s.edges |= static_cast<uint16_t>(1u << e);
-  return normalized(s);
+  const auto it = seams_.find(c);
+  return it == seams_.end() ? LodSeams{} : it->second;
 }
 
 }  // namespace vox::world

@@ -15,6 +15,7 @@
 #include <array>
 #include <compare>
 #include <cstdint>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "server/world/chunk_coord.hpp"
@@ -39,6 +40,7 @@ struct LodChunkHash {
 // Chunks of a layout: hashed (a layout is rebuilt on every SetView of a walking player,
 // and an ordered tree's lookups were 7 % of a loaded server's CPU).
 using LodChunkSet = std::unordered_set<LodChunk, LodChunkHash>;
+using LodSeamsMap = std::unordered_map<LodChunk, LodSeams, LodChunkHash>;
 
 // Distance from `eye` (voxels) to the chunk's box, 0 inside.
 double distance_to(const LodChunk& c, const std::array<double, 3>& eye);
@@ -73,6 +75,7 @@ class LodLayout {
   // Where leaf `c` meets finer leaves (lod_seams.hpp); none for a chunk that is not in
   // the layout.
   LodSeams seams(const LodChunk& c) const;
+  const LodSeamsMap& all_seams() const { return seams_; }  // every leaf's
   const LodSettings& settings() const { return settings_; }
   // Whether the last update() found the layout unchanged and settled it: then updates
   // within a margin of that eye (the nearest split decision or top-level boundary)
@@ -86,10 +89,12 @@ class LodLayout {
   // Splits leaves that have a face or edge neighbour two or more levels finer, until none
   // has.
   static void balance(LodChunkSet& leaves, LodChunkSet& split);
+  void find_seams();  // seams_ of leaves_ and split_
 
   LodSettings settings_;
   LodChunkSet leaves_;
   LodChunkSet split_;  // the inner nodes of the octree
+  LodSeamsMap seams_;  // of every leaf
   // When the last update left the layout unchanged: the eye then, and how far it may move
   // from there before any split decision changes (0: not settled).
   std::array<double, 3> settled_eye_{};

@@ -8,15 +8,14 @@ LodViewChange LodView::update(const std::array<double, 3>& eye) {
   LodViewChange change;
   // The same leaves: the same seams too (the inner nodes are the leaves' ancestors).
   if (!layout_.update(eye) && !layout_.chunks().empty()) return change;
-  std::map<LodChunk, LodSeams> now;
-  for (const LodChunk& c : layout_.chunks()) {
-    const LodSeams seams = layout_.seams(c);
-    now.emplace(c, seams);
+  const LodSeamsMap& now = layout_.all_seams();
+  for (const auto& [c, seams] : now) {
     const auto held = held_.find(c);
     if (held == held_.end() || held->second != seams) change.send.emplace_back(c, seams);
   }
   for (const auto& [c, seams] : held_)
     if (!now.contains(c)) change.unload.push_back(c);
+  std::sort(change.unload.begin(), change.unload.end());
   // Nearest first, finer first between equals (then by coordinate: a stable order).
   std::vector<std::pair<double, size_t>> order;
   order.reserve(change.send.size());
@@ -30,7 +29,7 @@ LodViewChange LodView::update(const std::array<double, 3>& eye) {
   sorted.reserve(order.size());
   for (const auto& [d, i] : order) sorted.push_back(change.send[i]);
   change.send = std::move(sorted);
-  held_ = std::move(now);
+  held_ = now;
   return change;
 }
 

@@ -13,7 +13,6 @@
 #pragma once
 
 #include <array>
-#include <map>
 #include <vector>
 
 #include "server/world/lod_layout.hpp"
@@ -33,12 +32,12 @@ class LodView {
   // Lays the view out around `eye` (voxels; throws std::invalid_argument as LodLayout) and
   // returns the changes, which the client is then taken to hold.
   LodViewChange update(const std::array<double, 3>& eye);
-  const std::map<LodChunk, LodSeams>& held() const { return held_; }
+  const LodSeamsMap& held() const { return held_; }
   const LodLayout& layout() const { return layout_; }
 
  private:
   LodLayout layout_;
-  std::map<LodChunk, LodSeams> held_;
+  LodSeamsMap held_;
 };
 
 }  // namespace vox::world
