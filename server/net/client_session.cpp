@@ -274,7 +274,8 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
       write_edits_.push_back(send->version->edited_at);
   } else {
     m->set_base_version(0);
-    m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
+    const std::span<const uint8_t> full = send->version->full();
+    m->set_payload(full.data(), full.size());
   }
   proto::append_framed(mesh_message_, out);
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);

@@ -115,7 +115,8 @@ bool ClientSession::append_next_lod_mesh(std::vector<uint8_t>& out) {
     counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
   } else {
     m->set_base_version(0);
-    m->set_payload(send->version->full_frame.data(), send->version->full_frame.size());
+    const std::span<const uint8_t> full = send->version->full();
+    m->set_payload(full.data(), full.size());
   }
   proto::append_framed(mesh_message_, out);
   m->set_level(0);  // the message is reused for level-0 meshes

@@ -352,7 +352,7 @@ std::shared_ptr<MeshVersion> LodStage::mesh_variant(const LodKey& k, LodWorker& 
   const MeshVersionPtr old = meshes_.get(k);
   if (old && old->encoding == v->encoding) return nullptr;        // unchanged
   v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept
-  w.zstd.compress(v->encoding, {}, v->full_frame);
+  if (!old) w.zstd.compress(v->encoding, {}, v->full_frame);      // a re-mesh's: when asked
   return v;
 }
 

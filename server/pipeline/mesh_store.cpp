@@ -12,7 +12,7 @@ size_t MeshVersion::memory_bytes() const {
 
 MeshVersion::~MeshVersion() {
   if (!delta_account_) return;
-  size_t bytes = 0;
+  size_t bytes = lazy_full_ ? lazy_full_->capacity() : 0;
   for (const auto& [from, delta] : deltas_) bytes += delta->capacity();
   delta_account_->fetch_sub(bytes, std::memory_order_relaxed);
 }
@@ -40,6 +40,23 @@ std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVe
   deltas_.emplace_back(base.version, delta);
   if (delta_account_) delta_account_->fetch_add(delta->capacity(), std::memory_order_relaxed);
   return delta;
+}
+
+std::span<const uint8_t> MeshVersion::full() const {
+  if (!full_frame.empty()) return full_frame;
+  {
+    std::lock_guard lock(deltas_mutex_);
+    if (lazy_full_) return *lazy_full_;
+  }
+  thread_local proto::ZstdCodec zstd;
+  auto made = std::make_unique<std::vector<uint8_t>>();
+  zstd.compress(encoding, {}, *made);  // outside the lock
+  std::lock_guard lock(deltas_mutex_);
+  if (!lazy_full_) {  // else another thread made it meanwhile
+    if (delta_account_) delta_account_->fetch_add(made->capacity(), std::memory_order_relaxed);
+    lazy_full_ = std::move(made);
+  }
+  return *lazy_full_;
 }
 
 MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <unordered_map>
 #include <vector>
 
@@ -19,11 +20,13 @@ namespace vox::pipeline {
 
 struct MeshVersion {
   world::ChunkCoord coord;
-  uint64_t version = 0;             // increases with every publication (so also per chunk)
-  mesh::ChunkMesh mesh;             // chunk-local positions (level of detail: not kept)
-  uint32_t triangles = 0;           // of the mesh (a level-of-detail version has only this)
-  std::vector<uint8_t> encoding;    // the wire encoding (docs/PROTOCOL.md section 2)
-  std::vector<uint8_t> full_frame;  // zstd frame of `encoding`: a full ChunkMesh payload
+  uint64_t version = 0;           // increases with every publication (so also per chunk)
+  mesh::ChunkMesh mesh;           // chunk-local positions (level of detail: not kept)
+  uint32_t triangles = 0;         // of the mesh (a level-of-detail version has only this)
+  std::vector<uint8_t> encoding;  // the wire encoding (docs/PROTOCOL.md section 2)
+  // zstd frame of `encoding` (a full ChunkMesh payload), made at publication when the chunk
+  // had no version before; else left empty for full() to make on first request.
+  std::vector<uint8_t> full_frame;
   // When the oldest edit this version shows was submitted to the pipeline; the epoch when
   // no edit made it (a load). Sessions measure edit -> delta written from it.
   std::chrono::steady_clock::time_point edited_at{};
@@ -35,12 +38,17 @@ struct MeshVersion {
   // computed on first request, then shared by every client holding the same base.
   // Any thread.
   std::shared_ptr<const std::vector<uint8_t>> delta_from(const MeshVersion& base) const;
+  // The full ChunkMesh payload: full_frame, or made on first request and kept (a re-mesh:
+  // the clients holding the chunk take deltas, and most re-meshes never need one; its
+  // bytes count with the deltas'). Valid while this version lives. Any thread.
+  std::span<const uint8_t> full() const;
 
  private:
   friend class MeshStore;
   friend class LodMeshStore;
   mutable std::mutex deltas_mutex_;  // leaf lock; compression runs outside it
   mutable std::vector<std::pair<uint64_t, std::shared_ptr<const std::vector<uint8_t>>>> deltas_;
+  mutable std::unique_ptr<const std::vector<uint8_t>> lazy_full_;  // set once, under deltas_mutex_
   // The store's count of delta bytes (set when published; shared, as a version may
   // outlive the store in a session's hands).
   mutable std::shared_ptr<std::atomic<size_t>> delta_account_;

@@ -33,7 +33,8 @@ std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& 
   version->triangles = static_cast<uint32_t>(w.mesh.triangle_count());
   // Encoded once here, while the mesher's topology is at hand; every client shares it.
   proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
-  w.zstd.compress(version->encoding, {}, version->full_frame);
+  // A re-mesh's clients take deltas: its full frame is made when someone asks for it.
+  if (!previous) w.zstd.compress(version->encoding, {}, version->full_frame);
   return version;
 }
 
