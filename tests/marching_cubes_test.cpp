@@ -6,6 +6,7 @@
 #include <bit>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 #include "server/mesh/region_mesher.hpp"
 #include "server/world/terrain_generator.hpp"
@@ -182,6 +183,43 @@ TEST(MarchingCubes, SteadyStateDoesNotAllocate) {
   }
   EXPECT_EQ(test::allocations_on_this_thread() - before, 0u);
   EXPECT_GT(triangles, 0u);
+}
+
+// A level-of-detail chunk's seams variants copy their regular triangles out of one pass
+// over every cell: for any skip of whole rows and rows' end cells, the copy is what
+// mesh_chunk with that skip writes.
+TEST(MarchingCubes, SelectedTrianglesAreTheTrianglesMeshedWithTheSameSkip) {
+  std::mt19937 rng(4);
+  ChunkMap map;
+  const ChunkBox box = load_terrain_region(map, 2, rng);
+  PaddedBlock block;
+  MeshScratch scratch;
+  ChunkMesh all, skipped;
+  RowTriangles rows;
+  Buffer<uint32_t> selected;
+  const uint64_t first = 1, last = uint64_t{1} << 31, whole = (uint64_t{1} << 32) - 1;
+  const uint64_t patterns[] = {0, whole, first, last, first | last};
+  size_t compared = 0;
+  for (size_t i = 0; i < box.count(); ++i) {
+    gather_padded_block(map, box.at(i), block);
+    const bool on_corner = mesh_vertices(block, scratch, all);
+    mesh_triangles_by_row(scratch, block.cells, all.positions, on_corner, all.indices, rows);
+    mesh_chunk(block, scratch, skipped);
+    ASSERT_EQ(all.indices, skipped.indices) << "no skip: every cell";
+    for (int round = 0; round < 4; ++round) {
+      CellRows skip{};
+      for (uint64_t& r : skip) r = round == 0 ? 0 : patterns[rng() % 5];
+      select_triangles(all.indices, rows, block.cells, skip, selected);
+      mesh_chunk(block, scratch, skipped, &skip);
+      ASSERT_EQ(selected, skipped.indices) << "chunk " << i << " round " << round;
+      compared += skipped.triangle_count() > 0;
+    }
+  }
+  EXPECT_GT(compared, 0u);
+  CellRows inner{};
+  inner[detail::row_of(3, 3)] = uint64_t{1} << 5;
+  EXPECT_THROW(select_triangles(all.indices, rows, block.cells, inner, selected),
+               std::invalid_argument);
 }
 
 TEST(MarchingCubes, NormalsAreUnitLength) {

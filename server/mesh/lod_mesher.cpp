@@ -338,6 +338,8 @@ void seam_cell_rows(world::LodSeams seams, CellRows& out) {
 
 void mesh_lod_vertices(const LodBlock& in, LodScratch& s) {
   s.on_corner = mesh_vertices(in.coarse, s.mc, s.regular);
+  mesh_triangles_by_row(s.mc, in.coarse.cells, s.regular.positions, s.on_corner, s.regular.indices,
+                        s.regular_rows);
 }
 
 void mesh_lod_chunk(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
@@ -351,8 +353,9 @@ void mesh_lod_variant(const LodBlock& in, LodScratch& s, ChunkMesh& out) {
   out.positions.assign(s.regular.positions.begin(), s.regular.positions.end());
   out.normals.assign(s.regular.normals.begin(), s.regular.normals.end());
   out.materials.assign(s.regular.materials.begin(), s.regular.materials.end());
-  mesh_triangles(s.mc, in.coarse.cells, s.regular.positions, s.on_corner,
-                 in.seams.empty() ? nullptr : &s.seam_cells, out.indices);
+  // The regular triangles: those of the block's cells but the seam cells (whole face
+  // layers, or the end cells of rows along an edge).
+  select_triangles(s.regular.indices, s.regular_rows, in.coarse.cells, s.seam_cells, out.indices);
   s.regular_vertices = static_cast<uint32_t>(out.vertex_count());
   s.regular_triangles = static_cast<uint32_t>(out.triangle_count());
   s.seam_vertices.clear();

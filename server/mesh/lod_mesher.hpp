@@ -36,7 +36,8 @@ struct HalfEdge {
 struct LodScratch {
   // The regular vertices of the block last given to mesh_lod_vertices, with its topology
   // in mc, shared by every seams variant meshed from that block.
-  ChunkMesh regular;
+  ChunkMesh regular;  // every cell's triangles, by row in regular_rows
+  RowTriangles regular_rows;
   bool on_corner = false;  // some regular vertex sits on a sample
   world::LodSeams seams;   // of the variant last meshed (normalized)
   uint32_t regular_vertices = 0;
@@ -58,10 +59,11 @@ SeamCellSplits seam_cell_splits(world::LodSeams seams, int x, int y, int z);
 void seam_cell_rows(world::LodSeams seams, CellRows& out);
 
 // The calling thread only (one scratch per thread). A chunk's seams variants share its
-// regular vertices (they differ in which cells are seam cells): mesh_lod_vertices makes
-// them once from the block, then mesh_lod_variant meshes the variant in.seams (any subset
-// of the seams the block was gathered for) from the same block, as often as needed.
-// mesh_lod_chunk does both.
+// regular vertices and triangles (they differ in which cells are seam cells):
+// mesh_lod_vertices makes them once from the block, with every cell's triangles; then
+// mesh_lod_variant copies them but the seam cells' and meshes the seam cells of the
+// variant in.seams (any subset of the seams the block was gathered for), from the same
+// block, as often as needed. mesh_lod_chunk does both.
 void mesh_lod_vertices(const LodBlock& in, LodScratch& scratch);
 void mesh_lod_variant(const LodBlock& in, LodScratch& scratch, ChunkMesh& out);
 void mesh_lod_chunk(const LodBlock& in, LodScratch& scratch, ChunkMesh& out);

@@ -9,8 +9,10 @@
 //   4. triangles: only cells whose 8 corners differ, found with row bit masks.
 #include "server/mesh/marching_cubes.hpp"
 
+#include <algorithm>
 #include <bit>
 #include <cmath>
+#include <stdexcept>
 
 #include "server/mesh/marching_cubes_tables.hpp"
 
@@ -145,6 +147,73 @@ void mesh_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
       },
       skip);
   indices.resize(triangles * 3);
+}
+
+void mesh_triangles_by_row(const MeshScratch& s, const std::array<int, 3>& cells,
+                           std::span<const Vec3f> positions, bool on_corner,
+                           Buffer<uint32_t>& indices, RowTriangles& rows) {
+  constexpr uint32_t kUnset = UINT32_MAX;
+  rows.begin.fill(kUnset);
+  rows.after_first.fill(kUnset);
+  rows.last.fill(kUnset);
+  indices.resize(max_triangles(s, cells) * 3);
+  const Vec3f* vpos = positions.data();
+  const auto written = static_cast<uint32_t>(emit_triangles(
+      s, cells, indices.data(),
+      [&](uint32_t a, uint32_t b, uint32_t c) {
+        return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
+      },
+      nullptr,
+      [&](int x, int y, int z, size_t so_far) {
+        const int r = detail::row_of(y, z);
+        const auto at = static_cast<uint32_t>(so_far);
+        if (rows.begin[r] == kUnset) rows.begin[r] = at;
+        if (x > 0 && rows.after_first[r] == kUnset) rows.after_first[r] = at;
+        if (x == cells[0] - 1) rows.last[r] = at;
+      }));
+  indices.resize(size_t{written} * 3);
+  // Rows (in the order written) that had no cell, or no cell after the first or no last
+  // cell: those parts are empty, ending where the next part begins.
+  uint32_t end = written;
+  for (int z = cells[2] - 1; z >= 0; --z) {
+    for (int y = cells[1] - 1; y >= 0; --y) {
+      const int r = detail::row_of(y, z);
+      rows.end[r] = end;
+      if (rows.last[r] == kUnset) rows.last[r] = end;
+      if (rows.after_first[r] == kUnset) rows.after_first[r] = rows.last[r];
+      if (rows.begin[r] == kUnset) rows.begin[r] = rows.after_first[r];
+      end = rows.begin[r];
+    }
+  }
+}
+
+void select_triangles(std::span<const uint32_t> all, const RowTriangles& rows,
+                      const std::array<int, 3>& cells, const CellRows& skip,
+                      Buffer<uint32_t>& indices) {
+  const uint64_t whole = detail::low_bits(cells[0]), first = 1,
+                 last = uint64_t{1} << (cells[0] - 1);
+  indices.resize(all.size());
+  uint32_t* out = indices.data();
+  const auto copy = [&](uint32_t from, uint32_t to) {
+    std::copy(all.begin() + 3 * size_t{from}, all.begin() + 3 * size_t{to}, out);
+    out += 3 * size_t{to - from};
+  };
+  for (int z = 0; z < cells[2]; ++z) {
+    for (int y = 0; y < cells[1]; ++y) {
+      const int r = detail::row_of(y, z);
+      const uint64_t k = skip[r] & whole;
+      if (k == 0) {
+        copy(rows.begin[r], rows.end[r]);
+      } else if (k != whole) {
+        if ((k & ~(first | last)) != 0)
+          throw std::invalid_argument("select_triangles: a row skips an inner cell");
+        if ((k & first) == 0) copy(rows.begin[r], rows.after_first[r]);
+        copy(rows.after_first[r], rows.last[r]);
+        if ((k & last) == 0) copy(rows.last[r], rows.end[r]);
+      }
+    }
+  }
+  indices.resize(static_cast<size_t>(out - indices.data()));
 }
 
 uint32_t index_cut_edges(MeshScratch& s, const std::array<int, 3>& cells) {

@@ -47,6 +47,22 @@ void mesh_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells,
                     std::span<const Vec3f> positions, bool on_corner, const CellRows* skip,
                     Buffer<uint32_t>& indices);
 
+// For the same: the triangles of every cell (mesh_triangles without skip) and, per row
+// (row_of(y, z)), where its triangles begin, where those of its cells after the first
+// begin, where those of its last cell (x = cells[0] - 1) begin, and where they end. Then
+// select_triangles writes what mesh_triangles with `skip` would, by copying: each row of
+// `skip` must be empty, whole, or hold the first and/or the last cell only (the seam
+// cells of a level-of-detail chunk); throws std::invalid_argument otherwise.
+struct RowTriangles {
+  std::array<uint32_t, kRows> begin, after_first, last, end;
+};
+void mesh_triangles_by_row(const MeshScratch& scratch, const std::array<int, 3>& cells,
+                           std::span<const Vec3f> positions, bool on_corner,
+                           Buffer<uint32_t>& indices, RowTriangles& rows);
+void select_triangles(std::span<const uint32_t> all, const RowTriangles& rows,
+                      const std::array<int, 3>& cells, const CellRows& skip,
+                      Buffer<uint32_t>& indices);
+
 // The topology half of the mesher, shared with the mesh codec's decoder, which rebuilds a
 // mesh from the solid bits. Both read scratch.solid for rows y <= cells[1], z <= cells[2]
 // (bits x <= cells[0]).
@@ -64,10 +80,15 @@ size_t table_triangles(const MeshScratch& scratch, const std::array<int, 3>& cel
 // Writes the triangles of every cell whose corners differ, cells in (z, y, x) order, each
 // cell's triangles in triTable order, as vertex index triples into `out` (room for
 // max_triangles). keep(a, b, c) decides whether a triangle is written; cells named in
-// `skip` are left out. Returns the number of triangles written.
-template <class Keep>
+// `skip` are left out. Returns the number of triangles written. on_cell(x, y, z, written),
+// when given, is called before each cell whose corners differ, with the triangles
+// written so far.
+struct NoCellHook {
+  void operator()(int, int, int, size_t) const {}
+};
+template <class Keep, class OnCell = NoCellHook>
 size_t emit_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells, uint32_t* out,
-                      Keep&& keep, const CellRows* skip = nullptr);
+                      Keep&& keep, const CellRows* skip = nullptr, OnCell&& on_cell = {});
 
 }  // namespace vox::mesh
 

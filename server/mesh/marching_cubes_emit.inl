@@ -39,9 +39,9 @@ inline unsigned cube_index(uint64_t r00, uint64_t r10, uint64_t r01, uint64_t r1
 
 }  // namespace detail
 
-template <class Keep>
+template <class Keep, class OnCell>
 size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uint32_t* out,
-                      Keep&& keep, const CellRows* skip) {
+                      Keep&& keep, const CellRows* skip, OnCell&& on_cell) {
   uint32_t* idx = out;
   for (int z = 0; z < cells[2]; ++z) {
     for (int y = 0; y < cells[1]; ++y) {
@@ -62,6 +62,7 @@ size_t emit_triangles(const MeshScratch& s, const std::array<int, 3>& cells, uin
       }
       for (; cells_left != 0; cells_left &= cells_left - 1) {
         const int x = std::countr_zero(cells_left);
+        on_cell(x, y, z, static_cast<size_t>(idx - out) / 3);
         const unsigned cube_index = detail::cube_index(r00, r10, r01, r11, x);
         // Cut edges before this cell's lower corner (dx = 0) or upper corner (dx = 1).
         const uint64_t before[2] = {detail::low_bits(x), detail::low_bits(x + 1)};
