@@ -260,8 +260,24 @@ void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
     put_u32(p + 19, static_cast<uint32_t>(seam_vertices));
     put_u32(p + 23, static_cast<uint32_t>(seam_triangles));
   }
-  p = write_rows(scratch.row_diff, rows, rb, p + header);
-  p = write_vertex_planes(m, t, cells, vertices, p);
+  // The rows and vertex planes of a level-of-detail chunk's variants are the same (their
+  // regular vertices are): written once per vertex pass, then copied.
+  const size_t shared = (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices};
+  const bool cached = lod != nullptr && scratch.shared_of == lod->lod &&
+                      scratch.shared_pass == lod->lod->vertex_pass &&
+                      scratch.shared.size() == shared;
+  if (cached) {
+    p = std::copy(scratch.shared.begin(), scratch.shared.end(), p + header);
+  } else {
+    uint8_t* const from = p + header;
+    p = write_rows(scratch.row_diff, rows, rb, from);
+    p = write_vertex_planes(m, t, cells, vertices, p);
+    if (lod != nullptr) {
+      scratch.shared.assign(from, p);
+      scratch.shared_of = lod->lod;
+      scratch.shared_pass = lod->lod->vertex_pass;
+    }
+  }
   for (uint32_t d : scratch.triangles) {
     put_u32(p, d);
     p += 4;

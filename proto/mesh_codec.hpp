@@ -40,6 +40,11 @@ struct CodecScratch {
   mesh::CellRows seam_cells;
   std::array<uint64_t, mesh::kRows> row_diff;
   std::vector<uint32_t> triangles;
+  // The encoder's rows and vertex planes of the level-of-detail vertex pass last encoded
+  // (a LodScratch and its vertex_pass): the same in each seams variant of the chunk.
+  std::vector<uint8_t> shared;
+  const mesh::LodScratch* shared_of = nullptr;
+  uint64_t shared_pass = 0;
 };
 
 // `topology` is the mesher's scratch right after mesh_chunk() produced `mesh` (its solid

@@ -1,5 +1,6 @@
 #include "server/mesh/lod_mesher.hpp"
 
+#include <atomic>
 #include <bit>
 #include <cmath>
 
@@ -337,6 +338,10 @@ void seam_cell_rows(world::LodSeams seams, CellRows& out) {
 }
 
 void mesh_lod_vertices(const LodBlock& in, LodScratch& s) {
+  // Unique across scratches: one made later at the same address never matches an encoder's
+  // cache of an earlier one's pass.
+  static std::atomic<uint64_t> passes{0};
+  s.vertex_pass = passes.fetch_add(1, std::memory_order_relaxed) + 1;
   s.on_corner = mesh_vertices(in.coarse, s.mc, s.regular);
   mesh_triangles_by_row(s.mc, in.coarse.cells, s.regular.positions, s.on_corner, s.regular.indices,
                         s.regular_rows);
