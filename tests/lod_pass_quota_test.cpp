@@ -10,19 +10,11 @@ namespace {
 TEST(LodPassQuota, ReMeshesAndMissingMeshesShareAPassWhenBothWait) {
   EXPECT_EQ(lod_remesh_quota(2, 0, false), 2u);
   EXPECT_EQ(lod_remesh_quota(2, 0, true), 1u);
-  EXPECT_EQ(lod_missing_quota(2, 1, 1, true), 1u);
+  EXPECT_EQ(lod_missing_quota(2, 1, true), 1u);
   EXPECT_EQ(lod_remesh_quota(8, 0, true), 4u);
-  EXPECT_EQ(lod_missing_quota(8, 4, 4, true), 4u);
-  EXPECT_EQ(lod_missing_quota(8, 1, 1, true), 7u) << "fewer re-meshes due: more missing ones";
-  EXPECT_EQ(lod_missing_quota(8, 1, 1, false), 0u);
-}
-
-// Under 200 LOD views with edits, a re-meshed chunk brought its five or more seams variants
-// and the missing meshes got one: joining players waited 95 s for their first full view.
-TEST(LodPassQuota, MissingMeshesGetAsManyMeshesAsTheReMeshedChunksVariants) {
-  EXPECT_EQ(lod_missing_quota(2, 1, 6, true), 6u);
-  EXPECT_EQ(lod_missing_quota(2, 1, 40, true), 16u) << "at most 8 per chunk of the pass";
-  EXPECT_EQ(lod_missing_quota(2, 1, 6, false), 0u);
+  EXPECT_EQ(lod_missing_quota(8, 4, true), 4u);
+  EXPECT_EQ(lod_missing_quota(8, 1, true), 7u) << "fewer re-meshes due: more missing ones";
+  EXPECT_EQ(lod_missing_quota(8, 1, false), 0u);
 }
 
 // The bug (found in review): with more chunks put off by the store than a pass holds,
@@ -31,9 +23,8 @@ TEST(LodPassQuota, MissingMeshesGetAsManyMeshesAsTheReMeshedChunksVariants) {
 TEST(LodPassQuota, ABacklogTheStorePutOffNeitherWrapsNorStopsMissingMeshes) {
   EXPECT_EQ(lod_remesh_quota(2, 3, true), 0u);
   EXPECT_EQ(lod_remesh_quota(2, 3, false), 0u);
-  EXPECT_EQ(lod_missing_quota(2, 3, 0, true), 1u) << "one missing mesh still gets through";
-  EXPECT_EQ(lod_missing_quota(2, 1000, 0, true), 1u);
-  EXPECT_EQ(lod_missing_quota(2, 1000, 5000, true), 16u) << "bounded behind a backlog too";
+  EXPECT_EQ(lod_missing_quota(2, 3, true), 1u) << "one missing mesh still gets through";
+  EXPECT_EQ(lod_missing_quota(2, 1000, true), 1u);
 }
 
 }  // namespace

@@ -1,10 +1,7 @@
 // How one pass of the level-of-detail stage (lod_stage.hpp) shares its `max_chunks`
 // between chunks to re-mesh and missing meshes: half each when both wait (a storm that
 // keeps re-meshes due must not keep a new layout from being meshed), and at least one
-// missing mesh even behind a backlog of chunks the store put off. A chunk re-meshed brings
-// every seams variant wanted (often five or more meshes): the missing meshes get as many
-// as the re-meshes took, up to 8 per chunk of the pass, so a player joining during an
-// edit storm is not left to a sixth of the work. Pure; any thread.
+// missing mesh even behind a backlog of chunks the store put off. Pure; any thread.
 #pragma once
 
 #include <algorithm>
@@ -18,13 +15,10 @@ constexpr size_t lod_remesh_quota(size_t max_chunks, size_t retried, bool missin
   return retried < quota ? quota - retried : 0;
 }
 
-// Missing meshes to take once `chunks` chunks (retried and re-meshed), `remesh_keys`
-// meshes in all, are in the pass.
-constexpr size_t lod_missing_quota(size_t max_chunks, size_t chunks, size_t remesh_keys,
-                                   bool missing) {
+// Missing meshes to take once `chunks` chunks (retried and re-meshed) are in the pass.
+constexpr size_t lod_missing_quota(size_t max_chunks, size_t chunks, bool missing) {
   if (!missing) return 0;
-  const size_t free = chunks < max_chunks ? max_chunks - chunks : 0;
-  return std::max({size_t{1}, free, std::min(remesh_keys, 8 * max_chunks)});
+  return std::max<size_t>(1, chunks < max_chunks ? max_chunks - chunks : 0);
 }
 
 }  // namespace vox::pipeline

@@ -263,9 +263,7 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
     for (const world::LodSeams s : v->second) keys.push_back({c, s});
   }
   const size_t remesh_keys = keys.size();  // re-meshes (and meshes the store put off)
-  if (missing)
-    take_missing(keys.size() + lod_missing_quota(max_chunks, chunks.size(), remesh_keys, true),
-                 keys);
+  if (missing) take_missing(keys.size() + lod_missing_quota(max_chunks, chunks.size(), true), keys);
   size_t reads_left = kStoreReadsPerPass;
   std::vector<LodKey> ready;
   std::array<uint64_t, kCountedLevels> remeshed{};
