@@ -12,17 +12,26 @@
 namespace vox::pipeline {
 namespace {
 
+// The chunk the surface crosses at (16, 16) of seed 17, with its 26 neighbours.
+struct SurfaceChunk {
+  world::ChunkMap chunks;
+  world::ChunkCoord c;
+  SurfaceChunk() {
+    const world::TerrainGenerator gen(17);
+    c = {0,
+         world::floor_div(static_cast<int>(std::floor(gen.height_at(16, 16))), world::kChunkSize),
+         0};
+    world::for_each_chunk_in(c.offset(-1, -1, -1), c.offset(1, 1, 1),
+                             [&](world::ChunkCoord n) { chunks.insert(n, gen.generate(n)); });
+  }
+};
+
 // Issue 15: every dirty chunk was meshed into a freshly allocated MeshVersion, changed or
 // not; the worker's warm buffers now take the mesher's writes.
 TEST(RemeshChunk, ReMeshingAChunkWhoseMeshDidNotChangeAllocatesNothing) {
-  const world::TerrainGenerator gen(17);
-  // The chunk the surface crosses at (16, 16), with its 26 neighbours.
-  const world::ChunkCoord c{
-      0, world::floor_div(static_cast<int>(std::floor(gen.height_at(16, 16))), world::kChunkSize),
-      0};
-  world::ChunkMap chunks;
-  world::for_each_chunk_in(c.offset(-1, -1, -1), c.offset(1, 1, 1),
-                           [&](world::ChunkCoord n) { chunks.insert(n, gen.generate(n)); });
+  SurfaceChunk at;
+  world::ChunkMap& chunks = at.chunks;
+  const world::ChunkCoord c = at.c;
   MeshWorker w;
   std::shared_ptr<MeshVersion> first = remesh_chunk(w, chunks, c, nullptr);
   ASSERT_TRUE(first);
@@ -38,13 +47,9 @@ TEST(RemeshChunk, ReMeshingAChunkWhoseMeshDidNotChangeAllocatesNothing) {
 // time, and clients holding a chunk take deltas: a re-mesh's full frame is made when
 // first asked for, once.
 TEST(RemeshChunk, AReMeshMakesItsFullFrameOnlyWhenAskedAndOnce) {
-  const world::TerrainGenerator gen(17);
-  const world::ChunkCoord c{
-      0, world::floor_div(static_cast<int>(std::floor(gen.height_at(16, 16))), world::kChunkSize),
-      0};
-  world::ChunkMap chunks;
-  world::for_each_chunk_in(c.offset(-1, -1, -1), c.offset(1, 1, 1),
-                           [&](world::ChunkCoord n) { chunks.insert(n, gen.generate(n)); });
+  SurfaceChunk at;
+  world::ChunkMap& chunks = at.chunks;
+  const world::ChunkCoord c = at.c;
   MeshWorker w;
   std::shared_ptr<MeshVersion> first = remesh_chunk(w, chunks, c, nullptr);
   ASSERT_TRUE(first);
