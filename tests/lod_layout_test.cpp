@@ -222,9 +222,15 @@ TEST(LodLayout, TheBalancedLayoutIsThePlainOneWhereverTheEye) {
        {LodSettings{.levels = 5, .top_radius = 1, .split_distance = 1.0},
         LodSettings{
             .levels = 7, .top_radius = 1, .split_distance = 1.0, .near_split_distance = 2.0},
-        LodSettings{.levels = 6, .top_radius = 2, .split_distance = 1.5}}) {
-    for (int i = 0; i < 20; ++i) {
-      const std::array<double, 3> eye{coord(rng), coord(rng) * 0.1, coord(rng)};
+        LodSettings{.levels = 6, .top_radius = 2, .split_distance = 1.5},
+        // Short split distances leave room for a split to create leaves next to finer
+        // split nodes already looked at (found in review).
+        LodSettings{.levels = 5, .top_radius = 1, .split_distance = 0.25},
+        LodSettings{.levels = 6, .top_radius = 1, .split_distance = 0.4}}) {
+    for (int i = 0; i < 40; ++i) {
+      const std::array<double, 3> eye =
+          i == 0 ? std::array<double, 3>{200, 200, 200}  // the review's case
+                 : std::array<double, 3>{coord(rng), coord(rng) * 0.1, coord(rng)};
       LodLayout layout(s);
       layout.update(eye);
       ASSERT_EQ(layout.chunks(), plain_layout(s, eye, balanced))

@@ -268,6 +268,25 @@ TEST(LodMesher, ANoisyFieldAcrossLevelsIsClosed) {
   }
 }
 
+// select_triangles (marching_cubes.hpp) copies a variant's regular triangles row by row:
+// it takes seam cell rows to be empty, whole, or a row's end cells only.
+TEST(LodMesher, SeamCellRowsAreEmptyWholeOrARowsEndCells) {
+  const uint64_t whole = (uint64_t{1} << world::kChunkSize) - 1, ends = 1 | (uint64_t{1} << 31);
+  std::mt19937 rng(11);
+  CellRows rows;
+  for (int faces = 0; faces < 64; ++faces) {
+    for (int round = 0; round < 16; ++round) {
+      const LodSeams seams =
+          world::normalized({static_cast<uint8_t>(faces),
+                             static_cast<uint16_t>(round < 12 ? 1u << round : rng() & 0xFFF)});
+      seam_cell_rows(seams, rows);
+      for (const uint64_t r : rows)
+        ASSERT_TRUE(r == 0 || r == whole || (r & ~ends) == 0)
+            << "faces " << faces << " edges " << seams.edges;
+    }
+  }
+}
+
 // The pipeline gathers a chunk's samples once for every seams variant wanted, makes the
 // regular vertices once and meshes each variant from them: a variant made that way, after
 // other variants, is the mesh (and the encoding) of a block gathered and meshed for its

@@ -134,6 +134,40 @@ TEST(LodPipeline, APublishedMeshIsRoutedOnlyToTheOwnersWhoseLayoutsWantIt) {
   EXPECT_EQ(routed.size(), 3u);
 }
 
+// Found in review: a session whose new layout asked for a key another owner's layout had
+// just had published (between the session looking and the pipeline taking its wants) was
+// never told of it, and its view never completed. Taking new wants tells the owner of
+// the keys published already.
+TEST(LodPipeline, AnOwnerWantingAKeyPublishedBeforeHearsOfIt) {
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::map<LoadOwner, KeySet> routed;
+  Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
+  WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});
+  p.subscribe_lod([&](const WorldPipeline::LodPublication& publication) {
+    {
+      std::lock_guard lock(mutex);
+      for (const auto& [owner, keys] : publication.by_owner)
+        routed[owner].insert(keys.begin(), keys.end());
+    }
+    cv.notify_all();
+    pub.add(publication.keys);
+  });
+  const auto near = layout_keys({20.5, 10.5, -40.5});
+  p.set_lod_view(1, near);
+  ASSERT_TRUE(pub.wait([&](const auto& seen) { return seen.size() >= near.size(); }));
+  p.set_lod_view(2, {near.front(), near.back()});
+  std::unique_lock lock(mutex);
+  EXPECT_TRUE(cv.wait_for(lock, 10s, [&] { return routed[2].size() == 2; }));
+  EXPECT_EQ(routed[2], (KeySet{near.front(), near.back()}));
+  // Asking again for what it holds tells it nothing more.
+  lock.unlock();
+  p.set_lod_view(2, {near.front(), near.back()});
+  std::this_thread::sleep_for(200ms);
+  lock.lock();
+  EXPECT_EQ(routed[2].size(), 2u);
+}
+
 TEST(LodPipeline, AnEditReachesTheCoarseChunksOverItAsAFreshMeshOfTheEditedWorld) {
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2});

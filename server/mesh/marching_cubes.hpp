@@ -52,7 +52,7 @@ void mesh_triangles(const MeshScratch& scratch, const std::array<int, 3>& cells,
 // begin, where those of its last cell (x = cells[0] - 1) begin, and where they end. Then
 // select_triangles writes what mesh_triangles with `skip` would, by copying: each row of
 // `skip` must be empty, whole, or hold the first and/or the last cell only (the seam
-// cells of a level-of-detail chunk); throws std::invalid_argument otherwise.
+// cells of a level-of-detail chunk, seam_cell_rows; asserted).
 struct RowTriangles {
   std::array<uint32_t, kRows> begin, after_first, last, end;
 };

@@ -4,6 +4,7 @@
 // comment says otherwise.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "server/net/client_session.hpp"
@@ -78,6 +79,7 @@ void ClientSession::drop_lod_view() {
   if (!lod_view_) return;
   std::vector<LodChunk> held;
   for (const auto& [c, seams] : lod_view_->held()) held.push_back(c);
+  std::sort(held.begin(), held.end());  // the same ChunkUnloads whatever the map's order
   world::LodViewChange gone;
   gone.unload = held;
   queue_lod_unload(lod_queue_.apply(gone, {}));

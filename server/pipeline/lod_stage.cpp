@@ -118,22 +118,32 @@ std::vector<std::pair<LoadOwner, std::vector<LodKey>>> LodStage::route(
   return out;
 }
 
-void LodStage::set_wants(LoadOwner owner, std::vector<LodKey> keys) {
+std::vector<LodKey> LodStage::set_wants(LoadOwner owner, std::vector<LodKey> keys) {
   std::erase_if(keys, [](const LodKey& k) { return k.chunk.level < 1; });
   for (LodKey& k : keys) k.seams = world::normalized(k.seams);
-  for (const LodKey& k : keys) want(owner, k);  // before the old ones go: shared keys stay
   auto it = owners_.find(owner);
+  // Keys new to this owner that are published already: its session may have looked for
+  // them before they were, and routing (route()) did not know it wanted them then.
+  std::vector<LodKey> late;
+  {
+    std::unordered_set<LodKey, LodKeyHash> had;
+    if (it != owners_.end()) had.insert(it->second.keys.begin(), it->second.keys.end());
+    for (const LodKey& k : keys)
+      if (!had.contains(k) && meshes_.get(k)) late.push_back(k);
+  }
+  for (const LodKey& k : keys) want(owner, k);  // before the old ones go: shared keys stay
   if (it != owners_.end()) {
     for (const LodKey& k : it->second.keys) unwant(owner, k);
     if (keys.empty()) {
       owners_.erase(it);
-      return;
+      return late;
     }
     it->second = {std::move(keys), 0};
   } else if (!keys.empty()) {
     owners_.emplace(owner, Owner{std::move(keys), 0});
   }
   missing_ = true;
+  return late;
 }
 
 void LodStage::edited(const world::VoxelBox& box, Clock::time_point now) {

@@ -57,8 +57,9 @@ class LodStage {
   void learn_modified();
 
   // The meshes `owner`'s layout needs, nearest first (empty: none; its session left).
-  // Keys no owner wants any more are erased.
-  void set_wants(LoadOwner owner, std::vector<LodKey> keys);
+  // Keys no owner wants any more are erased. Returns the keys new to the owner that are
+  // published already (the owner is to hear of them: it may have looked before).
+  std::vector<LodKey> set_wants(LoadOwner owner, std::vector<LodKey> keys);
   // A durable edit changed the samples of `box`: the wanted chunks it reaches are
   // re-meshed within the interval.
   void edited(const world::VoxelBox& box, Clock::time_point now);

@@ -10,9 +10,18 @@ size_t MeshVersion::memory_bytes() const {
          mesh.indices.capacity() * 4 + encoding.capacity() + full_frame.capacity();
 }
 
+namespace {
+
+proto::ZstdCodec& thread_codec() {  // one per thread, for deltas and full frames
+  thread_local proto::ZstdCodec zstd;
+  return zstd;
+}
+
+}  // namespace
+
 MeshVersion::~MeshVersion() {
   if (!delta_account_) return;
-  size_t bytes = lazy_full_ ? lazy_full_->capacity() : 0;
+  size_t bytes = full_accounted_;
   for (const auto& [from, delta] : deltas_) bytes += delta->capacity();
   delta_account_->fetch_sub(bytes, std::memory_order_relaxed);
 }
@@ -24,9 +33,8 @@ std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVe
       if (from == base.version) return delta;
     }
   }
-  thread_local proto::ZstdCodec zstd;
   auto delta = std::make_shared<std::vector<uint8_t>>();
-  zstd.compress(encoding, base.encoding, *delta);
+  thread_codec().compress(encoding, base.encoding, *delta);
   std::lock_guard lock(deltas_mutex_);
   for (const auto& [from, existing] : deltas_) {
     if (from == base.version) return existing;  // another thread made it meanwhile
@@ -48,12 +56,15 @@ std::span<const uint8_t> MeshVersion::full() const {
     std::lock_guard lock(deltas_mutex_);
     if (lazy_full_) return *lazy_full_;
   }
-  thread_local proto::ZstdCodec zstd;
-  auto made = std::make_unique<std::vector<uint8_t>>();
-  zstd.compress(encoding, {}, *made);  // outside the lock
+  thread_local std::vector<uint8_t> frame;       // compress() sizes it for the worst case
+  thread_codec().compress(encoding, {}, frame);  // outside the lock
+  auto made = std::make_unique<const std::vector<uint8_t>>(frame.begin(), frame.end());
   std::lock_guard lock(deltas_mutex_);
   if (!lazy_full_) {  // else another thread made it meanwhile
-    if (delta_account_) delta_account_->fetch_add(made->capacity(), std::memory_order_relaxed);
+    if (delta_account_) {
+      full_accounted_ = made->capacity();
+      delta_account_->fetch_add(full_accounted_, std::memory_order_relaxed);
+    }
     lazy_full_ = std::move(made);
   }
   return *lazy_full_;

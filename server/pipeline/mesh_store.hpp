@@ -49,6 +49,7 @@ struct MeshVersion {
   mutable std::mutex deltas_mutex_;  // leaf lock; compression runs outside it
   mutable std::vector<std::pair<uint64_t, std::shared_ptr<const std::vector<uint8_t>>>> deltas_;
   mutable std::unique_ptr<const std::vector<uint8_t>> lazy_full_;  // set once, under deltas_mutex_
+  mutable size_t full_accounted_ = 0;  // its bytes added to delta_account_ (0: not published yet)
   // The store's count of delta bytes (set when published; shared, as a version may
   // outlive the store in a session's hands).
   mutable std::shared_ptr<std::atomic<size_t>> delta_account_;

@@ -213,7 +213,9 @@ class WorldPipeline {
   const LodMeshStore& lod_meshes() const { return lod_->meshes(); }  // any thread
   // Like subscribe(), for level-of-detail meshes (unsubscribe() drops either): the keys
   // published, and routed to the owners whose layouts want them (by owner), so that a
-  // session hears only of its own keys.
+  // session hears only of its own keys. Routing follows the wants the pipeline has taken
+  // (set_lod_view's, between batches): when it takes an owner's new wants, the owner
+  // hears again of those published before (with no keys in `keys`).
   struct LodPublication {
     std::vector<LodKey> keys;
     std::vector<std::pair<LoadOwner, std::vector<LodKey>>> by_owner;
@@ -358,7 +360,8 @@ class WorldPipeline {
   void lod_pass(Clock::time_point now);
   // After a durable batch: its accepted edits reach the coarse levels.
   void lod_edited(const Batch& b, Clock::time_point now);
-  void notify_lod(const std::vector<LodKey>& published);
+  void notify_lod(const std::vector<LodKey>& published);  // routed to their owners
+  void notify_lod(const LodPublication& publication);
   void lod_stats(PipelineStats& s) const;  // its part of stats(); any thread
   // The newest mesh of `c`: a pending batch's, else the published one.
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;

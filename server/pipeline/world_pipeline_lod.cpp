@@ -36,7 +36,12 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
     updates.swap(lod_updates_);
     edits_waiting = scheduler_.has_ordered();
   }
-  for (auto& [owner, keys] : updates) lod_->set_wants(owner, std::move(keys));  // outside the lock
+  LodPublication late;                   // keys owners now want that were published before they did
+  for (auto& [owner, keys] : updates) {  // outside the lock
+    std::vector<LodKey> published = lod_->set_wants(owner, std::move(keys));
+    if (!published.empty()) late.by_owner.emplace_back(owner, std::move(published));
+  }
+  if (!late.by_owner.empty()) notify_lod(late);
   if (!lod_->has_work(now)) {
     lod_starved_since_.reset();
     return;
@@ -64,13 +69,15 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
 
 void WorldPipeline::notify_lod(const std::vector<LodKey>& published) {
   if (published.empty()) return;
+  notify_lod(LodPublication{published, lod_->route(published)});
+}
+
+void WorldPipeline::notify_lod(const LodPublication& publication) {
   std::vector<LodSubscriber> subscribers;
   {
     std::lock_guard lock(subscribers_mutex_);
     for (const auto& [id, s] : lod_subscribers_) subscribers.push_back(s);
   }
-  if (subscribers.empty()) return;
-  const LodPublication publication{published, lod_->route(published)};
   for (const auto& s : subscribers) s(publication);
 }
 

@@ -27,6 +27,24 @@ constexpr std::array<std::array<int, 3>, 18> kNeighbourDirections = [] {
   return d;
 }();
 
+// Whether the region of `n` (same level as the leaf asking, at offset `d` from it) holds
+// leaves two or more levels finer than the asker: n is split and one of its children that
+// touch the asker is split too.
+bool has_finer_than_one_level(const LodChunk& n, const std::array<int, 3>& d,
+                              const LodChunkSet& split) {
+  if (n.level < 2 || !split.contains(n)) return false;
+  for (int i = 0; i < 8; ++i) {
+    const int bits[3] = {i & 1, (i >> 1) & 1, i >> 2};
+    bool touches = true;
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] > 0) touches &= bits[a] == 0;  // n lies above the asker on this axis
+      if (d[a] < 0) touches &= bits[a] == 1;
+    }
+    if (touches && split.contains(child(n, i))) return true;
+  }
+  return false;
+}
+
 LodChunk parent(const LodChunk& c) {
   return {c.level + 1, {floor_div(c.c.x, 2), floor_div(c.c.y, 2), floor_div(c.c.z, 2)}};
 }
@@ -88,22 +106,42 @@ void LodLayout::refine(const LodChunk& node, const std::array<double, 3>& eye,
 
 void LodLayout::balance(LodChunkSet& leaves, LodChunkSet& split) {
   // A leaf may not touch (across a face or an edge) a leaf two or more levels finer: that
-  // is, a split node of level j may not touch a leaf of level j + 1 or coarser. The leaves
-  // of level j + 1 touching split node m are the parents of m's face and edge neighbours
-  // (coarser ones are found from m's split ancestors). Splitting a leaf makes it a split
-  // node, looked at in turn.
-  std::vector<LodChunk> work(split.begin(), split.end());
-  while (!work.empty()) {
-    const LodChunk m = work.back();
-    work.pop_back();
+  // is, a split node of level j may not touch a leaf of level j + 1 or coarser. Every pair
+  // is looked at when the later of the two appears. A split node m looks for the leaves
+  // of level j + 1 touching it: the parents of its face and edge neighbours (a coarser
+  // leaf touching m touches m's parent too, looked at in its turn). A new leaf c (a child
+  // of a leaf just split) looks for split nodes one level finer touching it: children of
+  // its same-level neighbours. Splitting a leaf makes it a split node and makes leaves.
+  std::vector<LodChunk> nodes(split.begin(), split.end()), fresh;
+  const auto split_leaf = [&](LodChunkSet::iterator leaf) {
+    const LodChunk p = *leaf;
+    leaves.erase(leaf);
+    split.insert(p);
+    nodes.push_back(p);
+    for (int i = 0; i < 8; ++i) {
+      leaves.insert(child(p, i));
+      fresh.push_back(child(p, i));
+    }
+  };
+  while (!nodes.empty() || !fresh.empty()) {
+    if (!nodes.empty()) {
+      const LodChunk m = nodes.back();
+      nodes.pop_back();
+      for (const auto& d : kNeighbourDirections) {
+        const auto leaf = leaves.find(parent(neighbour(m, d)));
+        if (leaf != leaves.end()) split_leaf(leaf);  // else split, coarser, or outside
+      }
+      continue;
+    }
+    const LodChunk c = fresh.back();
+    fresh.pop_back();
+    const auto leaf = leaves.find(c);
+    if (leaf == leaves.end()) continue;  // split since
     for (const auto& d : kNeighbourDirections) {
-      const LodChunk p = parent(neighbour(m, d));
-      const auto leaf = leaves.find(p);
-      if (leaf == leaves.end()) continue;  // split already, coarser, or outside the layout
-      leaves.erase(leaf);
-      split.insert(p);
-      for (int i = 0; i < 8; ++i) leaves.insert(child(p, i));
-      work.push_back(p);
+      if (has_finer_than_one_level(neighbour(c, d), d, split)) {
+        split_leaf(leaf);
+        break;
+      }
     }
   }
 }
