@@ -113,7 +113,7 @@ TEST(LodPipeline, APublishedMeshIsRoutedOnlyToTheOwnersWhoseLayoutsWantIt) {
       std::lock_guard lock(mutex);
       published.insert(publication.keys.begin(), publication.keys.end());
       for (const auto& [owner, keys] : publication.by_owner)
-        routed[owner].insert(keys.begin(), keys.end());
+        routed[owner].insert(keys->begin(), keys->end());
     }
     pub.add(publication.keys);
   });
@@ -148,7 +148,7 @@ TEST(LodPipeline, AnOwnerWantingAKeyPublishedBeforeHearsOfIt) {
     {
       std::lock_guard lock(mutex);
       for (const auto& [owner, keys] : publication.by_owner)
-        routed[owner].insert(keys.begin(), keys.end());
+        routed[owner].insert(keys->begin(), keys->end());
     }
     cv.notify_all();
     pub.add(publication.keys);

@@ -135,9 +135,14 @@ bool mesh_vertices(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
 }
 
 // --- 4. triangles of the cells whose corners differ -------------------------------------
-void mesh_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
-                    std::span<const Vec3f> positions, bool on_corner, const CellRows* skip,
-                    Buffer<uint32_t>& indices) {
+namespace {
+
+// The tables' triangles of the cells not skipped into `indices`, but those of zero area
+// at the rounded positions.
+template <class OnCell>
+size_t write_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
+                       std::span<const Vec3f> positions, bool on_corner, const CellRows* skip,
+                       Buffer<uint32_t>& indices, OnCell&& on_cell) {
   indices.resize(max_triangles(s, cells) * 3);
   const Vec3f* vpos = positions.data();
   const size_t triangles = emit_triangles(
@@ -145,8 +150,17 @@ void mesh_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
       [&](uint32_t a, uint32_t b, uint32_t c) {
         return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
       },
-      skip);
+      skip, on_cell);
   indices.resize(triangles * 3);
+  return triangles;
+}
+
+}  // namespace
+
+void mesh_triangles(const MeshScratch& s, const std::array<int, 3>& cells,
+                    std::span<const Vec3f> positions, bool on_corner, const CellRows* skip,
+                    Buffer<uint32_t>& indices) {
+  write_triangles(s, cells, positions, on_corner, skip, indices, NoCellHook{});
 }
 
 void mesh_triangles_by_row(const MeshScratch& s, const std::array<int, 3>& cells,
@@ -156,22 +170,14 @@ void mesh_triangles_by_row(const MeshScratch& s, const std::array<int, 3>& cells
   rows.begin.fill(kUnset);
   rows.after_first.fill(kUnset);
   rows.last.fill(kUnset);
-  indices.resize(max_triangles(s, cells) * 3);
-  const Vec3f* vpos = positions.data();
-  const auto written = static_cast<uint32_t>(emit_triangles(
-      s, cells, indices.data(),
-      [&](uint32_t a, uint32_t b, uint32_t c) {
-        return !on_corner || !has_zero_area(vpos[a], vpos[b], vpos[c]);
-      },
-      nullptr,
-      [&](int x, int y, int z, size_t so_far) {
+  const auto written = static_cast<uint32_t>(write_triangles(
+      s, cells, positions, on_corner, nullptr, indices, [&](int x, int y, int z, size_t so_far) {
         const int r = detail::row_of(y, z);
         const auto at = static_cast<uint32_t>(so_far);
         if (rows.begin[r] == kUnset) rows.begin[r] = at;
         if (x > 0 && rows.after_first[r] == kUnset) rows.after_first[r] = at;
         if (x == cells[0] - 1) rows.last[r] = at;
       }));
-  indices.resize(size_t{written} * 3);
   // Rows (in the order written) that had no cell, or no cell after the first or no last
   // cell: those parts are empty, ending where the next part begins.
   uint32_t end = written;

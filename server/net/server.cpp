@@ -74,7 +74,7 @@ void Server::start() {
   lod_subscription_ =
       pipeline_.subscribe_lod([this](const pipeline::WorldPipeline::LodPublication& publication) {
         // Pipeline thread: to each session whose layout wants some of the keys, those keys.
-        std::vector<std::pair<std::shared_ptr<ClientSession>, const std::vector<pipeline::LodKey>*>>
+        std::vector<std::pair<std::shared_ptr<ClientSession>, pipeline::WorldPipeline::LodKeys>>
             live;
         {
           std::lock_guard lock(sessions_mutex_);
@@ -82,11 +82,10 @@ void Server::start() {
             const auto it = sessions_.find(owner);
             if (it == sessions_.end()) continue;
             if (auto s = it->second.lock(); s && s->has_lod_view())
-              live.emplace_back(std::move(s), &keys);
+              live.emplace_back(std::move(s), keys);
           }
         }
-        for (const auto& [s, keys] : live)
-          s->on_lod_published(std::make_shared<const std::vector<pipeline::LodKey>>(*keys));
+        for (const auto& [s, keys] : live) s->on_lod_published(keys);
       });
   spdlog::info(
       "voxeld listening on {}:{} (seed {}, max {} players, {} in handshake, {} per address)",

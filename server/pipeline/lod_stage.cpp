@@ -104,7 +104,7 @@ void LodStage::unwant(LoadOwner owner, const LodKey& k) {
   }
 }
 
-std::vector<std::pair<LoadOwner, std::vector<LodKey>>> LodStage::route(
+std::vector<std::pair<LoadOwner, std::shared_ptr<const std::vector<LodKey>>>> LodStage::route(
     const std::vector<LodKey>& published) const {
   std::unordered_map<LoadOwner, std::vector<LodKey>> by_owner;
   for (const LodKey& k : published) {
@@ -112,8 +112,10 @@ std::vector<std::pair<LoadOwner, std::vector<LodKey>>> LodStage::route(
     if (it == wanters_.end()) continue;
     for (const LoadOwner o : it->second) by_owner[o].push_back(k);
   }
-  std::vector<std::pair<LoadOwner, std::vector<LodKey>>> out(
-      std::make_move_iterator(by_owner.begin()), std::make_move_iterator(by_owner.end()));
+  std::vector<std::pair<LoadOwner, std::shared_ptr<const std::vector<LodKey>>>> out;
+  out.reserve(by_owner.size());
+  for (auto& [owner, keys] : by_owner)
+    out.emplace_back(owner, std::make_shared<const std::vector<LodKey>>(std::move(keys)));
   std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   return out;
 }

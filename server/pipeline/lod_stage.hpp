@@ -74,7 +74,7 @@ class LodStage {
 
   // The owners whose layouts want each of these keys (pipeline thread): each owner with
   // its keys, by owner.
-  std::vector<std::pair<LoadOwner, std::vector<LodKey>>> route(
+  std::vector<std::pair<LoadOwner, std::shared_ptr<const std::vector<LodKey>>>> route(
       const std::vector<LodKey>& published) const;
 
   size_t wanted() const { return wanters_.size(); }

@@ -216,9 +216,10 @@ class WorldPipeline {
   // session hears only of its own keys. Routing follows the wants the pipeline has taken
   // (set_lod_view's, between batches): when it takes an owner's new wants, the owner
   // hears again of those published before (with no keys in `keys`).
+  using LodKeys = std::shared_ptr<const std::vector<LodKey>>;  // posted to a session as is
   struct LodPublication {
     std::vector<LodKey> keys;
-    std::vector<std::pair<LoadOwner, std::vector<LodKey>>> by_owner;
+    std::vector<std::pair<LoadOwner, LodKeys>> by_owner;
   };
   using LodSubscriber = std::function<void(const LodPublication&)>;
   uint64_t subscribe_lod(LodSubscriber s);  // any thread

@@ -39,7 +39,9 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
   LodPublication late;                   // keys owners now want that were published before they did
   for (auto& [owner, keys] : updates) {  // outside the lock
     std::vector<LodKey> published = lod_->set_wants(owner, std::move(keys));
-    if (!published.empty()) late.by_owner.emplace_back(owner, std::move(published));
+    if (!published.empty())
+      late.by_owner.emplace_back(owner,
+                                 std::make_shared<const std::vector<LodKey>>(std::move(published)));
   }
   if (!late.by_owner.empty()) notify_lod(late);
   if (!lod_->has_work(now)) {
