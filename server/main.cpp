@@ -303,13 +303,13 @@ int main(int argc, char** argv) {
         .batch = [&counters](double s, size_t, size_t) { counters.batch_duration.observe(s); },
         .remesh = [&counters](double s, size_t) { counters.remesh_duration.observe(s); },
         .commit =
-            [&counters](double commit_s, double waited_s, size_t edits, bool ok) {
+            [&counters](double commit_s, size_t edits, bool ok) {
               if (!ok) return vox::net::ServerCounters::bump(counters.store_failures);
               counters.store_commit.observe(commit_s);
-              counters.store_commit_wait.observe(waited_s);
               vox::net::ServerCounters::bump(counters.store_commits);
               counters.store_committed_edits.fetch_add(edits, std::memory_order_relaxed);
             },
+        .commit_wait = [&counters](double s) { counters.store_commit_wait.observe(s); },
         .checkpoint =
             [&counters](double s, size_t, size_t bytes, bool ok) {
               if (!ok) return;

@@ -128,8 +128,8 @@ TEST(StoreAppender, AppendsLandInOrderAndNoneIsDroppedAtTheEnd) {
     store.close();
     const world::Edit e = world::Explosion{{1, 2, 3}, 4, 1};
     first = appender.append({{1, 0, "", e}}, {}, {});
-    second = appender.append({{2, 0, "", e}}, {}, first);
     ASSERT_TRUE(store.wait_entered(1));
+    second = appender.append({{2, 0, "", e}}, {}, first);
     store.open();
   }
   EXPECT_EQ(first.get().error, "");
@@ -146,6 +146,40 @@ TEST(StoreAppender, AppendsLandInOrderAndNoneIsDroppedAtTheEnd) {
           .error,
       "not tried: an earlier append failed");
   EXPECT_EQ(logged_seqs(*sqlite).size(), 2u);
+  std::filesystem::remove_all(dir);
+}
+
+// Group commit across batches: the appends queued behind one being made durable go to the
+// store in one transaction (one fsync) and each learns it; one carrying regions goes alone.
+TEST(StoreAppender, AppendsQueuedBehindASlowOneGoInOneTransaction) {
+  const auto dir = temp_world("group");
+  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
+  GatedStore store(*sqlite);
+  const world::Edit e = world::Explosion{{1, 2, 3}, 4, 1};
+  std::vector<std::shared_future<AppendOutcome>> out;
+  {
+    StoreAppender appender(store, nullptr);
+    store.close();
+    out.push_back(appender.append({{1, 0, "", e}}, {}, {}));
+    ASSERT_TRUE(store.wait_entered(1));
+    out.push_back(appender.append({{2, 0, "", e}, {3, 0, "", e}}, {}, out.back()));
+    out.push_back(appender.append({{4, 0, "", e}}, {}, out.back()));
+    store::RegionWrite regions;
+    regions.next_id = 1;
+    out.push_back(appender.append({{5, 0, "", e}}, {}, out.back(), regions));
+    out.push_back(appender.append({{6, 0, "", e}}, {}, out.back()));
+    store.open();
+  }
+  EXPECT_EQ(store.entered(), 4);  // {1}, {2, 3, 4}, {5} with regions, {6}
+  const std::vector<size_t> edits{1, 3, 3, 1, 1};
+  const std::vector<bool> first{true, true, false, true, true};
+  for (size_t i = 0; i < out.size(); ++i) {
+    const AppendOutcome& o = out[i].get();
+    EXPECT_EQ(o.error, "") << i;
+    EXPECT_EQ(o.edits, edits[i]) << i;
+    EXPECT_EQ(o.first, first[i]) << i;
+  }
+  EXPECT_EQ(logged_seqs(*sqlite), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
   std::filesystem::remove_all(dir);
 }
 

@@ -103,14 +103,17 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     out.push_back(histogram("voxeld_remesh_duration_seconds",
                             "Time to re-mesh and encode one batch's dirty chunks",
                             c_.remesh_duration));
-    out.push_back(histogram("voxeld_store_commit_seconds",
-                            "A batch's append of its accepted edits to the world store (durable)",
-                            c_.store_commit));
-    out.push_back(histogram("voxeld_store_commit_wait_seconds",
-                            "How long the pipeline thread stood waiting for a commit (0 when it "
-                            "landed while other work went on)",
-                            c_.store_commit_wait));
-    counter(out, "voxeld_store_commits_total", "Batches appended to the world store",
+    out.push_back(histogram(
+        "voxeld_store_commit_seconds",
+        "A transaction of the world store's edit log: the accepted edits of one batch, or "
+        "of the batches queued while the one before was made durable",
+        c_.store_commit));
+    out.push_back(
+        histogram("voxeld_store_commit_wait_seconds",
+                  "How long the pipeline thread stood waiting for a batch's commit (0 when "
+                  "it landed while other work went on)",
+                  c_.store_commit_wait));
+    counter(out, "voxeld_store_commits_total", "Transactions of the world store's edit log",
             double(c_.store_commits.load()));
     counter(out, "voxeld_store_committed_edits_total", "Edits appended to the world store",
             double(c_.store_committed_edits.load()));

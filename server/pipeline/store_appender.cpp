@@ -32,32 +32,63 @@ void StoreAppender::work() {
   for (;;) {
     cv_.wait(lock, [this] { return stopping_ || !jobs_.empty(); });
     if (jobs_.empty()) return;  // stopping, and everything queued has run
-    Job job = std::move(jobs_.front());
-    jobs_.pop_front();
+    std::vector<Job> group = take_group();
     lock.unlock();
-    job.promise.set_value(run(job));
+    run(group);
     if (landed_) landed_();
     lock.lock();
   }
 }
 
-AppendOutcome StoreAppender::run(Job& job) {
+std::vector<StoreAppender::Job> StoreAppender::take_group() {
+  std::vector<Job> group;
+  group.push_back(std::move(jobs_.front()));
+  jobs_.pop_front();
+  while (!group.front().regions && !jobs_.empty() && !jobs_.front().regions &&
+         group.size() < kMaxGroup) {
+    group.push_back(std::move(jobs_.front()));
+    jobs_.pop_front();
+  }
+  return group;
+}
+
+void StoreAppender::run(std::vector<Job>& group) {
   AppendOutcome out;
-  if (job.before.valid() && !job.before.get().error.empty()) {
+  // Each append is given after the one before it: only the first's `before` can have
+  // landed already (the others' are in this group, not set yet).
+  const Job& head = group.front();
+  const bool earlier_failed = head.before.valid() && !head.before.get().error.empty();
+  if (earlier_failed) {
     out.error = "not tried: an earlier append failed";
-    return out;
+  } else {
+    std::vector<store::LoggedEdit> log;
+    std::vector<store::WorldStore::SeqRange> forget;
+    if (group.size() == 1) {
+      log = std::move(group.front().log);
+      forget = std::move(group.front().forget);
+    } else {
+      for (Job& job : group) {
+        log.insert(log.end(), std::make_move_iterator(job.log.begin()),
+                   std::make_move_iterator(job.log.end()));
+        forget.insert(forget.end(), job.forget.begin(), job.forget.end());
+      }
+    }
+    out.edits = log.size();
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      store_.append_edits(log, forget, head.regions ? &*head.regions : nullptr);
+    } catch (const std::exception& e) {
+      out.error = e.what();
+      if (out.error.empty()) out.error = "append failed";
+    } catch (...) {
+      out.error = "append failed";
+    }
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
-  const auto start = std::chrono::steady_clock::now();
-  try {
-    store_.append_edits(job.log, job.forget, job.regions ? &*job.regions : nullptr);
-  } catch (const std::exception& e) {
-    out.error = e.what();
-    if (out.error.empty()) out.error = "append failed";
-  } catch (...) {
-    out.error = "append failed";
+  for (Job& job : group) {
+    job.promise.set_value(out);
+    out.first = false;
   }
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return out;
 }
 
 }  // namespace vox::pipeline

@@ -158,10 +158,12 @@ struct PipelineStats {
 struct PipelineObserver {
   std::function<void(double seconds, size_t edits, size_t load_chunks)> batch;
   std::function<void(double seconds, size_t chunks)> remesh;
-  // A batch's append to the store: how long the commit took, how long the pipeline thread
-  // stood waiting for it (0 when it landed while later work went on), its edits, and
-  // whether it failed.
-  std::function<void(double commit_s, double waited_s, size_t edits, bool ok)> commit;
+  // A transaction of the store's edit log (it may carry several batches' appends): how long
+  // it took, its edits, and whether it failed.
+  std::function<void(double commit_s, size_t edits, bool ok)> commit;
+  // Per batch with an append: how long the pipeline thread stood waiting for it (0 when it
+  // landed while later work went on).
+  std::function<void(double waited_s)> commit_wait;
   // A checkpoint written (or failed): how long, how many chunks, their bytes.
   std::function<void(double seconds, size_t chunks, size_t bytes, bool ok)> checkpoint;
 };
@@ -331,12 +333,14 @@ class WorldPipeline {
     store::WorldStore::SeqRange seqs;           // of the accepted edits, when appended
     std::shared_future<AppendOutcome> outcome;  // invalid: nothing to append
     Clock::time_point appended_at;              // when the append started
+    double waited = 0;                          // seconds the pipeline stood waiting for it
   };
   // Batches in flight are at most this many: past it, the pipeline waits for the oldest.
   static constexpr size_t kMaxPendingBatches = 3;
   // After re-meshing, a batch waits this long (from its append's start) for the append
   // before the pipeline goes on: most appends land by then and are answered at once; a
   // slow one no longer holds up the load pass and the next batches (answered after them).
+  // An edit arriving ends the wait: it is not held up behind another batch's fsync.
   static constexpr auto kAnswerWait = std::chrono::milliseconds(6);
   Batch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
   // A region change inside apply_batch (pipeline thread).
@@ -347,9 +351,11 @@ class WorldPipeline {
   void repair_regions(Clock::time_point now, bool now_anyway = false);
   void start_append(Batch& b);
   // Answers the batches whose appends landed, oldest first, waiting while more than `keep`
-  // are in flight (0: every batch is answered when it returns) and, for the oldest, until
-  // `wait_until` at most.
-  void finish_pending(PipelineStats& batch, size_t keep, Clock::time_point wait_until = {});
+  // are in flight (0: every batch is answered when it returns).
+  void finish_pending(PipelineStats& batch, size_t keep);
+  // After the newest pending batch re-meshed: waits until its append lands, an edit
+  // arrives, or `until` (pipeline thread; takes queue_mutex_).
+  void wait_for_answer(Clock::time_point until);
   void fail_pending(PipelineStats& batch, const std::string& error);
   void finish_landed();  // finish_pending without waiting, between batches
   // Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was

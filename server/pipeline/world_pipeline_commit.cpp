@@ -68,21 +68,29 @@ void WorldPipeline::repair_regions(Clock::time_point now, bool now_anyway) {
   pending_.push_back(std::move(b));
 }
 
-void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep,
-                                   Clock::time_point wait_until) {
+void WorldPipeline::wait_for_answer(Clock::time_point until) {
+  const Clock::time_point start = Clock::now();
+  Batch& b = pending_.back();
+  {
+    std::unique_lock lock(queue_mutex_);
+    queue_cv_.wait_until(
+        lock, until, [&] { return stopping_ || landed(b.outcome) || scheduler_.has_ordered(); });
+  }
+  b.waited += seconds_since(start);
+}
+
+void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep) {
   while (!pending_.empty()) {
     Batch& b = pending_.front();
     const Clock::time_point start = Clock::now();
     const bool ready = landed(b.outcome);
-    if (!ready && pending_.size() <= keep &&
-        (start >= wait_until || b.outcome.wait_until(wait_until) != std::future_status::ready)) {
-      return;
-    }
+    if (!ready && pending_.size() <= keep) return;
     if (b.outcome.valid()) {
       const AppendOutcome& out = b.outcome.get();
-      const double waited = ready ? 0 : seconds_since(start);
-      if (observer_.commit)
-        observer_.commit(out.seconds, waited, b.accepted.size(), out.error.empty());
+      b.waited += ready ? 0 : seconds_since(start);
+      if (observer_.commit && out.first)
+        observer_.commit(out.seconds, out.edits, out.error.empty());
+      if (observer_.commit_wait) observer_.commit_wait(b.waited);
       if (!out.error.empty()) return fail_pending(batch, out.error);
       doubtful_.reset();
       if (b.carries_regions) regions_doubtful_ = false;
