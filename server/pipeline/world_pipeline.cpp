@@ -380,8 +380,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   if (!config_.store) return answer(b, true, batch);
   const Clock::time_point wait_until = b.appended_at + kAnswerWait;
   pending_.push_back(std::move(b));
-  wait_for_answer(wait_until);
-  finish_pending(batch, kMaxPendingBatches);
+  wait_for_answer(batch, wait_until);
 }
 
 // Applies the batch's edits (validated, within the generation limits; refused untried

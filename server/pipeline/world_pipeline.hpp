@@ -353,9 +353,10 @@ class WorldPipeline {
   // Answers the batches whose appends landed, oldest first, waiting while more than `keep`
   // are in flight (0: every batch is answered when it returns).
   void finish_pending(PipelineStats& batch, size_t keep);
-  // After the newest pending batch re-meshed: waits until its append lands, an edit
-  // arrives, or `until` (pipeline thread; takes queue_mutex_).
-  void wait_for_answer(Clock::time_point until);
+  // After the newest pending batch re-meshed: answers the pending batches as their appends
+  // land, until every one is answered, an edit arrives or `until`; then, past
+  // kMaxPendingBatches, waits for the oldest (pipeline thread; takes queue_mutex_).
+  void wait_for_answer(PipelineStats& batch, Clock::time_point until);
   void fail_pending(PipelineStats& batch, const std::string& error);
   void finish_landed();  // finish_pending without waiting, between batches
   // Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was

@@ -68,15 +68,26 @@ void WorldPipeline::repair_regions(Clock::time_point now, bool now_anyway) {
   pending_.push_back(std::move(b));
 }
 
-void WorldPipeline::wait_for_answer(Clock::time_point until) {
-  const Clock::time_point start = Clock::now();
-  Batch& b = pending_.back();
-  {
-    std::unique_lock lock(queue_mutex_);
-    queue_cv_.wait_until(
-        lock, until, [&] { return stopping_ || landed(b.outcome) || scheduler_.has_ordered(); });
+void WorldPipeline::wait_for_answer(PipelineStats& batch, Clock::time_point until) {
+  // Each pending batch is answered as soon as its append lands (oldest first), not when
+  // the newest's does.
+  while (!pending_.empty()) {
+    Batch& oldest = pending_.front();
+    const Clock::time_point start = Clock::now();
+    bool go_on = false;  // an edit arrived, or the pipeline stops
+    {
+      std::unique_lock lock(queue_mutex_);
+      queue_cv_.wait_until(lock, until, [&] {
+        go_on = stopping_ || scheduler_.has_ordered();
+        return go_on || landed(oldest.outcome);
+      });
+    }
+    oldest.waited += seconds_since(start);
+    if (!landed(oldest.outcome)) break;  // the wait is over, or an edit arrived
+    finish_pending(batch, SIZE_MAX);     // every batch whose append has landed
+    if (go_on) break;
   }
-  b.waited += seconds_since(start);
+  finish_pending(batch, kMaxPendingBatches);
 }
 
 void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep) {
