@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <climits>
 #include <condition_variable>
 #include <filesystem>
 #include <future>
@@ -34,7 +35,7 @@ class GatedStore final : public store::WorldStore {
   void append_edits(std::span<const store::LoggedEdit> edits, std::span<const SeqRange> forget,
                     const store::RegionWrite* regions) override {
     if (!gate_checkpoints_) pass_gate();
-    if (failing_) throw store::StoreError("test: the disk is full");
+    if (failing_ || entered() >= fail_from_) throw store::StoreError("test: the disk is full");
     inner_.append_edits(edits, forget, regions);
     if (fail_after_write_) throw store::StoreError("test: the connection dropped at COMMIT");
   }
@@ -67,6 +68,7 @@ class GatedStore final : public store::WorldStore {
     cv_.notify_all();
   }
   void set_failing(bool failing) { failing_ = failing; }  // appends throw after the gate
+  void set_failing_from(int n) { fail_from_ = n; }        // the n-th append to reach the gate on
   // Appends land, then throw: their outcome is in doubt for the pipeline.
   void set_fail_after_write(bool fail) { fail_after_write_ = fail; }
   int entered() {
@@ -94,6 +96,7 @@ class GatedStore final : public store::WorldStore {
   bool open_ = true;
   int entered_ = 0;
   std::atomic<bool> failing_{false}, fail_after_write_{false};
+  std::atomic<int> fail_from_{INT_MAX};
 };
 
 using test::eventually;
@@ -180,6 +183,34 @@ TEST(StoreAppender, AppendsQueuedBehindASlowOneGoInOneTransaction) {
     EXPECT_EQ(o.first, first[i]) << i;
   }
   EXPECT_EQ(logged_seqs(*sqlite), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
+  std::filesystem::remove_all(dir);
+}
+
+// A transaction carrying several appends fails for all of them (none of their edits is
+// logged), and a group queued behind it is not tried.
+TEST(StoreAppender, AGroupedTransactionThatFailsFailsEveryAppendInItAndTheOnesBehind) {
+  const auto dir = temp_world("group_fail");
+  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
+  GatedStore store(*sqlite);
+  const world::Edit e = world::Explosion{{1, 2, 3}, 4, 1};
+  std::vector<std::shared_future<AppendOutcome>> out;
+  {
+    StoreAppender appender(store, nullptr);
+    store.close();
+    out.push_back(appender.append({{1, 0, "", e}}, {}, {}));
+    ASSERT_TRUE(store.wait_entered(1));
+    out.push_back(appender.append({{2, 0, "", e}}, {}, out.back()));
+    out.push_back(appender.append({{3, 0, "", e}}, {}, out.back()));
+    store.set_failing_from(2);  // the first append lands, the group {2, 3} fails
+    store.open();
+    out[2].wait();
+    out.push_back(appender.append({{4, 0, "", e}}, {}, out.back()));
+  }
+  EXPECT_EQ(store.entered(), 2);  // {1}, {2, 3}; {4} not tried
+  EXPECT_EQ(out[0].get().error, "");
+  for (size_t i = 1; i < 3; ++i) EXPECT_EQ(out[i].get().error, "test: the disk is full") << i;
+  EXPECT_EQ(out[3].get().error, "not tried: an earlier append failed");
+  EXPECT_EQ(logged_seqs(*sqlite), (std::vector<uint64_t>{1}));
   std::filesystem::remove_all(dir);
 }
 

@@ -39,8 +39,8 @@ struct ServerCounters {
   LatencyHistogram edit_to_delta_written;  // submit -> a delta showing it written to a socket
   LatencyHistogram batch_duration;
   LatencyHistogram remesh_duration;
-  LatencyHistogram store_commit;       // a batch's append to the world store
-  LatencyHistogram store_commit_wait;  // how long the pipeline stood waiting for it
+  LatencyHistogram store_commit;       // a transaction of the edit log (one batch's or more)
+  LatencyHistogram store_commit_wait;  // per batch: how long the pipeline stood waiting for it
   Counter store_commits{0}, store_committed_edits{0}, store_failures{0};
   LatencyHistogram checkpoint_duration;  // a checkpoint's compression and transaction
   Counter checkpoint_bytes{0};           // chunk records written by checkpoints

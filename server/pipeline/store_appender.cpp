@@ -1,5 +1,8 @@
 #include "server/pipeline/store_appender.hpp"
 
+#include <algorithm>
+#include <span>
+
 namespace vox::pipeline {
 
 StoreAppender::StoreAppender(store::WorldStore& store, std::function<void()> landed)
@@ -57,27 +60,26 @@ void StoreAppender::run(std::vector<Job>& group) {
   // Each append is given after the one before it: only the first's `before` can have
   // landed already (the others' are in this group, not set yet).
   const Job& head = group.front();
-  const bool earlier_failed = head.before.valid() && !head.before.get().error.empty();
-  if (earlier_failed) {
+  if (head.before.valid() && !head.before.get().error.empty()) {
     out.error = "not tried: an earlier append failed";
   } else {
-    std::vector<store::LoggedEdit> log;
-    std::vector<store::WorldStore::SeqRange> forget;
-    if (group.size() == 1) {
-      log = std::move(group.front().log);
-      forget = std::move(group.front().forget);
-    } else {
-      for (Job& job : group) {
-        log.insert(log.end(), std::make_move_iterator(job.log.begin()),
-                   std::make_move_iterator(job.log.end()));
-        forget.insert(forget.end(), job.forget.begin(), job.forget.end());
-      }
-    }
-    out.edits = log.size();
     const auto start = std::chrono::steady_clock::now();
     try {
+      std::vector<store::LoggedEdit> log = std::move(group.front().log);
+      std::vector<store::WorldStore::SeqRange> forget = std::move(group.front().forget);
+      for (Job& job : std::span(group).subspan(1)) {
+        log.insert(log.end(), std::make_move_iterator(job.log.begin()),
+                   std::make_move_iterator(job.log.end()));
+        for (const auto& r : job.forget) {  // the appends of a group carry the same ranges
+          const bool seen = std::any_of(forget.begin(), forget.end(), [&](const auto& f) {
+            return f.first == r.first && f.last == r.last;
+          });
+          if (!seen) forget.push_back(r);
+        }
+      }
+      out.edits = log.size();
       store_.append_edits(log, forget, head.regions ? &*head.regions : nullptr);
-    } catch (const std::exception& e) {
+    } catch (const std::exception& e) {  // the store's, or no memory for the merged log
       out.error = e.what();
       if (out.error.empty()) out.error = "append failed";
     } catch (...) {

@@ -45,8 +45,10 @@ class StoreAppender {
   StoreAppender& operator=(const StoreAppender&) = delete;
 
   // Pipeline thread. Appends `log` (and forgets `forget`, and with `regions` makes them
-  // the stored protected regions) after every earlier append. If `before` (an earlier
-  // append's outcome) failed, this one is not tried and fails too.
+  // the stored protected regions) after every earlier append. `before` is the outcome of
+  // the append given just before this one, or invalid when none is in flight: if it
+  // failed, this one is not tried and fails too. (Appends grouped in one transaction share
+  // its outcome: only the group's first `before` can have landed, and it alone is checked.)
   std::shared_future<AppendOutcome> append(
       std::vector<store::LoggedEdit> log, std::vector<store::WorldStore::SeqRange> forget,
       std::shared_future<AppendOutcome> before,
@@ -60,7 +62,8 @@ class StoreAppender {
     std::shared_future<AppendOutcome> before;
     std::promise<AppendOutcome> promise;
   };
-  // The most appends one transaction carries.
+  // The most appends one transaction carries: a guard (the pipeline keeps at most four in
+  // flight, so a group holds at most three).
   static constexpr size_t kMaxGroup = 16;
   void work();
   // Under mutex_: the queued appends the next transaction carries (at least one).

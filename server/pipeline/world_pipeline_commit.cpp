@@ -1,8 +1,8 @@
 // Group commit, pipelined: each batch's accepted edits are appended to the store on the
 // StoreAppender's thread while the pipeline goes on with the next batches and load passes; a batch
 // is answered (meshes published, results sent) only once its append is durable, in batch order. An
-// append that fails undoes its batch and every later one (they were applied on top of it), whose
-// appends are then not tried.
+// append that fails undoes its batch and every later one (they were applied on top of it): those in
+// its transaction failed with it, the later ones are not tried.
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
