@@ -152,28 +152,47 @@ TEST(StoreAppender, AppendsLandInOrderAndNoneIsDroppedAtTheEnd) {
   std::filesystem::remove_all(dir);
 }
 
+// A real SQLite world behind a gate, for the appender's grouping tests.
+struct GatedWorld {
+  explicit GatedWorld(const std::string& tag)
+      : dir(temp_world(tag)),
+        sqlite(store::open_world_store(dir.string(), {.seed = 3})),
+        store(*sqlite) {}
+  ~GatedWorld() { std::filesystem::remove_all(dir); }
+  // An edit to log as sequence number `seq`.
+  static store::LoggedEdit edit(uint64_t seq) {
+    return {seq, 0, "", world::Explosion{{1, 2, 3}, 4, 1}};
+  }
+  // Appends edit 1 alone and holds it at the closed gate: what is appended next queues.
+  std::shared_future<AppendOutcome> hold_first(StoreAppender& appender) {
+    store.close();
+    auto first = appender.append({edit(1)}, {}, {});
+    EXPECT_TRUE(store.wait_entered(1));
+    return first;
+  }
+
+  std::filesystem::path dir;
+  std::unique_ptr<store::WorldStore> sqlite;
+  GatedStore store;
+};
+
 // Group commit across batches: the appends queued behind one being made durable go to the
 // store in one transaction (one fsync) and each learns it; one carrying regions goes alone.
 TEST(StoreAppender, AppendsQueuedBehindASlowOneGoInOneTransaction) {
-  const auto dir = temp_world("group");
-  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
-  GatedStore store(*sqlite);
-  const world::Edit e = world::Explosion{{1, 2, 3}, 4, 1};
+  GatedWorld w("group");
   std::vector<std::shared_future<AppendOutcome>> out;
   {
-    StoreAppender appender(store, nullptr);
-    store.close();
-    out.push_back(appender.append({{1, 0, "", e}}, {}, {}));
-    ASSERT_TRUE(store.wait_entered(1));
-    out.push_back(appender.append({{2, 0, "", e}, {3, 0, "", e}}, {}, out.back()));
-    out.push_back(appender.append({{4, 0, "", e}}, {}, out.back()));
+    StoreAppender appender(w.store, nullptr);
+    out.push_back(w.hold_first(appender));
+    out.push_back(appender.append({w.edit(2), w.edit(3)}, {}, out.back()));
+    out.push_back(appender.append({w.edit(4)}, {}, out.back()));
     store::RegionWrite regions;
     regions.next_id = 1;
-    out.push_back(appender.append({{5, 0, "", e}}, {}, out.back(), regions));
-    out.push_back(appender.append({{6, 0, "", e}}, {}, out.back()));
-    store.open();
+    out.push_back(appender.append({w.edit(5)}, {}, out.back(), regions));
+    out.push_back(appender.append({w.edit(6)}, {}, out.back()));
+    w.store.open();
   }
-  EXPECT_EQ(store.entered(), 4);  // {1}, {2, 3, 4}, {5} with regions, {6}
+  EXPECT_EQ(w.store.entered(), 4);  // {1}, {2, 3, 4}, {5} with regions, {6}
   const std::vector<size_t> edits{1, 3, 3, 1, 1};
   const std::vector<bool> first{true, true, false, true, true};
   for (size_t i = 0; i < out.size(); ++i) {
@@ -182,36 +201,29 @@ TEST(StoreAppender, AppendsQueuedBehindASlowOneGoInOneTransaction) {
     EXPECT_EQ(o.edits, edits[i]) << i;
     EXPECT_EQ(o.first, first[i]) << i;
   }
-  EXPECT_EQ(logged_seqs(*sqlite), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
-  std::filesystem::remove_all(dir);
+  EXPECT_EQ(logged_seqs(*w.sqlite), (std::vector<uint64_t>{1, 2, 3, 4, 5, 6}));
 }
 
 // A transaction carrying several appends fails for all of them (none of their edits is
 // logged), and a group queued behind it is not tried.
 TEST(StoreAppender, AGroupedTransactionThatFailsFailsEveryAppendInItAndTheOnesBehind) {
-  const auto dir = temp_world("group_fail");
-  auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
-  GatedStore store(*sqlite);
-  const world::Edit e = world::Explosion{{1, 2, 3}, 4, 1};
+  GatedWorld w("group_fail");
   std::vector<std::shared_future<AppendOutcome>> out;
   {
-    StoreAppender appender(store, nullptr);
-    store.close();
-    out.push_back(appender.append({{1, 0, "", e}}, {}, {}));
-    ASSERT_TRUE(store.wait_entered(1));
-    out.push_back(appender.append({{2, 0, "", e}}, {}, out.back()));
-    out.push_back(appender.append({{3, 0, "", e}}, {}, out.back()));
-    store.set_failing_from(2);  // the first append lands, the group {2, 3} fails
-    store.open();
+    StoreAppender appender(w.store, nullptr);
+    out.push_back(w.hold_first(appender));
+    out.push_back(appender.append({w.edit(2)}, {}, out.back()));
+    out.push_back(appender.append({w.edit(3)}, {}, out.back()));
+    w.store.set_failing_from(2);  // the first append lands, the group {2, 3} fails
+    w.store.open();
     out[2].wait();
-    out.push_back(appender.append({{4, 0, "", e}}, {}, out.back()));
+    out.push_back(appender.append({w.edit(4)}, {}, out.back()));
   }
-  EXPECT_EQ(store.entered(), 2);  // {1}, {2, 3}; {4} not tried
+  EXPECT_EQ(w.store.entered(), 2);  // {1}, {2, 3}; {4} not tried
   EXPECT_EQ(out[0].get().error, "");
   for (size_t i = 1; i < 3; ++i) EXPECT_EQ(out[i].get().error, "test: the disk is full") << i;
   EXPECT_EQ(out[3].get().error, "not tried: an earlier append failed");
-  EXPECT_EQ(logged_seqs(*sqlite), (std::vector<uint64_t>{1}));
-  std::filesystem::remove_all(dir);
+  EXPECT_EQ(logged_seqs(*w.sqlite), (std::vector<uint64_t>{1}));
 }
 
 TEST(PipelinedCommit, TheNextBatchAppliesWhileAnAppendIsInFlightAndAnswersKeepTheirOrder) {
