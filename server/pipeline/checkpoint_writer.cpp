@@ -2,12 +2,18 @@
 
 #include <chrono>
 
+#include "server/world/thread_name.hpp"
+
 namespace vox::pipeline {
 
 CheckpointWriter::CheckpointWriter(store::WorldStore& store, bool background,
                                    std::function<void()> on_done)
     : store_(store), on_done_(std::move(on_done)) {
-  if (background) thread_ = std::thread([this] { work(); });
+  if (background)
+    thread_ = std::thread([this] {
+      name_this_thread("vox-checkpoint");
+      work();
+    });
 }
 
 CheckpointWriter::~CheckpointWriter() {

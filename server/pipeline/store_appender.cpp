@@ -3,10 +3,15 @@
 #include <algorithm>
 #include <span>
 
+#include "server/world/thread_name.hpp"
+
 namespace vox::pipeline {
 
 StoreAppender::StoreAppender(store::WorldStore& store, std::function<void()> landed)
-    : store_(store), landed_(std::move(landed)), thread_([this] { work(); }) {}
+    : store_(store), landed_(std::move(landed)), thread_([this] {
+        name_this_thread("vox-appender");
+        work();
+      }) {}
 
 StoreAppender::~StoreAppender() {
   {

@@ -6,6 +6,8 @@
 
 #include <map>
 
+#include "server/world/thread_name.hpp"
+
 namespace vox::pipeline {
 
 using world::ChunkCoord;
@@ -25,7 +27,11 @@ TerrainPrefetcher::TerrainPrefetcher(const world::TerrainGenerator& generator, i
       max_chunks_(max_chunks),
       reserve_bytes_(reserve_bytes),
       on_ready_(std::move(on_ready)) {
-  for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { work(); });
+  for (int i = 0; i < threads; ++i)
+    threads_.emplace_back([this] {
+      name_this_thread("vox-generate");
+      work();
+    });
 }
 
 TerrainPrefetcher::~TerrainPrefetcher() {

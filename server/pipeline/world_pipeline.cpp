@@ -8,6 +8,7 @@
 #include "server/pipeline/world_state.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/parallel.hpp"
+#include "server/world/thread_name.hpp"
 
 namespace vox::pipeline {
 
@@ -100,7 +101,10 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
         queue_cv_.notify_one();
       });
   lod_->learn_modified();  // what the restore loaded or replayed
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this] {
+    name_this_thread("vox-pipeline");
+    run();
+  });
 }
 
 WorldPipeline::~WorldPipeline() { stop(); }
