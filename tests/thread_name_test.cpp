@@ -1,4 +1,5 @@
-// name_this_thread: the name the kernel shows for the thread, cut to 15 characters.
+// name_this_thread and named_thread: the name the kernel shows for the thread, cut to 15
+// characters.
 #include "server/world/thread_name.hpp"
 
 #include <gtest/gtest.h>
@@ -24,6 +25,16 @@ std::string name_in(const char* name) {
 TEST(ThreadName, TheKernelShowsTheNameCutTo15Characters) {
   EXPECT_EQ(name_in("vox-appender"), "vox-appender");
   EXPECT_EQ(name_in("vox-a-name-longer-than-fifteen"), "vox-a-name-long");
+}
+
+TEST(ThreadName, ANamedThreadRunsItsBodyUnderItsName) {
+  std::string seen;
+  named_thread("vox-test", [&] {
+    char buf[64] = {};
+    pthread_getname_np(pthread_self(), buf, sizeof buf);
+    seen = buf;
+  }).join();
+  EXPECT_EQ(seen, "vox-test");
 }
 
 }  // namespace

@@ -9,11 +9,7 @@ namespace vox::pipeline {
 CheckpointWriter::CheckpointWriter(store::WorldStore& store, bool background,
                                    std::function<void()> on_done)
     : store_(store), on_done_(std::move(on_done)) {
-  if (background)
-    thread_ = std::thread([this] {
-      name_this_thread("vox-checkpoint");
-      work();
-    });
+  if (background) thread_ = named_thread("vox-checkpoint", [this] { work(); });
 }
 
 CheckpointWriter::~CheckpointWriter() {

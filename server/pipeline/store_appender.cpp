@@ -8,10 +8,9 @@
 namespace vox::pipeline {
 
 StoreAppender::StoreAppender(store::WorldStore& store, std::function<void()> landed)
-    : store_(store), landed_(std::move(landed)), thread_([this] {
-        name_this_thread("vox-appender");
-        work();
-      }) {}
+    : store_(store),
+      landed_(std::move(landed)),
+      thread_(named_thread("vox-appender", [this] { work(); })) {}
 
 StoreAppender::~StoreAppender() {
   {

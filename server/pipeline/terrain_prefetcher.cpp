@@ -28,10 +28,7 @@ TerrainPrefetcher::TerrainPrefetcher(const world::TerrainGenerator& generator, i
       reserve_bytes_(reserve_bytes),
       on_ready_(std::move(on_ready)) {
   for (int i = 0; i < threads; ++i)
-    threads_.emplace_back([this] {
-      name_this_thread("vox-generate");
-      work();
-    });
+    threads_.push_back(named_thread("vox-generate", [this] { work(); }));
 }
 
 TerrainPrefetcher::~TerrainPrefetcher() {

@@ -101,10 +101,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
         queue_cv_.notify_one();
       });
   lod_->learn_modified();  // what the restore loaded or replayed
-  thread_ = std::thread([this] {
-    name_this_thread("vox-pipeline");
-    run();
-  });
+  thread_ = named_thread("vox-pipeline", [this] { run(); });
 }
 
 WorldPipeline::~WorldPipeline() { stop(); }
