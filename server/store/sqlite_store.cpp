@@ -101,7 +101,8 @@ class Statement {
 // 500 players. Keyed by the SQL's address: string literals only. Finalized before the
 // connection closes. One statement serves one use at a time: a statement stepped through
 // rows while a callback runs (for_each_edit, for_each_chunk) is prepared apart, since the
-// callback could use the cached one.
+// callback could use the cached one. PRAGMAs stay out too: SQLite may apply a PRAGMA when
+// it prepares it, so a cached `synchronous=FULL` could stop switching back.
 class StatementCache {
  public:
   StatementCache() = default;
@@ -306,6 +307,7 @@ class SqliteStore final : public WorldStore {
     if (!rows.step() || static_cast<size_t>(rows.int64(0)) != distinct_coords(chunks))
       throw StoreError(name_ + ": checkpoint " + std::to_string(checkpoint_seq) +
                        " lost rows while written (another writer?); not recorded");
+    rows.reset();  // read through: no statement of this transaction is left open at COMMIT
     const uint64_t previous = info_from_meta(name_, read_meta()).checkpoint_seq;
     Statement old = cached("DELETE FROM chunks WHERE x = ? AND y = ? AND z = ? AND seq < ?");
     for (const ChunkRecord& c : chunks) {
@@ -406,8 +408,10 @@ class SqliteStore final : public WorldStore {
     set_meta(schema::kMetaNextRegionId, std::to_string(w.next_id));
   }
 
-  // A statement of the connection's cache (`sql` a string literal), reset when it goes.
-  Statement cached(const char* sql) {
+  // A statement of the connection's cache, reset when it goes. Takes string literals only:
+  // the cache knows a statement by its SQL's address, which a built string could reuse.
+  template <size_t N>
+  Statement cached(const char (&sql)[N]) {
     return Statement(conn_.cache.get(conn_.db, sql, name_), name_);
   }
 
