@@ -5,9 +5,11 @@
 # store (TAG_stN) and one with --in-memory (TAG_memN), then prints each pair's edit->result
 # and edit->delta p50/p99 and the server's own edit->publish p99 (its metrics), with the
 # store's excess over the in-memory run beside it, and the medians. The server's figure moves
-# far less between runs than the players' (which include the load tester's own waits). One run's p99 moves by +-25 % on a shared 2-core machine: read the medians of
-# several pairs, not one pair. STORE_ARGS / STORE_PRELOAD go to the store runs only (as
-# VOXELD_ARGS / VOXELD_PRELOAD). Defaults: TAG pairs, 500 players, 60 s; ~3 minutes a pair.
+# far less between runs than the players' (which include the load tester's own waits). One
+# run's p99 moves by +-25 % on a shared 2-core machine: read the medians of several pairs,
+# not one pair. STORE_ARGS / STORE_PRELOAD go to the store runs only (as VOXELD_ARGS /
+# VOXELD_PRELOAD). Defaults: TAG pairs, 500 players, 60 s; ~3 minutes a pair. A run that
+# fails (attack_run.sh's exit code) stops the series.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 pairs="${1:?usage: store_pairs.sh PAIRS [TAG] [PLAYERS] [DURATION]}"

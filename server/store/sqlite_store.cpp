@@ -97,7 +97,7 @@ class Statement {
 };
 
 // The statements a connection runs again and again (each append's BEGIN, INSERT and COMMIT),
-// prepared once: parsing them per transaction was an eighth of the appender thread's time at
+// prepared once: parsing them per transaction was a fifth of the appender thread's time at
 // 500 players. Keyed by the SQL's address: string literals only. Finalized before the
 // connection closes. One statement serves one use at a time: a statement stepped through
 // rows while a callback runs (for_each_edit, for_each_chunk) is prepared apart, since the
