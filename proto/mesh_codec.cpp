@@ -16,6 +16,7 @@ namespace vox::proto {
 namespace {
 
 using mesh::kRowsPerAxis;
+using mesh::detail::row_of;
 constexpr size_t kHeaderBytes = 16;
 constexpr size_t kLodHeaderBytes = 27;  // format 2: seams, seam vertex and triangle counts
 constexpr size_t kSeamVertexBytes =
@@ -32,10 +33,21 @@ struct LodSection {
   world::LodSeams seams;
   const mesh::CellRows* seam_cells;
   const mesh::LodScratch* lod;  // encoder only
+  uint64_t vertex_pass;         // encoder only: the caller's key of lod's vertex pass (0: none)
+};
+
+// The encoding's header (docs/PROTOCOL.md §2.4, §2.7), written by write_header and read
+// by parse_header: one layout, in one place.
+struct Header {
+  bool lod = false;  // format 2, whose header also holds the seams and their counts
+  std::array<int, 3> cells{};
+  uint32_t vertices = 0, triangles = 0, dropped = 0;
+  world::LodSeams seams;
+  uint32_t seam_vertices = 0, seam_triangles = 0;
+  size_t bytes() const { return lod ? kLodHeaderBytes : kHeaderBytes; }
 };
 
 size_t row_bytes(int cells_x) { return static_cast<size_t>(cells_x + 1 + 7) / 8; }
-int row_of(int y, int z) { return y + kRowsPerAxis * z; }
 
 void put_u32(uint8_t* p, uint32_t v) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
@@ -43,6 +55,37 @@ void put_u32(uint8_t* p, uint32_t v) {
 uint32_t get_u32(const uint8_t* p) {
   return static_cast<uint32_t>(p[0]) | static_cast<uint32_t>(p[1]) << 8 |
          static_cast<uint32_t>(p[2]) << 16 | static_cast<uint32_t>(p[3]) << 24;
+}
+
+// p has room for h.bytes().
+void write_header(const Header& h, uint8_t* p) {
+  p[0] = h.lod ? kLodMeshFormat : kMeshFormat;
+  for (int a = 0; a < 3; ++a) p[1 + a] = static_cast<uint8_t>(h.cells[a]);
+  put_u32(p + 4, h.vertices);
+  put_u32(p + 8, h.triangles);
+  put_u32(p + 12, h.dropped);
+  if (!h.lod) return;
+  p[16] = h.seams.faces;
+  p[17] = static_cast<uint8_t>(h.seams.edges);
+  p[18] = static_cast<uint8_t>(h.seams.edges >> 8);
+  put_u32(p + 19, h.seam_vertices);
+  put_u32(p + 23, h.seam_triangles);
+}
+
+// The fields as written; `in` holds a known format and at least its header's bytes.
+Header parse_header(std::span<const uint8_t> in) {
+  Header h;
+  h.lod = in[0] == kLodMeshFormat;
+  h.cells = {in[1], in[2], in[3]};
+  h.vertices = get_u32(in.data() + 4);
+  h.triangles = get_u32(in.data() + 8);
+  h.dropped = get_u32(in.data() + 12);
+  if (h.lod) {
+    h.seams = {in[16], static_cast<uint16_t>(in[17] | in[18] << 8)};
+    h.seam_vertices = get_u32(in.data() + 19);
+    h.seam_triangles = get_u32(in.data() + 23);
+  }
+  return h;
 }
 
 float sign_not_zero(float v) { return v >= 0.0f ? 1.0f : -1.0f; }
@@ -242,30 +285,29 @@ void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
 
   const size_t seam_vertices = lod != nullptr ? lod->lod->seam_vertices.size() : 0;
   const size_t seam_triangles = m.triangle_count() - triangles;
-  const size_t header = lod != nullptr ? kLodHeaderBytes : kHeaderBytes;
+  Header h;
+  h.lod = lod != nullptr;
+  h.cells = cells;
+  h.vertices = vertices;
+  h.triangles = triangles;
+  h.dropped = dropped;
+  if (lod != nullptr) {
+    h.seams = lod->seams;
+    h.seam_vertices = static_cast<uint32_t>(seam_vertices);
+    h.seam_triangles = static_cast<uint32_t>(seam_triangles);
+  }
+  const size_t header = h.bytes();
   const size_t seam_bytes = kSeamVertexBytes * seam_vertices + 12 * seam_triangles;
   const size_t size = header + (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices} +
                       4 * size_t{dropped} + seam_bytes + kChecksumBytes;
   out.resize(size);
   uint8_t* p = out.data();
-  p[0] = lod != nullptr ? kLodMeshFormat : kMeshFormat;
-  for (int a = 0; a < 3; ++a) p[1 + a] = static_cast<uint8_t>(cells[a]);
-  put_u32(p + 4, vertices);
-  put_u32(p + 8, triangles);
-  put_u32(p + 12, dropped);
-  if (lod != nullptr) {
-    p[16] = lod->seams.faces;
-    p[17] = static_cast<uint8_t>(lod->seams.edges);
-    p[18] = static_cast<uint8_t>(lod->seams.edges >> 8);
-    put_u32(p + 19, static_cast<uint32_t>(seam_vertices));
-    put_u32(p + 23, static_cast<uint32_t>(seam_triangles));
-  }
+  write_header(h, p);
   // The rows and vertex planes of a level-of-detail chunk's variants are the same (their
   // regular vertices are): written once per vertex pass, then copied.
   const size_t shared = (rows + 7) / 8 + nonzero * rb + 5 * size_t{vertices};
-  const bool cached = lod != nullptr && scratch.shared_of == lod->lod &&
-                      scratch.shared_pass == lod->lod->vertex_pass &&
-                      scratch.shared.size() == shared;
+  const bool cached = lod != nullptr && lod->vertex_pass != 0 && scratch.shared_of == lod->lod &&
+                      scratch.shared_pass == lod->vertex_pass && scratch.shared.size() == shared;
   if (cached) {
     p = std::copy(scratch.shared.begin(), scratch.shared.end(), p + header);
   } else {
@@ -275,7 +317,7 @@ void encode_impl(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
     if (lod != nullptr) {
       scratch.shared.assign(from, p);
       scratch.shared_of = lod->lod;
-      scratch.shared_pass = lod->lod->vertex_pass;
+      scratch.shared_pass = lod->vertex_pass;
     }
   }
   for (uint32_t d : scratch.triangles) {
@@ -294,8 +336,8 @@ void encode_mesh(const mesh::ChunkMesh& m, const mesh::MeshScratch& t,
 }
 
 void encode_lod_mesh(const mesh::ChunkMesh& m, const mesh::LodScratch& lod, CodecScratch& scratch,
-                     Bytes& out) {
-  const LodSection section{lod.seams, &lod.seam_cells, &lod};
+                     Bytes& out, uint64_t vertex_pass) {
+  const LodSection section{lod.seams, &lod.seam_cells, &lod, vertex_pass};
   encode_impl(m, lod.mc, {32, 32, 32}, &section, scratch, out);
 }
 
@@ -337,16 +379,6 @@ std::optional<Error> read_seam_section(const uint8_t* p, uint32_t count, uint32_
 
 namespace {
 
-// What the header says, checked against the limits and the CRC.
-struct Header {
-  bool lod = false;
-  size_t bytes = 0;  // the header's length
-  std::array<int, 3> cells{};
-  uint32_t vertices = 0, triangles = 0, dropped = 0;
-  world::LodSeams seams;
-  uint32_t seam_vertices = 0, seam_triangles = 0;
-};
-
 std::optional<Error> read_header(std::span<const uint8_t> in, const DecodeLimits& limits,
                                  Header& h) {
   if (in.size() > limits.max_encoding_bytes) return Error{"mesh encoding larger than the limit"};
@@ -354,23 +386,16 @@ std::optional<Error> read_header(std::span<const uint8_t> in, const DecodeLimits
     return Error{"mesh encoding truncated (no header)"};
   if (in[0] != kMeshFormat && in[0] != kLodMeshFormat)
     return Error{"unknown mesh format " + std::to_string(in[0])};
-  h.lod = in[0] == kLodMeshFormat;
-  h.bytes = h.lod ? kLodHeaderBytes : kHeaderBytes;
-  if (in.size() < h.bytes + kChecksumBytes) return Error{"mesh encoding truncated (no header)"};
-  h.cells = {in[1], in[2], in[3]};
+  if (in.size() < (in[0] == kLodMeshFormat ? kLodHeaderBytes : kHeaderBytes) + kChecksumBytes)
+    return Error{"mesh encoding truncated (no header)"};
+  h = parse_header(in);
   for (int c : h.cells) {
     if (c < 1 || c > 32) return Error{"cells per axis must be 1..32"};
     if (h.lod && c != 32) return Error{"a level-of-detail chunk has 32 cells per axis"};
   }
-  h.vertices = get_u32(in.data() + 4);
-  h.triangles = get_u32(in.data() + 8);
-  h.dropped = get_u32(in.data() + 12);
   if (h.vertices > kMaxVertices || h.triangles > kMaxTriangles || h.dropped > kMaxTriangles)
     return Error{"mesh encoding declares impossible counts"};
   if (h.lod) {
-    h.seams = {in[16], static_cast<uint16_t>(in[17] | in[18] << 8)};
-    h.seam_vertices = get_u32(in.data() + 19);
-    h.seam_triangles = get_u32(in.data() + 23);
     if (h.seams.faces > 63 || h.seams.edges > 0xfff || world::normalized(h.seams) != h.seams)
       return Error{"seam faces and edges are not a normalized set"};
     if (h.seam_vertices > kMaxSeamVertices || h.seam_triangles > kMaxSeamTriangles)
@@ -493,15 +518,15 @@ std::optional<Error> decode_mesh(std::span<const uint8_t> in, const DecodeLimits
   const size_t rb = row_bytes(h.cells[0]);
   const size_t rows = static_cast<size_t>(h.cells[1] + 1) * static_cast<size_t>(h.cells[2] + 1);
   const size_t bitmap = (rows + 7) / 8;
-  if (in.size() < h.bytes + bitmap + kChecksumBytes)
+  if (in.size() < h.bytes() + bitmap + kChecksumBytes)
     return Error{"mesh encoding truncated (row bitmap)"};
-  const uint8_t* flags = in.data() + h.bytes;
+  const uint8_t* flags = in.data() + h.bytes();
   size_t nonzero = 0;
   for (size_t r = 0; r < rows; ++r) nonzero += (flags[r / 8] >> (r % 8)) & 1;
   for (size_t r = rows; r < bitmap * 8; ++r) {
     if ((flags[r / 8] >> (r % 8)) & 1) return Error{"row bitmap flags rows beyond the chunk"};
   }
-  const size_t expected = h.bytes + bitmap + nonzero * rb + 5 * size_t{h.vertices} +
+  const size_t expected = h.bytes() + bitmap + nonzero * rb + 5 * size_t{h.vertices} +
                           4 * size_t{h.dropped} + kSeamVertexBytes * size_t{h.seam_vertices} +
                           12 * size_t{h.seam_triangles} + kChecksumBytes;
   if (in.size() != expected) return Error{"mesh encoding has the wrong length for its counts"};

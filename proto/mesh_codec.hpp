@@ -41,7 +41,7 @@ struct CodecScratch {
   std::array<uint64_t, mesh::kRows> row_diff;
   std::vector<uint32_t> triangles;
   // The encoder's rows and vertex planes of the level-of-detail vertex pass last encoded
-  // (a LodScratch and its vertex_pass): the same in each seams variant of the chunk.
+  // (a LodScratch and the caller's key for its pass): the same in each seams variant.
   std::vector<uint8_t> shared;
   const mesh::LodScratch* shared_of = nullptr;
   uint64_t shared_pass = 0;
@@ -55,8 +55,12 @@ void encode_mesh(const mesh::ChunkMesh& mesh, const mesh::MeshScratch& topology,
 
 // Format 2 (docs/PROTOCOL.md §2.7): a level-of-detail chunk from mesh_lod_chunk, whose
 // scratch (`lod`) still holds the seams, topology, regular counts and seam vertices.
+// `vertex_pass`: the seams variants of one mesh_lod_vertices pass share their rows and
+// vertex planes; a caller encoding several of them through `scratch` gives each the same
+// nonzero key, and each new pass a new one (a count it keeps beside the scratches), and
+// those bytes are written once and copied. 0: written every time.
 void encode_lod_mesh(const mesh::ChunkMesh& mesh, const mesh::LodScratch& lod,
-                     CodecScratch& scratch, Bytes& out);
+                     CodecScratch& scratch, Bytes& out, uint64_t vertex_pass = 0);
 
 // Rebuilds the mesh (format 1 or 2) into `out` (its buffers reused); never trusts the bytes: any
 // inconsistency is an error (and `out` holds no meaningful mesh).

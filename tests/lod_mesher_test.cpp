@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <functional>
 #include <map>
@@ -316,7 +317,7 @@ TEST(LodMesher, AVariantMeshedFromABlockGatheredForMoreSeamsIsTheSameMesh) {
     mesh_lod_chunk(own, so, mo);
     proto::CodecScratch codec;
     proto::Bytes ea, eo;
-    proto::encode_lod_mesh(ma, sa, shared_codec, ea);
+    proto::encode_lod_mesh(ma, sa, shared_codec, ea, 1);
     proto::encode_lod_mesh(mo, so, codec, eo);
     EXPECT_EQ(ea, eo) << "seams " << int{seams.faces} << "/" << seams.edges;
     ASSERT_GT(mo.triangle_count(), 0u);
@@ -330,6 +331,91 @@ TEST(LodMesher, AVariantMeshedFromABlockGatheredForMoreSeamsIsTheSameMesh) {
       ASSERT_EQ(ma.materials[i], mo.materials[i]);
     }
   }
+}
+
+// The one edge-vertex rule (edge_vertex.hpp) at work: where a level-1 chunk's split face
+// meets level-0 chunks, its seam vertices on that face are the level-0 mesher's vertices
+// there, position, normal and material alike, bit for bit.
+TEST(LodMesher, ASplitFacesSeamVerticesAreTheFinerChunksVerticesBitForBit) {
+  const world::GradientNoise noise(9);
+  const FieldSampler field([&](float x, float y, float z) {
+    return noise.noise3(x / 7.0f, y / 5.0f, z / 6.0f) + 0.1f * (30.0f - y) / 30.0f;
+  });
+  // Materials that change from voxel to voxel, so that taking the wrong end shows.
+  class MaterialSampler : public world::PointSampler {
+   public:
+    explicit MaterialSampler(const world::PointSampler& inner) : inner_(inner) {}
+    void sample_grid(const std::array<int32_t, 3>& origin, int32_t step,
+                     const std::array<int, 3>& n, world::Sample* out) const override {
+      inner_.sample_grid(origin, step, n, out);
+      for (int k = 0; k < n[2]; ++k)
+        for (int j = 0; j < n[1]; ++j)
+          for (int i = 0; i < n[0]; ++i, ++out) {
+            const int32_t sum = origin[0] + origin[1] + origin[2] + step * (i + j + k);
+            if (out->material != world::kAir)
+              out->material = static_cast<world::Material>(1 + ((sum % 5) + 5) % 5);
+          }
+    }
+
+   private:
+    const world::PointSampler& inner_;
+  };
+  const MaterialSampler sampler(field);
+  struct FaceVertex {
+    std::array<float, 3> p, n;
+    int material;
+    auto operator<=>(const FaceVertex&) const = default;
+  };
+  // Vertices of `mesh` (chunk `c`) on edges along y or z whose world x is 0: those in the
+  // face plane (an edge along x may end on it too, from one side only). `axis_of(i)`.
+  const auto on_face = [](const LodChunk& c, const ChunkMesh& mesh, auto axis_of,
+                          std::set<FaceVertex>& out) {
+    const auto lo = c.lo();
+    const float scale = static_cast<float>(int64_t{1} << c.level);
+    for (size_t i = 0; i < mesh.vertex_count(); ++i) {
+      const int axis = axis_of(i);
+      if (axis <= 0) continue;  // along x, or not a seam vertex
+      const Vec3f& p = mesh.positions[i];
+      const std::array<float, 3> w{static_cast<float>(lo[0]) + p.x * scale,
+                                   static_cast<float>(lo[1]) + p.y * scale,
+                                   static_cast<float>(lo[2]) + p.z * scale};
+      if (w[0] != 0.0f) continue;
+      const Vec3f& n = mesh.normals[i];
+      out.insert({w, {n.x, n.y, n.z}, mesh.materials[i]});
+    }
+  };
+  LodBlock block;
+  LodScratch scratch;
+  ChunkMesh mesh;
+  std::set<FaceVertex> coarse, fine;
+  const LodChunk big{1, {0, 0, 0}};
+  gather_lod_block(sampler, big, {world::kMinusX, 0}, block);
+  mesh_lod_chunk(block, scratch, mesh);
+  on_face(
+      big, mesh,
+      [&](size_t i) {
+        return i < scratch.regular_vertices
+                   ? -1
+                   : scratch.seam_vertices[i - scratch.regular_vertices].axis;
+      },
+      coarse);
+  for (int z = 0; z < 2; ++z)
+    for (int y = 0; y < 2; ++y) {
+      const LodChunk small{0, {-1, y, z}};
+      gather_lod_block(sampler, small, {}, block);
+      mesh_lod_chunk(block, scratch, mesh);
+      // The marching-cubes numbering (marching_cubes.hpp): by row, then axis, then x.
+      std::vector<int> axis(mesh.vertex_count(), -1);
+      for (int r = 0; r < kRows; ++r)
+        for (int a = 0; a < 3; ++a) {
+          const uint32_t first = scratch.mc.first_vertex[a][r];
+          for (int k = 0; k < std::popcount(scratch.mc.cut[a][r]); ++k) axis[first + k] = a;
+        }
+      on_face(
+          small, mesh, [&](size_t i) { return axis[i]; }, fine);
+    }
+  ASSERT_GT(fine.size(), 50u);
+  EXPECT_EQ(coarse, fine);
 }
 
 // Terrain is open where the layout ends; everywhere else, and so on every seam, the chunks

@@ -1,6 +1,5 @@
 #include "server/mesh/lod_mesher.hpp"
 
-#include <atomic>
 #include <bit>
 #include <cmath>
 
@@ -89,9 +88,10 @@ class SeamMesher {
     const Density* fine = in_.seam_density.get() + LodBlock::seam_index(2 * x, 2 * y, 2 * z);
     uint32_t solid = 0;
     for (int i = 0; i < 8; ++i)
-      solid |= static_cast<uint32_t>(coarse[points.corner_offset[i]] > 0) << points.corner_bit[i];
+      solid |= static_cast<uint32_t>(coarse[points.corner_offset[i]] > floor_)
+               << points.corner_bit[i];
     for (int i = 0; i < points.fine_count; ++i)
-      solid |= static_cast<uint32_t>(fine[points.fine_offset[i]] > 0) << points.fine_bit[i];
+      solid |= static_cast<uint32_t>(fine[points.fine_offset[i]] > floor_) << points.fine_bit[i];
     if (solid == 0 || solid == points.needed) return;
     SeamCellContour contour;
     contour_seam_cell(splits, solid, contour);
@@ -203,37 +203,19 @@ class SeamMesher {
     }
   }
 
-  Vec3f gradient(int i) const {
-    const Density* d = in_.seam_density.get();
-    return {static_cast<float>(d[i + kSeamStride[0]] - d[i - kSeamStride[0]]),
-            static_cast<float>(d[i + kSeamStride[1]] - d[i - kSeamStride[1]]),
-            static_cast<float>(d[i + kSeamStride[2]] - d[i - kSeamStride[2]])};
-  }
-
   // As marching_cubes.cpp makes a vertex, on the finer level's edge.
   void add_half_edge_vertex(const std::array<int, 3>& h, int axis) {
-    const int i0 = LodBlock::seam_index(h[0], h[1], h[2]), i1 = i0 + kSeamStride[axis];
-    const int d0 = in_.seam_density[i0], d1 = in_.seam_density[i1];
-    const float t = static_cast<float>(d0) / static_cast<float>(d0 - d1);
-    const int q = static_cast<int>(t * kFractionSteps + 0.5f);
+    const EdgeVertex v =
+        edge_vertex(in_.seam_density.get(), in_.seam_material.get(),
+                    LodBlock::seam_index(h[0], h[1], h[2]), axis, kSeamStride, floor_);
     Vec3f p{static_cast<float>(h[0]) * 0.5f, static_cast<float>(h[1]) * 0.5f,
             static_cast<float>(h[2]) * 0.5f};
-    (&p.x)[axis] += static_cast<float>(q) * (1.0f / kHalfSteps);
-    const Vec3f g0 = gradient(i0), g1 = gradient(i1);
-    Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)), -(g0.z + t * (g1.z - g0.z))};
-    const float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
-    if (len2 > 0.0f) {
-      const float inv = 1.0f / std::sqrt(len2);
-      n = {n.x * inv, n.y * inv, n.z * inv};
-    } else {
-      n = {};
-      (&n.x)[axis] = d0 > 0 ? 1.0f : -1.0f;
-    }
+    (&p.x)[axis] += static_cast<float>(v.fraction) * (1.0f / kHalfSteps);
     out_.positions.push_back(p);
     s_.seam_vertices.push_back({static_cast<uint8_t>(h[0]), static_cast<uint8_t>(h[1]),
                                 static_cast<uint8_t>(h[2]), static_cast<uint8_t>(axis)});
-    out_.normals.push_back(n);
-    out_.materials.push_back(d0 > 0 ? in_.seam_material[i0] : in_.seam_material[i1]);
+    out_.normals.push_back(v.normal);
+    out_.materials.push_back(v.material);
   }
 
   // Bit 2 * axis + side: the edge lies in that face plane of the cell.
@@ -279,6 +261,7 @@ class SeamMesher {
   }
 
   const LodBlock& in_;
+  const world::Density floor_ = in_.coarse.solid_floor();  // the regular cells' rule too
   LodScratch& s_;
   ChunkMesh& out_;
   std::array<SeamCellSplits, 27> splits_;  // by place (mesh_cell)
@@ -338,10 +321,6 @@ void seam_cell_rows(world::LodSeams seams, CellRows& out) {
 }
 
 void mesh_lod_vertices(const LodBlock& in, LodScratch& s) {
-  // Unique across scratches: one made later at the same address never matches an encoder's
-  // cache of an earlier one's pass.
-  static std::atomic<uint64_t> passes{0};
-  s.vertex_pass = passes.fetch_add(1, std::memory_order_relaxed) + 1;
   s.on_corner = mesh_vertices(in.coarse, s.mc, s.regular);
   mesh_triangles_by_row(s.mc, in.coarse.cells, s.regular.positions, s.on_corner, s.regular.indices,
                         s.regular_rows);

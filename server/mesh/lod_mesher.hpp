@@ -38,8 +38,6 @@ struct LodScratch {
   // in mc, shared by every seams variant meshed from that block.
   ChunkMesh regular;  // every cell's triangles, by row in regular_rows
   RowTriangles regular_rows;
-  uint64_t vertex_pass =
-      0;  // of the last mesh_lod_vertices, unique in the process (encoders cache by it)
   bool on_corner = false;  // some regular vertex sits on a sample
   world::LodSeams seams;   // of the variant last meshed (normalized)
   uint32_t regular_vertices = 0;

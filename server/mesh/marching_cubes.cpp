@@ -59,12 +59,6 @@ inline bool has_zero_area(const Vec3f& a, const Vec3f& b, const Vec3f& c) {
   return uy * wz == uz * wy && uz * wx == ux * wz && ux * wy == uy * wx;
 }
 
-inline Vec3f gradient(const Density* d, int i) {
-  return {static_cast<float>(d[i + kStride[0]] - d[i - kStride[0]]),
-          static_cast<float>(d[i + kStride[1]] - d[i - kStride[1]]),
-          static_cast<float>(d[i + kStride[2]] - d[i - kStride[2]])};
-}
-
 }  // namespace
 
 void mesh_chunk(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out, const CellRows* skip) {
@@ -76,7 +70,7 @@ bool mesh_vertices(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
   const int ny = in.cells[1], nz = in.cells[2];
   const Density* dens = in.density.get();
   const world::Material* mats = in.material.get();
-  const Density floor = in.zero_is_solid ? Density{-1} : Density{0};
+  const Density floor = in.solid_floor();
 
   // --- 1. classify samples [0, n] on each axis ---------------------------------------
   for (int z = 0; z <= nz; ++z)
@@ -101,30 +95,16 @@ bool mesh_vertices(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
       for (int a = 0; a < 3; ++a) {
         for (uint64_t bits = s.cut[a][r]; bits != 0; bits &= bits - 1) {
           const int x = std::countr_zero(bits);
-          const int i0 = PaddedBlock::index(x, y, z), i1 = i0 + kStride[a];
-          const int d0 = dens[i0], d1 = dens[i1];
-          const float t = static_cast<float>(d0) / static_cast<float>(d0 - d1);
-          const int q = static_cast<int>(t * kFractionSteps +
-                                         0.5f);  // the wire's step: a client decodes this mesh
-          const float tq = static_cast<float>(q) * (1.0f / kFractionSteps);
-          on_corner |= (q == 0) | (q == kFractionSteps);
+          const EdgeVertex v =
+              edge_vertex(dens, mats, PaddedBlock::index(x, y, z), a, kStride, floor);
+          const float tq = static_cast<float>(v.fraction) * (1.0f / kFractionSteps);
+          on_corner |= (v.fraction == 0) | (v.fraction == kFractionSteps);
           // Selects instead of indexing a member by axis, which would force p through memory.
           *pos++ = {static_cast<float>(x) + (a == 0 ? tq : 0.0f),
                     static_cast<float>(y) + (a == 1 ? tq : 0.0f),
                     static_cast<float>(z) + (a == 2 ? tq : 0.0f)};
-          const Vec3f g0 = gradient(dens, i0), g1 = gradient(dens, i1);
-          Vec3f n{-(g0.x + t * (g1.x - g0.x)), -(g0.y + t * (g1.y - g0.y)),
-                  -(g0.z + t * (g1.z - g0.z))};
-          const float len2 = n.x * n.x + n.y * n.y + n.z * n.z;
-          if (len2 > 0.0f) {
-            const float inv = 1.0f / std::sqrt(len2);
-            n = {n.x * inv, n.y * inv, n.z * inv};
-          } else {  // flat field: point along the edge, from the solid end to the air end
-            n = {};
-            (&n.x)[a] = d0 > floor ? 1.0f : -1.0f;
-          }
-          *nrm++ = n;
-          *mat++ = d0 > floor ? mats[i0] : mats[i1];
+          *nrm++ = v.normal;
+          *mat++ = v.material;
         }
       }
     }

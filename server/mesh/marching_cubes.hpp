@@ -7,14 +7,12 @@
 #include <span>
 
 #include "server/mesh/chunk_mesh.hpp"
+#include "server/mesh/edge_vertex.hpp"
 #include "server/mesh/padded_block.hpp"
 
 namespace vox::mesh {
 
 inline constexpr int kRowsPerAxis = world::kChunkSize + 1;
-// Vertex positions are rounded to 1/kFractionSteps of an edge, the step of the wire
-// encoding (docs/PROTOCOL.md §2.4), so that the server's meshes equal the decoded ones.
-inline constexpr int kFractionSteps = 1024;
 inline constexpr int kRows = kRowsPerAxis * kRowsPerAxis;
 
 // Per (y, z) row of samples: bit x set when sample (x, y, z) is solid; per axis, the cut

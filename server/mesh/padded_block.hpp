@@ -25,6 +25,10 @@ struct PaddedBlock {
   // Solid is density > 0 (the world's rule), or >= 0 when set: offline volumes, where a
   // sample exactly on the iso level counts as inside, as VTK's Flying Edges counts it.
   bool zero_is_solid = false;
+  // A sample is solid when its density is above this.
+  world::Density solid_floor() const {
+    return zero_is_solid ? world::Density{-1} : world::Density{0};
+  }
   std::unique_ptr<world::Density[]> density;  // kBlockVolume
   std::unique_ptr<world::Material[]> material;
 };
