@@ -1,7 +1,5 @@
 #include "client-cli/cli_options.hpp"
 
-#include <charconv>
-#include <cmath>
 #include <cstdlib>
 #include <ostream>
 #include <stdexcept>
@@ -12,73 +10,7 @@ namespace vox::cli {
 int parse_options(const std::vector<std::string>& args, const po::options_description& opts,
                   const po::positional_options_description* positional, const char* synopsis,
                   po::variables_map& vm, std::ostream& out, std::ostream& err) {
-  try {
-    po::command_line_parser parser(args);
-    parser.options(opts);
-    if (positional != nullptr) parser.positional(*positional);
-    po::store(parser.run(), vm);
-    if (vm.count("help")) {
-      out << synopsis << "\n" << opts;
-      return 0;
-    }
-    po::notify(vm);
-  } catch (const po::error& e) {
-    err << "voxel-cli: " << e.what() << " (see --help)\n";
-    return 2;
-  }
-  return -1;
-}
-
-namespace {
-template <size_t N>
-std::array<float, N> parse_floats(const std::string& text, const char* what) {
-  std::array<float, N> v{};
-  const char* p = text.data();
-  const char* end = text.data() + text.size();
-  for (size_t i = 0; i < N; ++i) {
-    if (p < end && *p == '+') ++p;
-    auto [next, ec] = std::from_chars(p, end, v[i]);
-    if (ec != std::errc() || !std::isfinite(v[i])) {
-      throw std::invalid_argument(std::string(what) + " must be " + (N == 3 ? "X,Y,Z" : "X,Z") +
-                                  " with finite numbers, got '" + text + "'");
-    }
-    p = next;
-    if (i + 1 < N) {
-      if (p == end || *p != ',')
-        throw std::invalid_argument(std::string(what) + ": expected ',' in '" + text + "'");
-      ++p;
-    }
-  }
-  if (p != end)
-    throw std::invalid_argument(std::string(what) + ": trailing characters in '" + text + "'");
-  return v;
-}
-}  // namespace
-
-std::array<float, 3> parse_vec3(const std::string& text, const char* what) {
-  return parse_floats<3>(text, what);
-}
-std::array<float, 2> parse_vec2(const std::string& text, const char* what) {
-  return parse_floats<2>(text, what);
-}
-
-std::chrono::milliseconds timeout_of(double seconds) {
-  if (!(seconds > 0) || seconds > 86400)
-    throw std::invalid_argument("--timeout must be in (0, 86400] seconds");
-  return std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000));
-}
-
-std::pair<std::string, uint16_t> parse_server(const std::string& text) {
-  const auto colon = text.rfind(':');
-  if (colon == std::string::npos || colon == 0)
-    throw std::invalid_argument("--server must be HOST:PORT, got '" + text + "'");
-  unsigned port = 0;
-  const char* p = text.data() + colon + 1;
-  auto [end, ec] = std::from_chars(p, text.data() + text.size(), port);
-  if (ec != std::errc() || end != text.data() + text.size() || port == 0 || port > 65535) {
-    throw std::invalid_argument("--server port must be 1..65535, got '" + text + "'");
-  }
-  return {text.substr(0, colon), static_cast<uint16_t>(port)};
+  return options::parse_args("voxel-cli", args, opts, positional, synopsis, vm, out, err);
 }
 
 po::options_description network_options(const std::string& command) {

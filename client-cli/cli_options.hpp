@@ -1,4 +1,4 @@
-// Option parsing shared by voxel-cli's commands.
+// Option parsing shared by voxel-cli's commands (the values themselves: options/).
 #pragma once
 
 #include <array>
@@ -8,6 +8,8 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "options/option_values.hpp"
 
 namespace vox::cli {
 
@@ -19,14 +21,10 @@ int parse_options(const std::vector<std::string>& args, const po::options_descri
                   const po::positional_options_description* positional, const char* synopsis,
                   po::variables_map& vm, std::ostream& out, std::ostream& err);
 
-// "X,Y,Z" of finite numbers; throws std::invalid_argument naming `what` otherwise.
-std::array<float, 3> parse_vec3(const std::string& text, const char* what);
-// "X,Z" of finite numbers.
-std::array<float, 2> parse_vec2(const std::string& text, const char* what);
-// A --timeout in seconds (> 0, at most a day) as a duration; throws std::invalid_argument.
-std::chrono::milliseconds timeout_of(double seconds);
-// "HOST:PORT"; throws std::invalid_argument.
-std::pair<std::string, uint16_t> parse_server(const std::string& text);
+using options::parse_server;
+using options::parse_vec2;
+using options::parse_vec3;
+using options::timeout_of;
 
 inline constexpr const char* kDefaultServer = "127.0.0.1:7777";
 

@@ -7,12 +7,12 @@
 #include <optional>
 #include <sstream>
 
-#include "client-cli/cli_options.hpp"
 #include "loadtest/load_test.hpp"
 #include "loadtest/player_tokens.hpp"
 #include "loadtest/report_svg.hpp"
 #include "loadtest/sweep.hpp"
 #include "loadtest/timeline.hpp"
+#include "options/option_values.hpp"
 #include "server/world/terrain_generator.hpp"
 
 namespace {
@@ -153,7 +153,7 @@ std::optional<int> parse(int argc, char** argv, Options& o) {
       return 0;
     }
     po::notify(vm);
-    const auto [host, port] = vox::cli::parse_server(o.server);
+    const auto [host, port] = vox::options::parse_server(o.server);
     o.config.host = host;
     o.config.port = port;
     if (o.config.spread_addresses && host != "127.0.0.1")

@@ -1,0 +1,132 @@
+#include "server/daemon/voxeld.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <thread>
+
+#include "server/metrics/metrics_endpoint.hpp"
+#include "server/net/server.hpp"
+#include "server/store/world_store.hpp"
+
+namespace vox::daemon {
+namespace {
+
+namespace asio = boost::asio;
+
+// Written whole (renamed into place), so a script never reads half a number.
+void write_port_file(const std::string& path, uint16_t port) {
+  const std::string tmp = path + ".tmp";
+  std::ofstream(tmp) << port << "\n";
+  std::rename(tmp.c_str(), path.c_str());
+}
+
+void log_start(const VoxeldConfig& c, const char* allocator) {
+  if (c.net.max_per_address == 0)
+    spdlog::warn("--max-per-address 0: one address may fill the server");
+  if (!c.net.auth_key) {
+    spdlog::warn(
+        "no --auth-public-key: the server is open; anyone may join under any name as "
+        "'{}' (development mode)",
+        auth::to_string(c.net.open_role));
+  }
+  spdlog::info(
+      "memory budget {} MiB (--max-memory, {}); per player: {:.0f} edit samples/s (burst {:.0f}), "
+      "{} SetViews/s",
+      c.world.max_memory >> 20, allocator, c.net.edit_budget_rate, c.net.edit_budget_burst,
+      c.net.set_view_rate);
+}
+
+// The pipeline's durations into the server's counters.
+pipeline::PipelineObserver observe_into(net::ServerCounters& counters) {
+  return {.batch = [&counters](double s, size_t, size_t) { counters.batch_duration.observe(s); },
+          .remesh = [&counters](double s, size_t) { counters.remesh_duration.observe(s); },
+          .commit =
+              [&counters](double commit_s, size_t edits, bool ok) {
+                if (!ok) return net::ServerCounters::bump(counters.store_failures);
+                counters.store_commit.observe(commit_s);
+                net::ServerCounters::bump(counters.store_commits);
+                counters.store_committed_edits.fetch_add(edits, std::memory_order_relaxed);
+              },
+          .commit_wait = [&counters](double s) { counters.store_commit_wait.observe(s); },
+          .checkpoint =
+              [&counters](double s, size_t, size_t bytes, bool ok) {
+                if (!ok) return;
+                counters.checkpoint_duration.observe(s);
+                counters.checkpoint_bytes.fetch_add(bytes, std::memory_order_relaxed);
+              }};
+}
+
+// Runs the opened world until a signal; throws what the server throws.
+void serve(const VoxeldConfig& c) {
+  net::ServerCounters counters;
+  // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
+  // sessions they hold, which hold nothing of the Server), then the pipeline (sessions
+  // drop their views in it) and the counters.
+  pipeline::WorldPipeline pipeline(c.world, observe_into(counters));
+  asio::io_context io;
+  net::Server server(io, c.net, pipeline, counters);
+  server.start();
+  std::unique_ptr<metrics::MetricsEndpoint> metrics;
+  if (c.metrics_port) {
+    metrics =
+        std::make_unique<metrics::MetricsEndpoint>(c.net.bind, *c.metrics_port, counters, pipeline);
+    spdlog::info("metrics on http://{}:{}/metrics", c.net.bind, metrics->port());
+    if (!c.metrics_port_file.empty()) write_port_file(c.metrics_port_file, metrics->port());
+  }
+  if (!c.port_file.empty()) write_port_file(c.port_file, server.port());
+  if (c.stats_seconds > 0) server.start_stats_log(std::chrono::seconds(c.stats_seconds));
+  asio::signal_set signals(io, SIGINT, SIGTERM);
+  signals.async_wait([&](boost::system::error_code ec, int signal) {
+    if (ec) return;
+    spdlog::info("signal {}: shutting down", signal);
+    server.stop();
+    // Finish the batch in flight, then let the sessions flush their SHUTTING_DOWN.
+    pipeline.stop();
+    auto deadline = std::make_shared<asio::steady_timer>(io, std::chrono::seconds(2));
+    deadline->async_wait([&io, deadline](boost::system::error_code) { io.stop(); });
+  });
+  std::vector<std::thread> threads;
+  for (int i = 1; i < c.io_threads; ++i) threads.emplace_back([&io] { io.run(); });
+  io.run();
+  for (auto& t : threads) t.join();
+}
+
+}  // namespace
+
+int run_voxeld(VoxeldConfig c, const char* allocator) {
+  spdlog::set_level(spdlog::level::from_str(c.log_level));
+  log_start(c, allocator);
+  // The durable world: opened (and checked) before anything listens.
+  std::unique_ptr<store::WorldStore> store, checkpoint_store;
+  if (c.in_memory) {
+    spdlog::warn("--in-memory: no world on disk; every edit is lost when voxeld stops");
+  } else {
+    const std::string where = c.store_uri.empty() ? c.world_dir : c.store_uri;
+    try {
+      store = store::open_world_store(where, {.seed = c.seed, .new_world_seed = 1});
+      c.world.seed = store->info().seed;
+      // Checkpoints are written on their own connection while edits are appended.
+      checkpoint_store =
+          store::open_world_store(where, {.seed = c.world.seed, .record_start = false});
+    } catch (const std::exception& e) {
+      std::cerr << "voxeld: " << e.what() << "\n";
+      return 1;
+    }
+    c.world.store = store.get();
+    c.world.checkpoint_store = checkpoint_store.get();
+  }
+  try {
+    serve(c);
+    spdlog::info("voxeld stopped");
+  } catch (const std::exception& e) {
+    spdlog::error("voxeld: {}", e.what());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace vox::daemon

@@ -1,0 +1,155 @@
+// voxeld's flags (server/daemon/voxeld_flags.hpp): defaults, each rule refused with its own
+// line naming the flag and the value, several bad flags each said, and values reaching the
+// parts' configurations.
+#include "server/daemon/voxeld_flags.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sstream>
+
+namespace vox::daemon {
+namespace {
+
+struct Parsed {
+  int code;
+  VoxeldConfig config;
+  std::string out, err;
+};
+
+Parsed parse(std::vector<std::string> args) {
+  Parsed p;
+  std::ostringstream out, err;
+  p.code = parse_voxeld_flags(args, p.config, out, err);
+  p.out = out.str();
+  p.err = err.str();
+  return p;
+}
+
+size_t lines(const std::string& text) {
+  return static_cast<size_t>(std::count(text.begin(), text.end(), '\n'));
+}
+
+TEST(VoxeldFlags, NoFlagsGiveTheDocumentedDefaults) {
+  const Parsed p = parse({});
+  ASSERT_EQ(p.code, -1) << p.err;
+  EXPECT_EQ(p.err, "");
+  EXPECT_EQ(p.config.net.port, 7777);
+  EXPECT_EQ(p.config.net.bind, "127.0.0.1");
+  EXPECT_EQ(p.config.net.max_clients, 256u);
+  EXPECT_EQ(p.config.world_dir, "world");
+  EXPECT_FALSE(p.config.seed.has_value());
+  EXPECT_EQ(p.config.world.seed, 1u);
+  EXPECT_FALSE(p.config.metrics_port.has_value());
+  EXPECT_EQ(p.config.world.max_memory, default_max_memory());
+  EXPECT_EQ(p.config.world.evict_after, std::chrono::seconds(120));
+  EXPECT_EQ(p.config.world.checkpoint.interval, std::chrono::seconds(10));
+  EXPECT_EQ(p.config.world.load_burst_per_address, 8000);
+  EXPECT_EQ(p.config.net.open_role, auth::Role::kPlayer);
+  EXPECT_FALSE(p.config.net.auth_key.has_value());
+}
+
+TEST(VoxeldFlags, HelpListsTheFlagsAndExitsZero) {
+  const Parsed p = parse({"--help"});
+  EXPECT_EQ(p.code, 0);
+  EXPECT_NE(p.out.find("usage: voxeld"), std::string::npos);
+  EXPECT_NE(p.out.find("--max-memory"), std::string::npos);
+  EXPECT_NE(p.out.find("--lod-remesh-interval-ms"), std::string::npos);
+}
+
+TEST(VoxeldFlags, ValuesReachThePartsConfigurations) {
+  const Parsed p = parse({"--port",
+                          "0",
+                          "--seed",
+                          "42",
+                          "--max-memory",
+                          "512M",
+                          "--evict-after",
+                          "7",
+                          "--checkpoint-interval",
+                          "0.5",
+                          "--idle-timeout-ms",
+                          "1500",
+                          "--lod-remesh-interval-ms",
+                          "100",
+                          "--load-budget-per-address",
+                          "10",
+                          "--metrics-port",
+                          "0",
+                          "--open-role",
+                          "viewer",
+                          "--io-threads",
+                          "2"});
+  ASSERT_EQ(p.code, -1) << p.err;
+  EXPECT_EQ(p.config.net.port, 0);
+  EXPECT_EQ(p.config.seed, 42u);
+  EXPECT_EQ(p.config.world.seed, 42u);
+  EXPECT_EQ(p.config.world.max_memory, size_t{512} << 20);
+  EXPECT_EQ(p.config.world.evict_after, std::chrono::seconds(7));
+  EXPECT_EQ(p.config.world.checkpoint.interval, std::chrono::milliseconds(500));
+  EXPECT_EQ(p.config.net.idle_timeout, std::chrono::milliseconds(1500));
+  EXPECT_EQ(p.config.world.lod.remesh_interval, std::chrono::milliseconds(100));
+  EXPECT_EQ(p.config.world.load_burst_per_address, 80);
+  EXPECT_EQ(p.config.metrics_port, 0);
+  EXPECT_EQ(p.config.net.open_role, auth::Role::kViewer);
+  EXPECT_EQ(p.config.io_threads, 2);
+}
+
+TEST(VoxeldFlags, EachBadFlagIsRefusedWithItsOwnLine) {
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--io-threads", "0"}, "--io-threads must be 1..64 (got 0)"},
+      {{"--threads=-1"}, "--threads must be >= 0"},
+      {{"--idle-timeout-ms", "0"}, "--idle-timeout-ms must be > 0"},
+      {{"--handshake-timeout-ms=-5"}, "--handshake-timeout-ms must be > 0"},
+      {{"--write-timeout-ms", "0"}, "--write-timeout-ms must be > 0"},
+      {{"--frame-timeout-ms", "0"}, "--frame-timeout-ms must be > 0"},
+      {{"--evict-after", "0"}, "--evict-after must be >= 1"},
+      {{"--metrics-port", "70000"}, "--metrics-port must be 0..65535"},
+      {{"--metrics-port=-1"}, "--metrics-port must be 0..65535"},
+      {{"--checkpoint-interval", "0"}, "--checkpoint-interval must be 0.01..86400"},
+      {{"--max-view-radius", "33"}, "--max-view-radius must be 0..32"},
+      {{"--max-lod-level", "7"}, "--max-lod-level must be 0..6"},
+      {{"--max-lod-distance", "0.5"}, "--max-lod-distance must be 1..4"},
+      {{"--lod-remesh-interval-ms", "5"}, "--lod-remesh-interval-ms must be 10..750"},
+      {{"--max-clients", "0"}, "--max-clients must be >= 1"},
+      {{"--max-handshaking", "0"}, "--max-handshaking must be >= 1"},
+      {{"--load-budget-per-address", "0.1"}, "--load-budget-per-address must be 0"},
+      {{"--log-level", "verbose"}, "--log-level must be trace"},
+      {{"--edit-burst", "10"}, "--edit-burst must be at least"},
+      {{"--admin-edit-budget", "5", "--admin-edit-burst", "10"}, "--admin-edit-burst must be"},
+      {{"--open-role", "god"}, "--open-role must be viewer, player or admin (got 'god')"},
+      {{"--auth-public-key", "/nonexistent/game.pub"},
+       "--auth-public-key /nonexistent/game.pub: cannot be read"},
+      {{"--max-memory", "12Q"}, "--max-memory must be bytes"},
+      {{"--max-memory=-1"}, "--max-memory must be bytes"},
+      {{"--max-memory", "63M"}, "--max-memory must be bytes"},
+      {{"--store", "mysql://x"}, "--store must be a postgresql:// URI"},
+  };
+  for (const auto& [args, message] : cases) {
+    const Parsed p = parse(args);
+    EXPECT_EQ(p.code, 2) << args[0];
+    EXPECT_EQ(lines(p.err), 1u) << p.err;
+    EXPECT_EQ(p.err.rfind("voxeld: " + message, 0), 0u) << "got: " << p.err;
+  }
+}
+
+TEST(VoxeldFlags, SeveralBadFlagsAreEachSaid) {
+  const Parsed p = parse({"--io-threads", "0", "--max-clients", "0", "--log-level", "loud"});
+  EXPECT_EQ(p.code, 2);
+  EXPECT_EQ(lines(p.err), 3u) << p.err;
+  EXPECT_NE(p.err.find("--io-threads"), std::string::npos);
+  EXPECT_NE(p.err.find("--max-clients"), std::string::npos);
+  EXPECT_NE(p.err.find("--log-level"), std::string::npos);
+}
+
+TEST(VoxeldFlags, AnUnknownFlagOrAMalformedNumberIsBadUsage) {
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"--no-such-flag"}, {"--port", "seventy"}, {"--port", "70000"}}) {
+    const Parsed p = parse(args);
+    EXPECT_EQ(p.code, 2) << args[0];
+    EXPECT_EQ(p.err.rfind("voxeld: ", 0), 0u) << p.err;
+    EXPECT_NE(p.err.find("(see --help)"), std::string::npos) << p.err;
+  }
+}
+
+}  // namespace
+}  // namespace vox::daemon
