@@ -11,6 +11,7 @@
 #include "server/mesh/lod_block.hpp"
 #include "server/mesh/lod_mesher.hpp"
 #include "server/pipeline/lod_pass_quota.hpp"
+#include "server/pipeline/stored_chunk_reader.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/overlay_sampler.hpp"
@@ -27,6 +28,7 @@ struct LodWorker {
   mesh::ChunkMesh mesh;
   proto::CodecScratch codec;
   proto::ZstdCodec zstd;
+  uint64_t vertex_passes = 0;  // mesh_lod_vertices calls on `lod`: the codec's key of the last
 };
 
 namespace {
@@ -36,7 +38,6 @@ constexpr size_t kOwnerTurn = 4;
 // Evicted modified chunks one pass reads back from the store at most, and how long after a
 // failed read the stage waits before trying again.
 constexpr size_t kStoreReadsPerPass = 32;
-constexpr auto kStoreRetry = std::chrono::seconds(1);
 
 // The level-0 chunks whose samples a mesh of `c` reads: its padded block and seams span
 // voxels [lo - 2^k, lo + 33 * 2^k].
@@ -60,13 +61,18 @@ bool within(ChunkCoord c, ChunkCoord lo, ChunkCoord hi) {
 }  // namespace
 
 LodStage::LodStage(const world::TerrainGenerator& generator, WorldState& state,
-                   LodStageConfig config)
+                   LodStageConfig config, StoredChunkReader* reader)
     : generator_(generator),
       state_(state),
       config_(config),
       remesh_(config.levels, config.remesh_interval, config.max_pending_remesh),
       workers_([] { return std::make_unique<LodWorker>(); }),
-      grids_(config.grid_cache_bytes) {}
+      grids_(config.grid_cache_bytes),
+      reader_(reader) {}
+
+Clock::time_point LodStage::store_retry_at() const {
+  return reader_ && reader_->failing() ? reader_->retry_at() : Clock::time_point{};
+}
 
 void LodStage::learn_modified() {
   modified_.insert(state_.stored.begin(), state_.stored.end());
@@ -162,7 +168,7 @@ void LodStage::edited(const world::VoxelBox& box, Clock::time_point now) {
 }
 
 bool LodStage::has_work(Clock::time_point now) const {
-  if (now < store_retry_at_) return false;  // the store failed a read: not before then
+  if (now < store_retry_at()) return false;  // the store failed a read: not before then
   if ((missing_ && !owners_.empty()) || !retry_.empty()) return true;
   const auto due = remesh_.next_due();
   return due && *due <= now;
@@ -170,9 +176,10 @@ bool LodStage::has_work(Clock::time_point now) const {
 
 std::optional<Clock::time_point> LodStage::next_due() const {
   std::optional<Clock::time_point> due = remesh_.next_due();
+  const Clock::time_point retry_at = store_retry_at();
   if ((missing_ && !owners_.empty()) || !retry_.empty())
-    due = due ? std::min(*due, store_retry_at_) : store_retry_at_;
-  if (due && *due < store_retry_at_) due = store_retry_at_;
+    due = due ? std::min(*due, retry_at) : retry_at;
+  if (due && *due < retry_at) due = retry_at;
   return due;
 }
 
@@ -234,25 +241,15 @@ LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point 
   const bool all = missing.size() <= reads_left;
   if (!all) missing.resize(reads_left);
   for (const ChunkCoord m : missing) {
-    try {
-      state_.load_stored(m, now);
-      --reads_left;
-    } catch (const std::exception& e) {
-      if (!store_failing_)
-        spdlog::error(
-            "lod: cannot read chunk ({},{},{}) from the store: {}; coarse meshes over it "
-            "wait",
-            m.x, m.y, m.z, e.what());
-      store_failing_ = true;
-      return Resident::kFailed;
-    }
+    // Stored chunks only (the others were dropped above), so there is a store and a reader.
+    if (!reader_->try_load(state_, m, now)) return Resident::kFailed;
+    --reads_left;
   }
-  store_failing_ = false;
   return all ? Resident::kReady : Resident::kLater;
 }
 
 std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
-  if (now < store_retry_at_) return {};
+  if (now < store_retry_at()) return {};
   // Chunks the re-mesh queue dropped: their meshes are stale, mesh them afresh.
   for (const LodChunk& c : remesh_.take_dropped()) {
     if (const auto v = variants_.find(c); v != variants_.end())
@@ -288,7 +285,6 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
       continue;
     }
     retry_.push_back(k.chunk);  // whether a re-mesh or a missing mesh: all its variants
-    if (r == Resident::kFailed) store_retry_at_ = now + kStoreRetry;
   }
   if (ready.empty()) return {};
   std::vector<LodKey> published = mesh_and_publish(std::move(ready));
@@ -334,6 +330,7 @@ std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {
       return;
     }
     mesh::mesh_lod_vertices(w.block, w.lod);  // shared by the variants
+    ++w.vertex_passes;
     for (size_t i = begin; i < end; ++i) {
       fresh[i] = mesh_variant(keys[i], w);
       made[i] = 1;
@@ -360,7 +357,7 @@ std::shared_ptr<MeshVersion> LodStage::mesh_variant(const LodKey& k, LodWorker& 
   mesh::mesh_lod_variant(w.block, w.lod, w.mesh);
   auto v = std::make_shared<MeshVersion>();
   v->coord = k.chunk.c;
-  proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding);
+  proto::encode_lod_mesh(w.mesh, w.lod, w.codec, v->encoding, w.vertex_passes);
   const MeshVersionPtr old = meshes_.get(k);
   if (old && old->encoding == v->encoding) return nullptr;        // unchanged
   v->triangles = static_cast<uint32_t>(w.mesh.triangle_count());  // the mesh is not kept

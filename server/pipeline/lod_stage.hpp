@@ -35,6 +35,7 @@ namespace vox::pipeline {
 
 struct WorldState;
 struct LodWorker;
+class StoredChunkReader;
 using Clock = std::chrono::steady_clock;
 
 struct LodStageConfig {
@@ -47,7 +48,10 @@ struct LodStageConfig {
 
 class LodStage {
  public:
-  LodStage(const world::TerrainGenerator& generator, WorldState& state, LodStageConfig config);
+  // `reader`: reads evicted modified chunks back from the store (null: no store), and
+  // says when to back off after a failed read.
+  LodStage(const world::TerrainGenerator& generator, WorldState& state, LodStageConfig config,
+           StoredChunkReader* reader = nullptr);
   ~LodStage();
 
   const LodMeshStore& meshes() const { return meshes_; }  // any thread
@@ -122,9 +126,10 @@ class LodStage {
   uint64_t next_version_ = 1;
   tbb::enumerable_thread_specific<std::unique_ptr<LodWorker>> workers_;
   world::GridCache grids_;
-  size_t next_owner_ = 0;               // round robin
-  bool store_failing_ = false;          // a read failed (logged once)
-  Clock::time_point store_retry_at_{};  // after a failed read: not before this
+  size_t next_owner_ = 0;  // round robin
+  StoredChunkReader* const reader_;
+  // After a failed read of the store: not before this (else a time long past).
+  Clock::time_point store_retry_at() const;
   std::vector<world::LodChunk> retry_;  // put off by the store: meshed first next time
   std::array<std::atomic<uint64_t>, kCountedLevels> meshed_{}, remeshed_{}, published_{};
 };

@@ -69,17 +69,24 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
                  config_.load_work_per_address, config_.load_burst_per_address),
       state_(std::make_unique<WorldState>(config_.threads)),
-      lod_(std::make_unique<LodStage>(generator_, *state_, config_.lod)) {
+      // One connection for appends and reads: a read waits for the appends in flight.
+      reader_(config_.store
+                  ? std::make_unique<StoredChunkReader>(*config_.store, config_.store_retry,
+                                                        [this] { wait_for_appends(); })
+                  : nullptr),
+      lod_(std::make_unique<LodStage>(generator_, *state_, config_.lod, reader_.get())),
+      regions_(config_.limits) {
   if (config_.store) {
-    state_->read_stored = [this](ChunkCoord c) { return read_stored_chunk(c); };
-    restore_from_store();  // before any thread: may throw StoreError
+    state_->read_stored = [this](ChunkCoord c) { return reader_->read(c); };
     store::WorldStore& cp = config_.checkpoint_store ? *config_.checkpoint_store : *config_.store;
-    checkpointer_ =
-        std::make_unique<CheckpointWriter>(cp, config_.checkpoint_store != nullptr, [this] {
+    checkpoints_ = std::make_unique<Checkpoints>(
+        cp, config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
+        [this] {
           { std::lock_guard lock(queue_mutex_); }  // the pipeline is waiting, or will look
           queue_cv_.notify_one();
-        });
-    checkpoint_policy_.emplace(config_.checkpoint, Clock::now());
+        },
+        Clock::now());
+    restore_from_store();  // before the pipeline's thread: may throw StoreError
     appender_ = std::make_unique<StoreAppender>(*config_.store, [this] {
       {
         std::lock_guard lock(queue_mutex_);
@@ -125,11 +132,6 @@ void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner,
 }
 
 void WorldPipeline::change_regions(RegionTask task) { enqueue(std::move(task)); }
-
-std::shared_ptr<const std::vector<world::Region>> WorldPipeline::regions() const {
-  std::lock_guard lock(regions_mutex_);
-  return published_regions_;
-}
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
   auto promise = std::make_shared<std::promise<EditResult>>();
@@ -196,18 +198,6 @@ void WorldPipeline::inspect(std::function<void(const world::ChunkMap&)> fn) {
   future.wait();
 }
 
-uint64_t WorldPipeline::subscribe(Subscriber s) {
-  std::lock_guard lock(subscribers_mutex_);
-  subscribers_.emplace_back(next_subscriber_, std::move(s));
-  return next_subscriber_++;
-}
-
-void WorldPipeline::unsubscribe(uint64_t id) {
-  std::lock_guard lock(subscribers_mutex_);
-  std::erase_if(subscribers_, [id](const auto& p) { return p.first == id; });
-  std::erase_if(lod_subscribers_, [id](const auto& p) { return p.first == id; });
-}
-
 PipelineStats WorldPipeline::stats() const {
   PipelineStats s;
   {
@@ -234,17 +224,17 @@ void WorldPipeline::stop() {
   }
   queue_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
-  checkpointer_.reset();  // after the final checkpoint; it notifies queue_cv_
-  appender_.reset();      // idle: every batch was answered before thread_ ended
-  prefetcher_.reset();    // its threads notify queue_cv_: stopped before the members go
+  checkpoints_.reset();  // after the final checkpoint; its writer notifies queue_cv_
+  appender_.reset();     // idle: every batch was answered before thread_ ended
+  prefetcher_.reset();   // its threads notify queue_cv_: stopped before the members go
 }
 
 // Pipeline thread, under queue_mutex_. Loads whose pass the memory budget cuts to nothing
 // while terrain is on its way wait for it (generated_ready_), not in a busy loop.
 bool WorldPipeline::batch_ready() {
   // After a failed read of a stored chunk, a pass now and then tries it again.
-  const bool retry_reads =
-      store_read_failing_ && !waiting_meshes_.empty() && Clock::now() >= store_read_retry_at_;
+  const bool retry_reads = reader_ && reader_->failing() && !waiting_meshes_.empty() &&
+                           !reader_->backing_off(Clock::now());
   return scheduler_.has_ordered() || generated_ready_ || retry_reads ||
          (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
           scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0) ||
@@ -268,10 +258,10 @@ void WorldPipeline::run() {
             : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
                                                              : kBudgetRetry;
         // Unsaved chunks: wake for their checkpoint (and a finished one wakes us).
-        if (!unsaved_.empty() || unsaved_edits_ > 0)
-          wait = std::min(wait, config_.checkpoint.interval);
+        if (checkpoints_ && checkpoints_->has_unsaved())
+          wait = std::min(wait, checkpoints_->interval());
         // A chunk the store could not give back, or a region table in doubt: try again then.
-        if ((store_read_failing_ && !waiting_meshes_.empty()) || regions_doubtful_)
+        if ((reader_ && reader_->failing() && !waiting_meshes_.empty()) || regions_.doubtful())
           wait = std::min(
               wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
         // A coarse chunk's re-mesh falls due (while a batch waits for the store, its
@@ -375,7 +365,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
   finish_landed();
   Batch b = apply_batch(tasks, now);
   if (!b.any_edit) return;
-  if (config_.store && (!b.accepted.empty() || b.regions_before))
+  if (config_.store && (!b.accepted.empty() || b.regions.changed()))
     start_append(b);  // overlaps the re-meshing
   b.fresh = remesh(b.dirty);
   if (!config_.store) return answer(b, true, batch);
@@ -406,7 +396,7 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
     }
     if (auto* region = std::get_if<RegionTask>(&tasks[t])) {
       b.any_edit = true;  // answered with the batch
-      apply_region_task(*region, t, store_resting, b);
+      regions_.apply(*region, t, store_resting, b.regions, kStorageMessage);
       continue;
     }
     const EditTask& task = std::get<EditTask>(tasks[t]);
@@ -425,7 +415,7 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       ++delta.edits_refused;
       continue;
     }
-    if (durable && log_full(log_tail + b.accepted.size())) {
+    if (durable && checkpoints_->log_full(log_tail + b.accepted.size())) {
       result.reason = world::RefusalReason::kServerBusy;
       result.message = kLogFullMessage;
       ++delta.edits_refused;
@@ -433,8 +423,8 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       continue;
     }
     world::Protection protection;
-    if (!task.bypass_regions && !regions_.empty())
-      protection = world::protection_for(regions_, edit, task.author);
+    if (!task.bypass_regions && !regions_.in_force().empty())
+      protection = world::protection_for(regions_.in_force(), edit, task.author);
     if (protection.forbidden_by) {
       result.reason = world::RefusalReason::kForbidden;
       result.message =
@@ -474,47 +464,8 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
       b.edited_at.try_emplace(c, task.submitted);  // arrival order
   }
   b.tasks = std::move(tasks);
-  if (b.regions_before)
-    b.regions_after = std::make_shared<const std::vector<world::Region>>(regions_);
+  regions_.seal(b.regions);
   return b;
-}
-
-void WorldPipeline::apply_region_task(const RegionTask& task, size_t index, bool store_resting,
-                                      Batch& b) {
-  using Status = RegionOutcome::Status;
-  RegionOutcome out;
-  auto refuse = [&](Status status, std::string message) {
-    out.status = status;
-    out.message = std::move(message);
-    b.region_outcomes.emplace_back(index, std::move(out));
-  };
-  if (store_resting) return refuse(Status::kStorageUnavailable, kStorageMessage);
-  std::vector<world::Region> next = regions_;
-  if (task.add) {
-    const world::RegionLimits limits;
-    if (regions_.size() >= limits.max_regions)
-      return refuse(Status::kTooMany, "the world has " + std::to_string(limits.max_regions) +
-                                          " protected regions, the most it may have");
-    if (auto why = world::validate_region(*task.add, config_.limits, limits))
-      return refuse(Status::kBadValue, *why);
-    out.region = *task.add;
-    out.region.id = next_region_id_++;
-    next.push_back(out.region);
-    if (!b.region_write) b.region_write.emplace();
-    b.region_write->upsert.push_back(out.region);
-  } else {
-    auto it = std::find_if(next.begin(), next.end(),
-                           [&task](const world::Region& r) { return r.id == task.remove_id; });
-    if (it == next.end())
-      return refuse(Status::kNotFound, "no protected region " + std::to_string(task.remove_id));
-    out.region = *it;
-    next.erase(it);
-    if (!b.region_write) b.region_write.emplace();
-    b.region_write->remove.push_back(out.region.id);
-  }
-  if (!b.regions_before) b.regions_before = regions_;
-  regions_ = std::move(next);
-  b.region_outcomes.emplace_back(index, std::move(out));
 }
 
 void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
@@ -531,7 +482,7 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
     b.dirty.clear();
     b.fresh.clear();
   } else {
-    unsaved_edits_ += config_.store ? b.accepted.size() : 0;
+    if (checkpoints_) checkpoints_->logged(b.accepted.size());
     lod_edited(b, Clock::now());
   }
   const std::vector<ChunkCoord> published = publish(b.dirty, b.fresh, &b.edited_at);
@@ -539,11 +490,8 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
   b.delta.meshes_published += published.size();
   commit_stats(b.delta, batch);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
-  if (durable && b.regions_after) {  // before the answers: a list after one sees it
-    std::lock_guard lock(regions_mutex_);
-    published_regions_ = b.regions_after;
-  }
-  for (auto& [t, outcome] : b.region_outcomes) {
+  if (durable) regions_.landed(b.regions);  // before the answers: a list after one sees it
+  for (auto& [t, outcome] : b.regions.outcomes) {
     if (!durable && outcome.status == RegionOutcome::Status::kOk) {
       outcome.status = RegionOutcome::Status::kStorageUnavailable;
       outcome.message = kStorageMessage;
@@ -562,7 +510,7 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
                            r.changed_chunks.end());
     if (task->done) task->done(r);
   }
-  notify_subscribers(published);
+  subscribers_.notify(published);
 }
 
 // Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the
@@ -582,18 +530,8 @@ void WorldPipeline::commit_stats(const PipelineStats& delta, PipelineStats& batc
   stats_.loaded_chunks = st.chunks.size();
   stats_.modified_chunks = st.modified_count;
   stats_.chunk_bytes = st.chunks.memory_bytes();
-  stats_.unsaved_chunks = unsaved_.size();
+  stats_.unsaved_chunks = checkpoints_ ? checkpoints_->unsaved_chunks() : 0;
   stats_.stored_chunks = st.stored.size();
-}
-
-void WorldPipeline::notify_subscribers(const std::vector<ChunkCoord>& published) {
-  if (published.empty()) return;
-  std::vector<Subscriber> subscribers;
-  {
-    std::lock_guard lock(subscribers_mutex_);
-    for (const auto& [id, s] : subscribers_) subscribers.push_back(s);
-  }
-  for (const auto& s : subscribers) s(published);
 }
 
 }  // namespace vox::pipeline

@@ -27,11 +27,14 @@
 #include "server/mesh/region_mesher.hpp"
 #include "server/pipeline/batch_scheduler.hpp"
 #include "server/pipeline/checkpoint_policy.hpp"
-#include "server/pipeline/checkpoint_writer.hpp"
+#include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/lod_stage.hpp"
 #include "server/pipeline/memory_budget.hpp"
 #include "server/pipeline/mesh_store.hpp"
+#include "server/pipeline/protected_regions.hpp"
 #include "server/pipeline/store_appender.hpp"
+#include "server/pipeline/stored_chunk_reader.hpp"
+#include "server/pipeline/subscribers.hpp"
 #include "server/pipeline/terrain_prefetcher.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/edit.hpp"
@@ -115,21 +118,6 @@ struct EditResult {
   size_t chunks_generated = 0, chunks_expanded = 0;
 };
 
-// The answer to a RegionTask, once durable (or refused).
-struct RegionOutcome {
-  enum class Status : uint8_t {
-    kOk,
-    kBadValue,
-    kNotFound,
-    kTooMany,
-    kStorageUnavailable,
-    kShuttingDown
-  };
-  Status status = Status::kOk;
-  std::string message;   // why it was refused
-  world::Region region;  // the region added or removed
-};
-
 struct PipelineStats {
   uint64_t batches = 0, edits_applied = 0, edits_refused = 0, edits_refused_busy = 0,
            meshes_published = 0, chunks_generated = 0, chunks_evicted = 0, memory_blocked = 0;
@@ -171,7 +159,7 @@ struct PipelineObserver {
 class WorldPipeline {
  public:
   using EditCallback = std::function<void(const EditResult&)>;
-  using Subscriber = std::function<void(const std::vector<world::ChunkCoord>&)>;
+  using Subscriber = Subscribers::Subscriber;
 
   explicit WorldPipeline(PipelineConfig config, PipelineObserver observer = {});
   ~WorldPipeline();  // stop()
@@ -191,7 +179,7 @@ class WorldPipeline {
   // `task.done` runs on the pipeline thread once the change is durable (or refused).
   void change_regions(RegionTask task);
   // Any thread: the protected regions in force, as of the last durable change.
-  std::shared_ptr<const std::vector<world::Region>> regions() const;
+  std::shared_ptr<const std::vector<world::Region>> regions() const { return regions_.published(); }
   // Any thread. Generates and meshes whatever of the box is missing; `done` runs on the
   // pipeline thread once every chunk of the box has a published mesh.
   void load(mesh::ChunkBox box, std::function<void()> done);
@@ -214,26 +202,23 @@ class WorldPipeline {
   void set_lod_view(LoadOwner owner, std::vector<LodKey> keys);
   const LodMeshStore& lod_meshes() const { return lod_->meshes(); }  // any thread
   // Like subscribe(), for level-of-detail meshes (unsubscribe() drops either): the keys
-  // published, and routed to the owners whose layouts want them (by owner), so that a
-  // session hears only of its own keys. Routing follows the wants the pipeline has taken
-  // (set_lod_view's, between batches): when it takes an owner's new wants, the owner
-  // hears again of those published before (with no keys in `keys`).
-  using LodKeys = std::shared_ptr<const std::vector<LodKey>>;  // posted to a session as is
-  struct LodPublication {
-    std::vector<LodKey> keys;
-    std::vector<std::pair<LoadOwner, LodKeys>> by_owner;
-  };
-  using LodSubscriber = std::function<void(const LodPublication&)>;
-  uint64_t subscribe_lod(LodSubscriber s);  // any thread
+  // published, routed to the owners whose layouts want them (subscribers.hpp). Routing
+  // follows the wants the pipeline has taken (set_lod_view's, between batches).
+  using LodKeys = pipeline::LodKeys;
+  using LodPublication = pipeline::LodPublication;
+  using LodSubscriber = Subscribers::LodSubscriber;
+  uint64_t subscribe_lod(LodSubscriber s) {  // any thread
+    return subscribers_.subscribe_lod(std::move(s));
+  }
   // Runs fn on the pipeline thread between batches, and waits for it (tests, persistence).
   void inspect(std::function<void(const world::ChunkMap&)> fn);
 
   const MeshStore& meshes() const { return meshes_; }  // any thread
   // Subscribers run on the pipeline thread after each batch with the chunks that got a
   // new version; they must not block (post to your own executor).
-  uint64_t subscribe(Subscriber s);  // any thread
-  void unsubscribe(uint64_t id);     // any thread
-  PipelineStats stats() const;       // any thread
+  uint64_t subscribe(Subscriber s) { return subscribers_.subscribe(std::move(s)); }  // any thread
+  void unsubscribe(uint64_t id) { subscribers_.unsubscribe(id); }                    // any thread
+  PipelineStats stats() const;                                                       // any thread
   // Any thread: bytes held outside the pipeline (sessions' state), counted in the memory
   // budget.
   void set_other_bytes(size_t bytes) { other_bytes_.store(bytes, std::memory_order_relaxed); }
@@ -289,7 +274,6 @@ class WorldPipeline {
   void drop_unviewed_waiting();
   bool needs_generating(world::ChunkCoord c) const;  // pipeline thread
   void commit_stats(const PipelineStats& delta, PipelineStats& batch);
-  void notify_subscribers(const std::vector<world::ChunkCoord>& published);
   world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                        size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
                                        EditResult& result, Undo* undo = nullptr,
@@ -318,13 +302,7 @@ class WorldPipeline {
     std::vector<world::ChunkCoord> dirty;                    // sorted, unique once re-meshed
     std::vector<const EditTask*> accepted;                   // in the order they applied
     std::vector<std::vector<world::VoxelBox>> keep;          // per accepted edit: clipped
-    // Region tasks' outcomes, by task index; the regions before the batch's first region
-    // change (restored when it is undone) and after its last (published when durable).
-    std::vector<std::pair<size_t, RegionOutcome>> region_outcomes;
-    std::optional<std::vector<world::Region>> regions_before;
-    std::shared_ptr<const std::vector<world::Region>> regions_after;
-    std::optional<store::RegionWrite> region_write;  // its changes, for the store
-    bool carries_regions = false;                    // its append writes regions
+    RegionChanges regions;                                   // what its region tasks changed
     FreshMeshes fresh;
     EditTimes edited_at;  // per dirty chunk, its oldest edit
     Undo undo;
@@ -343,8 +321,6 @@ class WorldPipeline {
   // An edit arriving ends the wait: it is not held up behind another batch's fsync.
   static constexpr auto kAnswerWait = std::chrono::milliseconds(6);
   Batch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
-  // A region change inside apply_batch (pipeline thread).
-  void apply_region_task(const RegionTask& task, size_t index, bool store_resting, Batch& b);
   // After a failed append that carried region changes (it may have landed or not): an
   // append of the whole region table alone, once the store may be tried again (or, with
   // `now_anyway`, at stop). Pipeline thread.
@@ -369,8 +345,7 @@ class WorldPipeline {
   // After a durable batch: its accepted edits reach the coarse levels.
   void lod_edited(const Batch& b, Clock::time_point now);
   void notify_lod(const std::vector<LodKey>& published);  // routed to their owners
-  void notify_lod(const LodPublication& publication);
-  void lod_stats(PipelineStats& s) const;  // its part of stats(); any thread
+  void lod_stats(PipelineStats& s) const;                 // its part of stats(); any thread
   // The newest mesh of `c`: a pending batch's, else the published one.
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
   // Whether a pending batch changed samples that meshes of `chunks` read: a load pass
@@ -382,22 +357,14 @@ class WorldPipeline {
   // checkpoint (loading the chunks it touches).
   void restore_from_store();
   void preload_stored(const std::vector<store::LoggedEdit>& tail);
-  // Pipeline thread: takes a finished checkpoint's result; starts the next one when due.
+  // Pipeline thread: takes a finished checkpoint's result; starts the next one when due
+  // (the batches in flight answered first: a checkpoint holds every applied edit).
   void checkpoint_if_due(Clock::time_point now);
   void start_checkpoint(Clock::time_point now);
   // The edits in the log no finished checkpoint covers, the pending batches' included.
   uint64_t logged_since_checkpoint() const;
-  // Whether the log's tail is at its bound: edits are held back (logged when that starts
-  // and ends).
-  bool log_full(uint64_t log_tail);
-  void finish_checkpoint(const CheckpointResult& r, Clock::time_point now);
+  void finish_checkpoint(const CheckpointResult& r, Clock::time_point now);  // and its stats
   void final_checkpoint();  // at stop: everything unsaved, waited for
-  // Reads a checkpointed chunk from the store (throws StoreError: unreadable, or does not
-  // decode); note_store_read logs a failure once until a read works again.
-  world::Chunk read_stored_chunk(world::ChunkCoord c);
-  void note_store_read(const std::string& error);
-  // Reads a stored chunk a mesh waits for; false (logged) when the store fails.
-  bool try_load_stored(world::ChunkCoord c, Clock::time_point now);
   void drain_after_stop();
   void manage_memory(Clock::time_point now);
   size_t accounted_bytes() const;  // pipeline thread
@@ -421,10 +388,7 @@ class WorldPipeline {
   std::atomic<bool> loads_blocked_{false};  // over budget with nothing evictable
   std::atomic<size_t> other_bytes_{0};
 
-  mutable std::mutex subscribers_mutex_;  // leaf lock; callbacks run on a copy, outside it
-  std::vector<std::pair<uint64_t, Subscriber>> subscribers_;
-  std::vector<std::pair<uint64_t, LodSubscriber>> lod_subscribers_;
-  uint64_t next_subscriber_ = 1;
+  Subscribers subscribers_;
 
   mutable std::mutex stats_mutex_;  // leaf lock
   PipelineStats stats_;
@@ -432,7 +396,9 @@ class WorldPipeline {
   bool generated_ready_ = false;  // under queue_mutex_: the prefetcher has chunks for us
 
   std::unique_ptr<WorldState> state_;  // pipeline thread only
-  std::unique_ptr<LodStage> lod_;      // pipeline thread only, but lod_meshes()
+  // Checkpointed chunks read back (with a store); pipeline thread only.
+  std::unique_ptr<StoredChunkReader> reader_;
+  std::unique_ptr<LodStage> lod_;  // pipeline thread only, but lod_meshes()
   // Level-of-detail views set or dropped since the last batch (empty: dropped); under
   // queue_mutex_.
   std::unordered_map<LoadOwner, std::vector<LodKey>> lod_updates_;
@@ -459,31 +425,13 @@ class WorldPipeline {
   Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
   // Sequence numbers of failed appends since the last that worked (pipeline thread).
   std::optional<store::WorldStore::SeqRange> doubtful_;
-  std::deque<Batch> pending_;  // oldest first; pipeline thread
-  // Protected regions in force (pipeline thread; pending batches' changes included), the
-  // next id, and whether a failed append carried region changes (the next append writes
-  // the region table whole, whether it landed or not).
-  std::vector<world::Region> regions_;
-  uint64_t next_region_id_ = 1;
-  bool regions_doubtful_ = false;
-  mutable std::mutex regions_mutex_;  // leaf lock, guards published_regions_
-  std::shared_ptr<const std::vector<world::Region>> published_regions_ =
-      std::make_shared<const std::vector<world::Region>>();
-  bool append_landed_ = false;       // under queue_mutex_: a pending batch may be answered
-  bool store_failing_ = false;       // the last append failed (logged once); pipeline thread
-  bool store_read_failing_ = false;  // the last chunk read failed (logged once); pipeline thread
-  std::string last_read_error_;      // pipeline thread
-  Clock::time_point store_read_retry_at_{};   // after a failed read: the next try
-  Clock::time_point store_read_logged_at_{};  // the last failed read logged
-  // Checkpoints (with a store; pipeline thread): resident chunks with info.unsaved, edits
-  // applied since the last checkpoint started (restored when it fails).
-  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> unsaved_;
-  uint64_t unsaved_edits_ = 0, checkpoint_edits_ = 0;
-  std::optional<CheckpointPolicy> checkpoint_policy_;
-  bool checkpoint_failing_ = false;
-  bool log_full_ = false;  // edits are held back for a checkpoint; pipeline thread
-  std::unique_ptr<CheckpointWriter> checkpointer_;  // reset by stop() once thread_ has ended
-  std::unique_ptr<StoreAppender> appender_;         // with a store; reset by stop() likewise
+  std::deque<Batch> pending_;   // oldest first; pipeline thread
+  ProtectedRegions regions_;    // pipeline thread, but regions()
+  bool append_landed_ = false;  // under queue_mutex_: a pending batch may be answered
+  bool store_failing_ = false;  // the last append failed (logged once); pipeline thread
+  // With a store; pipeline thread, but memory_bytes(). Reset by stop() once thread_ ended.
+  std::unique_ptr<Checkpoints> checkpoints_;
+  std::unique_ptr<StoreAppender> appender_;  // with a store; reset by stop() likewise
   std::thread thread_;
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
 };

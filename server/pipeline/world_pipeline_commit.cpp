@@ -36,18 +36,7 @@ void WorldPipeline::start_append(Batch& b) {
     log.push_back({next_seq_++, unix_ms, t.author, t.edit, b.keep[i]});
   }
   if (!log.empty()) b.seqs = {log.front().seq, log.back().seq};  // else {0, 0}: regions only
-  // The batch's region changes; after a failed append that carried some (it may have
-  // landed or not), the whole table.
-  std::optional<store::RegionWrite> regions = std::move(b.region_write);
-  if (regions_doubtful_) {
-    regions.emplace();
-    regions->whole = true;
-    regions->upsert = regions_;
-  }
-  if (regions) {
-    regions->next_id = next_region_id_;
-    b.carries_regions = true;
-  }
+  std::optional<store::RegionWrite> regions = regions_.write_for_append(b.regions);
   b.appended_at = Clock::now();
   // Appends that failed since the last that worked may have landed all the same: their
   // edits were undone here, so they go from the log with this append.
@@ -61,7 +50,7 @@ void WorldPipeline::start_append(Batch& b) {
 }
 
 void WorldPipeline::repair_regions(Clock::time_point now, bool now_anyway) {
-  if (!regions_doubtful_ || !appender_ || !pending_.empty()) return;
+  if (!regions_.doubtful() || !appender_ || !pending_.empty()) return;
   if (!now_anyway && now < store_retry_at_) return;
   Batch b;  // no tasks: the append carries the region table (and forgets doubtful edits)
   start_append(b);
@@ -104,7 +93,6 @@ void WorldPipeline::finish_pending(PipelineStats& batch, size_t keep) {
       if (observer_.commit_wait) observer_.commit_wait(b.waited);
       if (!out.error.empty()) return fail_pending(batch, out.error);
       doubtful_.reset();
-      if (b.carries_regions) regions_doubtful_ = false;
       if (store_failing_) {
         store_failing_ = false;
         spdlog::info("world store: writing again; edits are accepted");
@@ -123,8 +111,7 @@ void WorldPipeline::fail_pending(PipelineStats& batch, const std::string& error)
   }
   for (auto it = pending_.rbegin(); it != pending_.rend(); ++it) {
     roll_back(it->undo);
-    if (it->regions_before) regions_ = std::move(*it->regions_before);
-    regions_doubtful_ = regions_doubtful_ || it->carries_regions;
+    regions_.undo(it->regions);
   }
   // No append works in between, so one range covers every doubtful one (the later
   // batches' were not tried; forgetting them too is harmless).

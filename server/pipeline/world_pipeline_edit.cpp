@@ -84,8 +84,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
   }
   try {
     result.chunks_generated = st.ensure_loaded(wanted, generator_, now);
-  } catch (const store::StoreError& e) {  // a checkpointed chunk could not be read back
-    note_store_read(e.what());
+  } catch (const store::StoreError&) {  // a checkpointed chunk could not be read back
     return world::RefusalReason::kStorageUnavailable;
   }
 
@@ -102,7 +101,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     was_uniform[i] = targets[i]->is_uniform();
     const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
     // A checkpoint in flight still needs it as it is: the writer gets a copy.
-    if (i_info.checkpointing) checkpointer_->preserve(touched[i], *targets[i]);
+    if (i_info.checkpointing) checkpoints_->preserve(touched[i], *targets[i]);
     if (undo) undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
@@ -120,7 +119,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     WorldState::ChunkInfo& info = st.info.at(touched[i]);
     st.modified_count += info.modified ? 0 : 1;
     info.modified = info.unsaved = true;
-    if (config_.store) unsaved_.insert(touched[i]);
+    if (checkpoints_) checkpoints_->changed(touched[i]);
     world::append_dirty_chunks(touched[i], changed[i], dirty_here);
   }
   for (const ChunkCoord& c : dirty_here) {

@@ -21,7 +21,7 @@ constexpr size_t kMeshWork = 1;
 // taken while earlier ones wait for terrain do not overrun the memory budget.
 size_t WorldPipeline::accounted_bytes() const {
   return resident_bytes() + prefetcher_->memory_bytes() +
-         (checkpointer_ ? checkpointer_->memory_bytes() : 0) +
+         (checkpoints_ ? checkpoints_->memory_bytes() : 0) +
          waiting_meshes_.size() * MemoryBudget::kBytesPerMesh;
 }
 
@@ -127,7 +127,7 @@ std::vector<ChunkCoord> WorldPipeline::take_meshable(Clock::time_point now, Pipe
             continue;
           }
           // Checkpointed: read back here (a store that fails is tried again next pass).
-          if (st.stored.count(n) && try_load_stored(n, now)) continue;
+          if (st.stored.count(n) && reader_->try_load(st, n, now)) continue;
           complete = false;
           if (!st.stored.count(n) && asked.insert(n).second && !prefetcher_->pending(n))
             missing.push_back(n);
@@ -193,7 +193,7 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
     stats_.meshes_waiting = waiting_meshes_.size();
   }
   run_finished_loads();
-  notify_subscribers(published);
+  subscribers_.notify(published);
 }
 
 // Evicts idle chunks now and then, and under memory pressure down to the budget's target;

@@ -16,12 +16,6 @@ void WorldPipeline::set_lod_view(LoadOwner owner, std::vector<LodKey> keys) {
   queue_cv_.notify_one();
 }
 
-uint64_t WorldPipeline::subscribe_lod(LodSubscriber s) {
-  std::lock_guard lock(subscribers_mutex_);
-  lod_subscribers_.emplace_back(next_subscriber_, std::move(s));
-  return next_subscriber_++;
-}
-
 // Pipeline thread. While a batch waits for the store, the chunk map may show edits that
 // are not durable: no LOD mesh is made from it then (the append's landing wakes us).
 bool WorldPipeline::lod_ready(Clock::time_point now) const {
@@ -43,7 +37,7 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
       late.by_owner.emplace_back(owner,
                                  std::make_shared<const std::vector<LodKey>>(std::move(published)));
   }
-  if (!late.by_owner.empty()) notify_lod(late);
+  if (!late.by_owner.empty()) subscribers_.notify_lod(late);
   if (!lod_->has_work(now)) {
     lod_starved_since_.reset();
     return;
@@ -71,16 +65,7 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
 
 void WorldPipeline::notify_lod(const std::vector<LodKey>& published) {
   if (published.empty()) return;
-  notify_lod(LodPublication{published, lod_->route(published)});
-}
-
-void WorldPipeline::notify_lod(const LodPublication& publication) {
-  std::vector<LodSubscriber> subscribers;
-  {
-    std::lock_guard lock(subscribers_mutex_);
-    for (const auto& [id, s] : lod_subscribers_) subscribers.push_back(s);
-  }
-  for (const auto& s : subscribers) s(publication);
+  subscribers_.notify_lod(LodPublication{published, lod_->route(published)});
 }
 
 void WorldPipeline::lod_stats(PipelineStats& s) const {  // any thread

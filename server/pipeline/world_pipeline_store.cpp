@@ -15,8 +15,6 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 
-namespace {}  // namespace
-
 // The world as the store has it: the checkpointed chunks (read when first needed), then
 // the log after the checkpoint applied in order, exactly as the batches applied it (so the
 // densities are bit-identical). The chunks the replay changed are unsaved: the next
@@ -27,10 +25,7 @@ void WorldPipeline::restore_from_store() {
   const Clock::time_point start = Clock::now();
   const store::WorldInfo info = store.info();
   store.for_each_chunk([&st](ChunkCoord c, uint64_t) { st.stored.insert(c); });
-  store::RegionTable regions = store.read_regions();
-  regions_ = std::move(regions.regions);
-  next_region_id_ = regions.next_id;
-  published_regions_ = std::make_shared<const std::vector<world::Region>>(regions_);
+  regions_.restore(store.read_regions());
   // The log's tail is bounded by the checkpoints (CheckpointLimits::max_unsaved_edits, plus
   // what one interval accepts).
   std::vector<store::LoggedEdit> tail;
@@ -47,7 +42,7 @@ void WorldPipeline::restore_from_store() {
         apply_edit_task(e.edit, start, SIZE_MAX, dirtied, ignored, nullptr, e.keep);
     if (refused == world::RefusalReason::kStorageUnavailable) {
       throw store::StoreError(fmt::format("{}: replaying edit {}: a checkpointed chunk: {}",
-                                          store.name(), e.seq, last_read_error_));
+                                          store.name(), e.seq, reader_->last_error()));
     }
     if (refused != world::RefusalReason::kNone) {
       throw store::StoreError(fmt::format(
@@ -59,17 +54,17 @@ void WorldPipeline::restore_from_store() {
     last = e.seq;
   }
   next_seq_ = std::max(info.last_seq, last) + 1;
-  unsaved_edits_ = replayed;
+  checkpoints_->logged(replayed);
   stats_.modified_chunks = st.modified_count;
   stats_.loaded_chunks = st.chunks.size();
   stats_.chunk_bytes = st.chunks.memory_bytes();
   stats_.stored_chunks = st.stored.size();
-  stats_.unsaved_chunks = unsaved_.size();
+  stats_.unsaved_chunks = checkpoints_->unsaved_chunks();
   stats_.checkpoint_seq = info.checkpoint_seq;
   spdlog::info(
       "world: {} (seed {}, start {}): {} stored chunks, {} protected regions, {} logged edits "
       "replayed in {:.0f} ms",
-      store.name(), info.seed, info.starts, st.stored.size(), regions_.size(), replayed,
+      store.name(), info.seed, info.starts, st.stored.size(), regions_.in_force().size(), replayed,
       seconds_since(start) * 1000);
 }
 
@@ -115,42 +110,6 @@ void WorldPipeline::preload_stored(const std::vector<store::LoggedEdit>& tail) {
   st.ensure_loaded(to_generate, generator_, now);  // duplicates are skipped
 }
 
-world::Chunk WorldPipeline::read_stored_chunk(ChunkCoord c) {
-  store::WorldStore& store = *config_.store;
-  wait_for_appends();  // one connection: no read while an append is running
-  const auto record = store.read_chunk(c);
-  std::string why = "missing from the store";
-  auto chunk = record ? store::decode_chunk(record->samples, &why) : std::nullopt;
-  if (!chunk) {
-    throw store::StoreError(
-        fmt::format("{}: chunk ({}, {}, {}): {}", store.name(), c.x, c.y, c.z, why));
-  }
-  store_read_failing_ = false;
-  return std::move(*chunk);
-}
-
-// Logged at most every 10 s (a view resting on an unreadable chunk asks each pass).
-void WorldPipeline::note_store_read(const std::string& error) {
-  const Clock::time_point now = Clock::now();
-  last_read_error_ = error;
-  store_read_retry_at_ = now + config_.store_retry;
-  if (now - store_read_logged_at_ >= std::chrono::seconds(10)) {
-    store_read_logged_at_ = now;
-    spdlog::error("world store: {}; what needs the chunk waits until it can be read", error);
-  }
-  store_read_failing_ = true;
-}
-
-bool WorldPipeline::try_load_stored(ChunkCoord c, Clock::time_point now) {
-  try {
-    state_->load_stored(c, now);
-    return true;
-  } catch (const store::StoreError& e) {
-    note_store_read(e.what());
-    return false;
-  }
-}
-
 void WorldPipeline::Undo::save(ChunkCoord c, const world::Chunk& chunk, const world::VoxelBox& box,
                                bool modified, bool unsaved) {
   Patch& p = patches.emplace_back();
@@ -182,7 +141,7 @@ void WorldPipeline::roll_back(Undo& undo) {
     world::Chunk* chunk = st.chunks.find(p.coord);
     if (!chunk) continue;  // cannot happen: a batch evicts nothing it touched
     WorldState::ChunkInfo& info = st.info.at(p.coord);
-    if (info.checkpointing) checkpointer_->preserve(p.coord, *chunk);  // preserved already
+    if (info.checkpointing) checkpoints_->preserve(p.coord, *chunk);  // preserved already
     const bool was_uniform = chunk->is_uniform();
     if (p.was_uniform) {
       *chunk = world::Chunk(p.uniform);
@@ -196,7 +155,7 @@ void WorldPipeline::roll_back(Undo& undo) {
     if (info.modified && !p.modified) --st.modified_count;
     info.modified = p.modified;
     info.unsaved = p.unsaved;
-    if (!p.unsaved) unsaved_.erase(p.coord);
+    if (!p.unsaved) checkpoints_->saved_again(p.coord);
   }
   undo.patches.clear();
 }

@@ -1,0 +1,82 @@
+#include "server/pipeline/checkpoints.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <utility>
+#include <vector>
+
+#include "server/pipeline/world_state.hpp"
+
+namespace vox::pipeline {
+
+using world::ChunkCoord;
+
+Checkpoints::Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
+                         bool keep_log, std::function<void()> wake, Clock::time_point now)
+    : limits_(limits),
+      own_connection_(own_connection),
+      keep_log_(keep_log),
+      policy_(limits, now),
+      writer_(std::make_unique<CheckpointWriter>(store, own_connection, std::move(wake))) {}
+
+bool Checkpoints::log_full(uint64_t log_tail) {
+  const bool full = policy_.log_full(log_tail);
+  if (full && !log_full_) {
+    spdlog::warn(
+        "world store: {} edits in the log await a checkpoint; edits are refused "
+        "(SERVER_BUSY) until it is written",
+        log_tail);
+  } else if (!full && log_full_) {
+    spdlog::info("world store: a checkpoint trimmed the log; edits are taken again");
+  }
+  log_full_ = full;
+  return full;
+}
+
+std::optional<CheckpointResult> Checkpoints::start(WorldState& st, uint64_t seq,
+                                                   Clock::time_point now) {
+  CheckpointJob job{.seq = seq, .trim_through = keep_log_ ? 0 : seq};
+  const std::vector<ChunkCoord> coords(unsaved_.begin(), unsaved_.end());
+  for (const ChunkCoord& c : coords) {
+    WorldState::ChunkInfo& info = st.info.at(c);  // unsaved chunks are never evicted
+    info.unsaved = false;
+    info.checkpointing = true;
+  }
+  unsaved_.clear();
+  // The writer reads the chunks themselves; a batch that changes one first preserves it,
+  // so the checkpoint has every chunk as of `seq`.
+  job.chunks.reserve(coords.size());
+  for (const ChunkCoord& c : coords) job.chunks.emplace_back(c, st.chunks.find(c));
+  checkpoint_edits_ = std::exchange(unsaved_edits_, 0);
+  policy_.started(now);
+  writer_->submit(std::move(job));
+  if (own_connection_) return std::nullopt;
+  return writer_->take_result();  // written on this thread: ready now
+}
+
+void Checkpoints::finish(WorldState& st, const CheckpointResult& r, Clock::time_point now) {
+  policy_.finished(now, r.ok);
+  for (const ChunkCoord& c : r.coords) {
+    auto it = st.info.find(c);
+    if (it == st.info.end()) continue;  // cannot happen: not evictable while written
+    it->second.checkpointing = false;
+    if (r.ok) {
+      st.stored.insert(c);
+    } else if (!it->second.unsaved) {
+      it->second.unsaved = true;
+      unsaved_.insert(c);
+    }
+  }
+  if (!r.ok) unsaved_edits_ += checkpoint_edits_;
+  checkpoint_edits_ = 0;
+  if (r.ok) {
+    spdlog::debug("checkpoint: {} chunks through edit {} ({} KiB) in {:.0f} ms", r.coords.size(),
+                  r.seq, r.bytes >> 10, r.seconds * 1000);
+    if (failing_) spdlog::info("checkpoint: writing again (through edit {})", r.seq);
+  } else if (!failing_) {
+    spdlog::error("checkpoint: {}; its chunks stay in memory, the log keeps their edits", r.error);
+  }
+  failing_ = !r.ok;
+}
+
+}  // namespace vox::pipeline

@@ -1,0 +1,85 @@
+// The pipeline's checkpoints (with a store): which resident chunks and how many durable
+// edits no checkpoint holds yet, when the next checkpoint is due (CheckpointPolicy), and
+// the CheckpointWriter that writes it. start() copies nothing: it hands the writer the
+// live chunks, all as of the last applied edit, and an edit or undo that changes one of
+// them first calls preserve(). When the writer is done, finish() marks the chunks stored
+// (they may then be evicted and are read back when needed), or unsaved again after a
+// failure: the log still holds every edit, so a failed checkpoint loses nothing.
+// Pipeline thread only, but memory_bytes().
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <unordered_set>
+
+#include "server/pipeline/checkpoint_policy.hpp"
+#include "server/pipeline/checkpoint_writer.hpp"
+#include "server/store/world_store.hpp"
+#include "server/world/chunk_coord.hpp"
+
+namespace vox::pipeline {
+
+struct WorldState;
+
+class Checkpoints {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  // `own_connection`: `store` is a second connection, written on the writer's thread
+  // (`wake` runs there when a checkpoint is done); otherwise the pipeline's own, written
+  // on the pipeline thread at start(). `keep_log`: checkpoints leave the log whole.
+  Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits, bool keep_log,
+              std::function<void()> wake, Clock::time_point now);
+
+  // An edit changed resident chunk c (its info says unsaved).
+  void changed(world::ChunkCoord c) { unsaved_.insert(c); }
+  // An undo gave chunk c back its state from before: saved, as it was.
+  void saved_again(world::ChunkCoord c) { unsaved_.erase(c); }
+  // Edits made durable (logged) since the last checkpoint started.
+  void logged(uint64_t edits) { unsaved_edits_ += edits; }
+  // Logged edits no finished checkpoint holds (`in_flight`: of batches being appended):
+  // what a restart would replay.
+  uint64_t log_tail(uint64_t in_flight) const {
+    return checkpoint_edits_ + unsaved_edits_ + in_flight;
+  }
+  // Whether the log's tail is at its bound: edits are held back (one log line when that
+  // starts and one when it ends).
+  bool log_full(uint64_t log_tail);
+  bool has_unsaved() const { return !unsaved_.empty() || unsaved_edits_ > 0; }
+  size_t unsaved_chunks() const { return unsaved_.size(); }
+  std::chrono::milliseconds interval() const { return limits_.interval; }
+
+  // The finished checkpoint's result, once (the caller then calls finish()).
+  std::optional<CheckpointResult> take_result() { return writer_->take_result(); }
+  bool due(Clock::time_point now) const {
+    return policy_.due(now, unsaved_.size(), unsaved_edits_);
+  }
+  // Starts a checkpoint of every unsaved chunk as of edit `seq` (every applied edit, and
+  // no other). With the pipeline's own connection it is written before this returns:
+  // then its result (the caller finishes it).
+  std::optional<CheckpointResult> start(WorldState& state, uint64_t seq, Clock::time_point now);
+  // Takes a finished checkpoint's result into the chunks' flags (and logs a failure once).
+  void finish(WorldState& state, const CheckpointResult& r, Clock::time_point now);
+  // Before chunk c of the checkpoint in flight changes (an edit, an undo).
+  void preserve(world::ChunkCoord c, const world::Chunk& live) { writer_->preserve(c, live); }
+  void wait() { writer_->wait(); }  // until the checkpoint in flight is written
+
+  size_t memory_bytes() const { return writer_->memory_bytes(); }  // any thread
+
+ private:
+  const CheckpointLimits limits_;
+  const bool own_connection_, keep_log_;
+  CheckpointPolicy policy_;
+  std::unique_ptr<CheckpointWriter> writer_;
+  // Resident chunks with info.unsaved; edits logged since the last checkpoint started, and
+  // those the one in flight holds (back to unsaved when it fails).
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> unsaved_;
+  uint64_t unsaved_edits_ = 0, checkpoint_edits_ = 0;
+  bool failing_ = false;   // the last checkpoint failed (logged once)
+  bool log_full_ = false;  // edits are held back
+};
+
+}  // namespace vox::pipeline

@@ -1,0 +1,297 @@
+// The world pipeline's parts, each on its own, with no pipeline around it: the protected
+// regions' table (server/pipeline/protected_regions.hpp), the stored-chunk reader
+// (stored_chunk_reader.hpp), the checkpoints (checkpoints.hpp) and the subscribers
+// (subscribers.hpp).
+#include <gtest/gtest.h>
+
+#include <map>
+#include <stdexcept>
+
+#include "server/pipeline/checkpoints.hpp"
+#include "server/pipeline/protected_regions.hpp"
+#include "server/pipeline/stored_chunk_reader.hpp"
+#include "server/pipeline/subscribers.hpp"
+#include "server/pipeline/world_state.hpp"
+#include "server/store/chunk_codec.hpp"
+
+namespace vox::pipeline {
+namespace {
+
+world::Region region(int32_t x, std::string name) {
+  world::Region r;
+  r.box = {{x, 0, 0}, {x + 8, 8, 8}};
+  r.name = std::move(name);
+  r.owners = {"alice"};
+  return r;
+}
+
+RegionTask add(world::Region r) { return RegionTask{.add = std::move(r)}; }
+RegionTask remove(uint64_t id) { return RegionTask{.remove_id = id}; }
+
+TEST(ProtectedRegions, ChangesAreInForceAtOnceAndPublishedOnlyOnceDurable) {
+  ProtectedRegions regions({});
+  regions.restore({.regions = {}, .next_id = 5});
+  RegionChanges batch;
+  regions.apply(add(region(0, "spawn")), 0, false, batch, "resting");
+  regions.apply(add(region(100, "castle")), 1, false, batch, "resting");
+  regions.seal(batch);
+  ASSERT_EQ(batch.outcomes.size(), 2u);
+  EXPECT_EQ(batch.outcomes[0].second.region.id, 5u);  // ids go on from the store's
+  EXPECT_EQ(batch.outcomes[1].second.region.id, 6u);
+  EXPECT_EQ(regions.in_force().size(), 2u);   // edits of this batch are clipped by them
+  EXPECT_TRUE(regions.published()->empty());  // readers wait for the store
+  const auto write = regions.write_for_append(batch);
+  ASSERT_TRUE(write.has_value());
+  EXPECT_FALSE(write->whole);
+  EXPECT_EQ(write->upsert.size(), 2u);
+  EXPECT_EQ(write->next_id, 7u);
+  EXPECT_TRUE(batch.carried);
+  regions.landed(batch);
+  EXPECT_EQ(regions.published()->size(), 2u);
+
+  RegionChanges removal;
+  regions.apply(remove(5), 0, false, removal, "resting");
+  regions.seal(removal);
+  EXPECT_EQ(regions.in_force().size(), 1u);
+  EXPECT_EQ(regions.write_for_append(removal)->remove, std::vector<uint64_t>{5});
+  regions.landed(removal);
+  ASSERT_EQ(regions.published()->size(), 1u);
+  EXPECT_EQ(regions.published()->front().name, "castle");
+}
+
+TEST(ProtectedRegions, AFailedAppendRestoresTheTableAndTheNextAppendWritesItWhole) {
+  ProtectedRegions regions({});
+  RegionChanges first;
+  regions.apply(add(region(0, "a")), 0, false, first, "resting");
+  regions.seal(first);
+  regions.write_for_append(first);
+  regions.landed(first);
+  RegionChanges second;
+  regions.apply(add(region(50, "b")), 0, false, second, "resting");
+  regions.seal(second);
+  regions.write_for_append(second);
+  regions.undo(second);  // the append failed: it may have landed or not
+  EXPECT_EQ(regions.in_force().size(), 1u);
+  EXPECT_EQ(regions.published()->size(), 1u);
+  EXPECT_TRUE(regions.doubtful());
+  RegionChanges repair;  // no tasks: the table alone
+  const auto write = regions.write_for_append(repair);
+  ASSERT_TRUE(write.has_value());
+  EXPECT_TRUE(write->whole);
+  ASSERT_EQ(write->upsert.size(), 1u);
+  EXPECT_EQ(write->upsert[0].name, "a");
+  EXPECT_EQ(write->next_id, 3u);  // the undone id is never given again
+  regions.landed(repair);
+  EXPECT_FALSE(regions.doubtful());
+  RegionChanges third;
+  regions.apply(add(region(50, "c")), 0, false, third, "resting");
+  EXPECT_EQ(third.outcomes[0].second.region.id, 3u);
+}
+
+TEST(ProtectedRegions, RefusalsSayWhyAndChangeNothing) {
+  using Status = RegionOutcome::Status;
+  ProtectedRegions regions({});
+  RegionChanges batch;
+  regions.apply(add(region(0, "a")), 0, true, batch, "the store rests");
+  regions.apply(remove(42), 1, false, batch, "the store rests");
+  world::Region empty_box = region(0, "bad");
+  empty_box.box.hi = {-1, -1, -1};
+  regions.apply(add(empty_box), 2, false, batch, "the store rests");
+  ASSERT_EQ(batch.outcomes.size(), 3u);
+  EXPECT_EQ(batch.outcomes[0].second.status, Status::kStorageUnavailable);
+  EXPECT_EQ(batch.outcomes[0].second.message, "the store rests");
+  EXPECT_EQ(batch.outcomes[1].second.status, Status::kNotFound);
+  EXPECT_EQ(batch.outcomes[1].second.message, "no protected region 42");
+  EXPECT_EQ(batch.outcomes[2].second.status, Status::kBadValue);
+  EXPECT_FALSE(batch.changed());
+  EXPECT_TRUE(regions.in_force().empty());
+  EXPECT_FALSE(regions.write_for_append(batch).has_value());
+  EXPECT_FALSE(batch.carried);
+}
+
+// A store whose chunks are what the test puts there; reads of a missing chunk throw when
+// the store is "down".
+class ChunkStore final : public store::WorldStore {
+ public:
+  const std::string& name() const override { return name_; }
+  store::WorldInfo info() override { return {}; }
+  void append_edits(std::span<const store::LoggedEdit>, std::span<const SeqRange>,
+                    const store::RegionWrite*) override {}
+  store::RegionTable read_regions() override { return {}; }
+  void write_checkpoint(std::span<const store::ChunkRecord> records, uint64_t seq,
+                        uint64_t trim_through) override {
+    if (fail_checkpoints) throw store::StoreError("test: disk full");
+    for (const store::ChunkRecord& r : records) chunks[r.coord] = r.samples;
+    checkpoint_seq = seq;
+    trimmed_through = trim_through;
+  }
+  std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {
+    ++reads;
+    if (down) throw store::StoreError("test: database unreachable");
+    auto it = chunks.find(c);
+    if (it == chunks.end()) return std::nullopt;
+    return store::ChunkRecord{c, 1, it->second};
+  }
+  void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>&) override {}
+  void for_each_edit(uint64_t, const std::function<bool(const store::LoggedEdit&)>&) override {}
+
+  std::map<world::ChunkCoord, std::vector<uint8_t>> chunks;
+  bool down = false, fail_checkpoints = false;
+  int reads = 0;
+  uint64_t checkpoint_seq = 0, trimmed_through = 0;
+
+ private:
+  std::string name_ = "test store";
+};
+
+world::Chunk rock() { return world::Chunk(world::Sample{1000, 3}); }
+
+TEST(StoredChunkReader, AFailedReadIsNotedUntilAReadWorks) {
+  ChunkStore store;
+  store.chunks[{1, 2, 3}] = store::encode_chunk(rock());
+  store.chunks[{4, 4, 4}] = {1, 2, 3};  // does not decode
+  int before = 0;
+  StoredChunkReader reader(store, std::chrono::milliseconds(500), [&] { ++before; });
+  EXPECT_EQ(reader.read({1, 2, 3}).uniform_value().density, 1000);
+  EXPECT_FALSE(reader.failing());
+  const auto start = StoredChunkReader::Clock::now();
+  for (const world::ChunkCoord c : {world::ChunkCoord{4, 4, 4}, world::ChunkCoord{9, 9, 9}}) {
+    try {
+      reader.read(c);
+      ADD_FAILURE() << "read a chunk that is not there";
+    } catch (const store::StoreError& e) {
+      EXPECT_NE(std::string(e.what()).find("test store: chunk (" + std::to_string(c.x)),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_TRUE(reader.failing());
+  EXPECT_NE(reader.last_error().find("missing from the store"), std::string::npos);
+  EXPECT_TRUE(reader.backing_off(start));
+  EXPECT_GE(reader.retry_at(), start + std::chrono::milliseconds(500));
+  EXPECT_FALSE(reader.backing_off(reader.retry_at()));
+  store.down = true;
+  EXPECT_THROW(reader.read({1, 2, 3}), store::StoreError);
+  EXPECT_NE(reader.last_error().find("database unreachable"), std::string::npos);
+  store.down = false;
+  reader.read({1, 2, 3});
+  EXPECT_FALSE(reader.failing());
+  EXPECT_EQ(before, store.reads);  // every read waited for the appends first
+}
+
+TEST(StoredChunkReader, TryLoadMakesTheChunkResidentAndModifiedOrSaysItFailed) {
+  ChunkStore store;
+  store.chunks[{0, 0, 0}] = store::encode_chunk(rock());
+  StoredChunkReader reader(store, std::chrono::milliseconds(100), nullptr);
+  WorldState state(1);
+  state.read_stored = [&](world::ChunkCoord c) { return reader.read(c); };
+  const auto now = StoredChunkReader::Clock::now();
+  EXPECT_TRUE(reader.try_load(state, {0, 0, 0}, now));
+  ASSERT_NE(state.chunks.find({0, 0, 0}), nullptr);
+  EXPECT_TRUE(state.info.at({0, 0, 0}).modified);
+  EXPECT_EQ(state.modified_count, 1u);
+  EXPECT_FALSE(reader.try_load(state, {5, 0, 0}, now));
+  EXPECT_EQ(state.chunks.find({5, 0, 0}), nullptr);
+  EXPECT_TRUE(reader.failing());
+}
+
+// A chunk an edit changed, resident and unsaved, as the pipeline leaves it.
+void edited_chunk(WorldState& state, Checkpoints& checkpoints, world::ChunkCoord c) {
+  state.chunks.insert(c, rock());
+  state.info[c] = {.modified = true, .unsaved = true};
+  checkpoints.changed(c);
+}
+
+TEST(Checkpoints, AWrittenCheckpointStoresItsChunksAndTrimsTheLog) {
+  ChunkStore store;
+  WorldState state(1);
+  const auto t0 = Checkpoints::Clock::now();
+  Checkpoints checkpoints(store, false, {.interval = std::chrono::seconds(10)}, false, nullptr, t0);
+  EXPECT_FALSE(checkpoints.has_unsaved());
+  EXPECT_FALSE(checkpoints.due(t0 + std::chrono::hours(1)));  // nothing to write
+  edited_chunk(state, checkpoints, {1, 0, 0});
+  edited_chunk(state, checkpoints, {2, 0, 0});
+  checkpoints.logged(5);
+  EXPECT_EQ(checkpoints.log_tail(3), 8u);  // and 3 being appended
+  EXPECT_FALSE(checkpoints.due(t0 + std::chrono::seconds(9)));
+  ASSERT_TRUE(checkpoints.due(t0 + std::chrono::seconds(10)));
+  const auto r = checkpoints.start(state, 5, t0 + std::chrono::seconds(10));
+  ASSERT_TRUE(r.has_value());  // the pipeline's own connection: written at once
+  EXPECT_TRUE(r->ok);
+  EXPECT_EQ(r->coords.size(), 2u);
+  EXPECT_TRUE(state.info.at({1, 0, 0}).checkpointing);  // until the result is taken in
+  checkpoints.finish(state, *r, t0 + std::chrono::seconds(10));
+  EXPECT_FALSE(state.info.at({1, 0, 0}).checkpointing);
+  EXPECT_FALSE(state.info.at({1, 0, 0}).unsaved);
+  EXPECT_EQ(state.stored.size(), 2u);
+  EXPECT_FALSE(checkpoints.has_unsaved());
+  EXPECT_EQ(checkpoints.log_tail(0), 0u);
+  EXPECT_EQ(store.checkpoint_seq, 5u);
+  EXPECT_EQ(store.trimmed_through, 5u);
+  EXPECT_EQ(store.chunks.count({2, 0, 0}), 1u);
+}
+
+TEST(Checkpoints, AFailedCheckpointLeavesItsChunksAndEditsUnsavedAndRestsBeforeTheNext) {
+  ChunkStore store;
+  store.fail_checkpoints = true;
+  WorldState state(1);
+  const auto t0 = Checkpoints::Clock::now();
+  Checkpoints checkpoints(store, false,
+                          {.interval = std::chrono::seconds(1), .retry = std::chrono::seconds(5)},
+                          true, nullptr, t0);
+  edited_chunk(state, checkpoints, {0, 0, 7});
+  checkpoints.logged(2);
+  const auto at = t0 + std::chrono::seconds(1);
+  const auto r = checkpoints.start(state, 2, at);
+  ASSERT_TRUE(r.has_value());
+  EXPECT_FALSE(r->ok);
+  EXPECT_NE(r->error.find("disk full"), std::string::npos);
+  checkpoints.logged(1);  // an edit made durable while it was written
+  checkpoints.finish(state, *r, at);
+  EXPECT_TRUE(state.info.at({0, 0, 7}).unsaved);
+  EXPECT_TRUE(state.stored.empty());
+  EXPECT_EQ(checkpoints.unsaved_chunks(), 1u);
+  EXPECT_EQ(checkpoints.log_tail(0), 3u);                       // nothing of the log was trimmed
+  EXPECT_FALSE(checkpoints.due(at + std::chrono::seconds(4)));  // the store rests
+  EXPECT_TRUE(checkpoints.due(at + std::chrono::seconds(5)));
+  store.fail_checkpoints = false;
+  const auto again = checkpoints.start(state, 3, at + std::chrono::seconds(5));
+  ASSERT_TRUE(again.has_value() && again->ok);
+  EXPECT_EQ(store.trimmed_through, 0u);  // keep_log: the log stays whole
+}
+
+TEST(Checkpoints, TheLogIsFullAtItsBound) {
+  ChunkStore store;
+  Checkpoints checkpoints(store, false, {.max_log_tail = 10}, false, nullptr,
+                          Checkpoints::Clock::now());
+  EXPECT_FALSE(checkpoints.log_full(9));
+  EXPECT_TRUE(checkpoints.log_full(10));
+  EXPECT_FALSE(checkpoints.log_full(0));
+}
+
+TEST(Subscribers, EachHearsWhatWasPublishedUntilItLeaves) {
+  Subscribers subscribers;
+  std::vector<world::ChunkCoord> heard;
+  std::vector<LodKey> heard_lod;
+  const uint64_t a = subscribers.subscribe([&](const std::vector<world::ChunkCoord>& published) {
+    heard.insert(heard.end(), published.begin(), published.end());
+  });
+  const uint64_t b = subscribers.subscribe_lod([&](const LodPublication& p) {
+    heard_lod.insert(heard_lod.end(), p.keys.begin(), p.keys.end());
+  });
+  EXPECT_NE(a, b);
+  subscribers.notify({{1, 2, 3}});
+  subscribers.notify({});  // nothing published: nobody called
+  subscribers.notify_lod({.keys = {LodKey{}}});
+  EXPECT_EQ(heard, (std::vector<world::ChunkCoord>{{1, 2, 3}}));
+  EXPECT_EQ(heard_lod.size(), 1u);
+  subscribers.unsubscribe(a);
+  subscribers.unsubscribe(b);
+  subscribers.notify({{4, 5, 6}});
+  subscribers.notify_lod({.keys = {LodKey{}}});
+  EXPECT_EQ(heard.size(), 1u);
+  EXPECT_EQ(heard_lod.size(), 1u);
+}
+
+}  // namespace
+}  // namespace vox::pipeline
