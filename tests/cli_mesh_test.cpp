@@ -7,9 +7,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "client-cli/commands.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::cli {
 namespace {
@@ -18,15 +20,9 @@ namespace fs = std::filesystem;
 
 class CliMesh : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("voxel_cli_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  void SetUp() override { dir_.emplace("cli_mesh"); }
 
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string path(const std::string& name) const { return (*dir_ / name).string(); }
   void write(const std::string& name, const std::string& text) const {
     std::ofstream(path(name), std::ios::binary) << text;
   }
@@ -38,7 +34,7 @@ class CliMesh : public ::testing::Test {
   // Nothing but the inputs is left in the directory (no partial or temporary output).
   size_t files_in_dir() const {
     return static_cast<size_t>(
-        std::distance(fs::directory_iterator(dir_), fs::directory_iterator()));
+        std::distance(fs::directory_iterator(dir_->path()), fs::directory_iterator()));
   }
 
   // A sphere of radius 3 in a 9^3 text volume, values in [-1, 1] like the seed's files.
@@ -56,7 +52,7 @@ class CliMesh : public ::testing::Test {
     return s.str();
   }
 
-  fs::path dir_;
+  std::optional<test::TempDir> dir_;  // optional: a test may start over in a fresh one
   std::ostringstream out_, err_;
 };
 
@@ -142,8 +138,7 @@ TEST_F(CliMesh, BadInputGivesOneLineErrorAndNoOutputFile) {
   };
   for (const BadCase& c : cases) {
     SCOPED_TRACE(c.name);
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    dir_.emplace("cli_mesh");  // each case starts in an empty directory
     if (!c.content.empty()) write("in.vol", c.content);
     std::vector<std::string> args = {"mesh", path("in.vol"), "--out", path("out.obj")};
     args.insert(args.end(), c.extra.begin(), c.extra.end());

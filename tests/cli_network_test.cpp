@@ -14,6 +14,7 @@
 #include "client/voxel_client.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/server_process.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::cli {
 namespace {
@@ -28,14 +29,6 @@ class CliNetwork : public ::testing::Test {
     delete server_;
     server_ = nullptr;
   }
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("voxel_cli_net_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   std::string server() const { return "127.0.0.1:" + std::to_string(server_->port()); }
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
   int run(std::vector<std::string> args, bool with_server = true) {
@@ -53,7 +46,7 @@ class CliNetwork : public ::testing::Test {
   }
 
   static test::ServerProcess* server_;
-  fs::path dir_;
+  test::TempDir dir_{"cli_net"};  // the test's files
   std::ostringstream out_, err_;
 };
 test::ServerProcess* CliNetwork::server_ = nullptr;

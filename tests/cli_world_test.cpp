@@ -9,6 +9,7 @@
 #include "server/store/chunk_codec.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/edit_replay.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::cli {
 namespace {
@@ -28,8 +29,6 @@ CliRun cli(const std::vector<std::string>& args) {
 class CliWorld : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("voxel_cli_world_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
     auto s = store::open_world_store(dir_.string(), {.seed = 5});
     const world::TerrainGenerator gen(5);
     const float y = gen.height_at(3, 3);
@@ -41,7 +40,6 @@ class CliWorld : public ::testing::Test {
           {i + 1, 1764633600000 + static_cast<int64_t>(i), i == 1 ? "alice" : "", edits_[i]});
     s->append_edits(log);
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Checkpoints the chunks the first two edits changed, through seq 2, as the server would;
   // `corrupt` flips one sample of one of them first.
@@ -63,7 +61,8 @@ class CliWorld : public ::testing::Test {
     store::open_world_store(dir_.string(), {})->write_checkpoint(records, 2, 0);
   }
 
-  fs::path dir_;
+  test::TempDir tmp_{"cli_world"};
+  const fs::path dir_ = tmp_ / "world";  // the store makes it
   std::vector<world::Edit> edits_;
 };
 

@@ -17,18 +17,12 @@
 
 #include "server/store/world_store.hpp"
 #include "tests/session_test_util.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::test {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path temp_world(const std::string& tag) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("voxel_durable_" + std::to_string(::getpid()) + "_" + tag);
-  fs::remove_all(dir);
-  return dir;
-}
 
 wire::Envelope edit_message(uint64_t request, int kind, float x, float y, float z) {
   wire::Envelope m;
@@ -117,7 +111,8 @@ std::map<client::ChunkKey, std::vector<uint8_t>> fresh_world_after(
 }
 
 TEST(Durability, AcceptedEditsSurviveKillNineAndTheWorldIsByteIdentical) {
-  const fs::path world = temp_world("kill9");
+  const TempDir tmp("durable_kill9");
+  const fs::path world = tmp / "world";
   const auto edits = some_edits();
   {
     ServerProcess s({"--world", world.string()});
@@ -134,11 +129,11 @@ TEST(Durability, AcceptedEditsSurviveKillNineAndTheWorldIsByteIdentical) {
   // And the untouched world differs from both: the edits were really there.
   ServerProcess untouched({"--in-memory"});
   EXPECT_FALSE(world_seen(untouched) == expected);
-  fs::remove_all(world);
 }
 
 TEST(Durability, ACleanStopKeepsEveryEditAndExitsZero) {
-  const fs::path world = temp_world("sigterm");
+  const TempDir tmp("durable_sigterm");
+  const fs::path world = tmp / "world";
   const auto edits = some_edits();
   {
     ServerProcess s({"--world", world.string()});
@@ -154,13 +149,13 @@ TEST(Durability, ACleanStopKeepsEveryEditAndExitsZero) {
   }
   ServerProcess s({"--world", world.string()});
   EXPECT_TRUE(world_seen(s) == fresh_world_after(edits));
-  fs::remove_all(world);
 }
 
 // Checkpoints every 50 ms while the edits come (each trims the log it includes): the world
 // after kill -9 is the checkpoints plus the rest of the log, byte-identical all the same.
 TEST(Durability, KillNineBetweenCheckpointsLosesNothingTheLogNoLongerHolds) {
-  const fs::path world = temp_world("checkpoints");
+  const TempDir tmp("durable_checkpoints");
+  const fs::path world = tmp / "world";
   const auto edits = some_edits();
   {
     ServerProcess s({"--world", world.string(), "--checkpoint-interval", "0.05"});
@@ -183,11 +178,11 @@ TEST(Durability, KillNineBetweenCheckpointsLosesNothingTheLogNoLongerHolds) {
     restarted = world_seen(s);
   }
   EXPECT_TRUE(restarted == fresh_world_after(edits));
-  fs::remove_all(world);
 }
 
 TEST(Durability, AWorldStartedWithAnotherSeedIsRefusedNamingBoth) {
-  const fs::path world = temp_world("seed");
+  const TempDir tmp("durable_seed");
+  const fs::path world = tmp / "world";
   { ServerProcess s({"--world", world.string(), "--seed", "7"}); }
   const fs::path out = world.string() + ".out";
   const std::string cmd = std::string(VOXELD_PATH) + " --port 0 --world " + world.string() +
@@ -202,8 +197,6 @@ TEST(Durability, AWorldStartedWithAnotherSeedIsRefusedNamingBoth) {
   ServerProcess s({"--world", world.string()});
   auto c = connect_to(s);
   EXPECT_EQ(c->handshake("p", 5s * kSlow).world_seed(), 7u);
-  fs::remove_all(world);
-  fs::remove(out);
 }
 
 // An explosion or a brush whose centre is unique to (client, n), so the log can be searched
@@ -267,7 +260,8 @@ wire::Envelope to_message(const world::Edit& edit, uint64_t request) {
 // be in the log, and the world after the last restart must be the log replayed in order
 // onto a fresh world.
 TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
-  const fs::path world = temp_world("crash");
+  const TempDir tmp("durable_crash");
+  const fs::path world = tmp / "world";
   const float y = surface_y(32, 28);
   std::set<std::tuple<float, float, float>> acknowledged;
   std::mutex mutex;
@@ -343,7 +337,6 @@ TEST(Durability, RandomKillNinesWhileThreeClientsEditLoseNoAcceptedEdit) {
     replayed = world_seen(fresh);
   }
   EXPECT_TRUE(restarted == replayed) << logged.size() << " logged edits";
-  fs::remove_all(world);
 }
 
 }  // namespace

@@ -6,7 +6,6 @@
 // player's explosion from outside one is clipped and a stamp inside it refused; regions
 // survive a restart; a player's edit budget is shared by its connections.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
@@ -19,6 +18,7 @@
 #include "server/store/world_store.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/server_process.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox {
 namespace {
@@ -36,13 +36,9 @@ int64_t unix_now() {
 class Identity : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("voxel_identity_" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     key_ = auth::generate_key_pair();
     std::ofstream(dir_ / "game.pub") << auth::key_to_text(key_.public_key);
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   std::vector<std::string> server_args() const {
     return {"--auth-public-key", (dir_ / "game.pub").string(), "--keep-log", "--world",
@@ -122,7 +118,7 @@ class Identity : public ::testing::Test {
     }
   }
 
-  fs::path dir_;
+  test::TempDir dir_{"identity"};  // the key file and the world
   auth::KeyPair key_;
 };
 

@@ -20,6 +20,7 @@
 #include "loadtest/sweep.hpp"
 #include "server/auth/player_token.hpp"
 #include "tests/server_process.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace {
 
@@ -37,11 +38,8 @@ struct TesterRun {
   std::string json;
 };
 TesterRun run_tester(const vox::test::ServerProcess& server, const std::string& args) {
-  static int counter = 0;
-  const std::string json =
-      (std::filesystem::temp_directory_path() /
-       ("loadtest_" + std::to_string(::getpid()) + "_" + std::to_string(counter++) + ".json"))
-          .string();
+  const vox::test::TempDir tmp("loadtest");
+  const std::string json = (tmp / "run.json").string();
   const std::string cmd = std::string(VOXEL_LOADTEST_PATH) +
                           " --server 127.0.0.1:" + std::to_string(server.port()) + " " + args +
                           " --json " + json + " > /dev/null 2>&1";
@@ -50,7 +48,6 @@ TesterRun run_tester(const vox::test::ServerProcess& server, const std::string& 
   if (WIFEXITED(status)) run.exit_code = WEXITSTATUS(status);
   std::ifstream in(json);
   run.json.assign(std::istreambuf_iterator<char>(in), {});
-  std::filesystem::remove(json);
   return run;
 }
 
@@ -277,8 +274,8 @@ TEST(Sweep, RunsEachCountAndExitsZeroOnlyWhenOneMetTheLimit) {
   const std::string base = std::string(VOXEL_LOADTEST_PATH) +
                            " --server 127.0.0.1:" + std::to_string(server.port()) +
                            " --duration 1 --ramp 0.2 --view-radius 2 --sweep 2,3";
-  const std::string out =
-      (std::filesystem::temp_directory_path() / ("sweep_" + std::to_string(::getpid()))).string();
+  const vox::test::TempDir tmp("sweep");
+  const std::string out = (tmp / "sweep.out").string();
   int status = std::system(
       (base + " --sweep-limit-ms " + std::to_string(kSweepLimitMs) + " > " + out + " 2>/dev/null")
           .c_str());
@@ -286,7 +283,6 @@ TEST(Sweep, RunsEachCountAndExitsZeroOnlyWhenOneMetTheLimit) {
   EXPECT_EQ(WEXITSTATUS(status), 0);
   std::ifstream in(out);
   const std::string text((std::istreambuf_iterator<char>(in)), {});
-  std::filesystem::remove(out);
   EXPECT_NE(text.find("players 2: "), std::string::npos) << text;
   EXPECT_NE(text.find("players 3: "), std::string::npos) << text;
   EXPECT_NE(text.find("largest player count"), std::string::npos) << text;
@@ -376,8 +372,8 @@ namespace {
 TEST(PlayerTokens, VerifyWithThePublicKeyAndNameDistinctPlayers) {
   namespace auth = vox::auth;
   const auth::KeyPair keys = auth::generate_key_pair();
-  const std::string path =
-      (std::filesystem::temp_directory_path() / ("lt_key_" + std::to_string(::getpid()))).string();
+  const vox::test::TempDir tmp("lt_key");
+  const std::string path = (tmp / "key").string();
   std::ofstream(path) << auth::kPrivateKeyComment << auth::key_to_text(keys.seed) << "\n";
   const auth::SecretSeed seed = vox::auth::read_private_key_file(path);
   std::filesystem::remove(path);

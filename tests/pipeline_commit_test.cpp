@@ -4,7 +4,6 @@
 // every batch applied on top of it. The stores are real (SQLite, a PostgreSQL server the
 // test starts); a gate in front of append_edits holds an append in flight.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <climits>
@@ -18,6 +17,7 @@
 #include "server/store/world_store.hpp"
 #include "tests/pipeline_test_util.hpp"
 #include "tests/postgres_server.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -102,13 +102,6 @@ class GatedStore final : public store::WorldStore {
 using test::eventually;
 using test::samples_around;
 
-std::filesystem::path temp_world(const std::string& tag) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("voxel_pcommit_" + std::to_string(::getpid()) + "_" + tag);
-  std::filesystem::remove_all(dir);
-  return dir;
-}
-
 std::vector<uint64_t> logged_seqs(store::WorldStore& s) {
   std::vector<uint64_t> seqs;
   s.for_each_edit(0, [&](const store::LoggedEdit& e) {
@@ -121,7 +114,8 @@ std::vector<uint64_t> logged_seqs(store::WorldStore& s) {
 // The appender's thread lands appends in order, runs those still queued before it ends,
 // and does not try one queued behind a failed one.
 TEST(StoreAppender, AppendsLandInOrderAndNoneIsDroppedAtTheEnd) {
-  const auto dir = temp_world("appender");
+  const test::TempDir tmp("pcommit_appender");
+  const auto dir = tmp / "world";
   auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
   GatedStore store(*sqlite);
   std::atomic<int> landed{0};
@@ -149,16 +143,15 @@ TEST(StoreAppender, AppendsLandInOrderAndNoneIsDroppedAtTheEnd) {
           .error,
       "not tried: an earlier append failed");
   EXPECT_EQ(logged_seqs(*sqlite).size(), 2u);
-  std::filesystem::remove_all(dir);
 }
 
 // A real SQLite world behind a gate, for the appender's grouping tests.
 struct GatedWorld {
   explicit GatedWorld(const std::string& tag)
-      : dir(temp_world(tag)),
+      : tmp("pcommit_" + tag),
+        dir(tmp / "world"),
         sqlite(store::open_world_store(dir.string(), {.seed = 3})),
         store(*sqlite) {}
-  ~GatedWorld() { std::filesystem::remove_all(dir); }
   // An edit to log as sequence number `seq`.
   static store::LoggedEdit edit(uint64_t seq) {
     return {seq, 0, "", world::Explosion{{1, 2, 3}, 4, 1}};
@@ -171,6 +164,7 @@ struct GatedWorld {
     return first;
   }
 
+  test::TempDir tmp;  // first: removed after the store closed
   std::filesystem::path dir;
   std::unique_ptr<store::WorldStore> sqlite;
   GatedStore store;
@@ -227,7 +221,8 @@ TEST(StoreAppender, AGroupedTransactionThatFailsFailsEveryAppendInItAndTheOnesBe
 }
 
 TEST(PipelinedCommit, TheNextBatchAppliesWhileAnAppendIsInFlightAndAnswersKeepTheirOrder) {
-  const auto dir = temp_world("order");
+  const test::TempDir tmp("pcommit_order");
+  const auto dir = tmp / "world";
   auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
   GatedStore store(*sqlite);
   WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = &store});
@@ -268,11 +263,11 @@ TEST(PipelinedCommit, TheNextBatchAppliesWhileAnAppendIsInFlightAndAnswersKeepTh
   EXPECT_GT(p.stats().meshes_published, published);
   EXPECT_EQ(logged_seqs(*sqlite).size(), 2u);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 TEST(PipelinedCommit, ALoadBesideAnEditInFlightPublishesOnlyOnceTheEditIsDurable) {
-  const auto dir = temp_world("load");
+  const test::TempDir tmp("pcommit_load");
+  const auto dir = tmp / "world";
   auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
   GatedStore store(*sqlite);
   WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2, .store = &store});
@@ -291,7 +286,6 @@ TEST(PipelinedCommit, ALoadBesideAnEditInFlightPublishesOnlyOnceTheEditIsDurable
   ASSERT_TRUE(edit.get().accepted);
   ASSERT_EQ(load.wait_for(10s), std::future_status::ready);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 TEST(PipelinedCommit, AFailedAppendUndoesTheBatchesAppliedOnTopOfIt) {
@@ -387,7 +381,8 @@ TEST(PipelinedCommit, AFailedCheckpointsChunksStayUnsavedWhenABatchOnThemIsUndon
 // pending: the failed batch was undone under it, then the later batch's own undo put the
 // refused edit back into the world.
 TEST(PipelinedCommit, AFailedAppendUnderAnOverlappingBatchLeavesTheWorldAsItWas) {
-  const auto dir = temp_world("overlap");
+  const test::TempDir tmp("pcommit_overlap");
+  const auto dir = tmp / "world";
   auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
   GatedStore store(*sqlite);
   WorldPipeline p(PipelineConfig{
@@ -412,14 +407,14 @@ TEST(PipelinedCommit, AFailedAppendUnderAnOverlappingBatchLeavesTheWorldAsItWas)
   }
   EXPECT_TRUE(p.submit(world::Explosion{{10, float(y), 10}, 5, 1}).get().accepted);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // A flood of 7,000 edits/s outran the checkpoints and grew the log to 80,791 edits, which
 // a restart replayed for 8.9 s: past its bound, the log takes no more edits (SERVER_BUSY)
 // until the checkpoint in progress trims it.
 TEST(PipelinedCommit, EditsAreHeldBackWhileTheLogTailIsAtItsBound) {
-  const auto dir = temp_world("tail");
+  const test::TempDir tmp("pcommit_tail");
+  const auto dir = tmp / "world";
   auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
   auto second = store::open_world_store(dir.string(), {.seed = 3, .record_start = false});
   GatedStore checkpoints(*second, /*gate_checkpoints=*/true);
@@ -444,14 +439,14 @@ TEST(PipelinedCommit, EditsAreHeldBackWhileTheLogTailIsAtItsBound) {
   eventually([&] { return p.stats().checkpoints > 0; }, 5s);
   EXPECT_TRUE(explode().accepted) << "the log stayed full after the checkpoint";
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // A region change whose append failed yet landed (the connection dropped at COMMIT) was
 // answered STORAGE_UNAVAILABLE: once the store works, the pipeline writes the regions as
 // they are by itself, with no edit to carry it, so a restart does not bring it back.
 TEST(PipelinedCommit, ARegionChangeInDoubtIsWrittenBackByItselfOnceTheStoreWorks) {
-  const auto dir = temp_world("region_doubt");
+  const test::TempDir tmp("pcommit_region_doubt");
+  const auto dir = tmp / "world";
   auto sqlite = store::open_world_store(dir.string(), {.seed = 3});
   GatedStore store(*sqlite);
   WorldPipeline p(PipelineConfig{.seed = 3,
@@ -480,7 +475,6 @@ TEST(PipelinedCommit, ARegionChangeInDoubtIsWrittenBackByItselfOnceTheStoreWorks
   ASSERT_EQ(added.status, RegionOutcome::Status::kOk);
   EXPECT_GE(added.region.id, 2u);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

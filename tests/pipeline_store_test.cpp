@@ -4,7 +4,6 @@
 // store works. A real PostgreSQL server is stopped and started under it.
 #include <gtest/gtest.h>
 #include <sqlite3.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <future>
@@ -17,6 +16,7 @@
 #include "server/store/world_store.hpp"
 #include "tests/pipeline_test_util.hpp"
 #include "tests/postgres_server.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -65,13 +65,6 @@ TEST(PipelineStore, EditsTheStoreCouldNotWriteAreUndoneAndRefusedUntilItIsBack) 
   EXPECT_LT(seqs[0], seqs[1]);
 }
 
-std::filesystem::path temp_world(const std::string& tag) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("voxel_pstore_" + std::to_string(::getpid()) + "_" + tag);
-  std::filesystem::remove_all(dir);
-  return dir;
-}
-
 // Edits over chunk borders, a smooth among them (it reads its neighbours' samples).
 std::vector<world::Edit> border_edits(int y) {
   const float fy = static_cast<float>(y);
@@ -83,7 +76,8 @@ std::vector<world::Edit> border_edits(int y) {
 // A checkpointed chunk may be evicted like any other; read back, it is what it was, and
 // edits go on from it exactly as on a world that never evicted it.
 TEST(PipelineStore, CheckpointedChunksAreEvictedAndReadBackUnchanged) {
-  const auto dir = temp_world("evict");
+  const test::TempDir tmp("pstore_evict");
+  const auto dir = tmp / "world";
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   auto cp = store::open_world_store(dir.string(), {.seed = 3, .record_start = false});
   WorldPipeline p(PipelineConfig{.seed = 3,
@@ -125,13 +119,13 @@ TEST(PipelineStore, CheckpointedChunksAreEvictedAndReadBackUnchanged) {
   ASSERT_TRUE(memory.submit(next).get().accepted);
   EXPECT_EQ(samples_around(p, 24, y, 24, 14), samples_around(memory, 24, y, 24, 14));
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // A level-of-detail chunk over modified chunks that were checkpointed and evicted reads
 // them back from the store: it shows the edits (issue 16), as a pipeline that kept them.
 TEST(PipelineStore, ACoarseChunkOverEvictedModifiedChunksShowsTheirEdits) {
-  const auto dir = temp_world("lod_evict");
+  const test::TempDir tmp("pstore_lod_evict");
+  const auto dir = tmp / "world";
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   WorldPipeline p(PipelineConfig{.seed = 3,
                                  .threads = 2,
@@ -158,13 +152,13 @@ TEST(PipelineStore, ACoarseChunkOverEvictedModifiedChunksShowsTheirEdits) {
   EXPECT_NE(plain.lod_meshes().get(key)->encoding, p.lod_meshes().get(key)->encoding)
       << "the edits do not show at level 1";
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // A coarse chunk whose footprint holds more evicted modified chunks than one pass may read
 // back (32) still gets its mesh: each pass reads some (it was put off for ever before).
 TEST(PipelineStore, ACoarseChunkOverMoreEvictedChunksThanOnePassReadsIsStillMeshed) {
-  const auto dir = temp_world("lod_many");
+  const test::TempDir tmp("pstore_lod_many");
+  const auto dir = tmp / "world";
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   WorldPipeline p(PipelineConfig{.seed = 3,
                                  .threads = 2,
@@ -192,7 +186,6 @@ TEST(PipelineStore, ACoarseChunkOverMoreEvictedChunksThanOnePassReadsIsStillMesh
       << "the coarse chunk was never meshed";
   EXPECT_EQ(p.lod_meshes().get(key)->encoding, memory.lod_meshes().get(key)->encoding);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // A checkpoint the store refuses (here the last one, at stop) loses nothing: the log still
@@ -229,7 +222,8 @@ TEST(PipelineStore, ACheckpointTheStoreRefusedLosesNothing) {
 // Edits that changed no chunk (an explosion in the air) are in the log all the same; a
 // checkpoint trims them, or a client could grow the log (and the replay) without end.
 TEST(PipelineStore, EditsThatChangedNothingAreTrimmedFromTheLog) {
-  const auto dir = temp_world("noop");
+  const test::TempDir tmp("pstore_noop");
+  const auto dir = tmp / "world";
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   const int y = static_cast<int>(world::TerrainGenerator(3).height_at(30, 30));
   {
@@ -244,7 +238,6 @@ TEST(PipelineStore, EditsThatChangedNothingAreTrimmedFromTheLog) {
   const store::WorldInfo info = store->info();
   EXPECT_EQ(info.checkpoint_seq, 20u);
   EXPECT_EQ(info.logged_edits, 0u);
-  std::filesystem::remove_all(dir);
 }
 
 void run_sql(const std::filesystem::path& dir, const char* query) {
@@ -271,7 +264,8 @@ int checkpointed_explosion(const std::filesystem::path& dir) {
 // tried again by itself once the store works (not only when something else wakes the
 // pipeline).
 TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
-  const auto dir = temp_world("unreadable");
+  const test::TempDir tmp("pstore_unreadable");
+  const auto dir = tmp / "world";
   const int y = checkpointed_explosion(dir);
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   WorldPipeline p(PipelineConfig{
@@ -283,13 +277,13 @@ TEST(PipelineStore, ALoadWaitingForAnUnreadableStoredChunkIsRetriedByItself) {
   EXPECT_EQ(loaded.wait_for(10s),
             std::future_status::ready);  // retried every 50 ms; slack for TSan
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // A damaged checkpointed chunk: an edit that needs it is refused, saying so (not "disk
 // full"), and the world is not touched; the server goes on.
 TEST(PipelineStore, AnEditNeedingADamagedStoredChunkIsRefusedSayingSo) {
-  const auto dir = temp_world("damaged");
+  const test::TempDir tmp("pstore_damaged");
+  const auto dir = tmp / "world";
   const int y = checkpointed_explosion(dir);
   run_sql(dir, "UPDATE chunks SET samples = x'0102'");
   auto store = store::open_world_store(dir.string(), {.seed = 3});
@@ -301,7 +295,6 @@ TEST(PipelineStore, AnEditNeedingADamagedStoredChunkIsRefusedSayingSo) {
   // Elsewhere the world goes on.
   EXPECT_TRUE(p.submit(world::Explosion{{900, float(y), 900}, 3, 1}).get().accepted);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // Edits keep coming while the writer encodes a checkpoint; they change chunks it has not
@@ -309,7 +302,8 @@ TEST(PipelineStore, AnEditNeedingADamagedStoredChunkIsRefusedSayingSo) {
 // is read back the moment it landed and compared with a world that applied exactly the
 // edits up to that number.
 TEST(PipelineStore, EditsWhileACheckpointIsWrittenDoNotReachIt) {
-  const auto dir = temp_world("cow");
+  const test::TempDir tmp("pstore_cow");
+  const auto dir = tmp / "world";
   auto store = store::open_world_store(dir.string(), {.seed = 3});
   auto cp = store::open_world_store(dir.string(), {.seed = 3, .record_start = false});
   using Snapshot = std::map<world::ChunkCoord, world::Chunk>;
@@ -366,7 +360,6 @@ TEST(PipelineStore, EditsWhileACheckpointIsWrittenDoNotReachIt) {
     });
     EXPECT_EQ(differ, 0u) << "the checkpoint through edit " << seq << " holds later changes";
   }
-  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

@@ -12,27 +12,26 @@
 #include <stdexcept>
 #include <string>
 
+#include "tests/temp_dir.hpp"
+
 namespace vox::test {
 
 class PostgresServer {
  public:
-  PostgresServer() {
-    bin_ = find_bindir();
-    dir_ = std::filesystem::temp_directory_path() / ("voxel_pg_" + std::to_string(::getpid()) +
-                                                     "_" + std::to_string(std::random_device{}()));
-    std::filesystem::create_directories(dir_);
+  PostgresServer() : bin_(find_bindir()) {
     port_ = 20000 + static_cast<int>(std::random_device{}() % 40000);
     as_root_ = ::geteuid() == 0;
-    if (as_root_) sh("chown postgres:postgres " + dir_.string());
+    if (as_root_) {
+      // mkdtemp makes it 0700: root must still reach the socket once postgres owns it.
+      std::filesystem::permissions(dir_, std::filesystem::perms::others_exec,
+                                   std::filesystem::perm_options::add);
+      sh("chown postgres:postgres " + dir_.string());
+    }
     run_as_pg(bin_ + "/initdb -A trust -U postgres -E UTF8 --no-sync -D " + data() + " > " +
               (dir_ / "initdb.log").string() + " 2>&1");
     start();
   }
-  ~PostgresServer() {
-    stop();
-    std::error_code ec;
-    std::filesystem::remove_all(dir_, ec);
-  }
+  ~PostgresServer() { stop(); }  // then dir_ goes, with the server's files
   PostgresServer(const PostgresServer&) = delete;
   PostgresServer& operator=(const PostgresServer&) = delete;
 
@@ -86,8 +85,8 @@ class PostgresServer {
     if (std::system(cmd.c_str()) != 0 && check) throw std::runtime_error("failed: " + cmd);
   }
 
-  std::string bin_;
-  std::filesystem::path dir_;
+  std::string bin_;  // before dir_: no directory is made when the binaries are missing
+  TempDir dir_{"pg"};
   int port_ = 0;
   bool as_root_ = false;
   bool running_ = false;

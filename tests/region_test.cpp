@@ -6,7 +6,6 @@
 #include "server/world/region.hpp"
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <future>
@@ -16,6 +15,7 @@
 #include "server/world/edit_replay.hpp"
 #include "tests/pipeline_test_util.hpp"
 #include "tests/postgres_server.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -203,18 +203,12 @@ TEST(ProtectedRegion, EveryEditKindIsClippedAndAStampWhollyInsideIsRefused) {
   EXPECT_EQ(add(w.p, region({{0, 0, 0}, {-1, 0, 0}}, 3)).status, RegionOutcome::Status::kBadValue);
 }
 
-std::filesystem::path temp_world(const std::string& tag) {
-  const auto dir = std::filesystem::temp_directory_path() /
-                   ("voxel_region_" + std::to_string(::getpid()) + "_" + tag);
-  std::filesystem::remove_all(dir);
-  return dir;
-}
-
 // The regions are in the store; the log keeps what each edit was clipped by, so the
 // edit replays bit for bit on a world that no longer has (or never had) the region; after
 // a restart the region still holds.
 TEST(ProtectedRegion, RegionsAndClippedEditsSurviveARestartAndReplayBitForBit) {
-  const auto dir = temp_world("restart");
+  const test::TempDir tmp("region_restart");
+  const auto dir = tmp / "world";
   const int y = static_cast<int>(world::TerrainGenerator(3).height_at(32, 32));
   const VoxelBox box{{24, y - 10, 24}, {40, y + 6, 40}};
   const world::Edit boom = world::Explosion{{22, static_cast<float>(y), 22}, 9, 3};
@@ -268,7 +262,6 @@ TEST(ProtectedRegion, RegionsAndClippedEditsSurviveARestartAndReplayBitForBit) {
   EXPECT_FALSE(again.clipped_by.empty());
   EXPECT_EQ(samples_in(p, box), inside);
   p.stop();
-  std::filesystem::remove_all(dir);
 }
 
 // With no checkpoint since (the store went away at stop, as in a crash), the next start

@@ -3,7 +3,6 @@
 // data, and each kind of bad file refused with a one-line message before anything large
 // is allocated.
 #include <gtest/gtest.h>
-#include <unistd.h>
 #include <zlib.h>
 
 #include <bit>
@@ -20,6 +19,7 @@
 #include "client-cli/nrrd_file.hpp"
 #include "client-cli/volume_file.hpp"
 #include "tests/alloc_counter.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::cli {
 namespace {
@@ -176,13 +176,6 @@ std::string message_of(const std::function<void()>& f) {
 
 class VolumeFormats : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("voxel_formats_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
   std::string write(const std::string& name, const Bytes& bytes) const {
     const std::string p = (dir_ / name).string();
     std::ofstream(p, std::ios::binary)
@@ -193,7 +186,7 @@ class VolumeFormats : public ::testing::Test {
   std::string write(const std::string& name, const std::string& text) const {
     return write(name, Bytes(text.begin(), text.end()));
   }
-  fs::path dir_;
+  test::TempDir dir_{"formats"};
 };
 
 void expect_test_values(const LoadedVolume& v, SampleType t, double slope = 1, double inter = 0) {

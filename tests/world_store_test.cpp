@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <random>
 #include <thread>
 
@@ -20,19 +21,12 @@
 #include "server/store/sqlite_store.hpp"
 #include "tests/postgres_server.hpp"
 #include "tests/store_test_util.hpp"
+#include "tests/temp_dir.hpp"
 
 namespace vox::store {
 namespace {
 
 namespace fs = std::filesystem;
-
-fs::path temp_world(const std::string& tag) {
-  static int counter = 0;
-  const fs::path dir = fs::temp_directory_path() / ("voxel_store_" + std::to_string(::getpid()) +
-                                                    "_" + tag + std::to_string(counter++));
-  fs::remove_all(dir);
-  return dir;
-}
 
 // Bit-for-bit equality of two edits (encodings compare every float exactly).
 bool same(const world::Edit& a, const world::Edit& b) { return encode_edit(a) == encode_edit(b); }
@@ -74,14 +68,15 @@ class WorldStoreTest : public ::testing::TestWithParam<std::string> {
   static void SetUpTestSuite() {}
   static void TearDownTestSuite() { postgres_.reset(); }
 
-  // Where a fresh world lives for this backend.
+  // Where a fresh world lives for this backend (SQLite: a directory not made yet).
   std::string fresh_world() {
     static int n = 0;
-    if (GetParam() == "sqlite") return temp_world("t").string();
+    if (GetParam() == "sqlite") return (tmp_.emplace("store") / "world").string();
     if (!postgres_) postgres_ = std::make_unique<test::PostgresServer>();
     return postgres_->create_database("world" + std::to_string(n++));
   }
   static std::unique_ptr<test::PostgresServer> postgres_;
+  std::optional<test::TempDir> tmp_;  // SQLite's world, removed after the test
 };
 std::unique_ptr<test::PostgresServer> WorldStoreTest::postgres_;
 
@@ -373,14 +368,16 @@ void expect_refused(const fs::path& dir, const std::string& what) {
 }
 
 TEST(SqliteStore, AFileThatIsNotADatabaseIsRefusedAndLeftAlone) {
-  const fs::path dir = temp_world("garbage");
+  const test::TempDir tmp("store_garbage");
+  const fs::path dir = tmp / "world";
   fs::create_directories(dir);
   std::ofstream(dir / kSqliteFileName) << std::string(5000, 'x');
   expect_refused(dir, "a garbage file");
 }
 
 TEST(SqliteStore, ATruncatedFileIsRefusedAndLeftAlone) {
-  const fs::path dir = temp_world("trunc");
+  const test::TempDir tmp("store_trunc");
+  const fs::path dir = tmp / "world";
   {
     auto s = open_world_store(dir.string(), {.seed = 1});
     std::vector<ChunkRecord> chunks;
@@ -395,7 +392,8 @@ TEST(SqliteStore, ATruncatedFileIsRefusedAndLeftAlone) {
 }
 
 TEST(SqliteStore, ANewerSchemaIsRefusedAndLeftAlone) {
-  const fs::path dir = temp_world("newer");
+  const test::TempDir tmp("store_newer");
+  const fs::path dir = tmp / "world";
   open_world_store(dir.string(), {.seed = 1});
   sqlite3* db = nullptr;
   ASSERT_EQ(sqlite3_open((dir / kSqliteFileName).c_str(), &db), SQLITE_OK);
@@ -428,7 +426,8 @@ void sql(const fs::path& dir, const char* query) {
 // A checkpoint killed after some of its short transactions: its rows (above the recorded
 // checkpoint) are invisible to readers and deleted when a writer opens the world.
 TEST(SqliteStore, AnUnfinishedCheckpointIsInvisibleAndDroppedWhenAWriterOpens) {
-  const fs::path dir = temp_world("unfinished");
+  const test::TempDir tmp("store_unfinished");
+  const fs::path dir = tmp / "world";
   const world::Chunk a = full_chunk(1), b = full_chunk(2);
   {
     auto s = open_world_store(dir.string(), {.seed = 1});
@@ -472,7 +471,8 @@ TEST(SqliteStore, AnUnfinishedCheckpointIsInvisibleAndDroppedWhenAWriterOpens) {
 // checkpoint of many small parts on another: each part gets SQLite's write lock between
 // two appends (the busy handler tries every 250 us), so the checkpoint is not starved.
 TEST(SqliteStore, ACheckpointIsNotStarvedByBackToBackAppends) {
-  const fs::path dir = temp_world("starved");
+  const test::TempDir tmp("store_starved");
+  const fs::path dir = tmp / "world";
   auto appender = open_world_store(dir.string(), {.seed = 1});
   auto writer = open_world_store(dir.string(), {.seed = 1, .record_start = false});
   std::atomic<bool> stop{false};
@@ -503,7 +503,8 @@ TEST(SqliteStore, ACheckpointIsNotStarvedByBackToBackAppends) {
 // A world of schema 1 (one row per chunk, yesterday's voxeld) is migrated by a writer and
 // keeps its chunks; readers read it as it is.
 TEST(SqliteStore, ASchemaOneWorldIsMigratedAndKeepsItsChunks) {
-  const fs::path dir = temp_world("schema1");
+  const test::TempDir tmp("store_schema1");
+  const fs::path dir = tmp / "world";
   fs::create_directories(dir);
   sql(dir,
       "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);"
@@ -518,7 +519,8 @@ TEST(SqliteStore, ASchemaOneWorldIsMigratedAndKeepsItsChunks) {
 }
 
 TEST(SqliteStore, ReadOnlyOpenOfAMissingWorldCreatesNothing) {
-  const fs::path dir = temp_world("missing");
+  const test::TempDir tmp("store_missing");
+  const fs::path dir = tmp / "world";
   EXPECT_THROW(open_world_store(dir.string(), {.read_only = true}), StoreError);
   EXPECT_FALSE(fs::exists(dir));
 }
