@@ -220,6 +220,98 @@ TEST(StoreAppender, AGroupedTransactionThatFailsFailsEveryAppendInItAndTheOnesBe
   EXPECT_EQ(logged_seqs(*w.sqlite), (std::vector<uint64_t>{1}));
 }
 
+// The commit part alone (server/pipeline/durable_commit.hpp), with no pipeline around it:
+// batches numbered in order, answered oldest first once durable, never before.
+struct CommitLog {
+  std::vector<std::pair<int, bool>> answered;  // batch tag, durable
+  std::vector<int> undone;
+  int committed = 0;
+  DurableCommit::Hooks hooks() {
+    return {
+        .answer = [this](EditBatch& b, bool durable) { answered.emplace_back(tag(b), durable); },
+        .undo = [this](EditBatch& b) { undone.push_back(tag(b)); },
+        .committed = [this](const AppendOutcome&, double) { ++committed; }};
+  }
+  static int tag(const EditBatch& b) { return static_cast<int>(b.results.size()); }
+};
+
+// A batch of `edits` accepted edits, tagged by its number of results.
+EditBatch batch_of(int tag, std::vector<EditTask>& tasks, size_t edits) {
+  EditBatch b;
+  b.results.resize(static_cast<size_t>(tag));
+  for (size_t i = 0; i < edits; ++i) {
+    b.accepted.push_back(&tasks.at(i));
+    b.keep.emplace_back();
+  }
+  return b;
+}
+
+TEST(DurableCommit, BatchesAreNumberedInOrderAndAnsweredOnlyOnceDurable) {
+  GatedWorld w("commit_order");
+  std::vector<EditTask> tasks(3);
+  for (EditTask& t : tasks) t.edit = world::Explosion{{1, 2, 3}, 4, 1};
+  CommitLog log;
+  std::atomic<int> landed{0};
+  {
+    DurableCommit commit(
+        w.store, std::chrono::milliseconds(100), [&] { ++landed; }, log.hooks());
+    commit.restore(10);
+    w.store.close();
+    for (int tag = 1; tag <= 2; ++tag) {
+      EditBatch b = batch_of(tag, tasks, tag == 1 ? 1 : 3);
+      commit.start(b, std::nullopt);
+      commit.add(std::move(b));
+    }
+    EXPECT_EQ(commit.size(), 2u);
+    EXPECT_EQ(commit.edits_in_flight(), 4u);
+    EXPECT_EQ(commit.last_seq(), 13u);
+    ASSERT_TRUE(w.store.wait_entered(1));
+    commit.finish(SIZE_MAX);  // nothing landed: nothing answered, nothing waited for
+    EXPECT_TRUE(log.answered.empty());
+    EXPECT_FALSE(commit.oldest_landed());
+    w.store.open();
+    commit.finish(0);  // waits for both
+    EXPECT_TRUE(commit.empty());
+  }
+  EXPECT_EQ(log.answered, (std::vector<std::pair<int, bool>>{{1, true}, {2, true}}));
+  EXPECT_TRUE(log.undone.empty());
+  EXPECT_GE(landed.load(), 1);
+  EXPECT_EQ(logged_seqs(*w.sqlite), (std::vector<uint64_t>{10, 11, 12, 13}));
+}
+
+TEST(DurableCommit, AFailedAppendUndoesEveryPendingBatchNewestFirstAndTheStoreRests) {
+  GatedWorld w("commit_fail");
+  std::vector<EditTask> tasks(2);
+  for (EditTask& t : tasks) t.edit = world::Explosion{{1, 2, 3}, 4, 1};
+  CommitLog log;
+  DurableCommit commit(w.store, std::chrono::seconds(60), nullptr, log.hooks());
+  w.store.set_failing(true);
+  w.store.close();
+  for (int tag = 1; tag <= 3; ++tag) {
+    EditBatch b = batch_of(tag, tasks, 2);
+    commit.start(b, std::nullopt);
+    commit.add(std::move(b));
+  }
+  ASSERT_TRUE(w.store.wait_entered(1));
+  w.store.open();
+  const auto before = Clock::now();
+  commit.finish(0);
+  EXPECT_TRUE(commit.empty());
+  EXPECT_EQ(log.undone, (std::vector<int>{3, 2, 1}));  // newest first, before any answer
+  EXPECT_EQ(log.answered, (std::vector<std::pair<int, bool>>{{1, false}, {2, false}, {3, false}}));
+  EXPECT_TRUE(commit.resting(before + std::chrono::seconds(59)));
+  EXPECT_TRUE(logged_seqs(*w.sqlite).empty());
+  // The next append that works forgets the failed ones' numbers (they may have landed)
+  // and never gives them again.
+  w.store.set_failing(false);
+  EditBatch next = batch_of(4, tasks, 1);
+  commit.start(next, std::nullopt);
+  commit.add(std::move(next));
+  commit.finish(0);
+  EXPECT_EQ(logged_seqs(*w.sqlite), (std::vector<uint64_t>{7}));
+  EXPECT_EQ(log.answered.back(), (std::pair<int, bool>{4, true}));
+}
+
 TEST(PipelinedCommit, TheNextBatchAppliesWhileAnAppendIsInFlightAndAnswersKeepTheirOrder) {
   const test::TempDir tmp("pcommit_order");
   const auto dir = tmp / "world";

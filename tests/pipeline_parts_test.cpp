@@ -1,7 +1,7 @@
 // The world pipeline's parts, each on its own, with no pipeline around it: the protected
 // regions' table (server/pipeline/protected_regions.hpp), the stored-chunk reader
-// (stored_chunk_reader.hpp), the checkpoints (checkpoints.hpp) and the subscribers
-// (subscribers.hpp).
+// (stored_chunk_reader.hpp), the checkpoints (checkpoints.hpp), the view loads
+// (view_loads.hpp) and the subscribers (subscribers.hpp).
 #include <gtest/gtest.h>
 
 #include <map>
@@ -11,6 +11,7 @@
 #include "server/pipeline/protected_regions.hpp"
 #include "server/pipeline/stored_chunk_reader.hpp"
 #include "server/pipeline/subscribers.hpp"
+#include "server/pipeline/view_loads.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/store/chunk_codec.hpp"
 
@@ -267,6 +268,64 @@ TEST(Checkpoints, TheLogIsFullAtItsBound) {
   EXPECT_FALSE(checkpoints.log_full(9));
   EXPECT_TRUE(checkpoints.log_full(10));
   EXPECT_FALSE(checkpoints.log_full(0));
+}
+
+TEST(ViewLoads, APlannedChunkWaitsForItsNeighbourhoodAndItsCallbackRunsOnceItIsMeshable) {
+  const world::TerrainGenerator generator(4);
+  WorldState state(1);
+  // No background threads: the terrain a waiting chunk misses is generated here.
+  ViewLoads loads(generator, state, nullptr, 0, 64, nullptr);
+  const auto now = Clock::now();
+  LoadPlan plan;
+  EXPECT_EQ(loads.cost({0, 0, 0}, plan, now), ViewLoads::kMeshWork + 27 * ViewLoads::kGenerateWork);
+  EXPECT_EQ(loads.cost({0, 0, 0}, plan, now), 0u);  // planned already
+  // A neighbour shares 18 of its 27 chunks: only the others cost.
+  EXPECT_EQ(loads.cost({1, 0, 0}, plan, now), ViewLoads::kMeshWork + 9 * ViewLoads::kGenerateWork);
+  bool done = false;
+  std::vector<LoadSlice> slices{
+      {.owner = 7, .chunks = {{0, 0, 0}, {1, 0, 0}}, .done = [&] { done = true; }}};
+  loads.wait_for(slices, plan);
+  EXPECT_EQ(loads.waiting_count(), 2u);
+  EXPECT_EQ(state.pins.count({0, 0, 0}), 1u);  // pinned against eviction meanwhile
+  loads.run_finished();
+  EXPECT_FALSE(done);
+  BatchCounts counts;
+  std::vector<world::ChunkCoord> meshable = loads.take_meshable(now, counts);
+  std::sort(meshable.begin(), meshable.end());
+  EXPECT_EQ(meshable, (std::vector<world::ChunkCoord>{{0, 0, 0}, {1, 0, 0}}));
+  EXPECT_EQ(counts.chunks_generated, 36u);
+  EXPECT_FALSE(loads.waiting());
+  EXPECT_TRUE(state.pins.empty());
+  loads.run_finished();
+  EXPECT_TRUE(done);
+}
+
+TEST(ViewLoads, AWaitingChunkNoViewHoldsIsDroppedButAOneOffLoadKeepsItsOwn) {
+  const world::TerrainGenerator generator(4);
+  WorldState state(1);
+  ViewLoads loads(generator, state, nullptr, 0, 64, nullptr);
+  const auto now = Clock::now();
+  LoadPlan plan;
+  loads.cost({5, 0, 0}, plan, now);
+  loads.cost({9, 0, 0}, plan, now);
+  bool one_off_done = false;
+  std::vector<LoadSlice> slices{{.owner = 3, .chunks = {{5, 0, 0}}},
+                                {.owner = BatchScheduler::kUnlimitedOwners | 1,
+                                 .chunks = {{9, 0, 0}},
+                                 .done = [&] { one_off_done = true; }}};
+  loads.wait_for(slices, plan);
+  loads.drop_unviewed();  // owner 3's view holds nothing: it moved on, or closed
+  EXPECT_EQ(loads.waiting_count(), 1u);
+  EXPECT_EQ(state.pins.count({5, 0, 0}), 0u);
+  state.views.set(3, {5, 0, 0}, 1);  // a view that holds it keeps it waiting
+  LoadPlan again;
+  loads.cost({5, 0, 0}, again, now);
+  std::vector<LoadSlice> more{{.owner = 3, .chunks = {{5, 0, 0}}}};
+  loads.wait_for(more, again);
+  loads.drop_unviewed();
+  EXPECT_EQ(loads.waiting_count(), 2u);
+  loads.run_all_callbacks();  // at stop
+  EXPECT_TRUE(one_off_done);
 }
 
 TEST(Subscribers, EachHearsWhatWasPublishedUntilItLeaves) {

@@ -72,7 +72,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       // One connection for appends and reads: a read waits for the appends in flight.
       reader_(config_.store
                   ? std::make_unique<StoredChunkReader>(*config_.store, config_.store_retry,
-                                                        [this] { wait_for_appends(); })
+                                                        [this] { commit_->wait_for_appends(); })
                   : nullptr),
       lod_(std::make_unique<LodStage>(generator_, *state_, config_.lod, reader_.get())),
       regions_(config_.limits) {
@@ -86,27 +86,41 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
           queue_cv_.notify_one();
         },
         Clock::now());
+    commit_ = std::make_unique<DurableCommit>(
+        *config_.store, config_.store_retry,
+        [this] {
+          {
+            std::lock_guard lock(queue_mutex_);
+            append_landed_ = true;
+          }
+          queue_cv_.notify_one();
+        },
+        DurableCommit::Hooks{.answer = [this](EditBatch& b, bool durable) { answer(b, durable); },
+                             .undo =
+                                 [this](EditBatch& b) {
+                                   roll_back(b.undo);
+                                   regions_.undo(b.regions);
+                                 },
+                             .committed =
+                                 [this](const AppendOutcome& out, double waited) {
+                                   if (observer_.commit && out.first)
+                                     observer_.commit(out.seconds, out.edits, out.error.empty());
+                                   if (observer_.commit_wait) observer_.commit_wait(waited);
+                                 }});
     restore_from_store();  // before the pipeline's thread: may throw StoreError
-    appender_ = std::make_unique<StoreAppender>(*config_.store, [this] {
-      {
-        std::lock_guard lock(queue_mutex_);
-        append_landed_ = true;
-      }
-      queue_cv_.notify_one();
-    });
   }
   const int generate_threads =
       config_.generate_threads >= 0
           ? config_.generate_threads
           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  prefetcher_ = std::make_unique<TerrainPrefetcher>(
-      generator_, generate_threads, config_.max_generating, MemoryBudget::kBytesPerChunk, [this] {
-        {
-          std::lock_guard lock(queue_mutex_);
-          generated_ready_ = true;
-        }
-        queue_cv_.notify_one();
-      });
+  loads_ = std::make_unique<ViewLoads>(generator_, *state_, reader_.get(), generate_threads,
+                                       config_.max_generating, [this] {
+                                         {
+                                           std::lock_guard lock(queue_mutex_);
+                                           generated_ready_ = true;
+                                         }
+                                         queue_cv_.notify_one();
+                                       });
   lod_->learn_modified();  // what the restore loaded or replayed
   thread_ = named_thread("vox-pipeline", [this] { run(); });
 }
@@ -225,16 +239,16 @@ void WorldPipeline::stop() {
   queue_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
   checkpoints_.reset();  // after the final checkpoint; its writer notifies queue_cv_
-  appender_.reset();     // idle: every batch was answered before thread_ ended
-  prefetcher_.reset();   // its threads notify queue_cv_: stopped before the members go
+  commit_.reset();       // idle: every batch was answered before thread_ ended
+  loads_.reset();        // its threads notify queue_cv_: stopped before the members go
 }
 
 // Pipeline thread, under queue_mutex_. Loads whose pass the memory budget cuts to nothing
 // while terrain is on its way wait for it (generated_ready_), not in a busy loop.
 bool WorldPipeline::batch_ready() {
   // After a failed read of a stored chunk, a pass now and then tries it again.
-  const bool retry_reads = reader_ && reader_->failing() && !waiting_meshes_.empty() &&
-                           !reader_->backing_off(Clock::now());
+  const bool retry_reads =
+      reader_ && reader_->failing() && loads_->waiting() && !reader_->backing_off(Clock::now());
   return scheduler_.has_ordered() || generated_ready_ || retry_reads ||
          (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
           scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0) ||
@@ -261,12 +275,12 @@ void WorldPipeline::run() {
         if (checkpoints_ && checkpoints_->has_unsaved())
           wait = std::min(wait, checkpoints_->interval());
         // A chunk the store could not give back, or a region table in doubt: try again then.
-        if ((reader_ && reader_->failing() && !waiting_meshes_.empty()) || regions_.doubtful())
+        if ((reader_ && reader_->failing() && loads_->waiting()) || regions_.doubtful())
           wait = std::min(
               wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
         // A coarse chunk's re-mesh falls due (while a batch waits for the store, its
         // landing wakes us: the stage does not run before).
-        if (const auto due = lod_->next_due(); due && pending_.empty())
+        if (const auto due = lod_->next_due(); due && !batches_in_flight())
           wait = std::min(wait, std::chrono::ceil<std::chrono::milliseconds>(
                                     std::max(Clock::duration::zero(), *due - Clock::now())));
         queue_cv_.wait_for(lock, wait);
@@ -294,11 +308,11 @@ void WorldPipeline::run() {
       std::lock_guard lock(stats_mutex_);
       stats_.cached_columns = state_->column_heights.size();  // what earlier batches left
     }
-    PipelineStats counts;  // the whole batch's, for the slow-batch log
-    process_ordered(ordered, now, counts);
+    batch_counts_ = {};  // the whole batch's, for the slow-batch log
+    process_ordered(ordered, now);
     LoadPlan plan;
     std::vector<LoadSlice> loads = take_loads(plan, now);
-    process_loads(loads, plan, now, counts);
+    process_loads(loads, plan, now);
     lod_pass(Clock::now());
     // Column heights are shared within a batch only (edits and loads both fill them).
     state_->column_heights.clear();
@@ -318,14 +332,13 @@ void WorldPipeline::run() {
       spdlog::warn(
           "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
           "published)",
-          took * 1000, counts.edits_applied + counts.edits_refused, plan.to_mesh.size(),
-          counts.chunks_generated, counts.meshes_published);
+          took * 1000, batch_counts_.edits_applied + batch_counts_.edits_refused,
+          plan.to_mesh.size(), batch_counts_.chunks_generated, batch_counts_.meshes_published);
     }
   }
-  PipelineStats counts;
-  finish_pending(counts, 0);  // what was applied is answered before anything is refused
+  finish_pending(0);  // what was applied is answered before anything is refused
   repair_regions(Clock::now(), true);
-  finish_pending(counts, 0);
+  finish_pending(0);
   drain_after_stop();
   final_checkpoint();
 }
@@ -336,8 +349,7 @@ void WorldPipeline::finish_landed() {
     std::lock_guard lock(queue_mutex_);
     append_landed_ = false;
   }
-  PipelineStats counts;
-  finish_pending(counts, SIZE_MAX);
+  finish_pending(SIZE_MAX);
 }
 
 void WorldPipeline::drain_after_stop() {
@@ -351,42 +363,39 @@ void WorldPipeline::drain_after_stop() {
   // An inspection runs (not cancelled): on the pipeline thread, state is still ours.
   for (OrderedTask& t : ordered) refuse_shutting_down(t, false);
   for (auto& done : loads) done();
-  for (auto& [pass, done] : waiting_done_) done();
-  waiting_done_.clear();
+  loads_->run_all_callbacks();
 }
 
 // Edits, region changes and inspections, in arrival order. Without a store the batch is answered
 // here; with one, once its append has landed (finish_pending).
-void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
-                                    PipelineStats& batch) {
+void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now) {
   // Earlier batches whose appends landed: answered now, and before this batch applies (a
   // failed one is undone with every pending batch on top of it, newest first; this one
-  // must not be on top of it yet, outside pending_).
+  // must not be on top of it yet, outside the pending ones).
   finish_landed();
-  Batch b = apply_batch(tasks, now);
+  EditBatch b = apply_batch(tasks, now);
   if (!b.any_edit) return;
-  if (config_.store && (!b.accepted.empty() || b.regions.changed()))
-    start_append(b);  // overlaps the re-meshing
+  if (commit_ && (!b.accepted.empty() || b.regions.changed()))
+    commit_->start(b, regions_.write_for_append(b.regions));  // overlaps the re-meshing
   b.fresh = remesh(b.dirty);
-  if (!config_.store) return answer(b, true, batch);
+  if (!commit_) return answer(b, true);
   const Clock::time_point wait_until = b.appended_at + kAnswerWait;
-  pending_.push_back(std::move(b));
-  wait_for_answer(batch, wait_until);
+  commit_->add(std::move(b));
+  wait_for_answer(wait_until);
 }
 
 // Applies the batch's edits (validated, within the generation limits; refused untried
 // while the store rests after a failure) and runs its inspections.
-WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
-                                                Clock::time_point now) {
-  Batch b;
+EditBatch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now) {
+  EditBatch b;
   evicted_for_edits_ = false;
   b.edit_dirty.resize(tasks.size());
   b.results.resize(tasks.size());
   std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
   const bool durable = config_.store != nullptr;
-  const bool store_resting = durable && now < store_retry_at_;
+  const bool store_resting = durable && commit_->resting(now);
   const uint64_t log_tail = durable ? logged_since_checkpoint() : 0;
-  PipelineStats& delta = b.delta;
+  BatchCounts& delta = b.counts;
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
       // Sees every edit queued before it applied; the meshes of this batch are not
@@ -468,7 +477,7 @@ WorldPipeline::Batch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks,
   return b;
 }
 
-void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
+void WorldPipeline::answer(EditBatch& b, bool durable) {
   if (!durable) {
     for (EditResult& r : b.results) {
       if (!r.accepted) continue;
@@ -477,8 +486,8 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
       r.message = kStorageMessage;
     }
     for (auto& d : b.edit_dirty) d.clear();
-    b.delta.edits_applied -= b.accepted.size();
-    b.delta.edits_refused += b.accepted.size();
+    b.counts.edits_applied -= b.accepted.size();
+    b.counts.edits_refused += b.accepted.size();
     b.dirty.clear();
     b.fresh.clear();
   } else {
@@ -487,8 +496,8 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
   }
   const std::vector<ChunkCoord> published = publish(b.dirty, b.fresh, &b.edited_at);
   const CoordSet published_set(published.begin(), published.end());
-  b.delta.meshes_published += published.size();
-  commit_stats(b.delta, batch);  // before the results: whoever waits on one sees its counts
+  b.counts.meshes_published += published.size();
+  count(b.counts);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
   if (durable) regions_.landed(b.regions);  // before the answers: a list after one sees it
   for (auto& [t, outcome] : b.regions.outcomes) {
@@ -513,14 +522,12 @@ void WorldPipeline::answer(Batch& b, bool durable, PipelineStats& batch) {
   subscribers_.notify(published);
 }
 
-// Adds the counts of `delta` to the stats and to `batch` (the whole batch's, for the
-// slow-batch log); refreshes the loaded-chunk figures.
-void WorldPipeline::commit_stats(const PipelineStats& delta, PipelineStats& batch) {
+void WorldPipeline::count(const BatchCounts& delta) {
   const WorldState& st = *state_;
-  batch.edits_applied += delta.edits_applied;
-  batch.edits_refused += delta.edits_refused;
-  batch.meshes_published += delta.meshes_published;
-  batch.chunks_generated += delta.chunks_generated;
+  batch_counts_.edits_applied += delta.edits_applied;
+  batch_counts_.edits_refused += delta.edits_refused;
+  batch_counts_.meshes_published += delta.meshes_published;
+  batch_counts_.chunks_generated += delta.chunks_generated;
   std::lock_guard lock(stats_mutex_);
   stats_.edits_applied += delta.edits_applied;
   stats_.edits_refused += delta.edits_refused;

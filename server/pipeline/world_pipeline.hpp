@@ -28,6 +28,8 @@
 #include "server/pipeline/batch_scheduler.hpp"
 #include "server/pipeline/checkpoint_policy.hpp"
 #include "server/pipeline/checkpoints.hpp"
+#include "server/pipeline/durable_commit.hpp"
+#include "server/pipeline/edit_batch.hpp"
 #include "server/pipeline/lod_stage.hpp"
 #include "server/pipeline/memory_budget.hpp"
 #include "server/pipeline/mesh_store.hpp"
@@ -35,7 +37,7 @@
 #include "server/pipeline/store_appender.hpp"
 #include "server/pipeline/stored_chunk_reader.hpp"
 #include "server/pipeline/subscribers.hpp"
-#include "server/pipeline/terrain_prefetcher.hpp"
+#include "server/pipeline/view_loads.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/region.hpp"
@@ -44,7 +46,6 @@
 namespace vox::pipeline {
 
 struct WorldState;
-using Clock = std::chrono::steady_clock;
 
 struct PipelineConfig {
   uint64_t seed = 1;
@@ -104,18 +105,6 @@ struct PipelineConfig {
   LodStageConfig lod;
   size_t lod_group_chunks = 2;
   std::chrono::milliseconds lod_pass_time{10};
-};
-
-struct EditResult {
-  bool accepted = false;
-  world::RefusalReason reason = world::RefusalReason::kNone;
-  std::string message;                            // why it was refused
-  std::vector<world::ChunkCoord> changed_chunks;  // chunks given a new mesh version
-  // Protected regions whose samples it left as they were (it was clipped; world/region.hpp).
-  std::vector<uint64_t> clipped_by;
-  // What the edit cost the server beyond its samples, charged to its sender: chunks of
-  // terrain generated for it, and uniform chunks it turned into full ones.
-  size_t chunks_generated = 0, chunks_expanded = 0;
 };
 
 struct PipelineStats {
@@ -229,28 +218,6 @@ class WorldPipeline {
   void stop();
 
  private:
-  // What a batch's loads generate and mesh, built while the scheduler takes them (so a
-  // chunk two owners want is counted once).
-  struct LoadPlan {
-    std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> to_mesh, to_generate;
-  };
-  // What a batch's edits overwrote, to undo the batch when the store could not make it
-  // durable (pipeline thread): per edit and touched chunk, the samples of the edit's box
-  // in it (or the chunk's one sample when it was uniform), undone in reverse.
-  struct Undo {
-    struct Patch {
-      world::ChunkCoord coord;
-      bool modified, unsaved;  // the chunk's flags before the edit
-      bool was_uniform;
-      world::Sample uniform;               // when was_uniform
-      std::array<int, 3> lo, hi;           // chunk-local, inclusive (when !was_uniform)
-      std::vector<world::Sample> samples;  // x fastest (when !was_uniform)
-    };
-    std::vector<Patch> patches;  // in the order the edits applied
-    // Before an edit changes chunk `c`: what it may overwrite (the box within the chunk).
-    void save(world::ChunkCoord c, const world::Chunk& chunk, const world::VoxelBox& box,
-              bool modified, bool unsaved);
-  };
   // Chunks one eviction pass under memory pressure looks at (about 1 ms): a batch never
   // stalls on a scan of the whole world.
   static constexpr size_t kPressureScan = 4096;
@@ -263,24 +230,15 @@ class WorldPipeline {
   void take_view_updates();  // under queue_mutex_, pipeline thread
   std::vector<LoadSlice> take_loads(LoadPlan& plan, Clock::time_point now);  // pipeline thread
   size_t load_work_allowed(bool edits_waiting);
-  void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now,
-                       PipelineStats& batch);
-  void process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan, Clock::time_point now,
-                     PipelineStats& batch);
-  size_t install_generated(Clock::time_point now);
-  std::vector<world::ChunkCoord> take_meshable(Clock::time_point now, PipelineStats& delta);
-  void run_finished_loads();
-  // Forgets waiting chunks of views that no view holds any more (one-off loads keep theirs).
-  void drop_unviewed_waiting();
-  bool needs_generating(world::ChunkCoord c) const;  // pipeline thread
-  void commit_stats(const PipelineStats& delta, PipelineStats& batch);
+  void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now);
+  void process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan, Clock::time_point now);
+  // Adds `delta` to the stats and to the batch's counts; refreshes the loaded-chunk figures.
+  void count(const BatchCounts& delta);
   world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
                                        size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
                                        EditResult& result, Undo* undo = nullptr,
                                        std::span<const world::VoxelBox> keep = {});
-  // `edited_at`: per chunk, when the oldest edit that dirtied it was submitted (none: a load).
-  using EditTimes = std::unordered_map<world::ChunkCoord, Clock::time_point, world::ChunkCoordHash>;
-  using FreshMeshes = std::vector<std::shared_ptr<MeshVersion>>;  // null: mesh unchanged
+  // `edited_at`: none for a load's meshes.
   std::vector<world::ChunkCoord> remesh_and_publish(std::vector<world::ChunkCoord>& dirty,
                                                     const EditTimes* edited_at = nullptr);
   // remesh_and_publish in two steps: `dirty` is sorted and deduplicated, each chunk meshed
@@ -291,28 +249,9 @@ class WorldPipeline {
   void roll_back(Undo& undo);
 
   // A batch of edits applied and re-meshed (pipeline thread). With a store its accepted
-  // edits are appended on another thread while the pipeline goes on (the next batches
-  // apply, load passes run); nothing of it is published and no edit of it answered until
-  // the store says the append is durable. Appends land in batch order (each waits for the
-  // one before); when one fails, it and every later batch are undone.
-  struct Batch {
-    std::vector<OrderedTask> tasks;
-    std::vector<EditResult> results;                         // per task
-    std::vector<std::vector<world::ChunkCoord>> edit_dirty;  // per task; may repeat
-    std::vector<world::ChunkCoord> dirty;                    // sorted, unique once re-meshed
-    std::vector<const EditTask*> accepted;                   // in the order they applied
-    std::vector<std::vector<world::VoxelBox>> keep;          // per accepted edit: clipped
-    RegionChanges regions;                                   // what its region tasks changed
-    FreshMeshes fresh;
-    EditTimes edited_at;  // per dirty chunk, its oldest edit
-    Undo undo;
-    PipelineStats delta;
-    bool any_edit = false;
-    store::WorldStore::SeqRange seqs;           // of the accepted edits, when appended
-    std::shared_future<AppendOutcome> outcome;  // invalid: nothing to append
-    Clock::time_point appended_at;              // when the append started
-    double waited = 0;                          // seconds the pipeline stood waiting for it
-  };
+  // edits are appended (commit_) while the pipeline goes on (the next batches apply, load
+  // passes run); nothing of it is published and no edit of it answered until the append
+  // is durable.
   // Batches in flight are at most this many: past it, the pipeline waits for the oldest.
   static constexpr size_t kMaxPendingBatches = 3;
   // After re-meshing, a batch waits this long (from its append's start) for the append
@@ -320,39 +259,36 @@ class WorldPipeline {
   // slow one no longer holds up the load pass and the next batches (answered after them).
   // An edit arriving ends the wait: it is not held up behind another batch's fsync.
   static constexpr auto kAnswerWait = std::chrono::milliseconds(6);
-  Batch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
+  EditBatch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
   // After a failed append that carried region changes (it may have landed or not): an
   // append of the whole region table alone, once the store may be tried again (or, with
   // `now_anyway`, at stop). Pipeline thread.
   void repair_regions(Clock::time_point now, bool now_anyway = false);
-  void start_append(Batch& b);
+  // Whether batches wait for the store (their edits are applied, not yet durable).
+  bool batches_in_flight() const { return commit_ && !commit_->empty(); }
   // Answers the batches whose appends landed, oldest first, waiting while more than `keep`
   // are in flight (0: every batch is answered when it returns).
-  void finish_pending(PipelineStats& batch, size_t keep);
+  void finish_pending(size_t keep) {
+    if (commit_) commit_->finish(keep);
+  }
   // After the newest pending batch re-meshed: answers the pending batches as their appends
   // land, until every one is answered, an edit arrives or `until`; then, past
   // kMaxPendingBatches, waits for the oldest (pipeline thread; takes queue_mutex_).
-  void wait_for_answer(PipelineStats& batch, Clock::time_point until);
-  void fail_pending(PipelineStats& batch, const std::string& error);
+  void wait_for_answer(Clock::time_point until);
   void finish_landed();  // finish_pending without waiting, between batches
   // Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was
   // rolled back), then answers its edits and notifies the subscribers.
-  void answer(Batch& b, bool durable, PipelineStats& batch);
+  void answer(EditBatch& b, bool durable);
   // Level of detail (world_pipeline_lod.cpp; pipeline thread): whether the stage may run
   // now (no batch waits for the store), and one pass of it.
   bool lod_ready(Clock::time_point now) const;
   void lod_pass(Clock::time_point now);
   // After a durable batch: its accepted edits reach the coarse levels.
-  void lod_edited(const Batch& b, Clock::time_point now);
+  void lod_edited(const EditBatch& b, Clock::time_point now);
   void notify_lod(const std::vector<LodKey>& published);  // routed to their owners
   void lod_stats(PipelineStats& s) const;                 // its part of stats(); any thread
   // The newest mesh of `c`: a pending batch's, else the published one.
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
-  // Whether a pending batch changed samples that meshes of `chunks` read: a load pass
-  // meshing them waits for those batches first (a mesh never shows an edit not durable).
-  bool near_pending_edits(const std::vector<world::ChunkCoord>& chunks) const;
-  // Waits until no append is running (they share config_.store's connection with reads).
-  void wait_for_appends() const;
   // Constructor: learns which chunks are stored and replays the log after their
   // checkpoint (loading the chunks it touches).
   void restore_from_store();
@@ -406,34 +342,20 @@ class WorldPipeline {
   // (pipeline thread); past kLodStarvation the pass waits for the appends.
   std::optional<Clock::time_point> lod_starved_since_;
   static constexpr auto kLodStarvation = std::chrono::milliseconds(250);
-  // Chunks a load pass planned to mesh whose terrain is still being generated, with the
-  // pass that planned them, and the load callbacks waiting for them (pipeline thread).
-  // Bounded by the owners' load budgets, which paid for them.
-  struct WaitingMesh {
-    world::ChunkCoord coord;
-    uint64_t pass;
-    LoadOwner owner;
-  };
-  std::vector<WaitingMesh> waiting_meshes_;
-  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> waiting_set_;
-  std::vector<std::pair<uint64_t, std::function<void()>>> waiting_done_;
-  uint64_t load_pass_ = 0;
-  bool last_eviction_freed_ = false;    // pipeline thread only
-  size_t resident_at_eviction_ = 0;     // resident_bytes() after the last eviction; pipeline thread
-  bool evicted_for_edits_ = false;      // this batch made room for edits; pipeline thread
-  uint64_t next_seq_ = 1;               // the next logged edit's sequence number; pipeline thread
-  Clock::time_point store_retry_at_{};  // before this, edits are refused without a try
-  // Sequence numbers of failed appends since the last that worked (pipeline thread).
-  std::optional<store::WorldStore::SeqRange> doubtful_;
-  std::deque<Batch> pending_;   // oldest first; pipeline thread
+  bool last_eviction_freed_ = false;  // pipeline thread only
+  size_t resident_at_eviction_ = 0;   // resident_bytes() after the last eviction; pipeline thread
+  bool evicted_for_edits_ = false;    // this batch made room for edits; pipeline thread
+  BatchCounts batch_counts_;    // of the batch in hand, for the slow-batch log; pipeline thread
   ProtectedRegions regions_;    // pipeline thread, but regions()
   bool append_landed_ = false;  // under queue_mutex_: a pending batch may be answered
-  bool store_failing_ = false;  // the last append failed (logged once); pipeline thread
   // With a store; pipeline thread, but memory_bytes(). Reset by stop() once thread_ ended.
   std::unique_ptr<Checkpoints> checkpoints_;
-  std::unique_ptr<StoreAppender> appender_;  // with a store; reset by stop() likewise
+  // With a store; pipeline thread. Reset by stop() once thread_ has ended.
+  std::unique_ptr<DurableCommit> commit_;
   std::thread thread_;
-  std::unique_ptr<TerrainPrefetcher> prefetcher_;  // reset by stop() once thread_ has ended
+  // Chunks load passes planned to mesh, waiting for their terrain; pipeline thread. Reset by
+  // stop() once thread_ has ended (its threads wake the pipeline).
+  std::unique_ptr<ViewLoads> loads_;
 };
 
 }  // namespace vox::pipeline

@@ -10,29 +10,26 @@ namespace vox::pipeline {
 
 void WorldPipeline::checkpoint_if_due(Clock::time_point now) {
   if (!checkpoints_) return;
-  PipelineStats counts;
   if (auto r = checkpoints_->take_result()) {
     // Batches in flight first: one undone after a failed checkpoint was taken would put
     // back its chunks' "saved" flags from before, and they would never be written.
-    finish_pending(counts, 0);
+    finish_pending(0);
     finish_checkpoint(*r, now);
   }
   if (!checkpoints_->due(now)) return;
   // A checkpoint holds every applied edit: the batches in flight are durable first (or
   // undone).
-  finish_pending(counts, 0);
+  finish_pending(0);
   start_checkpoint(now);
 }
 
 uint64_t WorldPipeline::logged_since_checkpoint() const {
-  uint64_t in_flight = 0;
-  for (const Batch& b : pending_) in_flight += b.accepted.size();
-  return checkpoints_->log_tail(in_flight);
+  return checkpoints_->log_tail(commit_->edits_in_flight());
 }
 
 void WorldPipeline::start_checkpoint(Clock::time_point now) {
   // Every applied edit, and no other; written on this thread without a second connection.
-  if (auto r = checkpoints_->start(*state_, next_seq_ - 1, now))
+  if (auto r = checkpoints_->start(*state_, commit_->last_seq(), now))
     finish_checkpoint(*r, Clock::now());
 }
 
@@ -59,7 +56,7 @@ void WorldPipeline::final_checkpoint() {
   checkpoints_->wait();
   if (auto r = checkpoints_->take_result()) finish_checkpoint(*r, Clock::now());
   if (!checkpoints_->has_unsaved())
-    spdlog::info("checkpoint at shutdown: {} chunks through edit {}", chunks, next_seq_ - 1);
+    spdlog::info("checkpoint at shutdown: {} chunks through edit {}", chunks, commit_->last_seq());
 }
 
 }  // namespace vox::pipeline

@@ -9,29 +9,16 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 
-namespace {
-
-// Load work units: a chunk to generate, a chunk to mesh.
-constexpr size_t kGenerateWork = 4;
-constexpr size_t kMeshWork = 1;
-
-}  // namespace
-
 // With the terrain and the meshes on their way at their worst case, so that load passes
 // taken while earlier ones wait for terrain do not overrun the memory budget.
 size_t WorldPipeline::accounted_bytes() const {
-  return resident_bytes() + prefetcher_->memory_bytes() +
-         (checkpoints_ ? checkpoints_->memory_bytes() : 0) +
-         waiting_meshes_.size() * MemoryBudget::kBytesPerMesh;
+  return resident_bytes() + loads_->memory_bytes() +
+         (checkpoints_ ? checkpoints_->memory_bytes() : 0);
 }
 
 size_t WorldPipeline::resident_bytes() const {
   return state_->chunks.memory_bytes() + meshes_.memory_bytes() + lod_->memory_bytes() +
          other_bytes_.load(std::memory_order_relaxed);
-}
-
-bool WorldPipeline::needs_generating(ChunkCoord c) const {
-  return !state_->info.count(c) && !state_->stored.count(c) && !prefetcher_->pending(c);
 }
 
 size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
@@ -44,25 +31,13 @@ void WorldPipeline::take_view_updates() {
   if (view_updates_.empty()) return;
   for (const auto& [owner, view] : view_updates_) state_->views.set(owner, view.first, view.second);
   view_updates_.clear();
-  drop_unviewed_waiting();
-}
-
-// A waiting chunk is kept while any view holds it, whoever planned it: a second view that
-// wanted it found it waiting and will not ask again (its cost was 0).
-void WorldPipeline::drop_unviewed_waiting() {
-  std::erase_if(waiting_meshes_, [&](const WaitingMesh& w) {
-    if ((w.owner & BatchScheduler::kUnlimitedOwners) || state_->views.viewed(w.coord)) return false;
-    waiting_set_.erase(w.coord);
-    state_->unpin_neighbourhood(w.coord);
-    return true;
-  });
+  loads_->drop_unviewed();
 }
 
 // The batch's load pass, planned on the world as its edits left it. Pipeline thread; the
 // scheduler is read under the queue lock, and its cost callback touches only
 // pipeline-thread state.
 std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_point now) {
-  WorldState& st = *state_;
   std::lock_guard lock(queue_mutex_);
   // The views whose requests this pass takes must be the ones eviction protects: a view
   // set after the batch started would otherwise have its meshed chunks passed over here
@@ -72,127 +47,35 @@ std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_poi
   return scheduler_.take_loads(
       // Edits waiting to apply, or applied and waiting for the store to be answered: a
       // short pass, so that they are not held up behind it.
-      load_work_allowed(scheduler_.has_ordered() || !pending_.empty()),
-      [&](ChunkCoord c) {
-        if (plan.to_mesh.count(c) || waiting_set_.count(c)) return size_t{0};
-        if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
-          it->second.last_used = now;  // meshed already: only marked as viewed
-          return size_t{0};
-        }
-        size_t work = kMeshWork;
-        for (int dz = -1; dz <= 1; ++dz)
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const ChunkCoord n = c.offset(dx, dy, dz);
-              // A stored chunk costs as much: read and decompressed on this thread.
-              const bool costs = needs_generating(n) || (!st.info.count(n) && st.stored.count(n));
-              if (costs && plan.to_generate.insert(n).second) work += kGenerateWork;
-            }
-        plan.to_mesh.insert(c);
-        return work;
-      },
-      config_.load_scan_limit, now);
-}
-
-// Installs the terrain the background has generated that a waiting mesh still needs
-// (unless a batch generated the chunk itself meanwhile: it is the same); terrain of views
-// that moved on or closed is dropped. Returns the number installed.
-size_t WorldPipeline::install_generated(Clock::time_point now) {
-  WorldState& st = *state_;
-  size_t installed = 0;
-  for (auto& [c, chunk] : prefetcher_->take_ready()) {
-    if (st.info.count(c) || !st.pins.count(c) || st.stored.count(c)) continue;
-    st.chunks.insert(c, std::move(chunk));
-    st.info[c] = {.last_used = now};
-    ++installed;
-  }
-  return installed;
-}
-
-// The waiting chunks whose neighbourhood is loaded now (removed from the waiting list);
-// the terrain the others still miss is asked of the background, and what it cannot take
-// is generated here.
-std::vector<ChunkCoord> WorldPipeline::take_meshable(Clock::time_point now, PipelineStats& delta) {
-  WorldState& st = *state_;
-  std::vector<ChunkCoord> meshable, missing;
-  std::unordered_set<ChunkCoord, world::ChunkCoordHash> asked;
-  std::erase_if(waiting_meshes_, [&](const WaitingMesh& w) {
-    bool complete = true;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const ChunkCoord n = w.coord.offset(dx, dy, dz);
-          if (auto it = st.info.find(n); it != st.info.end()) {
-            it->second.last_used = now;  // kept until the mesh is made
-            continue;
-          }
-          // Checkpointed: read back here (a store that fails is tried again next pass).
-          if (st.stored.count(n) && reader_->try_load(st, n, now)) continue;
-          complete = false;
-          if (!st.stored.count(n) && asked.insert(n).second && !prefetcher_->pending(n))
-            missing.push_back(n);
-        }
-    if (!complete) return false;
-    meshable.push_back(w.coord);
-    waiting_set_.erase(w.coord);
-    st.unpin_neighbourhood(w.coord);
-    return true;
-  });
-  if (!missing.empty()) {
-    const std::vector<ChunkCoord> refused = prefetcher_->request(missing);
-    if (!refused.empty()) {  // generated here: what waited only for them is meshable now
-      delta.chunks_generated += st.ensure_loaded(refused, generator_, now);
-      for (const ChunkCoord& c : take_meshable(now, delta)) meshable.push_back(c);
-    }
-  }
-  return meshable;
-}
-
-// Runs the load callbacks of passes whose every planned chunk is meshed.
-void WorldPipeline::run_finished_loads() {
-  uint64_t oldest = UINT64_MAX;
-  for (const WaitingMesh& w : waiting_meshes_) oldest = std::min(oldest, w.pass);
-  std::erase_if(waiting_done_, [&](auto& entry) {
-    if (entry.first >= oldest) return false;
-    entry.second();
-    return true;
-  });
+      load_work_allowed(scheduler_.has_ordered() || batches_in_flight()),
+      [&](ChunkCoord c) { return loads_->cost(c, plan, now); }, config_.load_scan_limit, now);
 }
 
 // One load pass: installs the terrain generated in the background, queues what the
 // planned chunks still miss, meshes and publishes every waiting chunk whose neighbourhood
 // is complete, then runs the finished requests' callbacks.
 void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
-                                  Clock::time_point now, PipelineStats& batch) {
-  PipelineStats delta;
-  if (!loads.empty()) {
-    ++load_pass_;
-    for (LoadSlice& slice : loads) {
-      for (const ChunkCoord& c : slice.chunks) {  // the chunks the pass planned to mesh
-        if (!plan.to_mesh.count(c) || !waiting_set_.insert(c).second) continue;
-        waiting_meshes_.push_back({c, load_pass_, slice.owner});
-        state_->pin_neighbourhood(c);
-      }
-      if (slice.done) waiting_done_.emplace_back(load_pass_, std::move(slice.done));
-    }
-  }
+                                  Clock::time_point now) {
+  BatchCounts delta;
+  loads_->wait_for(loads, plan);
   // After the new waiting chunks pinned their neighbourhoods: terrain ready for them is kept.
-  delta.chunks_generated += install_generated(now);
+  delta.chunks_generated += loads_->install_generated(now);
   std::vector<ChunkCoord> published;
-  if (!waiting_meshes_.empty()) {
-    std::vector<ChunkCoord> dirty = take_meshable(now, delta);
+  if (loads_->waiting()) {
+    std::vector<ChunkCoord> dirty = loads_->take_meshable(now, delta);
     finish_landed();  // not held up by the meshing
-    if (near_pending_edits(dirty)) finish_pending(batch, 0);
+    // A mesh never shows an edit that is not durable: those batches are answered first.
+    if (commit_ && commit_->near_pending_edits(dirty)) finish_pending(0);
     published = remesh_and_publish(dirty);
     delta.meshes_published += published.size();
   }
-  commit_stats(delta, batch);
+  count(delta);
   {
     std::lock_guard lock(stats_mutex_);
-    stats_.chunks_generating = prefetcher_->pending_count();
-    stats_.meshes_waiting = waiting_meshes_.size();
+    stats_.chunks_generating = loads_->generating();
+    stats_.meshes_waiting = loads_->waiting_count();
   }
-  run_finished_loads();
+  loads_->run_finished();
   subscribers_.notify(published);
 }
 
@@ -210,8 +93,7 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
                                          now - st.last_eviction > kPressureRetry);
   if (periodic || pressure) {
     // Chunks whose meshes wait for the store stay: the batches are answered first.
-    PipelineStats counts;
-    finish_pending(counts, 0);
+    finish_pending(0);
     st.last_eviction = now;
     // The periodic pass drops only idle chunks; under pressure, down to the target.
     const size_t target =

@@ -19,7 +19,7 @@ void WorldPipeline::set_lod_view(LoadOwner owner, std::vector<LodKey> keys) {
 // Pipeline thread. While a batch waits for the store, the chunk map may show edits that
 // are not durable: no LOD mesh is made from it then (the append's landing wakes us).
 bool WorldPipeline::lod_ready(Clock::time_point now) const {
-  return pending_.empty() && (!lod_updates_.empty() || lod_->has_work(now));
+  return !batches_in_flight() && (!lod_updates_.empty() || lod_->has_work(now));
 }
 
 void WorldPipeline::lod_pass(Clock::time_point now) {
@@ -42,14 +42,13 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
     lod_starved_since_.reset();
     return;
   }
-  if (!pending_.empty()) {
+  if (batches_in_flight()) {
     // Edits keep a batch waiting for the store: after a while, wait for the appends so the
     // coarse levels do not starve.
     if (!lod_starved_since_) lod_starved_since_ = now;
     if (now - *lod_starved_since_ < kLodStarvation) return;
-    PipelineStats counts;
-    finish_pending(counts, 0);
-    if (!pending_.empty()) return;
+    finish_pending(0);
+    if (batches_in_flight()) return;
   }
   lod_starved_since_.reset();
   const Clock::time_point start = Clock::now();
@@ -78,7 +77,7 @@ void WorldPipeline::lod_stats(PipelineStats& s) const {  // any thread
   }
 }
 
-void WorldPipeline::lod_edited(const Batch& b, Clock::time_point now) {
+void WorldPipeline::lod_edited(const EditBatch& b, Clock::time_point now) {
   for (size_t t = 0; t < b.tasks.size(); ++t) {
     const auto* task = std::get_if<EditTask>(&b.tasks[t]);
     if (task && b.results[t].accepted) lod_->edited(world::touched_box(task->edit), now);

@@ -46,7 +46,7 @@ std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord
   return publish(dirty, fresh, edited_at);
 }
 
-WorldPipeline::FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty) {
+FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty) {
   WorldState& st = *state_;
   const Clock::time_point start = Clock::now();
   std::sort(dirty.begin(), dirty.end());
