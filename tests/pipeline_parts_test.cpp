@@ -1,13 +1,17 @@
 // The world pipeline's parts, each on its own, with no pipeline around it: the protected
 // regions' table (server/pipeline/protected_regions.hpp), the stored-chunk reader
 // (stored_chunk_reader.hpp), the checkpoints (checkpoints.hpp), the view loads
-// (view_loads.hpp) and the subscribers (subscribers.hpp).
+// (view_loads.hpp), the memory keeper (memory_keeper.hpp), the inbox (inbox.hpp) and the
+// subscribers (subscribers.hpp).
 #include <gtest/gtest.h>
 
 #include <map>
 #include <stdexcept>
+#include <thread>
 
 #include "server/pipeline/checkpoints.hpp"
+#include "server/pipeline/inbox.hpp"
+#include "server/pipeline/memory_keeper.hpp"
 #include "server/pipeline/protected_regions.hpp"
 #include "server/pipeline/stored_chunk_reader.hpp"
 #include "server/pipeline/subscribers.hpp"
@@ -326,6 +330,113 @@ TEST(ViewLoads, AWaitingChunkNoViewHoldsIsDroppedButAOneOffLoadKeepsItsOwn) {
   EXPECT_EQ(loads.waiting_count(), 2u);
   loads.run_all_callbacks();  // at stop
   EXPECT_TRUE(one_off_done);
+}
+
+constexpr size_t kMiB = size_t{1} << 20;
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+
+TEST(MemoryKeeper, APeriodicPassEveryQuarterOfEvictAfterDropsOnlyIdleChunks) {
+  const auto t0 = MemoryKeeper::Clock::now();
+  MemoryKeeper keeper(MemoryBudget(100 * kMiB), seconds(120), seconds(1), t0);
+  EXPECT_FALSE(keeper.due(t0 + seconds(29), 10 * kMiB, 0));
+  const auto pass = keeper.due(t0 + seconds(31), 10 * kMiB, 0);
+  ASSERT_TRUE(pass.has_value());
+  EXPECT_EQ(pass->target_bytes, SIZE_MAX);  // idle ones only
+  EXPECT_EQ(pass->max_scan, SIZE_MAX);
+  EXPECT_EQ(pass->idle, seconds(120));
+  keeper.evicted(t0 + seconds(31), 3, 10 * kMiB);
+  EXPECT_FALSE(keeper.due(t0 + seconds(32), 10 * kMiB, 0));
+}
+
+TEST(MemoryKeeper, UnderPressureItEvictsAfterEveryBatchWhileThatHelpsAndRarelyWhenNot) {
+  const auto t0 = MemoryKeeper::Clock::now();
+  MemoryKeeper keeper(MemoryBudget(100 * kMiB), seconds(120), seconds(1), t0);
+  const auto pass = keeper.due(t0, 95 * kMiB, 10 * kMiB);  // over 90 %
+  ASSERT_TRUE(pass.has_value());
+  EXPECT_EQ(pass->target_bytes, MemoryBudget(100 * kMiB).evict_target(10 * kMiB));
+  EXPECT_EQ(pass->max_scan, MemoryKeeper::kPressureScan);
+  keeper.evicted(t0, 0, 95 * kMiB);  // freed nothing: everything is in use
+  EXPECT_FALSE(keeper.due(t0 + milliseconds(100), 95 * kMiB, 10 * kMiB));
+  EXPECT_TRUE(keeper.due(t0 + milliseconds(100), 96 * kMiB, 10 * kMiB));  // the world grew
+  EXPECT_TRUE(keeper.due(t0 + MemoryKeeper::kPressureRetry + milliseconds(1), 95 * kMiB, 0));
+  keeper.evicted(t0 + seconds(1), 7, 93 * kMiB);  // it freed some: again after the next batch
+  EXPECT_TRUE(keeper.due(t0 + seconds(1) + milliseconds(1), 93 * kMiB, 10 * kMiB));
+  EXPECT_FALSE(keeper.due(t0 + seconds(1) + milliseconds(1), 50 * kMiB, 10 * kMiB));
+}
+
+TEST(MemoryKeeper, EditsGetOneEvictionPerBatchAndLoadsWaitAtTheBudget) {
+  MemoryKeeper keeper(MemoryBudget(100 * kMiB), seconds(120), seconds(1),
+                      MemoryKeeper::Clock::now());
+  const auto pass = keeper.for_edits(5 * kMiB, 10 * kMiB);
+  ASSERT_TRUE(pass.has_value());
+  EXPECT_EQ(pass->target_bytes, MemoryBudget(100 * kMiB).evict_target(10 * kMiB) - 5 * kMiB);
+  EXPECT_GE(pass->min_age, milliseconds(1));  // what this batch used stays
+  EXPECT_FALSE(keeper.for_edits(kMiB, 0));    // refused: the scan ran once this batch
+  keeper.new_batch();
+  EXPECT_TRUE(keeper.for_edits(kMiB, 0));
+
+  EXPECT_EQ(keeper.next_look(false), seconds(30));
+  EXPECT_EQ(keeper.next_look(true), MemoryKeeper::kBudgetRetry);
+  EXPECT_FALSE(keeper.update_blocked(99 * kMiB));  // unchanged: loads go on
+  EXPECT_TRUE(keeper.update_blocked(100 * kMiB));
+  EXPECT_TRUE(keeper.loads_blocked());
+  EXPECT_EQ(keeper.next_look(true), MemoryKeeper::kPressureRetry);
+  EXPECT_TRUE(keeper.update_blocked(50 * kMiB));
+  EXPECT_FALSE(keeper.loads_blocked());
+}
+
+TEST(Inbox, AfterStopNothingIsQueuedAndTheTaskIsLeftToTheCaller) {
+  Inbox inbox{BatchScheduler()};
+  bool answered = false;
+  OrderedTask task = EditTask{.edit = world::Explosion{{0, 0, 0}, 2, 1},
+                              .done = [&](const EditResult&) { answered = true; }};
+  EXPECT_TRUE(inbox.add(task));
+  EXPECT_EQ(inbox.counts().edits, 1u);
+  inbox.stop();
+  OrderedTask late = EditTask{.edit = world::Explosion{{0, 0, 0}, 2, 1},
+                              .done = [&](const EditResult&) { answered = true; }};
+  EXPECT_FALSE(inbox.add(late));
+  std::get<EditTask>(late).done(EditResult{});  // still the caller's to answer
+  EXPECT_TRUE(answered);
+  std::function<void()> done = [] {};
+  EXPECT_FALSE(inbox.add_load({{0, 0, 0}}, done));
+  EXPECT_TRUE(done);  // not taken
+  EXPECT_EQ(inbox.counts().edits, 1u);
+}
+
+TEST(Inbox, AWakeUpEndsTheWaitAndNoneIsLostBetweenTheLookAndTheWait) {
+  Inbox inbox{BatchScheduler()};
+  const auto landed = [](Inbox::State& in) { return in.append_landed; };
+  const auto long_wait = [](const Inbox::State&) { return seconds(30); };
+  std::thread appender([&] {
+    std::this_thread::sleep_for(milliseconds(50));
+    inbox.append_landed();
+  });
+  const auto start = Clock::now();
+  while (!inbox.wait_unless(landed, long_wait)) {
+  }
+  appender.join();
+  EXPECT_LT(Clock::now() - start, seconds(10));
+  inbox.append_landed();  // before anyone waits: the next look sees it
+  EXPECT_TRUE(inbox.wait_unless(landed, long_wait));
+}
+
+TEST(Inbox, ViewsAndTheirDropsWaitForThePipelineToTakeThem) {
+  Inbox inbox{BatchScheduler()};
+  EXPECT_FALSE(inbox.set_view(5, {1, 2, 3}, 2, {{1, 2, 3}}, 0));  // nothing replaced
+  inbox.set_lod_view(5, {LodKey{}});
+  inbox.locked([](Inbox::State& in) {
+    EXPECT_EQ(in.view_updates.at(5), (std::pair<world::ChunkCoord, int>{{1, 2, 3}, 2}));
+    EXPECT_EQ(in.lod_updates.at(5).size(), 1u);
+    EXPECT_TRUE(in.scheduler.has_loads());
+  });
+  inbox.drop_view(5);
+  inbox.locked([](Inbox::State& in) {
+    EXPECT_EQ(in.view_updates.at(5).second, -1);  // dropped
+    EXPECT_TRUE(in.lod_updates.at(5).empty());
+    EXPECT_FALSE(in.scheduler.has_loads());
+  });
 }
 
 TEST(Subscribers, EachHearsWhatWasPublishedUntilItLeaves) {

@@ -53,11 +53,6 @@ constexpr const char* kLogFullMessage =
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
 // Chunks an owner gets per round-robin turn.
 constexpr size_t kLoadGroup = 32;
-// One-off loads (load(box)) get owners from the top half (never budgeted), sessions use
-// their ids.
-constexpr LoadOwner kAnonymousOwner = BatchScheduler::kUnlimitedOwners;
-// Loads waiting only for their owners' load budgets are looked at again this often.
-constexpr auto kBudgetRetry = std::chrono::milliseconds(20);
 
 }  // namespace
 
@@ -65,9 +60,10 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     : config_(std::move(config)),
       observer_(std::move(observer)),
       generator_(config_.seed, config_.terrain),
-      budget_(config_.max_memory),
-      scheduler_(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
-                 config_.load_work_per_address, config_.load_burst_per_address),
+      inbox_(BatchScheduler(kLoadGroup, config_.load_work_per_owner, config_.load_burst_per_owner,
+                            config_.load_work_per_address, config_.load_burst_per_address)),
+      memory_(MemoryBudget(config_.max_memory), config_.evict_after, config_.evict_min_age,
+              Clock::now()),
       state_(std::make_unique<WorldState>(config_.threads)),
       // One connection for appends and reads: a read waits for the appends in flight.
       reader_(config_.store
@@ -81,20 +77,9 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     store::WorldStore& cp = config_.checkpoint_store ? *config_.checkpoint_store : *config_.store;
     checkpoints_ = std::make_unique<Checkpoints>(
         cp, config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
-        [this] {
-          { std::lock_guard lock(queue_mutex_); }  // the pipeline is waiting, or will look
-          queue_cv_.notify_one();
-        },
-        Clock::now());
+        [this] { inbox_.poke(); }, Clock::now());
     commit_ = std::make_unique<DurableCommit>(
-        *config_.store, config_.store_retry,
-        [this] {
-          {
-            std::lock_guard lock(queue_mutex_);
-            append_landed_ = true;
-          }
-          queue_cv_.notify_one();
-        },
+        *config_.store, config_.store_retry, [this] { inbox_.append_landed(); },
         DurableCommit::Hooks{.answer = [this](EditBatch& b, bool durable) { answer(b, durable); },
                              .undo =
                                  [this](EditBatch& b) {
@@ -113,14 +98,9 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       config_.generate_threads >= 0
           ? config_.generate_threads
           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  loads_ = std::make_unique<ViewLoads>(generator_, *state_, reader_.get(), generate_threads,
-                                       config_.max_generating, [this] {
-                                         {
-                                           std::lock_guard lock(queue_mutex_);
-                                           generated_ready_ = true;
-                                         }
-                                         queue_cv_.notify_one();
-                                       });
+  loads_ =
+      std::make_unique<ViewLoads>(generator_, *state_, reader_.get(), generate_threads,
+                                  config_.max_generating, [this] { inbox_.generated_ready(); });
   lod_->learn_modified();  // what the restore loaded or replayed
   thread_ = named_thread("vox-pipeline", [this] { run(); });
 }
@@ -128,15 +108,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
 WorldPipeline::~WorldPipeline() { stop(); }
 
 void WorldPipeline::enqueue(OrderedTask task) {
-  {
-    std::lock_guard lock(queue_mutex_);
-    if (!stopping_) {
-      scheduler_.add(std::move(task));
-      queue_cv_.notify_one();
-      return;
-    }
-  }
-  refuse_shutting_down(task, true);  // stopped: answered on the caller's thread
+  if (!inbox_.add(task)) refuse_shutting_down(task, true);  // answered on the caller's thread
 }
 
 void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner, std::string author,
@@ -155,17 +127,7 @@ std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
 }
 
 void WorldPipeline::load(mesh::ChunkBox box, std::function<void()> done) {
-  std::vector<ChunkCoord> chunks = box_nearest_first(box.lo, box.hi);
-  {
-    std::lock_guard lock(queue_mutex_);
-    if (!stopping_) {
-      scheduler_.request(kAnonymousOwner | next_anonymous_owner_++, std::move(chunks),
-                         std::move(done));
-      queue_cv_.notify_one();
-      return;
-    }
-  }
-  if (done) done();
+  if (!inbox_.add_load(box_nearest_first(box.lo, box.hi), done) && done) done();
 }
 
 std::future<void> WorldPipeline::load(mesh::ChunkBox box) {
@@ -179,27 +141,16 @@ void WorldPipeline::set_view(LoadOwner owner, ChunkCoord center, int radius, uin
                              const std::function<bool(ChunkCoord)>& keep) {
   std::vector<ChunkCoord> chunks = ball_nearest_first(center, radius);  // outside the lock
   if (keep) std::erase_if(chunks, [&](ChunkCoord c) { return !keep(c); });
-  std::function<void()> replaced;
-  {
-    std::lock_guard lock(queue_mutex_);
-    if (stopping_) return;
-    replaced = scheduler_.request(owner, std::move(chunks), {}, budget_group);
-    view_updates_[owner] = {center, radius};
-    queue_cv_.notify_one();
-  }
-  if (replaced) replaced();
+  if (auto replaced = inbox_.set_view(owner, center, radius, std::move(chunks), budget_group))
+    replaced();
 }
 
 void WorldPipeline::drop_view(LoadOwner owner) {
-  std::function<void()> dropped;
-  {
-    std::lock_guard lock(queue_mutex_);
-    dropped = scheduler_.drop(owner);
-    view_updates_[owner] = {{}, -1};
-    lod_updates_[owner] = {};
-  }
-  queue_cv_.notify_one();  // its LOD meshes go now, not at the next idle wake
-  if (dropped) dropped();
+  if (auto dropped = inbox_.drop_view(owner)) dropped();
+}
+
+void WorldPipeline::set_lod_view(LoadOwner owner, std::vector<LodKey> keys) {
+  inbox_.set_lod_view(owner, std::move(keys));
 }
 
 void WorldPipeline::inspect(std::function<void(const world::ChunkMap&)> fn) {
@@ -223,84 +174,91 @@ PipelineStats WorldPipeline::stats() const {
   lod_stats(s);
   s.other_bytes = other_bytes_.load(std::memory_order_relaxed);
   s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + s.other_bytes;
-  s.loads_blocked = loads_blocked_.load(std::memory_order_relaxed);
-  std::lock_guard lock(queue_mutex_);
-  s.queued_edits = scheduler_.ordered_count();
-  s.queued_load_chunks = scheduler_.queued_load_chunks();
-  s.load_owners = scheduler_.load_owners();
+  s.loads_blocked = memory_.loads_blocked();
+  const Inbox::Counts queued = inbox_.counts();
+  s.queued_edits = queued.edits;
+  s.queued_load_chunks = queued.load_chunks;
+  s.load_owners = queued.load_owners;
   return s;
 }
 
 void WorldPipeline::stop() {
-  {
-    std::lock_guard lock(queue_mutex_);
-    stopping_ = true;
-  }
-  queue_cv_.notify_all();
+  inbox_.stop();
   if (thread_.joinable()) thread_.join();
-  checkpoints_.reset();  // after the final checkpoint; its writer notifies queue_cv_
+  checkpoints_.reset();  // after the final checkpoint
   commit_.reset();       // idle: every batch was answered before thread_ ended
-  loads_.reset();        // its threads notify queue_cv_: stopped before the members go
+  loads_.reset();
 }
 
-// Pipeline thread, under queue_mutex_. Loads whose pass the memory budget cuts to nothing
-// while terrain is on its way wait for it (generated_ready_), not in a busy loop.
-bool WorldPipeline::batch_ready() {
+// Under the inbox's lock. Loads whose pass the memory budget cuts to nothing while terrain
+// is on its way wait for it (generated_ready), not in a busy loop.
+bool WorldPipeline::batch_ready(Inbox::State& in) {
+  const Clock::time_point now = Clock::now();
   // After a failed read of a stored chunk, a pass now and then tries it again.
   const bool retry_reads =
-      reader_ && reader_->failing() && loads_->waiting() && !reader_->backing_off(Clock::now());
-  return scheduler_.has_ordered() || generated_ready_ || retry_reads ||
-         (scheduler_.has_loads() && !loads_blocked_.load(std::memory_order_relaxed) &&
-          scheduler_.has_ready_loads(Clock::now()) && load_work_allowed(false) > 0) ||
-         lod_ready(Clock::now());
+      reader_ && reader_->failing() && loads_->waiting() && !reader_->backing_off(now);
+  return in.scheduler.has_ordered() || in.generated_ready || retry_reads ||
+         (in.scheduler.has_loads() && !memory_.loads_blocked() &&
+          in.scheduler.has_ready_loads(now) && load_work_allowed(false) > 0) ||
+         lod_ready(in, now);
+}
+
+// Under the inbox's lock: how long the idle pipeline may sleep, until the soonest of its
+// parts is due (a wake-up ends it sooner).
+std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const {
+  using std::chrono::milliseconds;
+  milliseconds wait = memory_.next_look(in.scheduler.has_loads());
+  // Unsaved chunks: their checkpoint (a finished one wakes us).
+  if (checkpoints_ && checkpoints_->has_unsaved()) wait = std::min(wait, checkpoints_->interval());
+  // A chunk the store could not give back, or a region table in doubt: try again then.
+  if ((reader_ && reader_->failing() && loads_->waiting()) || regions_.doubtful())
+    wait = std::min(wait, std::chrono::duration_cast<milliseconds>(config_.store_retry));
+  // A coarse chunk's re-mesh falls due (while a batch waits for the store, its landing
+  // wakes us: the stage does not run before).
+  if (const auto due = lod_->next_due(); due && !batches_in_flight())
+    wait = std::min(wait, std::chrono::ceil<milliseconds>(
+                              std::max(Clock::duration::zero(), *due - Clock::now())));
+  return wait;
+}
+
+// What the parts do between batches, and whenever the idle pipeline wakes: answer the
+// batches whose appends landed, evict, checkpoint, write a region table in doubt.
+void WorldPipeline::between_batches(Clock::time_point now) {
+  manage_memory(now);
+  checkpoint_if_due(now);
+  repair_regions(now);
+  // Appends that landed meanwhile: answered now, not when the loop next waits (while loads
+  // keep it busy it may not wait for a long time).
+  finish_landed();
 }
 
 // A batch: every queued edit and inspection first; then, on the world as the edits left
-// it, one load pass within what the work and memory budgets allow.
+// it, one load pass within what the work and memory budgets allow; then a level-of-detail
+// pass. Between batches the parts take their turns.
 void WorldPipeline::run() {
+  const auto ready = [this](Inbox::State& in) {
+    return in.stopping || in.append_landed || batch_ready(in);
+  };
   for (;;) {
+    while (!inbox_.wait_unless(ready, [this](const Inbox::State& in) { return idle_wait(in); })) {
+      inbox_.locked([this](Inbox::State& in) { take_view_updates(in); });
+      finish_landed();
+      between_batches(Clock::now());
+    }
     std::vector<OrderedTask> ordered;
-    {
-      std::unique_lock lock(queue_mutex_);
-      while (!stopping_ && !batch_ready() && !append_landed_) {
-        // Idle: wake now and then to evict idle chunks. Loads waiting for memory: retry
-        // eviction more often (sessions release meshes). Loads waiting for their owners'
-        // budgets: look again soon.
-        auto wait =
-            !scheduler_.has_loads()
-                ? std::chrono::duration_cast<std::chrono::milliseconds>(config_.evict_after / 4)
-            : loads_blocked_.load(std::memory_order_relaxed) ? kPressureRetry
-                                                             : kBudgetRetry;
-        // Unsaved chunks: wake for their checkpoint (and a finished one wakes us).
-        if (checkpoints_ && checkpoints_->has_unsaved())
-          wait = std::min(wait, checkpoints_->interval());
-        // A chunk the store could not give back, or a region table in doubt: try again then.
-        if ((reader_ && reader_->failing() && loads_->waiting()) || regions_.doubtful())
-          wait = std::min(
-              wait, std::chrono::duration_cast<std::chrono::milliseconds>(config_.store_retry));
-        // A coarse chunk's re-mesh falls due (while a batch waits for the store, its
-        // landing wakes us: the stage does not run before).
-        if (const auto due = lod_->next_due(); due && !batches_in_flight())
-          wait = std::min(wait, std::chrono::ceil<std::chrono::milliseconds>(
-                                    std::max(Clock::duration::zero(), *due - Clock::now())));
-        queue_cv_.wait_for(lock, wait);
-        take_view_updates();
-        lock.unlock();
-        finish_landed();
-        manage_memory(Clock::now());
-        checkpoint_if_due(Clock::now());
-        repair_regions(Clock::now());
-        lock.lock();
-      }
-      if (stopping_) break;
-      if (!batch_ready()) {  // only an append landed: answer its batch
-        lock.unlock();
-        finish_landed();
-        continue;
-      }
-      take_view_updates();
-      ordered = scheduler_.take_ordered();
-      generated_ready_ = false;  // this batch installs what is ready
+    bool stopping = false, batch = false;
+    inbox_.locked([&](Inbox::State& in) {
+      stopping = in.stopping;
+      batch = !stopping && batch_ready(in);
+      if (!batch) return;  // stopping, or only an append landed: its batch is answered
+      take_view_updates(in);
+      ordered = in.scheduler.take_ordered();
+      in.generated_ready = false;  // this batch installs what is ready
+    });
+    if (stopping) break;
+    if (!batch) {
+      finish_landed();
+      continue;
     }
     const size_t ordered_count = ordered.size();
     const Clock::time_point now = Clock::now();
@@ -320,12 +278,7 @@ void WorldPipeline::run() {
       std::lock_guard lock(stats_mutex_);
       stats_.batches += 1;
     }
-    manage_memory(Clock::now());
-    checkpoint_if_due(Clock::now());
-    repair_regions(Clock::now());
-    // Appends that landed meanwhile: answered now, not when the loop next waits (while
-    // loads keep it busy it may not wait for a long time).
-    finish_landed();
+    between_batches(Clock::now());
     const double took = seconds_since(now);
     if (observer_.batch) observer_.batch(took, ordered_count, plan.to_mesh.size());
     if (took > std::chrono::duration<double>(kSlowBatch).count()) {
@@ -343,23 +296,19 @@ void WorldPipeline::run() {
   final_checkpoint();
 }
 
-// Answers the batches whose appends have landed (pipeline thread, outside queue_mutex_).
+// Answers the batches whose appends have landed (outside the inbox's lock).
 void WorldPipeline::finish_landed() {
-  {
-    std::lock_guard lock(queue_mutex_);
-    append_landed_ = false;
-  }
+  inbox_.locked([](Inbox::State& in) { in.append_landed = false; });
   finish_pending(SIZE_MAX);
 }
 
 void WorldPipeline::drain_after_stop() {
   std::vector<OrderedTask> ordered;
   std::vector<std::function<void()>> loads;
-  {
-    std::lock_guard lock(queue_mutex_);
-    ordered = scheduler_.take_ordered();
-    loads = scheduler_.take_all_load_callbacks();
-  }
+  inbox_.locked([&](Inbox::State& in) {
+    ordered = in.scheduler.take_ordered();
+    loads = in.scheduler.take_all_load_callbacks();
+  });
   // An inspection runs (not cancelled): on the pipeline thread, state is still ours.
   for (OrderedTask& t : ordered) refuse_shutting_down(t, false);
   for (auto& done : loads) done();
@@ -388,7 +337,7 @@ void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time
 // while the store rests after a failure) and runs its inspections.
 EditBatch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now) {
   EditBatch b;
-  evicted_for_edits_ = false;
+  memory_.new_batch();
   b.edit_dirty.resize(tasks.size());
   b.results.resize(tasks.size());
   std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender

@@ -20,13 +20,10 @@ void WorldPipeline::wait_for_answer(Clock::time_point until) {
   while (!commit_->empty()) {
     const Clock::time_point start = Clock::now();
     bool go_on = false;  // an edit arrived, or the pipeline stops
-    {
-      std::unique_lock lock(queue_mutex_);
-      queue_cv_.wait_until(lock, until, [&] {
-        go_on = stopping_ || scheduler_.has_ordered();
-        return go_on || commit_->oldest_landed();
-      });
-    }
+    inbox_.wait_until(until, [&](const Inbox::State& in) {
+      go_on = in.stopping || in.scheduler.has_ordered();
+      return go_on || commit_->oldest_landed();
+    });
     commit_->waited_for_oldest(seconds_since(start));
     if (!commit_->oldest_landed()) break;  // the wait is over, or an edit arrived
     commit_->finish(SIZE_MAX);             // every batch whose append has landed

@@ -68,18 +68,13 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     may_expand += !chunk || chunk->is_uniform() ? 1 : 0;
   }
   // What is resident: terrain on its way for loads (reserved) does not hold edits back.
-  if (!budget_.may_generate(resident_bytes(), missing + may_expand)) {
-    if (evicted_for_edits_) return world::RefusalReason::kServerBusy;
-    evicted_for_edits_ = true;
+  const MemoryBudget& budget = memory_.budget();
+  if (!budget.may_generate(resident_bytes(), missing + may_expand)) {
     const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
-    const size_t target = budget_.evict_target(other_bytes_.load(std::memory_order_relaxed));
-    // Chunks this batch used (loaded or touched: last used `now`) always stay.
-    st.evict(
-        meshes_, now, config_.evict_after,
-        std::max<std::chrono::milliseconds>(std::min(config_.evict_min_age, config_.evict_after),
-                                            std::chrono::milliseconds(1)),
-        target > need ? target - need : 0, kPressureScan);
-    if (!budget_.may_generate(resident_bytes(), missing + may_expand))
+    const auto pass = memory_.for_edits(need, other_bytes_.load(std::memory_order_relaxed));
+    if (!pass) return world::RefusalReason::kServerBusy;  // made room once this batch already
+    st.evict(meshes_, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
+    if (!budget.may_generate(resident_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
   try {

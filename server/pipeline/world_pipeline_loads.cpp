@@ -24,13 +24,14 @@ size_t WorldPipeline::resident_bytes() const {
 size_t WorldPipeline::load_work_allowed(bool edits_waiting) {
   const size_t full =
       edits_waiting ? config_.load_pass_work_while_edits_wait : config_.load_pass_work;
-  return budget_.load_work(accounted_bytes(), full);
+  return memory_.budget().load_work(accounted_bytes(), full);
 }
 
-void WorldPipeline::take_view_updates() {
-  if (view_updates_.empty()) return;
-  for (const auto& [owner, view] : view_updates_) state_->views.set(owner, view.first, view.second);
-  view_updates_.clear();
+void WorldPipeline::take_view_updates(Inbox::State& in) {
+  if (in.view_updates.empty()) return;
+  for (const auto& [owner, view] : in.view_updates)
+    state_->views.set(owner, view.first, view.second);
+  in.view_updates.clear();
   loads_->drop_unviewed();
 }
 
@@ -38,17 +39,18 @@ void WorldPipeline::take_view_updates() {
 // scheduler is read under the queue lock, and its cost callback touches only
 // pipeline-thread state.
 std::vector<LoadSlice> WorldPipeline::take_loads(LoadPlan& plan, Clock::time_point now) {
-  std::lock_guard lock(queue_mutex_);
-  // The views whose requests this pass takes must be the ones eviction protects: a view
-  // set after the batch started would otherwise have its meshed chunks passed over here
-  // (nothing to load) yet evicted below, and the session would wait for them forever.
-  take_view_updates();
-  if (!scheduler_.has_loads()) return {};
-  return scheduler_.take_loads(
-      // Edits waiting to apply, or applied and waiting for the store to be answered: a
-      // short pass, so that they are not held up behind it.
-      load_work_allowed(scheduler_.has_ordered() || batches_in_flight()),
-      [&](ChunkCoord c) { return loads_->cost(c, plan, now); }, config_.load_scan_limit, now);
+  return inbox_.locked([&](Inbox::State& in) -> std::vector<LoadSlice> {
+    // The views whose requests this pass takes must be the ones eviction protects: a view
+    // set after the batch started would otherwise have its meshed chunks passed over here
+    // (nothing to load) yet evicted below, and the session would wait for them forever.
+    take_view_updates(in);
+    if (!in.scheduler.has_loads()) return {};
+    return in.scheduler.take_loads(
+        // Edits waiting to apply, or applied and waiting for the store to be answered: a
+        // short pass, so that they are not held up behind it.
+        load_work_allowed(in.scheduler.has_ordered() || batches_in_flight()),
+        [&](ChunkCoord c) { return loads_->cost(c, plan, now); }, config_.load_scan_limit, now);
+  });
 }
 
 // One load pass: installs the terrain generated in the background, queues what the
@@ -79,30 +81,18 @@ void WorldPipeline::process_loads(std::vector<LoadSlice>& loads, LoadPlan& plan,
   subscribers_.notify(published);
 }
 
-// Evicts idle chunks now and then, and under memory pressure down to the budget's target;
-// decides whether loads must wait. Pipeline thread.
+// Evicts idle chunks now and then, and under memory pressure down to the budget's target
+// (MemoryKeeper says when); decides whether loads must wait.
 void WorldPipeline::manage_memory(Clock::time_point now) {
   WorldState& st = *state_;
-  const bool periodic = now - st.last_eviction > config_.evict_after / 4;
-  // Under pressure, evict after every batch while eviction frees something or the world
-  // grew since (terrain installed, meshes made); when it freed nothing and nothing came
-  // (everything is in use), retry only now and then: the scan is not free.
-  const size_t resident = resident_bytes();
-  const bool pressure =
-      budget_.should_evict(resident) && (last_eviction_freed_ || resident > resident_at_eviction_ ||
-                                         now - st.last_eviction > kPressureRetry);
-  if (periodic || pressure) {
+  const MemoryBudget& budget = memory_.budget();
+  if (const auto pass =
+          memory_.due(now, resident_bytes(), other_bytes_.load(std::memory_order_relaxed))) {
     // Chunks whose meshes wait for the store stay: the batches are answered first.
     finish_pending(0);
-    st.last_eviction = now;
-    // The periodic pass drops only idle chunks; under pressure, down to the target.
-    const size_t target =
-        pressure ? budget_.evict_target(other_bytes_.load(std::memory_order_relaxed)) : SIZE_MAX;
-    const size_t dropped = st.evict(meshes_, now, config_.evict_after,
-                                    std::min(config_.evict_min_age, config_.evict_after), target,
-                                    periodic ? SIZE_MAX : kPressureScan);
-    last_eviction_freed_ = dropped > 0;
-    resident_at_eviction_ = resident_bytes();
+    const size_t dropped =
+        st.evict(meshes_, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
+    memory_.evicted(now, dropped, resident_bytes());
     std::lock_guard lock(stats_mutex_);
     stats_.chunks_evicted += dropped;
     stats_.loaded_chunks = st.chunks.size();
@@ -112,20 +102,17 @@ void WorldPipeline::manage_memory(Clock::time_point now) {
   // Blocked: no room even once the terrain on its way has landed (while it is on its way,
   // load passes only wait for it: see batch_ready).
   const size_t total = resident_bytes();
-  const bool blocked = budget_.load_work(total, 1) == 0;
-  if (blocked != loads_blocked_.load(std::memory_order_relaxed)) {
-    if (blocked) {
-      spdlog::warn(
-          "memory budget: {} MiB accounted of {} MiB (--max-memory) and nothing left to evict; "
-          "new chunk loads wait",
-          total >> 20, budget_.max_bytes() >> 20);
-      std::lock_guard lock(stats_mutex_);
-      ++stats_.memory_blocked;
-    } else {
-      spdlog::info("memory budget: {} MiB accounted of {} MiB; loads resume", total >> 20,
-                   budget_.max_bytes() >> 20);
-    }
-    loads_blocked_.store(blocked, std::memory_order_relaxed);
+  if (!memory_.update_blocked(total)) return;
+  if (memory_.loads_blocked()) {
+    spdlog::warn(
+        "memory budget: {} MiB accounted of {} MiB (--max-memory) and nothing left to evict; "
+        "new chunk loads wait",
+        total >> 20, budget.max_bytes() >> 20);
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.memory_blocked;
+  } else {
+    spdlog::info("memory budget: {} MiB accounted of {} MiB; loads resume", total >> 20,
+                 budget.max_bytes() >> 20);
   }
 }
 

@@ -7,29 +7,19 @@
 
 namespace vox::pipeline {
 
-void WorldPipeline::set_lod_view(LoadOwner owner, std::vector<LodKey> keys) {
-  {
-    std::lock_guard lock(queue_mutex_);
-    if (stopping_) return;
-    lod_updates_[owner] = std::move(keys);
-  }
-  queue_cv_.notify_one();
-}
-
 // Pipeline thread. While a batch waits for the store, the chunk map may show edits that
 // are not durable: no LOD mesh is made from it then (the append's landing wakes us).
-bool WorldPipeline::lod_ready(Clock::time_point now) const {
-  return !batches_in_flight() && (!lod_updates_.empty() || lod_->has_work(now));
+bool WorldPipeline::lod_ready(const Inbox::State& in, Clock::time_point now) const {
+  return !batches_in_flight() && (!in.lod_updates.empty() || lod_->has_work(now));
 }
 
 void WorldPipeline::lod_pass(Clock::time_point now) {
   std::unordered_map<LoadOwner, std::vector<LodKey>> updates;
   bool edits_waiting = false;
-  {
-    std::lock_guard lock(queue_mutex_);
-    updates.swap(lod_updates_);
-    edits_waiting = scheduler_.has_ordered();
-  }
+  inbox_.locked([&](Inbox::State& in) {
+    updates.swap(in.lod_updates);
+    edits_waiting = in.scheduler.has_ordered();
+  });
   LodPublication late;                   // keys owners now want that were published before they did
   for (auto& [owner, keys] : updates) {  // outside the lock
     std::vector<LodKey> published = lod_->set_wants(owner, std::move(keys));
@@ -57,8 +47,9 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
     if (edits_waiting || Clock::now() - start >= config_.lod_pass_time ||
         !lod_->has_work(Clock::now()))
       return;
-    std::lock_guard lock(queue_mutex_);
-    if (scheduler_.has_ordered() || stopping_) return;  // an edit arrived: it goes first
+    const bool edit_or_stop = inbox_.locked(
+        [](const Inbox::State& in) { return in.scheduler.has_ordered() || in.stopping; });
+    if (edit_or_stop) return;  // an edit arrived: it goes first
   }
 }
 

@@ -70,7 +70,6 @@ struct WorldState {
   std::function<world::Chunk(world::ChunkCoord)> read_stored;
   // Surface heights of the columns generated during one load pass.
   std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
-  Clock::time_point last_eviction = Clock::now();
   ViewIndex views;  // every session's current view: chunks in one are never evicted
   // Chunks a waiting mesh needs (the 3x3x3 around it), with how many need each: never
   // evicted, or a mesh waiting for its last neighbour could lose the others meanwhile.
