@@ -1,4 +1,4 @@
-// What a far view costs (issue 16): a player's whole view meshed, encoded and compressed
+// What a far view costs: a player's whole view meshed, encoded and compressed
 // as the server would send it, once with today's level-0 chunks to radius 8 and once as a
 // level-of-detail layout reaching 2,048 voxels (levels 0..6, level 0 near the eye), on one
 // thread. Counters: meshes with a surface, triangles, bytes on the wire.

@@ -1,4 +1,4 @@
-// A real voxeld on 127.0.0.1 streaming a level-of-detail view (issue 16; PROTOCOL.md
+// A real voxeld on 127.0.0.1 streaming a level-of-detail view (PROTOCOL.md
 // 4.10): what the client holds is its layout, the chunks of all levels meet without
 // cracks, edits reach the coarse levels, moving unloads, and bad requests are refused.
 #include <gtest/gtest.h>

@@ -107,7 +107,7 @@ TEST(OfflineMesher, StreamingFromFloatsGivesTheQuantisedVolumesMeshAndReleasesEv
   }
 }
 
-// Review of issue 15: below a largest distance of about 1e-34, 32767 / scale was infinite
+// A review found: below a largest distance of about 1e-34, 32767 / scale was infinite
 // and every vertex landed at an edge's midpoint.
 TEST(OfflineMesher, AVolumeOfTinyValuesGivesTheSameMeshAsItsScaledUpCopy) {
   Volume v = integer_volume();
@@ -153,7 +153,7 @@ TEST(VolumePercentile, IsTheValueAtTheRankOfThePercentile) {
   crowded.push_back(1e9f);
   EXPECT_FLOAT_EQ(value_percentile(crowded, 50), 1.0f + 500 * 1e-6f);
   EXPECT_FLOAT_EQ(value_percentile(std::vector<float>(5, 3.0f), 37), 3.0f);
-  // Review of issue 15: a NaN reached a float-to-index cast before any finiteness check.
+  // A review found: a NaN reached a float-to-index cast before any finiteness check.
   EXPECT_THROW(value_percentile(std::vector<float>{1.0f, std::nanf(""), 2.0f}, 50),
                std::domain_error);
 }

@@ -122,7 +122,7 @@ TEST(PipelineStore, CheckpointedChunksAreEvictedAndReadBackUnchanged) {
 }
 
 // A level-of-detail chunk over modified chunks that were checkpointed and evicted reads
-// them back from the store: it shows the edits (issue 16), as a pipeline that kept them.
+// them back from the store: it shows the edits, as a pipeline that kept them.
 TEST(PipelineStore, ACoarseChunkOverEvictedModifiedChunksShowsTheirEdits) {
   const test::TempDir tmp("pstore_lod_evict");
   const auto dir = tmp / "world";

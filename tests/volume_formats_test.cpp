@@ -310,7 +310,7 @@ TEST_F(VolumeFormats, GzipFilesThatAreCutShortCorruptOrBombsAreRefused) {
   EXPECT_NE(msg.find("bytes of gzip data can hold"), std::string::npos) << msg;
 }
 
-// Review of issue 15: the samples' floats were allocated (and zeroed) for everything the
+// A review found: the samples' floats were allocated (and zeroed) for everything the
 // header declared before one byte was decompressed: a 128 KiB file reached 529 MiB.
 TEST_F(VolumeFormats, AGzipStreamShorterThanItsHeaderCostsOnlyWhatItHolds) {
   NiftiSpec spec;

@@ -1,4 +1,4 @@
-// The samples a level-of-detail chunk is meshed from (issue 16): its own level's samples
+// The samples a level-of-detail chunk is meshed from: its own level's samples
 // every 2^k voxels, padded like a level-0 chunk's (padded_block.hpp), and on its seams
 // (server/world/lod_seams.hpp) the finer level's samples every 2^(k-1) voxels, with one
 // more on each side for the normals there. All of them read through a PointSampler, so a

@@ -1,4 +1,4 @@
-// Meshes a level-of-detail chunk (issue 16) with its seams: marching cubes over the
+// Meshes a level-of-detail chunk with its seams: marching cubes over the
 // chunk's own level for every cell, except the cells touching a split face or edge
 // (lod_seams.hpp), which are contoured from the finer level's samples there too
 // (seam_cell.hpp). Where a finer chunk meets this one, both meshes then have the same

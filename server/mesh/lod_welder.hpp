@@ -1,4 +1,4 @@
-// Joins the meshes of a level-of-detail view (chunks of several levels, issue 16) into one
+// Joins the meshes of a level-of-detail view (chunks of several levels) into one
 // mesh in world positions. A vertex on a seam is bit-identical to its twin in the chunk
 // across (docs/PROTOCOL.md §2.7), so vertices are joined by exact world position; vertices
 // no triangle uses are dropped. Parts are taken level by level in coordinate order,

@@ -1,4 +1,4 @@
-// What a session sends next of its level-of-detail chunks (levels >= 1; issue 16): per
+// What a session sends next of its level-of-detail chunks (levels >= 1): per
 // chunk of the client's layout the seams it needs and the version it holds; stale chunks
 // nearest first (finer first between equals). A chunk whose seams changed gets the new
 // variant as a delta from the one it holds. Wire versions are the session's own, one

@@ -1,4 +1,4 @@
-// The session's level-of-detail view (issue 16; docs/PROTOCOL.md 4.10): its layout as the
+// The session's level-of-detail view (docs/PROTOCOL.md 4.10): its layout as the
 // player moves, the level-0 chunks of it (sent by the SendScheduler like any view), the
 // coarser chunks (LodSendQueue), their unloads and messages. Strand only, but where a
 // comment says otherwise.

@@ -1,4 +1,4 @@
-// Published level-of-detail meshes (issue 16): per (level-k chunk, seams) the newest
+// Published level-of-detail meshes: per (level-k chunk, seams) the newest
 // immutable MeshVersion, shared by every client whose layout needs that chunk with those
 // seams. The pipeline thread publishes and erases (a key leaves when no client's layout
 // uses it any more); readers copy the pointer under a short lock and read the record

@@ -1,4 +1,4 @@
-// Which level-of-detail chunks to re-mesh after edits, and when (issue 16). Pure
+// Which level-of-detail chunks to re-mesh after edits, and when. Pure
 // bookkeeping: no I/O, no threads; the clock is passed in.
 //
 // Rules (each has a unit test in tests/lod_remesh_queue_test.cpp):

@@ -1,4 +1,4 @@
-// The pipeline's level-of-detail stage (issue 16): which (chunk, seams) meshes the
+// The pipeline's level-of-detail stage: which (chunk, seams) meshes the
 // clients' layouts want, meshing the missing ones and re-meshing those an edit changed
 // (coalesced by LodRemeshQueue), published into a LodMeshStore.
 //

@@ -67,7 +67,7 @@ struct PipelineConfig {
   // After a failed append, edits are refused kStorageUnavailable without trying the store
   // again for this long.
   std::chrono::milliseconds store_retry{1000};
-  // Level of detail (issue 16): the stage's settings; between batches it meshes groups of
+  // Level of detail: the stage's settings; between batches it meshes groups of
   // lod_group_chunks (in parallel) for up to lod_pass_time, stopping as soon as an edit
   // waits (then one group only): coarse levels never hold an edit up for long, and lag
   // behind when the server is saturated.

@@ -1,4 +1,4 @@
-// The pipeline's level-of-detail part (issue 16): views set from any thread, taken
+// The pipeline's level-of-detail part: views set from any thread, taken
 // between batches; a LodStage pass after each batch's loads; durable edits marked.
 #include <spdlog/spdlog.h>
 

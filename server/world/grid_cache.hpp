@@ -1,4 +1,4 @@
-// Generated terrain grids kept for reuse (issue 16): a coarse chunk is re-meshed after each
+// Generated terrain grids kept for reuse: a coarse chunk is re-meshed after each
 // edit near it, and a layout change meshes it again with other seams; both read the same
 // generator grids (only the modified chunks laid over them differ). Bounded in bytes, the
 // least recently used grid dropped first. Any thread: one leaf mutex, held to look up or

@@ -1,4 +1,4 @@
-// Where a level-k chunk of a level-of-detail layout meets finer chunks (issue 16).
+// Where a level-k chunk of a level-of-detail layout meets finer chunks.
 //
 // Seams are made crack-free on the coarser side: on a face whose neighbour is one level
 // finer, the coarse chunk's cells read the finer level's samples there too (every edge of

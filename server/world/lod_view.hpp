@@ -1,4 +1,4 @@
-// One client's level-of-detail view (issue 16): its layout as the eye moves, and what to
+// One client's level-of-detail view: its layout as the eye moves, and what to
 // send and unload against what the client holds. Pure bookkeeping: no I/O, no clock.
 //
 // Rules (each has a unit test in tests/lod_view_test.cpp):

@@ -1,7 +1,7 @@
 // The world as a level-of-detail chunk sees it: the generator's terrain, with the samples
 // of the chunks that differ from it (modified level-0 chunks) laid over it. A coarse
 // sample at a point of a modified chunk is that chunk's sample there, so every level shows
-// the edits (issue 16).
+// the edits.
 #pragma once
 
 #include <functional>
