@@ -39,6 +39,7 @@ ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, 
       pipeline_(pipeline),
       counters_(services_.counters),
       decoder_(config_.max_frame_bytes),
+      edits_(pipeline.config().limits, config_.max_edits_in_flight),
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
       error_budget_(config_.protocol_error_rate, config_.protocol_error_burst) {

@@ -19,6 +19,7 @@
 #include "server/auth/player_token.hpp"
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
+#include "server/net/edit_gate.hpp"
 #include "server/net/lod_send_queue.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/player_registry.hpp"
@@ -152,10 +153,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   bool closing_ = false;
   bool writing_ = false;
   bool applying_view_ = false;  // apply_view() in progress: pump() waits for its end
-  size_t edits_in_flight_ = 0;  // submitted, result not yet queued
   static constexpr size_t kMaxRegionCommandsInFlight = 16;
-  size_t region_commands_in_flight_ = 0;           // sent to the pipeline, not yet answered
-  std::shared_ptr<SharedEditBudget> edit_budget_;  // the player's (shared) or this session's
+  size_t region_commands_in_flight_ = 0;  // sent to the pipeline, not yet answered
+  EditGate edits_;  // role, validity, in-flight cap and budget of the client's edits
   pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
   ResultOrder results_;
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_

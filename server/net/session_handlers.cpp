@@ -20,24 +20,6 @@ bool finite(const wire::Vec3& v) {
   return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
 }
 
-// Samples an edit's box touches: its cost against the edit budget.
-double edit_cost(const world::Edit& edit) {
-  const world::VoxelBox box = world::touched_box(edit);
-  double samples = 1;
-  for (int a = 0; a < 3; ++a) samples *= static_cast<double>(box.hi[a]) - box.lo[a] + 1;
-  return samples;
-}
-
-// What generating one chunk of terrain (or making a uniform one full) costs against the
-// edit budget: its samples.
-constexpr double kSamplesPerChunk = world::kChunkVolume;
-// SERVER_BUSY: memory frees as eviction runs (several times a second under pressure).
-constexpr uint32_t kBusyRetryMs = 1000;
-
-uint32_t clamp_ms(std::chrono::milliseconds ms) {
-  return static_cast<uint32_t>(std::min<long long>(ms.count(), UINT32_MAX));
-}
-
 }  // namespace
 
 void ClientSession::handle_hello(const wire::Hello& hello) {
@@ -72,7 +54,7 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   if (claims)
     join_as(*claims);
   else
-    edit_budget_ = std::make_shared<SharedEditBudget>(edit_limits(nullptr));
+    edits_.join(role_, std::make_shared<SharedEditBudget>(edit_limits(nullptr)));
   player_ = true;
   counters_.handshaking.fetch_sub(1);
   const uint64_t players = counters_.players.fetch_add(1) + 1;
@@ -104,7 +86,7 @@ void ClientSession::join_as(const auth::PlayerClaims& claims) {
   player_id_ = claims.player_id;
   auto [previous, budget] =
       services_.players->claim(player_id_, shared_from_this(), edit_limits(&claims));
-  edit_budget_ = std::move(budget);
+  edits_.join(role_, std::move(budget));
   if (!previous) return;
   previous->close_with_error(wire::Error::REPLACED, "another connection joined as this player");
   if (auto suppressed = services_.logs->allow("replaced", 20)) {
@@ -138,7 +120,7 @@ void ClientSession::send_welcome(uint64_t players) {
   w->set_mesh_format(proto::kMeshFormat);
   w->set_players(static_cast<uint32_t>(players));
   w->set_max_edits_in_flight(static_cast<uint32_t>(config_.max_edits_in_flight));
-  const BudgetLimits budget = edit_budget_->limits();
+  const BudgetLimits budget = edits_.budget()->limits();
   w->set_edit_budget_per_second(std::max(0.0, budget.rate));
   w->set_edit_budget_burst(budget.rate > 0 ? budget.burst : 0);
   w->set_max_set_views_per_second(std::max(0.0, config_.set_view_rate));
@@ -281,31 +263,11 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
     queue_result(request, converted.status, converted.reason);
     return;
   }
-  if (role_ == auth::Role::kViewer) {
-    queue_result(request, wire::EditResult::FORBIDDEN, "a viewer may not edit");
-    return;
-  }
-  if (auto refusal = world::validate(*converted.edit, pipeline_.config().limits)) {
-    queue_result(request, status_of(refusal->reason), refusal->message);
-    return;
-  }
-  if (edits_in_flight_ >= config_.max_edits_in_flight) {
-    // A client cannot queue unbounded work in the shared pipeline.
-    queue_result(
-        request, wire::EditResult::TOO_MANY_EDITS,
-        "over " + std::to_string(config_.max_edits_in_flight) + " edits still being applied");
-    return;
-  }
-  const double cost = edit_cost(*converted.edit);
-  if (const auto wait = edit_budget_->take(cost, Clock::now()); wait.count() > 0) {
-    queue_result(
-        request, wire::EditResult::RATE_LIMITED,
-        "over the edit budget (" + std::to_string(static_cast<uint64_t>(cost)) + " samples)",
-        clamp_ms(wait));
+  if (auto refused = edits_.admit(*converted.edit, Clock::now())) {
+    queue_result(request, refused->status, refused->reason, refused->retry_after_ms);
     return;
   }
   counters_.edits.fetch_add(1, std::memory_order_relaxed);
-  ++edits_in_flight_;
   // Read before submitting: every version this edit makes is above it.
   const uint64_t ticket = results_.reserve(pipeline_.meshes().newest_version() + 1);
   const auto submitted = Clock::now();
@@ -315,17 +277,7 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
         // Pipeline thread: build the result here, queue it on the strand.
         self->counters_.edit_to_publish.observe(
             std::chrono::duration<double>(Clock::now() - submitted).count());
-        wire::Envelope result;
-        auto* w = result.mutable_edit_result();
-        w->set_request_id(request);
-        w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
-        w->set_reason(r.message);
-        if (r.reason == world::RefusalReason::kServerBusy ||
-            r.reason == world::RefusalReason::kStorageUnavailable)
-          w->set_retry_after_ms(kBusyRetryMs);
-        for (const ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
-        for (const uint64_t region : r.clipped_by) w->add_clipped_by(region);
-        asio::post(self->strand_, [self, ticket, result = std::move(result),
+        asio::post(self->strand_, [self, ticket, result = edit_result_message(request, r),
                                    work = r.chunks_generated + r.chunks_expanded]() mutable {
           self->on_edit_result(ticket, std::move(result), work);
         });
@@ -333,19 +285,13 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
       id_, player_id_, role_ == auth::Role::kAdmin);
 }
 
-// Strand: the pipeline's answer. Terrain the edit made the server generate (and uniform
-// chunks it made full) is charged afterwards, as debt: an edit where nothing is loaded
-// costs far more than its samples.
+// Strand: the pipeline's answer, queued in the order of the client's edits.
 void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks) {
-  --edits_in_flight_;
   const auto now = Clock::now();
-  if (work_chunks > 0) {
-    edit_budget_->charge(static_cast<double>(work_chunks) * kSamplesPerChunk, now);
-  }
+  edits_.answered(work_chunks, now);
   auto* r = result.mutable_edit_result();
-  if (r->status() == wire::EditResult::RATE_LIMITED) {
-    r->set_retry_after_ms(clamp_ms(edit_budget_->wait_for(kSamplesPerChunk, now)));
-  }
+  if (r->status() == wire::EditResult::RATE_LIMITED)
+    r->set_retry_after_ms(edits_.rate_limited_retry_ms(now));
   ServerCounters::bump(
       counters_.edit_results[static_cast<size_t>(r->status()) % ServerCounters::kStatuses]);
   log_refusal(r->status(), r->reason());

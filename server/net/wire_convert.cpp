@@ -110,6 +110,22 @@ wire::EditResult::Status status_of(world::RefusalReason r) {
   return wire::EditResult::ACCEPTED;
 }
 
+wire::Envelope edit_result_message(uint64_t request, const pipeline::EditResult& r) {
+  // SERVER_BUSY: memory frees as eviction runs (several times a second under pressure).
+  constexpr uint32_t kBusyRetryMs = 1000;
+  wire::Envelope result;
+  auto* w = result.mutable_edit_result();
+  w->set_request_id(request);
+  w->set_status(r.accepted ? wire::EditResult::ACCEPTED : status_of(r.reason));
+  w->set_reason(r.message);
+  if (r.reason == world::RefusalReason::kServerBusy ||
+      r.reason == world::RefusalReason::kStorageUnavailable)
+    w->set_retry_after_ms(kBusyRetryMs);
+  for (const world::ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
+  for (const uint64_t region : r.clipped_by) w->add_clipped_by(region);
+  return result;
+}
+
 bool has_unknown_fields(const google::protobuf::Message& m) {
   const google::protobuf::Reflection* r = m.GetReflection();
   if (!r->GetUnknownFields(m).empty()) return true;

@@ -30,6 +30,10 @@ struct WireEdit {
 WireEdit edit_from_wire(const wire::Edit& e);
 
 wire::EditResult::Status status_of(world::RefusalReason r);
+// The EditResult message of the pipeline's answer to request `request`: its status (a
+// busy or unavailable store says when to retry), reason, the chunks given new meshes and
+// the regions that clipped it.
+wire::Envelope edit_result_message(uint64_t request, const pipeline::EditResult& r);
 
 wire::Region to_wire(const world::Region& r);
 // The region a RegionCommand asks to add (not validated: the pipeline does that).
