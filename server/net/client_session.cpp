@@ -1,5 +1,5 @@
-// The session's lifecycle, read chain (frames, rate, timeouts) and write chain; the
-// message handlers are in session_handlers.cpp.
+// The session's lifecycle, what its connection tells it (messages and their rate, writes,
+// the end) and what it writes; the message handlers are in session_handlers.cpp.
 #include "server/net/client_session.hpp"
 
 #include <spdlog/spdlog.h>
@@ -14,22 +14,22 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-std::vector<uint8_t> frame_of(const wire::Envelope& message) {
-  std::vector<uint8_t> out;
-  proto::append_framed(message, out);
+std::vector<uint8_t> serialized(const wire::Envelope& message) {
+  std::vector<uint8_t> out(message.ByteSizeLong());
+  message.SerializeWithCachedSizesToArray(out.data());
   return out;
 }
 
 }  // namespace
 
-ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, uint64_t id,
-                             pipeline::WorldPipeline& pipeline, SessionServices services)
-    : socket_(std::move(socket)),
-      strand_(asio::make_strand(socket_.get_executor())),
+ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string address,
+                             uint64_t id, pipeline::WorldPipeline& pipeline,
+                             SessionServices services)
+    : connection_(std::move(connection)),
+      strand_(connection_->strand()),
       handshake_timer_(strand_),
       idle_timer_(strand_),
-      write_timer_(strand_),
-      frame_timer_(strand_),
+      close_timer_(strand_),
       read_pause_timer_(strand_),
       view_timer_(strand_),
       address_(std::move(address)),
@@ -38,7 +38,6 @@ ClientSession::ClientSession(asio::ip::tcp::socket socket, std::string address, 
       config_(*services_.config),
       pipeline_(pipeline),
       counters_(services_.counters),
-      decoder_(config_.max_frame_bytes),
       edits_(pipeline.config().limits, config_.max_edits_in_flight),
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
@@ -65,7 +64,7 @@ void ClientSession::start() {
     });
     self->arm_idle_timer();
     self->update_memory();
-    self->read_more();
+    self->connection_->read(self->events());
   });
 }
 
@@ -78,78 +77,48 @@ void ClientSession::arm_idle_timer() {
   });
 }
 
-void ClientSession::read_more() {
-  if (closing_ || reading_paused_) return;
-  socket_.async_read_some(asio::buffer(read_buffer_),
-                          asio::bind_executor(strand_, [self = shared_from_this()](
-                                                           boost::system::error_code ec, size_t n) {
-                            if (ec) {
-                              if (!self->closing_)
-                                spdlog::debug("session {}: connection closed by peer ({})",
-                                              self->id_, ec.message());
-                              self->shutdown();
-                              return;
-                            }
-                            self->decoder_.feed({self->read_buffer_.data(), n});
-                            self->process_frames();
-                          }));
+// A message from the client: handled; then, over its message rate, the connection stops
+// reading for a while (TCP pushes back on the client) and reads on.
+bool ClientSession::on_message(std::span<const uint8_t> body) {
+  arm_idle_timer();
+  on_frame(body);
+  if (closing_) return false;
+  const auto wait = message_budget_.take(1, Clock::now());
+  if (wait.count() <= 0) return true;
+  ServerCounters::bump(counters_.reads_paused);
+  read_pause_timer_.expires_after(std::min(wait, std::chrono::milliseconds(1000)));
+  read_pause_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    if (ec || self->closing_) return;
+    self->connection_->read(self->events());
+  });
+  return false;
 }
 
-// Handles the complete frames buffered; stops reading for a while when the client sends
-// faster than its message rate (TCP pushes back on it), then reads on.
-void ClientSession::process_frames() {
-  bool completed = false;
-  while (auto frame = decoder_.next()) {
-    completed = true;
-    arm_idle_timer();
-    on_frame(*frame);
-    if (closing_) return;
-    const auto wait = message_budget_.take(1, Clock::now());
-    if (wait.count() > 0) {
-      reading_paused_ = true;
-      ServerCounters::bump(counters_.reads_paused);
-      read_pause_timer_.expires_after(std::min(wait, std::chrono::milliseconds(1000)));
-      read_pause_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
-        if (ec || self->closing_) return;
-        self->reading_paused_ = false;
-        self->process_frames();
-      });
-      return;
-    }
-  }
-  if (!decoder_.error().empty()) {
-    send_error(wire::Error::FRAME_TOO_LARGE, decoder_.error(), true);
+void ClientSession::on_stream_error(wire::Error::Code code, const std::string& why) {
+  send_error(code, why, true);
+}
+
+void ClientSession::on_closed() {
+  if (!closing_) spdlog::debug("session {}: connection closed by peer", id_);
+  shutdown();
+}
+
+void ClientSession::on_write_timeout() {
+  drop_slow(DroppedBy::kWriteTimeout, "stopped reading (a write took too long)");
+}
+
+void ClientSession::on_written(size_t bytes) {
+  counters_.bytes_sent.fetch_add(bytes, std::memory_order_relaxed);
+  if (closing_ && control_.empty()) {
+    shutdown();
     return;
   }
-  // A partial frame left after complete ones started in this read.
-  if (decoder_.buffered() == 0) {
-    partial_since_.reset();
-  } else if (completed || !partial_since_) {
-    partial_since_ = Clock::now();
-  }
-  watch_partial_frame();
-  read_more();
+  observe_written_edits();
+  update_memory();
+  pump();
 }
 
-// A frame that has started must finish within the frame timeout, so a client cannot hold
-// a connection by trickling bytes.
-void ClientSession::watch_partial_frame() {
-  if (!partial_since_ || frame_watch_) return;
-  frame_watch_ = true;
-  frame_timer_.expires_at(*partial_since_ + config_.frame_timeout);
-  frame_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
-    self->frame_watch_ = false;
-    if (ec || self->closing_ || !self->partial_since_) return;
-    if (Clock::now() >= *self->partial_since_ + self->config_.frame_timeout) {
-      self->send_error(wire::Error::FRAME_TIMEOUT,
-                       "a frame was not completed within the frame timeout", true);
-      return;
-    }
-    self->watch_partial_frame();  // a later frame is partial now: watch it
-  });
-}
-
-void ClientSession::on_frame(const std::vector<uint8_t>& body) {
+void ClientSession::on_frame(std::span<const uint8_t> body) {
   wire::Envelope message;
   if (!message.ParseFromArray(body.data(), static_cast<int>(body.size()))) {
     send_error(wire::Error::MALFORMED, "the frame is not a valid Envelope", true);
@@ -198,7 +167,7 @@ void ClientSession::on_frame(const std::vector<uint8_t>& body) {
 
 void ClientSession::queue_control(const wire::Envelope& message) {
   if (closing_) return;
-  control_.push_back(frame_of(message));
+  control_.push_back(serialized(message));
   control_bytes_ += control_.back().size();
   if (control_bytes_ > config_.max_control_bytes) {
     drop_slow(DroppedBy::kSlowReader, "does not read its messages");
@@ -230,8 +199,8 @@ void ClientSession::send_error(wire::Error::Code code, const std::string& messag
     closing_ = true;
     counters_.disconnects.fetch_add(1);
     // Give the Error a moment to leave, then close whatever happens.
-    write_timer_.expires_after(std::chrono::seconds(1));
-    write_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
+    close_timer_.expires_after(std::chrono::seconds(1));
+    close_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
       if (!ec) self->shutdown();
     });
     pump();
@@ -257,7 +226,7 @@ void ClientSession::drop_slow(DroppedBy why, const char* what) {
 
 // Appends the newest version of the nearest stale chunk the client does not hold yet
 // (a delta when it holds an older one); false when nothing is left to send.
-bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
+bool ClientSession::append_next_mesh() {
   // No version that may show an edit of this client goes out before the edit's result.
   const auto send = scheduler_.next([this](ChunkCoord c) { return pipeline_.meshes().get(c); },
                                     results_.first_unsendable_version());
@@ -278,18 +247,18 @@ bool ClientSession::append_next_mesh(std::vector<uint8_t>& out) {
     const std::span<const uint8_t> full = send->version->full();
     m->set_payload(full.data(), full.size());
   }
-  proto::append_framed(mesh_message_, out);
+  connection_->append(mesh_message_);
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
 }
 
 // Once per applied view, when its every chunk (of every level) has been sent or found
-// empty.
-void ClientSession::append_view_ready(std::vector<uint8_t>& out) {
+// empty; true when it was appended.
+bool ClientSession::append_view_ready() {
   if (!level0_done_) level0_done_ = scheduler_.take_view_complete();
-  if (!level0_done_) return;
+  if (!level0_done_) return false;
   if (lod_view_ && !lod_done_) lod_done_ = lod_queue_.take_complete();
-  if (lod_view_ && !lod_done_) return;
+  if (lod_view_ && !lod_done_) return false;
   wire::Envelope ready;
   auto* r = ready.mutable_view_ready();
   r->set_view_id(view_id_);
@@ -301,66 +270,36 @@ void ClientSession::append_view_ready(std::vector<uint8_t>& out) {
     r->set_lod_chunks_sent(lod_done_->sent);
     r->set_lod_chunks_empty(lod_done_->empty);
   }
-  proto::append_framed(ready, out);
+  connection_->append(ready);
   level0_done_.reset();
   lod_done_.reset();
+  return true;
 }
 
 void ClientSession::pump() {
-  if (writing_ || applying_view_ || !socket_.is_open()) return;
-  write_buffer_.clear();
+  if (connection_->writing() || applying_view_ || !connection_->open()) return;
   write_edits_.clear();
+  const size_t limit = config_.max_bytes_in_flight;
   size_t messages = 0;
-  while (!control_.empty() && write_buffer_.size() < config_.max_bytes_in_flight) {
-    write_buffer_.insert(write_buffer_.end(), control_.front().begin(), control_.front().end());
+  while (!control_.empty() && connection_->pending_bytes() < limit) {
+    connection_->append_serialized(control_.front());
     control_bytes_ -= control_.front().size();
     control_.pop_front();
     ++messages;
   }
   if (!closing_) {
-    while (write_buffer_.size() < config_.max_bytes_in_flight && append_next_mesh(write_buffer_)) {
-      ++messages;
-    }
+    while (connection_->pending_bytes() < limit && append_next_mesh()) ++messages;
     // Coarser levels after every level-0 mesh due (PROTOCOL 4.10), nearest first.
-    while (write_buffer_.size() < config_.max_bytes_in_flight &&
-           append_next_lod_mesh(write_buffer_)) {
-      ++messages;
-    }
-    const size_t before = write_buffer_.size();
-    append_view_ready(write_buffer_);  // after the view's last first mesh
-    if (write_buffer_.size() > before) ++messages;
+    while (connection_->pending_bytes() < limit && append_next_lod_mesh()) ++messages;
+    if (append_view_ready()) ++messages;  // after the view's last first mesh
   }
-  if (write_buffer_.empty()) return;
+  if (connection_->pending_bytes() == 0) return;
   counters_.messages_sent.fetch_add(messages, std::memory_order_relaxed);
-  writing_ = true;
-  if (!closing_) {
-    write_timer_.expires_after(config_.write_timeout);
-    write_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
-      if (ec || !self->writing_) return;
-      self->drop_slow(DroppedBy::kWriteTimeout, "stopped reading (a write took too long)");
-    });
-  }
-  asio::async_write(socket_, asio::buffer(write_buffer_),
-                    asio::bind_executor(strand_, [self = shared_from_this()](
-                                                     boost::system::error_code ec, size_t n) {
-                      self->writing_ = false;
-                      self->counters_.bytes_sent.fetch_add(n, std::memory_order_relaxed);
-                      if (ec) {
-                        self->shutdown();
-                        return;
-                      }
-                      if (self->closing_ && self->control_.empty()) {
-                        self->shutdown();
-                        return;
-                      }
-                      if (!self->closing_) self->write_timer_.cancel();
-                      self->observe_written_edits();
-                      self->update_memory();
-                      self->pump();
-                    }));
+  // Closing: no deadline of its own (the close timer ends it).
+  connection_->write(events(), closing_ ? std::chrono::milliseconds(0) : config_.write_timeout);
 }
 
-// Strand, after a write completed: the kernel has every delta of write_buffer_.
+// Strand, after a write completed: the kernel has every delta it carried.
 void ClientSession::observe_written_edits() {
   if (write_edits_.empty()) return;
   const auto now = Clock::now();
@@ -381,8 +320,8 @@ void ClientSession::update_memory() {
   constexpr size_t kPerLodChunk = 384;
   const size_t lod_chunks = lod_view_ ? lod_view_->held().size() : 0;
   const size_t bytes = sizeof(ClientSession) + scheduler_.visible_count() * kPerVisibleChunk +
-                       lod_chunks * kPerLodChunk + control_bytes_ + write_buffer_.capacity() +
-                       decoder_.buffered() + results_.size() * 64;
+                       lod_chunks * kPerLodChunk + control_bytes_ + connection_->memory_bytes() +
+                       results_.size() * 64;
   const size_t old = memory_bytes_.exchange(bytes, std::memory_order_relaxed);
   counters_.session_bytes.fetch_add(bytes - old, std::memory_order_relaxed);  // wraps: exact
 }
@@ -391,14 +330,11 @@ void ClientSession::shutdown() {
   closing_ = true;
   handshake_timer_.cancel();
   idle_timer_.cancel();
-  write_timer_.cancel();
-  frame_timer_.cancel();
+  close_timer_.cancel();
   read_pause_timer_.cancel();
   view_timer_.cancel();
-  if (socket_.is_open()) {
-    boost::system::error_code ignored;
-    socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
-    socket_.close(ignored);
+  if (connection_->open()) {
+    connection_->close();
     if (player_) {
       if (auto suppressed = services_.logs->allow("left", 20)) {
         spdlog::info("session {}: player '{}' left{}", id_, log_name_,

@@ -1,8 +1,9 @@
-// One connected player. Each session runs on its own strand: a read chain (async_read_some
-// into a 16 KiB buffer, FrameDecoder, parse, dispatch) and a write chain that sends
-// control messages first, then the meshes the SendScheduler picks (updates of held chunks,
-// then new chunks nearest first), each the newest version as a delta from what the client
-// holds. Other threads only post to the strand.
+// One connected player. Each session runs on its connection's strand: messages come in
+// from the Connection (the transport: TCP frames, connection.hpp), are parsed and
+// dispatched to the handlers; a write sends control messages first, then the meshes the
+// SendScheduler picks (updates of held chunks, then new chunks nearest first), each the
+// newest version as a delta from what the client holds. Other threads only post to the
+// strand.
 #pragma once
 
 #include <chrono>
@@ -15,10 +16,10 @@
 #include <unordered_set>
 #include <vector>
 
-#include "proto/framing.hpp"
 #include "server/auth/player_token.hpp"
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
+#include "server/net/connection.hpp"
 #include "server/net/edit_gate.hpp"
 #include "server/net/lod_send_queue.hpp"
 #include "server/net/log_hygiene.hpp"
@@ -51,11 +52,12 @@ struct SessionServices {
   std::shared_ptr<PlayerRegistry<ClientSession>> players;  // authenticated player ids
 };
 
-class ClientSession : public std::enable_shared_from_this<ClientSession> {
+class ClientSession : public std::enable_shared_from_this<ClientSession>,
+                      private Connection::Events {
  public:
   // `address` was admitted (AdmissionGate::connect) for this connection; the session
   // releases it when it ends.
-  ClientSession(asio::ip::tcp::socket socket, std::string address, uint64_t id,
+  ClientSession(std::unique_ptr<Connection> connection, std::string address, uint64_t id,
                 pipeline::WorldPipeline& pipeline, SessionServices services);
   ~ClientSession();
 
@@ -79,11 +81,16 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   size_t memory_bytes() const { return memory_bytes_.load(std::memory_order_relaxed); }
 
  private:
-  // All strand only.
-  void read_more();
-  void process_frames();
-  void watch_partial_frame();
-  void on_frame(const std::vector<uint8_t>& body);
+  // All strand only. What the connection tells (Connection::Events).
+  bool on_message(std::span<const uint8_t> body) override;
+  void on_stream_error(wire::Error::Code code, const std::string& why) override;
+  void on_written(size_t bytes) override;
+  void on_write_timeout() override;
+  void on_closed() override;
+  std::shared_ptr<Connection::Events> events() {  // keeps the session alive
+    return {shared_from_this(), static_cast<Connection::Events*>(this)};
+  }
+  void on_frame(std::span<const uint8_t> body);
   void handle_hello(const wire::Hello& hello);
   // With a key: the token's claims, or nullopt after refusing the connection.
   std::optional<auth::PlayerClaims> verify_hello_token(const wire::Hello& hello);
@@ -107,7 +114,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   int apply_lod_view(const PendingView& v, std::function<bool(world::ChunkCoord)>& keep);
   void drop_lod_view();  // unloads every LOD chunk the client holds
   void queue_lod_unload(const std::vector<world::LodChunk>& chunks);
-  bool append_next_lod_mesh(std::vector<uint8_t>& out);
+  bool append_next_lod_mesh();  // onto the connection's next write
   void handle_resync(const wire::Resync& resync);
   void handle_region_command(const wire::RegionCommand& command);  // region_commands.cpp
   void list_regions(uint64_t after_id, wire::Envelope& reply);
@@ -119,18 +126,18 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   void log_refusal(wire::EditResult::Status status, const std::string& reason);
   void queue_control(const wire::Envelope& message);
   void pump();
-  bool append_next_mesh(std::vector<uint8_t>& out);
-  void append_view_ready(std::vector<uint8_t>& out);
+  bool append_next_mesh();
+  bool append_view_ready();
   void arm_idle_timer();
   void drop_slow(DroppedBy why, const char* what);
   void shutdown();
   void update_memory();
   void observe_written_edits();
 
-  asio::ip::tcp::socket socket_;
-  asio::strand<asio::any_io_executor> strand_;
-  asio::steady_timer handshake_timer_, idle_timer_, write_timer_, frame_timer_, read_pause_timer_,
-      view_timer_;
+  const std::unique_ptr<Connection> connection_;
+  asio::strand<asio::any_io_executor>& strand_;  // the connection's
+  // Close: the grace an Error gets to leave before the connection closes.
+  asio::steady_timer handshake_timer_, idle_timer_, close_timer_, read_pause_timer_, view_timer_;
   const std::string address_;  // the peer's address, as admitted
   const uint64_t id_;
   SessionServices services_;  // before config_, which refers into it
@@ -140,18 +147,11 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   std::atomic<bool> player_{false};
   std::atomic<size_t> memory_bytes_{0};
 
-  proto::FrameDecoder decoder_;
-  std::array<uint8_t, 16 * 1024> read_buffer_;
-  // When the partial frame in decoder_ started (none: no partial frame).
-  std::optional<std::chrono::steady_clock::time_point> partial_since_;
-  bool frame_watch_ = false;     // frame_timer_ is armed for a partial frame
-  bool reading_paused_ = false;  // over the message rate: read_pause_timer_ resumes
-  std::string name_;             // as the client sent it, or the token's display name
-  std::string log_name_;         // escaped, for logs
-  std::string player_id_;        // the token's (empty: open server); edits are logged under it
+  std::string name_;       // as the client sent it, or the token's display name
+  std::string log_name_;   // escaped, for logs
+  std::string player_id_;  // the token's (empty: open server); edits are logged under it
   auth::Role role_ = auth::Role::kPlayer;
   bool closing_ = false;
-  bool writing_ = false;
   bool applying_view_ = false;  // apply_view() in progress: pump() waits for its end
   static constexpr size_t kMaxRegionCommandsInFlight = 16;
   size_t region_commands_in_flight_ = 0;  // sent to the pipeline, not yet answered
@@ -175,12 +175,11 @@ class ClientSession : public std::enable_shared_from_this<ClientSession> {
   mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)
   world::ChunkCoord view_center_{};
   int view_radius_ = -1;
-  std::deque<std::vector<uint8_t>> control_;  // framed messages sent before meshes
+  std::deque<std::vector<uint8_t>> control_;  // serialized messages sent before meshes
   size_t control_bytes_ = 0;
-  std::vector<uint8_t> write_buffer_;
   wire::Envelope mesh_message_;  // reused by append_next_mesh
-  // When the edits shown by the deltas in write_buffer_ were submitted (observed into
-  // counters_.edit_to_delta_written when the write completes); capacity reused.
+  // When the edits shown by the deltas of the write in flight were submitted (observed
+  // into counters_.edit_to_delta_written when the write completes); capacity reused.
   std::vector<std::chrono::steady_clock::time_point> write_edits_;
 };
 

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "proto/framing.hpp"
+#include "server/net/tcp_connection.hpp"
 
 namespace vox::net {
 
@@ -126,7 +127,9 @@ void Server::admit(asio::ip::tcp::socket socket) {
   }
   socket.set_option(asio::ip::tcp::no_delay(true), ec);
   auto session = std::make_shared<ClientSession>(
-      std::move(socket), address, next_session_++, pipeline_,
+      std::make_unique<TcpConnection>(std::move(socket), shared_config_->max_frame_bytes,
+                                      shared_config_->frame_timeout),
+      address, next_session_++, pipeline_,
       SessionServices{counters_, shared_config_, admission_, logs_, players_});
   {
     std::lock_guard lock(sessions_mutex_);

@@ -101,7 +101,7 @@ void ClientSession::queue_lod_unload(const std::vector<LodChunk>& chunks) {
   for (const auto& [level, message] : by_level) queue_control(message);
 }
 
-bool ClientSession::append_next_lod_mesh(std::vector<uint8_t>& out) {
+bool ClientSession::append_next_lod_mesh() {
   if (!lod_view_) return false;
   const auto send =
       lod_queue_.next([this](const pipeline::LodKey& k) { return pipeline_.lod_meshes().get(k); });
@@ -120,7 +120,7 @@ bool ClientSession::append_next_lod_mesh(std::vector<uint8_t>& out) {
     const std::span<const uint8_t> full = send->version->full();
     m->set_payload(full.data(), full.size());
   }
-  proto::append_framed(mesh_message_, out);
+  connection_->append(mesh_message_);
   m->set_level(0);  // the message is reused for level-0 meshes
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
