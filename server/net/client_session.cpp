@@ -80,6 +80,7 @@ void ClientSession::arm_idle_timer() {
 // A message from the client: handled; then, over its message rate, the connection stops
 // reading for a while (TCP pushes back on the client) and reads on.
 bool ClientSession::on_message(std::span<const uint8_t> body) {
+  if (closing_) return false;  // nothing more is handled once the session closes
   arm_idle_timer();
   on_frame(body);
   if (closing_) return false;
