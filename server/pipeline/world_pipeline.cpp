@@ -345,6 +345,7 @@ EditBatch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks, Clock::tim
   const bool store_resting = durable && commit_->resting(now);
   const uint64_t log_tail = durable ? logged_since_checkpoint() : 0;
   BatchCounts& delta = b.counts;
+  EditWorld world_access = edit_world();
   for (size_t t = 0; t < tasks.size(); ++t) {
     if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
       // Sees every edit queued before it applied; the meshes of this batch are not
@@ -396,7 +397,7 @@ EditBatch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks, Clock::tim
                                     : config_.max_generated_per_owner -
                                           std::min(generated, config_.max_generated_per_owner);
     const world::RefusalReason refused =
-        apply_edit_task(edit, now, max_generate, b.edit_dirty[t], result,
+        apply_edit_step(world_access, edit, now, max_generate, b.edit_dirty[t], result,
                         durable ? &b.undo : nullptr, protection.keep);
     if (refused != world::RefusalReason::kNone) {
       result.reason = refused;
@@ -469,6 +470,16 @@ void WorldPipeline::answer(EditBatch& b, bool durable) {
     if (task->done) task->done(r);
   }
   subscribers_.notify(published);
+}
+
+EditWorld WorldPipeline::edit_world() {
+  return {*state_,
+          generator_,
+          memory_,
+          meshes_,
+          checkpoints_.get(),
+          other_bytes_.load(std::memory_order_relaxed),
+          [this] { return resident_bytes(); }};
 }
 
 void WorldPipeline::count(const BatchCounts& delta) {

@@ -24,6 +24,7 @@
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/durable_commit.hpp"
 #include "server/pipeline/edit_batch.hpp"
+#include "server/pipeline/edit_step.hpp"
 #include "server/pipeline/inbox.hpp"
 #include "server/pipeline/lod_stage.hpp"
 #include "server/pipeline/memory_keeper.hpp"
@@ -125,13 +126,10 @@ class WorldPipeline {
   // Adds `delta` to the stats and to the batch's counts; refreshes the loaded-chunk figures.
   void count(const BatchCounts& delta);
 
-  // Edits (world_pipeline.cpp, world_pipeline_edit.cpp).
+  // Edits (world_pipeline.cpp; one edit: edit_step.hpp).
   void process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now);
   EditBatch apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now);
-  world::RefusalReason apply_edit_task(const world::Edit& edit, Clock::time_point now,
-                                       size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
-                                       EditResult& result, Undo* undo = nullptr,
-                                       std::span<const world::VoxelBox> keep = {});
+  EditWorld edit_world();  // what apply_edit_step reads and writes
   void roll_back(Undo& undo);
   // Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was
   // rolled back), then answers its edits and notifies the subscribers.

@@ -35,11 +35,12 @@ void WorldPipeline::restore_from_store() {
   });
   preload_stored(tail);
   uint64_t replayed = 0, last = info.checkpoint_seq;
+  EditWorld world_access = edit_world();
   for (const store::LoggedEdit& e : tail) {
     std::vector<ChunkCoord> dirtied;  // nothing is meshed yet
     EditResult ignored;
     const auto refused =
-        apply_edit_task(e.edit, start, SIZE_MAX, dirtied, ignored, nullptr, e.keep);
+        apply_edit_step(world_access, e.edit, start, SIZE_MAX, dirtied, ignored, nullptr, e.keep);
     if (refused == world::RefusalReason::kStorageUnavailable) {
       throw store::StoreError(fmt::format("{}: replaying edit {}: a checkpointed chunk: {}",
                                           store.name(), e.seq, reader_->last_error()));

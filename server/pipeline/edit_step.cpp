@@ -1,10 +1,13 @@
-// The pipeline applying one edit to its world (apply_edit_task): what the edit needs
-// loaded, the memory budget's say, the undo record and the copy a checkpoint in flight
-// needs, then the change itself over the touched chunks in parallel. The batch around it
-// is in world_pipeline.cpp.
+// Applying one edit to the world (edit_step.hpp): what the edit needs loaded, the memory
+// budget's say, the undo record and the copy a checkpoint in flight needs, then the
+// change itself over the touched chunks in parallel. The batch around it is in
+// world_pipeline.cpp.
+#include "server/pipeline/edit_step.hpp"
+
 #include <vector>
 
-#include "server/pipeline/world_pipeline.hpp"
+#include "server/pipeline/checkpoints.hpp"
+#include "server/pipeline/memory_keeper.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/parallel.hpp"
@@ -13,17 +16,11 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 
-// Applies one valid edit: loads what it and the meshes it dirties need, changes the
-// touched chunks (in parallel), and appends the chunks whose meshes must be rebuilt.
-// Refuses it (nothing changed) when it would generate more than `max_generate` chunks, or
-// when what it may add (generated chunks, uniform chunks turned full) does not fit the
-// memory budget even after evicting unused chunks (once per batch: the scan is not free).
-world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clock::time_point now,
-                                                    size_t max_generate,
-                                                    std::vector<ChunkCoord>& dirtied,
-                                                    EditResult& result, Undo* undo,
-                                                    std::span<const world::VoxelBox> keep) {
-  WorldState& st = *state_;
+world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Clock::time_point now,
+                                     size_t max_generate, std::vector<ChunkCoord>& dirtied,
+                                     EditResult& result, Undo* undo,
+                                     std::span<const world::VoxelBox> keep) {
+  WorldState& st = w.state;
   const world::VoxelBox box = world::touched_box(edit);
   const std::vector<ChunkCoord> touched = world::chunks_overlapping(box);
   // What must be loaded: the touched chunks (and what a smooth reads), and every meshed
@@ -68,17 +65,17 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     may_expand += !chunk || chunk->is_uniform() ? 1 : 0;
   }
   // What is resident: terrain on its way for loads (reserved) does not hold edits back.
-  const MemoryBudget& budget = memory_.budget();
-  if (!budget.may_generate(resident_bytes(), missing + may_expand)) {
+  const MemoryBudget& budget = w.memory.budget();
+  if (!budget.may_generate(w.resident_bytes(), missing + may_expand)) {
     const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
-    const auto pass = memory_.for_edits(need, other_bytes_.load(std::memory_order_relaxed));
+    const auto pass = w.memory.for_edits(need, w.other_bytes);
     if (!pass) return world::RefusalReason::kServerBusy;  // made room once this batch already
-    st.evict(meshes_, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
-    if (!budget.may_generate(resident_bytes(), missing + may_expand))
+    st.evict(w.meshes, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
+    if (!budget.may_generate(w.resident_bytes(), missing + may_expand))
       return world::RefusalReason::kServerBusy;
   }
   try {
-    result.chunks_generated = st.ensure_loaded(wanted, generator_, now);
+    result.chunks_generated = st.ensure_loaded(wanted, w.generator, now);
   } catch (const store::StoreError&) {  // a checkpointed chunk could not be read back
     return world::RefusalReason::kStorageUnavailable;
   }
@@ -96,7 +93,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     was_uniform[i] = targets[i]->is_uniform();
     const WorldState::ChunkInfo& i_info = st.info.at(touched[i]);
     // A checkpoint in flight still needs it as it is: the writer gets a copy.
-    if (i_info.checkpointing) checkpoints_->preserve(touched[i], *targets[i]);
+    if (i_info.checkpointing) w.checkpoints->preserve(touched[i], *targets[i]);
     if (undo) undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
@@ -114,7 +111,7 @@ world::RefusalReason WorldPipeline::apply_edit_task(const world::Edit& edit, Clo
     WorldState::ChunkInfo& info = st.info.at(touched[i]);
     st.modified_count += info.modified ? 0 : 1;
     info.modified = info.unsaved = true;
-    if (checkpoints_) checkpoints_->changed(touched[i]);
+    if (w.checkpoints) w.checkpoints->changed(touched[i]);
     world::append_dirty_chunks(touched[i], changed[i], dirty_here);
   }
   for (const ChunkCoord& c : dirty_here) {

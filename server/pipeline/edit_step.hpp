@@ -1,0 +1,45 @@
+// One edit applied to the world, as a function of what it reads and writes: the world
+// state, the generator for terrain it needs, the memory keeper and mesh store (room made
+// by eviction, once per batch), the checkpoints (a chunk being written is preserved
+// first, a changed one marked unsaved). Loads what the edit and the meshes it dirties
+// need, changes the touched chunks (in parallel), and appends the chunks whose meshes
+// must be rebuilt to `dirtied`. Refuses it (nothing changed) when it would generate more
+// than `max_generate` chunks (kOverBudget), when what it may add (generated chunks,
+// uniform chunks turned full) does not fit the memory budget even after eviction
+// (kServerBusy), or when a checkpointed chunk cannot be read back (kStorageUnavailable).
+// `undo`: records what it overwrites; `keep`: boxes (protected regions) it leaves as they
+// are. The edit must be valid (world::validate). The pipeline thread only.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <span>
+#include <vector>
+
+#include "server/pipeline/edit_batch.hpp"
+#include "server/world/edit.hpp"
+#include "server/world/terrain_generator.hpp"
+
+namespace vox::pipeline {
+
+struct WorldState;
+class MemoryKeeper;
+class MeshStore;
+class Checkpoints;
+
+struct EditWorld {
+  WorldState& state;
+  const world::TerrainGenerator& generator;
+  MemoryKeeper& memory;
+  MeshStore& meshes;
+  Checkpoints* checkpoints;                // null without a store
+  size_t other_bytes;                      // sessions' state, in the memory budget
+  std::function<size_t()> resident_bytes;  // what the budget counts now
+};
+
+world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Clock::time_point now,
+                                     size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
+                                     EditResult& result, Undo* undo = nullptr,
+                                     std::span<const world::VoxelBox> keep = {});
+
+}  // namespace vox::pipeline
