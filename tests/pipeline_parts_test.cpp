@@ -332,6 +332,39 @@ TEST(ViewLoads, AWaitingChunkNoViewHoldsIsDroppedButAOneOffLoadKeepsItsOwn) {
   EXPECT_TRUE(one_off_done);
 }
 
+// The store came back in the middle of a pass: one neighbour's read failed, a later one's
+// worked (and ended the reader's failure). The chunk still waits for the first, so the
+// pipeline must pass again: it asks waiting_for_store(), not the reader. (Under load a
+// TSan run once left such a load waiting for good.)
+TEST(ViewLoads, AChunkWaitingForAFailedStoredNeighbourIsRetriedAfterAnotherReadWorked) {
+  const world::TerrainGenerator generator(4);
+  WorldState state(1);
+  ChunkStore store;
+  store.chunks[{1, 1, 1}] = store::encode_chunk(rock());  // read last: it works
+  StoredChunkReader reader(store, std::chrono::milliseconds(10), nullptr);
+  state.read_stored = [&](world::ChunkCoord c) { return reader.read(c); };
+  state.stored = {{-1, -1, -1}, {1, 1, 1}};  // (-1, -1, -1) is read first: missing, it fails
+  ViewLoads loads(generator, state, &reader, 0, 64, nullptr);
+  const auto now = Clock::now();
+  LoadPlan plan;
+  loads.cost({0, 0, 0}, plan, now);
+  std::vector<LoadSlice> slices{{.owner = BatchScheduler::kUnlimitedOwners, .chunks = {{0, 0, 0}}}};
+  loads.wait_for(slices, plan);
+  std::vector<world::ChunkCoord> others;  // resident already: only the two stored ones are read
+  for (int dz = -1; dz <= 1; ++dz)
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (!state.stored.count({dx, dy, dz})) others.push_back({dx, dy, dz});
+  state.ensure_loaded(others, generator, now);
+  BatchCounts counts;
+  EXPECT_TRUE(loads.take_meshable(now, counts).empty());
+  EXPECT_FALSE(reader.failing());  // the last read worked
+  EXPECT_TRUE(loads.waiting_for_store());
+  store.chunks[{-1, -1, -1}] = store::encode_chunk(rock());  // the store gives it back
+  EXPECT_EQ(loads.take_meshable(now, counts), (std::vector<world::ChunkCoord>{{0, 0, 0}}));
+  EXPECT_FALSE(loads.waiting_for_store());
+}
+
 constexpr size_t kMiB = size_t{1} << 20;
 using std::chrono::milliseconds;
 using std::chrono::seconds;

@@ -78,6 +78,11 @@ size_t ViewLoads::install_generated(Clock::time_point now) {
 }
 
 std::vector<ChunkCoord> ViewLoads::take_meshable(Clock::time_point now, BatchCounts& delta) {
+  store_failed_ = false;
+  return collect_meshable(now, delta);
+}
+
+std::vector<ChunkCoord> ViewLoads::collect_meshable(Clock::time_point now, BatchCounts& delta) {
   WorldState& st = state_;
   std::vector<ChunkCoord> meshable, missing;
   std::unordered_set<ChunkCoord, world::ChunkCoordHash> asked;
@@ -92,7 +97,10 @@ std::vector<ChunkCoord> ViewLoads::take_meshable(Clock::time_point now, BatchCou
             continue;
           }
           // Checkpointed: read back here (a store that fails is tried again next pass).
-          if (st.stored.count(n) && reader_->try_load(st, n, now)) continue;
+          if (st.stored.count(n)) {
+            if (reader_->try_load(st, n, now)) continue;
+            store_failed_ = true;
+          }
           complete = false;
           if (!st.stored.count(n) && asked.insert(n).second && !prefetcher_->pending(n))
             missing.push_back(n);
@@ -107,7 +115,7 @@ std::vector<ChunkCoord> ViewLoads::take_meshable(Clock::time_point now, BatchCou
     const std::vector<ChunkCoord> refused = prefetcher_->request(missing);
     if (!refused.empty()) {  // generated here: what waited only for them is meshable now
       delta.chunks_generated += st.ensure_loaded(refused, generator_, now);
-      for (const ChunkCoord& c : take_meshable(now, delta)) meshable.push_back(c);
+      for (const ChunkCoord& c : collect_meshable(now, delta)) meshable.push_back(c);
     }
   }
   return meshable;

@@ -55,6 +55,10 @@ class ViewLoads {
   // terrain the others miss is asked of the background, and what it cannot take is
   // generated here (counted in delta).
   std::vector<world::ChunkCoord> take_meshable(Clock::time_point now, BatchCounts& delta);
+  // Whether a waiting chunk needs a checkpointed neighbour the store failed to give back
+  // in the last pass: the pipeline passes again (after the store's back-off) until it
+  // can. Not the reader's failing(): a read of another chunk may have worked meanwhile.
+  bool waiting_for_store() const { return store_failed_ && waiting(); }
   // Runs the callbacks of the requests whose every planned chunk is meshed.
   void run_finished();
   // Forgets the waiting chunks of views that no view holds any more (after views change).
@@ -71,6 +75,7 @@ class ViewLoads {
 
  private:
   bool needs_generating(world::ChunkCoord c) const;
+  std::vector<world::ChunkCoord> collect_meshable(Clock::time_point now, BatchCounts& delta);
 
   struct Waiting {
     world::ChunkCoord coord;
@@ -84,6 +89,7 @@ class ViewLoads {
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> waiting_set_;
   std::vector<std::pair<uint64_t, std::function<void()>>> callbacks_;  // by pass
   uint64_t pass_ = 0;
+  bool store_failed_ = false;  // a stored neighbour could not be read in the last pass
   std::unique_ptr<TerrainPrefetcher> prefetcher_;  // last: its threads stop first
 };
 

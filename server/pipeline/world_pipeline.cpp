@@ -195,8 +195,7 @@ void WorldPipeline::stop() {
 bool WorldPipeline::batch_ready(Inbox::State& in) {
   const Clock::time_point now = Clock::now();
   // After a failed read of a stored chunk, a pass now and then tries it again.
-  const bool retry_reads =
-      reader_ && reader_->failing() && loads_->waiting() && !reader_->backing_off(now);
+  const bool retry_reads = loads_->waiting_for_store() && !reader_->backing_off(now);
   return in.scheduler.has_ordered() || in.generated_ready || retry_reads ||
          (in.scheduler.has_loads() && !memory_.loads_blocked() &&
           in.scheduler.has_ready_loads(now) && load_work_allowed(false) > 0) ||
@@ -211,7 +210,7 @@ std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const
   // Unsaved chunks: their checkpoint (a finished one wakes us).
   if (checkpoints_ && checkpoints_->has_unsaved()) wait = std::min(wait, checkpoints_->interval());
   // A chunk the store could not give back, or a region table in doubt: try again then.
-  if ((reader_ && reader_->failing() && loads_->waiting()) || regions_.doubtful())
+  if (loads_->waiting_for_store() || regions_.doubtful())
     wait = std::min(wait, std::chrono::duration_cast<milliseconds>(config_.store_retry));
   // A coarse chunk's re-mesh falls due (while a batch waits for the store, its landing
   // wakes us: the stage does not run before).
