@@ -220,8 +220,13 @@ LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point 
   std::vector<ChunkCoord> missing;
   const int64_t box =
       (int64_t{hi.x} - lo.x + 1) * (int64_t{hi.y} - lo.y + 1) * (int64_t{hi.z} - lo.z + 1);
+  // A resident one is marked used: read back over several passes, the first ones must not
+  // be evicted (as idle) before the last ones are in, or a slow machine never gets there.
   const auto look = [&](ChunkCoord m) {
-    if (!state_.chunks.find(m)) missing.push_back(m);
+    if (const auto it = state_.info.find(m); it != state_.info.end())
+      it->second.last_used = now;
+    else
+      missing.push_back(m);
   };
   if (box <= static_cast<int64_t>(modified_.size())) {
     world::for_each_chunk_in(lo, hi, [&](ChunkCoord m) {
