@@ -1,16 +1,32 @@
 #!/usr/bin/python3
-"""Checks the folders' dependency rules: every `#include "..."` of the project's C++ must
-point into the including folder itself or into a folder its library may depend on.
+"""Checks docs/ARCHITECTURE.md against the tree, two ways.
 
-The rules are the table under "Libraries and their dependency rules" in
-docs/ARCHITECTURE.md (its input; keep the table true and this check keeps the code to it):
-the `folder` column names the folders (or single files) a row owns, the `depends on`
-column the libraries (in backticks) its code may include; `any` lets a row include
-everything (tests, benchmarks). Exit 0 when every include keeps the rules, 1 with one line
-per broken include, 2 when the table cannot be read.
+1. The folders' dependency rules: every `#include "..."` of the project's C++ must point
+   into the including folder itself or into a folder its library may depend on. The rules
+   are the table under "Libraries and their dependency rules" (its input; keep the table
+   true and this check keeps the code to it): the `folder` column names the folders (or
+   single files) a row owns, the `depends on` column the libraries (in backticks) its code
+   may include; `any` lets a row include everything (tests, benchmarks).
+
+2. Every repository path the page names exists. The words looked at: each word of a
+   backticked span (split at white space) and each word of a fenced code block (the
+   figures). After a trailing `:LINE`, `()` or punctuation is dropped, a word names a path
+   when it contains a '/' and starts with a top-level entry of the repository (a first
+   component of `git ls-files`: `server/`, `docs/`, `tests/`, ...), or, in backticks only,
+   when it is a bare file name ending in SOURCE_SUFFIXES or DOC_SUFFIXES. A path ending in
+   '/' must be a directory, one with '*' must match a file (a glob), any other must exist.
+   A bare file name passes when some tracked file has that name or it is generated
+   (GENERATED, e.g. voxel.pb.h): the name alone does not say which folder is meant.
+   Partial paths (`world/x.hpp`), URL paths (`/metrics`) and untracked folders (`build/`)
+   are not checked.
+
+Exit 0 when both hold; 1 with one line per broken include ("FILE:LINE: ...") and per
+missing path ("docs/ARCHITECTURE.md names PATH, which does not exist"); 2 when the table
+cannot be read.
 
     /usr/bin/python3 scripts/check_deps.py [REPO_ROOT]
 """
+import fnmatch
 import re
 import subprocess
 import sys
@@ -18,6 +34,7 @@ from pathlib import Path
 
 TABLE_HEADING = "## Libraries and their dependency rules"
 SOURCE_SUFFIXES = (".cpp", ".hpp", ".h", ".inl", ".cc")
+DOC_SUFFIXES = (".md", ".py", ".sh", ".proto", ".txt")
 GENERATED = {"voxel.pb.h": "voxel_proto"}  # protoc output, built from proto/voxel.proto
 INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"')
 TICKED = re.compile(r"`([^`]+)`")
@@ -63,9 +80,54 @@ def owner_of(path: str, folder_owner):
     return best[1] if best else None
 
 
+def named_paths(text: str):
+    """The words of the page that name repository paths, as (word, in_backticks), before
+    the filter: backticked spans outside fenced blocks, and every word inside them."""
+    words, fenced = [], False
+    for line in text.splitlines():
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+            continue
+        if fenced:
+            words += [(w, False) for w in re.findall(r"[A-Za-z0-9_.*/-]+", line)]
+        else:
+            for span in TICKED.findall(line):
+                words += [(w, True) for w in span.split()]
+    return words
+
+
+def missing_paths(root: Path, doc_text: str, files):
+    """The paths docs/ARCHITECTURE.md names that do not exist (see the module's rule 2)."""
+    top = {f.split("/", 1)[0] for f in files}
+    basenames = {f.rsplit("/", 1)[-1] for f in files} | set(GENERATED)
+    missing, seen = [], set()
+    for word, ticked in named_paths(doc_text):
+        path = re.sub(r"(:\d+)?(\(\))?[.,;:]*$", "", word)
+        if not path or path in seen:
+            continue
+        if "/" in path:
+            if path.split("/", 1)[0] not in top:
+                continue
+            if "*" in path:
+                ok = any(fnmatch.fnmatchcase(f, path) for f in files) or any(root.glob(path))
+            elif path.endswith("/"):
+                ok = (root / path).is_dir()
+            else:
+                ok = (root / path).exists()
+        elif ticked and path.endswith(SOURCE_SUFFIXES + DOC_SUFFIXES):
+            ok = any(fnmatch.fnmatchcase(b, path) for b in basenames)
+        else:
+            continue
+        seen.add(path)
+        if not ok:
+            missing.append(path)
+    return missing, len(seen)
+
+
 def main() -> int:
     root = Path(sys.argv[1] if len(sys.argv) > 1 else Path(__file__).resolve().parent.parent)
-    rows = read_table(root / "docs" / "ARCHITECTURE.md")
+    doc = root / "docs" / "ARCHITECTURE.md"
+    rows = read_table(doc)
     folder_owner, allowed = {}, {}
     for lib, folders, deps in rows:
         for f in folders:
@@ -106,12 +168,19 @@ def main() -> int:
                 broken.append(f"{rel}:{n}: \"{inc}\" is in no row of the rules table")
             elif target != lib and allowed[lib] is not None and target not in allowed[lib]:
                 broken.append(f"{rel}:{n}: {lib} may not include \"{inc}\" ({target})")
+    missing, named = missing_paths(root, doc.read_text(encoding="utf-8"), files)
+    for m in missing:
+        print(f"docs/ARCHITECTURE.md names {m}, which does not exist")
     for b in broken:
         print(b)
+    if missing:
+        print(f"check_deps: {len(missing)} path(s) named in docs/ARCHITECTURE.md do not exist")
     if broken:
         print(f"check_deps: {len(broken)} include(s) break the rules in docs/ARCHITECTURE.md")
+    if missing or broken:
         return 1
     print(f"check_deps: {len(files)} files, every include keeps the rules")
+    print(f"check_deps: docs/ARCHITECTURE.md names {named} paths, each exists")
     return 0
 
 
