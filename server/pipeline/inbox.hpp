@@ -7,8 +7,9 @@
 // Every member takes the inbox's mutex. The pipeline thread reads and takes what it needs
 // through locked() and waits through wait_unless() / wait_until(); the functions it passes
 // run under the lock, so they may read pipeline-thread state but must not block or take
-// the pipeline's other locks. Lock order: this mutex, then the leaf locks the scheduler's
-// cost callback may take (the prefetcher's); never the other way round.
+// the pipeline's other locks. Lock order: this mutex, then the leaf locks taken under
+// it (the prefetcher's and the checkpoint writer's, through the accounted bytes that
+// batch_ready and the scheduler's cost callback read); never the other way round.
 #pragma once
 
 #include <chrono>
