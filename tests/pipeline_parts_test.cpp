@@ -18,6 +18,7 @@
 #include "server/pipeline/view_loads.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/store/chunk_codec.hpp"
+#include "tests/chunk_store_stub.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -114,42 +115,8 @@ TEST(ProtectedRegions, RefusalsSayWhyAndChangeNothing) {
   EXPECT_FALSE(batch.carried);
 }
 
-// A store whose chunks are what the test puts there; reads of a missing chunk throw when
-// the store is "down".
-class ChunkStore final : public store::WorldStore {
- public:
-  const std::string& name() const override { return name_; }
-  store::WorldInfo info() override { return {}; }
-  void append_edits(std::span<const store::LoggedEdit>, std::span<const SeqRange>,
-                    const store::RegionWrite*) override {}
-  store::RegionTable read_regions() override { return {}; }
-  void write_checkpoint(std::span<const store::ChunkRecord> records, uint64_t seq,
-                        uint64_t trim_through) override {
-    if (fail_checkpoints) throw store::StoreError("test: disk full");
-    for (const store::ChunkRecord& r : records) chunks[r.coord] = r.samples;
-    checkpoint_seq = seq;
-    trimmed_through = trim_through;
-  }
-  std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {
-    ++reads;
-    if (down) throw store::StoreError("test: database unreachable");
-    auto it = chunks.find(c);
-    if (it == chunks.end()) return std::nullopt;
-    return store::ChunkRecord{c, 1, it->second};
-  }
-  void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>&) override {}
-  void for_each_edit(uint64_t, const std::function<bool(const store::LoggedEdit&)>&) override {}
-
-  std::map<world::ChunkCoord, std::vector<uint8_t>> chunks;
-  bool down = false, fail_checkpoints = false;
-  int reads = 0;
-  uint64_t checkpoint_seq = 0, trimmed_through = 0;
-
- private:
-  std::string name_ = "test store";
-};
-
-world::Chunk rock() { return world::Chunk(world::Sample{1000, 3}); }
+using test::ChunkStore;
+using test::rock;
 
 TEST(StoredChunkReader, AFailedReadIsNotedUntilAReadWorks) {
   ChunkStore store;

@@ -1,10 +1,11 @@
-// The pipeline's per-chunk re-mesh (server/pipeline/world_state.hpp remesh_chunk): a mesh
+// The pipeline's per-chunk re-mesh (server/pipeline/remesh.hpp remesh_chunk): a mesh
 // that did not change is not published and, once the worker is warm, allocates nothing.
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "proto/zstd_codec.hpp"
+#include "server/pipeline/remesh.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/world/terrain_generator.hpp"
 #include "tests/alloc_counter.hpp"

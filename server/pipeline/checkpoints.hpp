@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <unordered_set>
+#include <vector>
 
 #include "server/pipeline/checkpoint_policy.hpp"
 #include "server/pipeline/checkpoint_writer.hpp"
@@ -63,6 +64,17 @@ class Checkpoints {
   std::optional<CheckpointResult> start(WorldState& state, uint64_t seq, Clock::time_point now);
   // Takes a finished checkpoint's result into the chunks' flags (and logs a failure once).
   void finish(WorldState& state, const CheckpointResult& r, Clock::time_point now);
+  // Between batches: takes a finished checkpoint in (finish) and starts one when due.
+  // `drain` runs first whenever either happens: it answers every batch in flight and
+  // returns the last durable edit's sequence number (a checkpoint holds every applied edit,
+  // and a batch undone after a finished one was taken in would put back its chunks'
+  // "saved" flags from before: they would never be written). Returns those finished.
+  std::vector<CheckpointResult> turn(WorldState& state, Clock::time_point now,
+                                     const std::function<uint64_t()>& drain);
+  // At stop, every batch answered (`seq`: the last edit): the checkpoint in flight, then
+  // one of everything still unsaved, waited for, so that a restart replays nothing (if the
+  // store fails, the log still has every edit). Returns those finished.
+  std::vector<CheckpointResult> last(WorldState& state, uint64_t seq);
   // Before chunk c of the checkpoint in flight changes (an edit, an undo).
   void preserve(world::ChunkCoord c, const world::Chunk& live) { writer_->preserve(c, live); }
   void wait() { writer_->wait(); }  // until the checkpoint in flight is written

@@ -1,7 +1,7 @@
 // Applying one edit to the world (edit_step.hpp): what the edit needs loaded, the memory
 // budget's say, the undo record and the copy a checkpoint in flight needs, then the
-// change itself over the touched chunks in parallel. The batch around it is in
-// world_pipeline.cpp.
+// change itself over the touched chunks in parallel; and a batch of them undone. The
+// batch around it is in world_pipeline.cpp.
 #include "server/pipeline/edit_step.hpp"
 
 #include <vector>
@@ -118,6 +118,31 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
     if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) dirtied.push_back(c);
   }
   return world::RefusalReason::kNone;
+}
+
+void undo_edits(WorldState& st, Checkpoints* checkpoints, Undo& undo) {
+  for (auto it = undo.patches.rbegin(); it != undo.patches.rend(); ++it) {
+    const Undo::Patch& p = *it;
+    world::Chunk* chunk = st.chunks.find(p.coord);
+    if (!chunk) continue;  // cannot happen: a batch evicts nothing it touched
+    WorldState::ChunkInfo& info = st.info.at(p.coord);
+    if (info.checkpointing && checkpoints) checkpoints->preserve(p.coord, *chunk);
+    const bool was_uniform = chunk->is_uniform();
+    if (p.was_uniform) {
+      *chunk = world::Chunk(p.uniform);
+    } else {
+      size_t i = 0;
+      for (int z = p.lo[2]; z <= p.hi[2]; ++z)
+        for (int y = p.lo[1]; y <= p.hi[1]; ++y)
+          for (int x = p.lo[0]; x <= p.hi[0]; ++x) chunk->set(x, y, z, p.samples[i++]);
+    }
+    st.chunks.note_changed(was_uniform, *chunk);
+    if (info.modified && !p.modified) --st.modified_count;
+    info.modified = p.modified;
+    info.unsaved = p.unsaved;
+    if (!p.unsaved && checkpoints) checkpoints->saved_again(p.coord);
+  }
+  undo.patches.clear();
 }
 
 }  // namespace vox::pipeline

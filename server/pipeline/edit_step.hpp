@@ -8,7 +8,8 @@
 // uniform chunks turned full) does not fit the memory budget even after eviction
 // (kServerBusy), or when a checkpointed chunk cannot be read back (kStorageUnavailable).
 // `undo`: records what it overwrites; `keep`: boxes (protected regions) it leaves as they
-// are. The edit must be valid (world::validate). The pipeline thread only.
+// are. The edit must be valid (world::validate). The pipeline thread only. undo_edits
+// undoes a batch of them.
 #pragma once
 
 #include <cstddef>
@@ -41,5 +42,11 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
                                      size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
                                      EditResult& result, Undo* undo = nullptr,
                                      std::span<const world::VoxelBox> keep = {});
+
+// Undoes a batch's edits, last first: each chunk gets back its samples and its flags as
+// they were before the batch (a chunk an edit compacted to one sample is expanded again;
+// the samples outside the box were that sample already); a chunk a checkpoint in flight
+// holds is preserved first. `checkpoints`: null without a store. Pipeline thread only.
+void undo_edits(WorldState& state, Checkpoints* checkpoints, Undo& undo);
 
 }  // namespace vox::pipeline

@@ -76,6 +76,16 @@ class LodStage {
   // after a failed read, does nothing for a second.
   std::vector<LodKey> run(Clock::time_point now, size_t max_chunks);
 
+  // The pipeline held a pass back (a batch waits for the store, and a LOD mesh must not
+  // show an edit that is not durable): true once that has lasted kStarvation, when the
+  // pass is to wait for the store instead. ran(): a pass ran, or there was nothing to do.
+  static constexpr auto kStarvation = std::chrono::milliseconds(250);
+  bool held_back(Clock::time_point now) {
+    if (!held_back_since_) held_back_since_ = now;
+    return now - *held_back_since_ >= kStarvation;
+  }
+  void ran() { held_back_since_.reset(); }
+
   // The owners whose layouts want each of these keys (pipeline thread): each owner with
   // its keys, by owner.
   std::vector<std::pair<LoadOwner, std::shared_ptr<const std::vector<LodKey>>>> route(
@@ -131,6 +141,7 @@ class LodStage {
   // After a failed read of the store: not before this (else a time long past).
   Clock::time_point store_retry_at() const;
   std::vector<world::LodChunk> retry_;  // put off by the store: meshed first next time
+  std::optional<Clock::time_point> held_back_since_;  // see held_back()
   std::array<std::atomic<uint64_t>, kCountedLevels> meshed_{}, remeshed_{}, published_{};
 };
 

@@ -4,7 +4,7 @@
 // it freed nothing and nothing came (everything is in use: the scan is not free). Edits
 // that need room get one pass per batch. It also says whether loads must wait. Pure: the
 // pipeline gives it the time and the bytes, and does the evicting. Pipeline thread, but
-// loads_blocked() (any thread).
+// loads_blocked() and the other bytes (any thread).
 #pragma once
 
 #include <atomic>
@@ -57,6 +57,10 @@ class MemoryKeeper {
   // its way has landed); true when that changed.
   bool update_blocked(size_t total);
   bool loads_blocked() const { return blocked_.load(std::memory_order_relaxed); }  // any thread
+  // Bytes held outside the pipeline (sessions' state), counted in the budget; never
+  // evicted. Any thread.
+  void set_other_bytes(size_t bytes) { other_bytes_.store(bytes, std::memory_order_relaxed); }
+  size_t other_bytes() const { return other_bytes_.load(std::memory_order_relaxed); }
 
   // How long the idle pipeline may sleep before it looks again: loads waiting for memory
   // retry eviction often (sessions release meshes), loads waiting for their owners'
@@ -71,6 +75,7 @@ class MemoryKeeper {
   size_t resident_after_ = 0;
   bool evicted_for_edits_ = false;
   std::atomic<bool> blocked_{false};
+  std::atomic<size_t> other_bytes_{0};
 };
 
 }  // namespace vox::pipeline

@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <unordered_set>
 
+#include "server/pipeline/edit_pass.hpp"
+#include "server/pipeline/remesh.hpp"
+#include "server/pipeline/world_restore.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/parallel.hpp"
@@ -37,17 +40,6 @@ void refuse_shutting_down(OrderedTask& task, bool cancelled) {
 }
 
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
-// What an edit refused because the store could not write is told.
-constexpr const char* kStorageMessage =
-    "the world store cannot write now (disk full or database unreachable); the edit was not "
-    "applied";
-// ... and one refused because a checkpointed chunk it needs could not be read back.
-constexpr const char* kStorageReadMessage =
-    "a chunk this edit needs cannot be read from the world store now (unreachable, or the "
-    "server's log names a damaged chunk); the edit was not applied";
-constexpr const char* kLogFullMessage =
-    "the world store is behind: its log holds as many edits as a checkpoint may leave "
-    "unwritten; edits are taken again once the checkpoint in progress is written";
 
 // A batch slower than this is logged: every edit queued behind it waited.
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
@@ -83,7 +75,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
         DurableCommit::Hooks{.answer = [this](EditBatch& b, bool durable) { answer(b, durable); },
                              .undo =
                                  [this](EditBatch& b) {
-                                   roll_back(b.undo);
+                                   undo_edits(*state_, checkpoints_.get(), b.undo);
                                    regions_.undo(b.regions);
                                  },
                              .committed =
@@ -92,7 +84,16 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
                                      observer_.commit(out.seconds, out.edits, out.error.empty());
                                    if (observer_.commit_wait) observer_.commit_wait(waited);
                                  }});
-    restore_from_store();  // before the pipeline's thread: may throw StoreError
+    // Before the pipeline's thread: may throw StoreError.
+    EditWorld world = edit_world();
+    const RestoredWorld restored = restore_world(*config_.store, world, regions_, *reader_);
+    commit_->restore(restored.next_seq);
+    checkpoints_->logged(restored.replayed);
+    stats_.update([&](PipelineStats& s) {
+      StatsBook::residency(s, *state_);
+      s.unsaved_chunks = checkpoints_->unsaved_chunks();
+      s.checkpoint_seq = restored.info.checkpoint_seq;
+    });
   }
   const int generate_threads =
       config_.generate_threads >= 0
@@ -164,15 +165,17 @@ void WorldPipeline::inspect(std::function<void(const world::ChunkMap&)> fn) {
 }
 
 PipelineStats WorldPipeline::stats() const {
-  PipelineStats s;
-  {
-    std::lock_guard lock(stats_mutex_);
-    s = stats_;
-  }
+  PipelineStats s = stats_.snapshot();
   s.mesh_count = meshes_.size();
   s.mesh_bytes = meshes_.memory_bytes();
-  lod_stats(s);
-  s.other_bytes = other_bytes_.load(std::memory_order_relaxed);
+  s.lod_mesh_count = lod_->meshes().size();
+  s.lod_mesh_bytes = lod_->memory_bytes();
+  for (int level = 0; level < config_.lod.levels && level < LodStage::kCountedLevels; ++level) {
+    s.lod_meshed.push_back(lod_->meshed(level));
+    s.lod_remeshed.push_back(lod_->remeshed(level));
+    s.lod_published.push_back(lod_->published(level));
+  }
+  s.other_bytes = memory_.other_bytes();
   s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + s.other_bytes;
   s.loads_blocked = memory_.loads_blocked();
   const Inbox::Counts queued = inbox_.counts();
@@ -190,16 +193,22 @@ void WorldPipeline::stop() {
   loads_.reset();
 }
 
+// ---- The batch loop and the rules between the parts. Pipeline thread only. ----
+
 // Under the inbox's lock. Loads whose pass the memory budget cuts to nothing while terrain
 // is on its way wait for it (generated_ready), not in a busy loop.
 bool WorldPipeline::batch_ready(Inbox::State& in) {
   const Clock::time_point now = Clock::now();
   // After a failed read of a stored chunk, a pass now and then tries it again.
   const bool retry_reads = loads_->waiting_for_store() && !reader_->backing_off(now);
+  // While a batch waits for the store, the chunk map may show edits that are not durable:
+  // no LOD mesh is made from it then (the append's landing wakes us).
+  const bool in_flight = commit_ && !commit_->empty();
+  const bool lod = !in_flight && (!in.lod_updates.empty() || lod_->has_work(now));
   return in.scheduler.has_ordered() || in.generated_ready || retry_reads ||
          (in.scheduler.has_loads() && !memory_.loads_blocked() &&
           in.scheduler.has_ready_loads(now) && load_work_allowed(false) > 0) ||
-         lod_ready(in, now);
+         lod;
 }
 
 // Under the inbox's lock: how long the idle pipeline may sleep, until the soonest of its
@@ -214,20 +223,29 @@ std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const
     wait = std::min(wait, std::chrono::duration_cast<milliseconds>(config_.store_retry));
   // A coarse chunk's re-mesh falls due (while a batch waits for the store, its landing
   // wakes us: the stage does not run before).
-  if (const auto due = lod_->next_due(); due && !batches_in_flight())
+  if (const auto due = lod_->next_due(); due && !(commit_ && !commit_->empty()))
     wait = std::min(wait, std::chrono::ceil<milliseconds>(
                               std::max(Clock::duration::zero(), *due - Clock::now())));
   return wait;
 }
 
-// What the parts do between batches, and whenever the idle pipeline wakes: answer the
-// batches whose appends landed, evict, checkpoint, write a region table in doubt.
+// Under the inbox's lock: the views set since, into the world's view index (what eviction
+// protects); waiting loads no view holds any more are dropped.
+void WorldPipeline::take_view_updates(Inbox::State& in) {
+  if (in.view_updates.empty()) return;
+  for (const auto& [owner, view] : in.view_updates)
+    state_->views.set(owner, view.first, view.second);
+  in.view_updates.clear();
+  loads_->drop_unviewed();
+}
+
+// What the parts do between batches, and whenever the idle pipeline wakes: evict,
+// checkpoint, write a region table in doubt, and answer the batches whose appends landed
+// (now, not when the loop next waits: while loads keep it busy it may not wait for long).
 void WorldPipeline::between_batches(Clock::time_point now) {
-  manage_memory(now);
-  checkpoint_if_due(now);
+  keep_memory(now);
+  checkpoints_turn(now);
   repair_regions(now);
-  // Appends that landed meanwhile: answered now, not when the loop next waits (while loads
-  // keep it busy it may not wait for a long time).
   finish_landed();
 }
 
@@ -261,171 +279,63 @@ void WorldPipeline::run() {
     }
     const size_t ordered_count = ordered.size();
     const Clock::time_point now = Clock::now();
-    {
-      std::lock_guard lock(stats_mutex_);
-      stats_.cached_columns = state_->column_heights.size();  // what earlier batches left
-    }
-    batch_counts_ = {};  // the whole batch's, for the slow-batch log
-    process_ordered(ordered, now);
-    LoadPlan plan;
-    std::vector<LoadSlice> loads = take_loads(plan, now);
-    process_loads(loads, plan, now);
+    // Column heights left by earlier batches (0: they are shared within a batch only).
+    stats_.update([&](PipelineStats& s) { s.cached_columns = state_->column_heights.size(); });
+    stats_.start_batch();
+    // Earlier batches whose appends landed are answered before this batch applies (a failed
+    // one is undone with every pending batch on top of it, newest first; this one must not
+    // be on top of it yet, outside the pending ones).
+    finish_landed();
+    edit_pass(ordered, now);
+    const size_t loaded = load_pass(now);
     lod_pass(Clock::now());
-    // Column heights are shared within a batch only (edits and loads both fill them).
-    state_->column_heights.clear();
-    {
-      std::lock_guard lock(stats_mutex_);
-      stats_.batches += 1;
-    }
+    state_->column_heights.clear();  // edits and loads both fill them
+    stats_.update([](PipelineStats& s) { s.batches += 1; });
     between_batches(Clock::now());
     const double took = seconds_since(now);
-    if (observer_.batch) observer_.batch(took, ordered_count, plan.to_mesh.size());
+    const BatchCounts& counts = stats_.batch();
+    if (observer_.batch) observer_.batch(took, ordered_count, loaded);
     if (took > std::chrono::duration<double>(kSlowBatch).count()) {
       spdlog::warn(
           "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
           "published)",
-          took * 1000, batch_counts_.edits_applied + batch_counts_.edits_refused,
-          plan.to_mesh.size(), batch_counts_.chunks_generated, batch_counts_.meshes_published);
+          took * 1000, counts.edits_applied + counts.edits_refused, loaded, counts.chunks_generated,
+          counts.meshes_published);
     }
   }
-  finish_pending(0);  // what was applied is answered before anything is refused
+  drain_commits();  // what was applied is answered before anything is refused
   repair_regions(Clock::now(), true);
-  finish_pending(0);
+  drain_commits();
   drain_after_stop();
-  final_checkpoint();
+  if (checkpoints_) record(checkpoints_->last(*state_, commit_->last_seq()));
 }
 
-// Answers the batches whose appends have landed (outside the inbox's lock).
-void WorldPipeline::finish_landed() {
-  inbox_.locked([](Inbox::State& in) { in.append_landed = false; });
-  finish_pending(SIZE_MAX);
-}
-
-void WorldPipeline::drain_after_stop() {
-  std::vector<OrderedTask> ordered;
-  std::vector<std::function<void()>> loads;
-  inbox_.locked([&](Inbox::State& in) {
-    ordered = in.scheduler.take_ordered();
-    loads = in.scheduler.take_all_load_callbacks();
-  });
-  // An inspection runs (not cancelled): on the pipeline thread, state is still ours.
-  for (OrderedTask& t : ordered) refuse_shutting_down(t, false);
-  for (auto& done : loads) done();
-  loads_->run_all_callbacks();
-}
-
-// Edits, region changes and inspections, in arrival order. Without a store the batch is answered
-// here; with one, once its append has landed (finish_pending).
-void WorldPipeline::process_ordered(std::vector<OrderedTask>& tasks, Clock::time_point now) {
-  // Earlier batches whose appends landed: answered now, and before this batch applies (a
-  // failed one is undone with every pending batch on top of it, newest first; this one
-  // must not be on top of it yet, outside the pending ones).
-  finish_landed();
-  EditBatch b = apply_batch(tasks, now);
+// Edits, region changes and inspections, in arrival order. Without a store the batch is
+// answered here; with one, once its append has landed.
+void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point now) {
+  const bool durable = commit_ != nullptr;
+  const EditRules rules{
+      .limits = config_.limits,
+      .max_generated_per_owner = config_.max_generated_per_owner,
+      .durable = durable,
+      .store_resting = durable && commit_->resting(now),
+      .log_tail = durable ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0};
+  EditWorld world = edit_world();
+  EditBatch b = apply_edits(tasks, world, regions_, rules, now);
   if (!b.any_edit) return;
   if (commit_ && (!b.accepted.empty() || b.regions.changed()))
     commit_->start(b, regions_.write_for_append(b.regions));  // overlaps the re-meshing
-  b.fresh = remesh(b.dirty);
+  const Clock::time_point start = Clock::now();
+  b.fresh = remesh(*state_, b.dirty, meshes_, commit_.get());
+  if (observer_.remesh && !b.dirty.empty()) observer_.remesh(seconds_since(start), b.dirty.size());
   if (!commit_) return answer(b, true);
   const Clock::time_point wait_until = b.appended_at + kAnswerWait;
   commit_->add(std::move(b));
   wait_for_answer(wait_until);
 }
 
-// Applies the batch's edits (validated, within the generation limits; refused untried
-// while the store rests after a failure) and runs its inspections.
-EditBatch WorldPipeline::apply_batch(std::vector<OrderedTask>& tasks, Clock::time_point now) {
-  EditBatch b;
-  memory_.new_batch();
-  b.edit_dirty.resize(tasks.size());
-  b.results.resize(tasks.size());
-  std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
-  const bool durable = config_.store != nullptr;
-  const bool store_resting = durable && commit_->resting(now);
-  const uint64_t log_tail = durable ? logged_since_checkpoint() : 0;
-  BatchCounts& delta = b.counts;
-  EditWorld world_access = edit_world();
-  for (size_t t = 0; t < tasks.size(); ++t) {
-    if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
-      // Sees every edit queued before it applied; the meshes of this batch are not
-      // published yet, but densities are final.
-      insp->run(false);
-      continue;
-    }
-    if (auto* region = std::get_if<RegionTask>(&tasks[t])) {
-      b.any_edit = true;  // answered with the batch
-      regions_.apply(*region, t, store_resting, b.regions, kStorageMessage);
-      continue;
-    }
-    const EditTask& task = std::get<EditTask>(tasks[t]);
-    const world::Edit& edit = task.edit;
-    EditResult& result = b.results[t];
-    b.any_edit = true;
-    if (auto refusal = world::validate(edit, config_.limits)) {
-      result.reason = refusal->reason;
-      result.message = refusal->message;
-      ++delta.edits_refused;
-      continue;
-    }
-    if (store_resting) {
-      result.reason = world::RefusalReason::kStorageUnavailable;
-      result.message = kStorageMessage;
-      ++delta.edits_refused;
-      continue;
-    }
-    if (durable && checkpoints_->log_full(log_tail + b.accepted.size())) {
-      result.reason = world::RefusalReason::kServerBusy;
-      result.message = kLogFullMessage;
-      ++delta.edits_refused;
-      ++delta.edits_refused_busy;
-      continue;
-    }
-    world::Protection protection;
-    if (!task.bypass_regions && !regions_.in_force().empty())
-      protection = world::protection_for(regions_.in_force(), edit, task.author);
-    if (protection.forbidden_by) {
-      result.reason = world::RefusalReason::kForbidden;
-      result.message =
-          "it lies wholly inside protected region " + std::to_string(*protection.forbidden_by);
-      ++delta.edits_refused;
-      continue;
-    }
-    size_t& generated = generated_by[task.owner];
-    const size_t max_generate = task.owner == 0
-                                    ? SIZE_MAX
-                                    : config_.max_generated_per_owner -
-                                          std::min(generated, config_.max_generated_per_owner);
-    const world::RefusalReason refused =
-        apply_edit_step(world_access, edit, now, max_generate, b.edit_dirty[t], result,
-                        durable ? &b.undo : nullptr, protection.keep);
-    if (refused != world::RefusalReason::kNone) {
-      result.reason = refused;
-      result.message =
-          refused == world::RefusalReason::kServerBusy
-              ? "the server's memory budget is full: edits needing new terrain are refused"
-          : refused == world::RefusalReason::kStorageUnavailable
-              ? kStorageReadMessage
-              : "your edits made the server generate too much terrain at once";
-      ++delta.edits_refused;
-      delta.edits_refused_busy += refused == world::RefusalReason::kServerBusy ? 1 : 0;
-      continue;
-    }
-    generated += result.chunks_generated;
-    result.accepted = true;
-    result.clipped_by = std::move(protection.regions);
-    b.accepted.push_back(&task);
-    b.keep.push_back(std::move(protection.keep));
-    ++delta.edits_applied;
-    delta.chunks_generated += result.chunks_generated;
-    b.dirty.insert(b.dirty.end(), b.edit_dirty[t].begin(), b.edit_dirty[t].end());
-    for (const ChunkCoord& c : b.edit_dirty[t])
-      b.edited_at.try_emplace(c, task.submitted);  // arrival order
-  }
-  b.tasks = std::move(tasks);
-  regions_.seal(b.regions);
-  return b;
-}
-
+// Publishes a durable batch's meshes, or refuses its accepted edits (not durable: it was
+// rolled back), then answers its edits and notifies the subscribers.
 void WorldPipeline::answer(EditBatch& b, bool durable) {
   if (!durable) {
     for (EditResult& r : b.results) {
@@ -441,9 +351,15 @@ void WorldPipeline::answer(EditBatch& b, bool durable) {
     b.fresh.clear();
   } else {
     if (checkpoints_) checkpoints_->logged(b.accepted.size());
-    lod_edited(b, Clock::now());
+    // The coarse levels re-mesh what durable edits changed.
+    const Clock::time_point now = Clock::now();
+    for (size_t t = 0; t < b.tasks.size(); ++t) {
+      const auto* task = std::get_if<EditTask>(&b.tasks[t]);
+      if (task && b.results[t].accepted) lod_->edited(world::touched_box(task->edit), now);
+    }
   }
-  const std::vector<ChunkCoord> published = publish(b.dirty, b.fresh, &b.edited_at);
+  const std::vector<ChunkCoord> published =
+      publish(*state_, meshes_, b.dirty, b.fresh, &b.edited_at);
   const CoordSet published_set(published.begin(), published.end());
   b.counts.meshes_published += published.size();
   count(b.counts);  // before the results: whoever waits on one sees its counts
@@ -471,33 +387,216 @@ void WorldPipeline::answer(EditBatch& b, bool durable) {
   subscribers_.notify(published);
 }
 
-EditWorld WorldPipeline::edit_world() {
-  return {*state_,
-          generator_,
-          memory_,
-          meshes_,
-          checkpoints_.get(),
-          other_bytes_.load(std::memory_order_relaxed),
-          [this] { return resident_bytes(); }};
+// After its re-mesh, a batch waits a little for its append. Each pending batch is answered
+// as soon as its append lands (oldest first), not when the newest's does.
+void WorldPipeline::wait_for_answer(Clock::time_point until) {
+  while (!commit_->empty()) {
+    const Clock::time_point start = Clock::now();
+    bool go_on = false;  // an edit arrived, or the pipeline stops
+    inbox_.wait_until(until, [&](const Inbox::State& in) {
+      go_on = in.stopping || in.scheduler.has_ordered();
+      return go_on || commit_->oldest_landed();
+    });
+    commit_->waited_for_oldest(seconds_since(start));
+    if (!commit_->oldest_landed()) break;  // the wait is over, or an edit arrived
+    commit_->finish(SIZE_MAX);             // every batch whose append has landed
+    if (go_on) break;
+  }
+  commit_->finish(kMaxPendingBatches);
+}
+
+void WorldPipeline::finish_landed() {
+  inbox_.locked([](Inbox::State& in) { in.append_landed = false; });
+  if (commit_) commit_->finish(SIZE_MAX);
+}
+
+void WorldPipeline::drain_commits() {
+  if (commit_) commit_->finish(0);
+}
+
+// After a failed append that carried region changes: an append of the whole region table
+// alone, once the store may be tried again (or, with `now_anyway`, at stop).
+void WorldPipeline::repair_regions(Clock::time_point now, bool now_anyway) {
+  if (!regions_.doubtful() || !commit_ || !commit_->empty()) return;
+  if (!now_anyway && commit_->resting(now)) return;
+  EditBatch b;  // no tasks: the append carries the region table (and forgets doubtful edits)
+  commit_->start(b, regions_.write_for_append(b.regions));
+  commit_->add(std::move(b));
+}
+
+// The batch's load pass, planned on the world as its edits left it: installs the terrain
+// generated in the background, queues what the planned chunks still miss, meshes and
+// publishes every waiting chunk whose neighbourhood is complete, then runs the finished
+// requests' callbacks. Returns the chunks it planned to mesh.
+size_t WorldPipeline::load_pass(Clock::time_point now) {
+  LoadPlan plan;
+  std::vector<LoadSlice> slices = inbox_.locked([&](Inbox::State& in) -> std::vector<LoadSlice> {
+    // The views whose requests this pass takes must be the ones eviction protects: a view
+    // set after the batch started would otherwise have its meshed chunks passed over here
+    // (nothing to load) yet evicted below, and the session would wait for them forever.
+    take_view_updates(in);
+    if (!in.scheduler.has_loads()) return {};
+    // Edits waiting to apply, or applied and waiting for the store to be answered: a short
+    // pass, so that they are not held up behind it.
+    const bool edits_waiting = in.scheduler.has_ordered() || (commit_ && !commit_->empty());
+    return in.scheduler.take_loads(
+        load_work_allowed(edits_waiting), [&](ChunkCoord c) { return loads_->cost(c, plan, now); },
+        config_.load_scan_limit, now);
+  });
+  BatchCounts delta;
+  loads_->wait_for(slices, plan);
+  // After the new waiting chunks pinned their neighbourhoods: terrain ready for them is kept.
+  delta.chunks_generated += loads_->install_generated(now);
+  std::vector<ChunkCoord> published;
+  if (loads_->waiting()) {
+    std::vector<ChunkCoord> dirty = loads_->take_meshable(now, delta);
+    finish_landed();  // not held up by the meshing
+    // A mesh never shows an edit that is not durable: those batches are answered first.
+    if (commit_ && commit_->near_pending_edits(dirty)) drain_commits();
+    const Clock::time_point start = Clock::now();
+    FreshMeshes fresh = remesh(*state_, dirty, meshes_, commit_.get());
+    if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
+    published = publish(*state_, meshes_, dirty, fresh, nullptr);
+    delta.meshes_published += published.size();
+  }
+  count(delta);
+  stats_.update([&](PipelineStats& s) {
+    s.chunks_generating = loads_->generating();
+    s.meshes_waiting = loads_->waiting_count();
+  });
+  loads_->run_finished();
+  subscribers_.notify(published);
+  return plan.to_mesh.size();
+}
+
+// A level-of-detail pass: the layouts set since are taken (keys an owner now wants that
+// were published before it did are routed to it), then the stage meshes within its time
+// slice. It runs only while no batch waits for the store (a LOD mesh never shows an edit
+// that is not durable); held back too long, it waits for the appends. An edit arriving
+// ends it: edits go first.
+void WorldPipeline::lod_pass(Clock::time_point now) {
+  std::unordered_map<LoadOwner, std::vector<LodKey>> updates;
+  bool edits_waiting = false;
+  inbox_.locked([&](Inbox::State& in) {
+    updates.swap(in.lod_updates);
+    edits_waiting = in.scheduler.has_ordered();
+  });
+  LodPublication late;
+  for (auto& [owner, keys] : updates) {  // outside the lock
+    std::vector<LodKey> published = lod_->set_wants(owner, std::move(keys));
+    if (!published.empty())
+      late.by_owner.emplace_back(owner,
+                                 std::make_shared<const std::vector<LodKey>>(std::move(published)));
+  }
+  if (!late.by_owner.empty()) subscribers_.notify_lod(late);
+  if (!lod_->has_work(now)) return lod_->ran();
+  if (commit_ && !commit_->empty()) {
+    if (!lod_->held_back(now)) return;
+    drain_commits();
+    if (!commit_->empty()) return;
+  }
+  lod_->ran();
+  const Clock::time_point start = Clock::now();
+  for (;;) {
+    const std::vector<LodKey> published = lod_->run(Clock::now(), config_.lod_group_chunks);
+    if (!published.empty())
+      subscribers_.notify_lod(LodPublication{published, lod_->route(published)});
+    if (edits_waiting || Clock::now() - start >= config_.lod_pass_time ||
+        !lod_->has_work(Clock::now()))
+      return;
+    const bool edit_or_stop = inbox_.locked(
+        [](const Inbox::State& in) { return in.scheduler.has_ordered() || in.stopping; });
+    if (edit_or_stop) return;
+  }
+}
+
+// Evicts idle chunks now and then, and under memory pressure down to the budget's target
+// (MemoryKeeper says when); decides whether loads must wait.
+void WorldPipeline::keep_memory(Clock::time_point now) {
+  WorldState& st = *state_;
+  if (const auto pass = memory_.due(now, resident_bytes(), memory_.other_bytes())) {
+    drain_commits();  // chunks whose meshes wait for the store stay: answered first
+    const size_t dropped =
+        st.evict(meshes_, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
+    memory_.evicted(now, dropped, resident_bytes());
+    stats_.update([&](PipelineStats& s) {
+      s.chunks_evicted += dropped;
+      StatsBook::residency(s, st);
+    });
+  }
+  // Blocked: no room even once the terrain on its way has landed (while it is on its way,
+  // load passes only wait for it: see batch_ready).
+  const size_t total = resident_bytes();
+  if (!memory_.update_blocked(total)) return;
+  const size_t max = memory_.budget().max_bytes();
+  if (memory_.loads_blocked()) {
+    spdlog::warn(
+        "memory budget: {} MiB accounted of {} MiB (--max-memory) and nothing left to evict; "
+        "new chunk loads wait",
+        total >> 20, max >> 20);
+    stats_.update([](PipelineStats& s) { ++s.memory_blocked; });
+  } else {
+    spdlog::info("memory budget: {} MiB accounted of {} MiB; loads resume", total >> 20, max >> 20);
+  }
+}
+
+void WorldPipeline::checkpoints_turn(Clock::time_point now) {
+  if (!checkpoints_) return;
+  record(checkpoints_->turn(*state_, now, [this] {
+    drain_commits();
+    return commit_->last_seq();
+  }));
+}
+
+void WorldPipeline::record(const std::vector<CheckpointResult>& finished) {
+  for (const CheckpointResult& r : finished) {
+    if (observer_.checkpoint) observer_.checkpoint(r.seconds, r.coords.size(), r.bytes, r.ok);
+    stats_.update([&](PipelineStats& s) {
+      s.stored_chunks = state_->stored.size();
+      s.unsaved_chunks = checkpoints_->unsaved_chunks();
+      s.checkpoints += r.ok ? 1 : 0;
+      s.checkpoint_failures += r.ok ? 0 : 1;
+      if (r.ok) s.checkpoint_seq = r.seq;
+    });
+  }
 }
 
 void WorldPipeline::count(const BatchCounts& delta) {
-  const WorldState& st = *state_;
-  batch_counts_.edits_applied += delta.edits_applied;
-  batch_counts_.edits_refused += delta.edits_refused;
-  batch_counts_.meshes_published += delta.meshes_published;
-  batch_counts_.chunks_generated += delta.chunks_generated;
-  std::lock_guard lock(stats_mutex_);
-  stats_.edits_applied += delta.edits_applied;
-  stats_.edits_refused += delta.edits_refused;
-  stats_.edits_refused_busy += delta.edits_refused_busy;
-  stats_.meshes_published += delta.meshes_published;
-  stats_.chunks_generated += delta.chunks_generated;
-  stats_.loaded_chunks = st.chunks.size();
-  stats_.modified_chunks = st.modified_count;
-  stats_.chunk_bytes = st.chunks.memory_bytes();
-  stats_.unsaved_chunks = checkpoints_ ? checkpoints_->unsaved_chunks() : 0;
-  stats_.stored_chunks = st.stored.size();
+  stats_.count(delta, *state_, checkpoints_ ? checkpoints_->unsaved_chunks() : 0);
+}
+
+size_t WorldPipeline::resident_bytes() const {
+  return state_->chunks.memory_bytes() + meshes_.memory_bytes() + lod_->memory_bytes() +
+         memory_.other_bytes();
+}
+
+// Load work within the memory budget, counting the terrain and meshes on their way at their
+// worst case, so that passes taken while earlier ones wait for terrain do not overrun it.
+size_t WorldPipeline::load_work_allowed(bool edits_waiting) const {
+  const size_t full =
+      edits_waiting ? config_.load_pass_work_while_edits_wait : config_.load_pass_work;
+  const size_t on_its_way =
+      loads_->memory_bytes() + (checkpoints_ ? checkpoints_->memory_bytes() : 0);
+  return memory_.budget().load_work(resident_bytes() + on_its_way, full);
+}
+
+void WorldPipeline::drain_after_stop() {
+  std::vector<OrderedTask> ordered;
+  std::vector<std::function<void()>> loads;
+  inbox_.locked([&](Inbox::State& in) {
+    ordered = in.scheduler.take_ordered();
+    loads = in.scheduler.take_all_load_callbacks();
+  });
+  // An inspection runs (not cancelled): on the pipeline thread, state is still ours.
+  for (OrderedTask& t : ordered) refuse_shutting_down(t, false);
+  for (auto& done : loads) done();
+  loads_->run_all_callbacks();
+}
+
+EditWorld WorldPipeline::edit_world() {
+  return {*state_, generator_, memory_, meshes_, checkpoints_.get(), memory_.other_bytes(), [this] {
+            return resident_bytes();
+          }};
 }
 
 }  // namespace vox::pipeline

@@ -1,6 +1,8 @@
-// The world pipeline's re-mesh pass: dirty chunks meshed in parallel, the meshes that
-// changed encoded and published as new versions. Pipeline thread (see world_pipeline.hpp).
-#include "server/pipeline/world_pipeline.hpp"
+#include "server/pipeline/remesh.hpp"
+
+#include <algorithm>
+
+#include "server/pipeline/durable_commit.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/world/parallel.hpp"
 
@@ -38,35 +40,25 @@ std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& 
   return version;
 }
 
-// Re-meshes every dirty chunk once, in parallel, encodes the meshes that changed and
-// publishes them as new versions. Returns the chunks given a new version.
-std::vector<ChunkCoord> WorldPipeline::remesh_and_publish(std::vector<ChunkCoord>& dirty,
-                                                          const EditTimes* edited_at) {
-  FreshMeshes fresh = remesh(dirty);
-  return publish(dirty, fresh, edited_at);
-}
-
-FreshMeshes WorldPipeline::remesh(std::vector<ChunkCoord>& dirty) {
-  WorldState& st = *state_;
-  const Clock::time_point start = Clock::now();
+FreshMeshes remesh(WorldState& st, std::vector<ChunkCoord>& dirty, const MeshStore& published,
+                   const DurableCommit* pending) {
   std::sort(dirty.begin(), dirty.end());
   dirty.erase(std::unique(dirty.begin(), dirty.end()), dirty.end());
   FreshMeshes fresh(dirty.size());
   std::vector<MeshVersionPtr> previous(dirty.size());
-  for (size_t i = 0; i < dirty.size(); ++i) previous[i] = newest_mesh(dirty[i]);
+  for (size_t i = 0; i < dirty.size(); ++i) {
+    if (pending) previous[i] = pending->newest_mesh(dirty[i]);
+    if (!previous[i]) previous[i] = published.get(dirty[i]);
+  }
   parallel_for_index(st.arena, dirty.size(), [&](size_t i) {
     fresh[i] = remesh_chunk(*st.workers.local(), st.chunks, dirty[i], previous[i].get());
   });
-  if (observer_.remesh && !dirty.empty()) observer_.remesh(seconds_since(start), dirty.size());
   return fresh;
 }
 
-std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& dirty,
-                                               FreshMeshes& fresh, const EditTimes* edited_at) {
-  WorldState& st = *state_;
-  // An edit batch re-meshed only meshed chunks: one not resident now, or not meshed, was
-  // evicted (and maybe loaded again) while the batch waited for the store, and its mesh
-  // is made again when it is next viewed.
+std::vector<ChunkCoord> publish(WorldState& st, MeshStore& meshes,
+                                const std::vector<ChunkCoord>& dirty, FreshMeshes& fresh,
+                                const EditTimes* edited_at) {
   std::vector<char> current(dirty.size());
   for (size_t i = 0; i < dirty.size(); ++i) {
     auto it = st.info.find(dirty[i]);
@@ -81,7 +73,7 @@ std::vector<ChunkCoord> WorldPipeline::publish(const std::vector<ChunkCoord>& di
       if (auto it = edited_at->find(dirty[i]); it != edited_at->end())
         fresh[i]->edited_at = it->second;
     }
-    meshes_.publish(std::move(fresh[i]));
+    meshes.publish(std::move(fresh[i]));
     published.push_back(dirty[i]);
   }
   return published;

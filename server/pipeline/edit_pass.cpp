@@ -1,0 +1,114 @@
+#include "server/pipeline/edit_pass.hpp"
+
+#include <string>
+#include <unordered_map>
+
+#include "server/pipeline/checkpoints.hpp"
+#include "server/pipeline/memory_keeper.hpp"
+#include "server/pipeline/protected_regions.hpp"
+#include "server/world/edit_apply.hpp"
+
+namespace vox::pipeline {
+
+using world::ChunkCoord;
+
+namespace {
+
+// ... and one refused because a checkpointed chunk it needs could not be read back.
+constexpr const char* kStorageReadMessage =
+    "a chunk this edit needs cannot be read from the world store now (unreachable, or the "
+    "server's log names a damaged chunk); the edit was not applied";
+constexpr const char* kLogFullMessage =
+    "the world store is behind: its log holds as many edits as a checkpoint may leave "
+    "unwritten; edits are taken again once the checkpoint in progress is written";
+
+void refuse(EditResult& result, world::RefusalReason reason, std::string message,
+            BatchCounts& counts) {
+  result.reason = reason;
+  result.message = std::move(message);
+  ++counts.edits_refused;
+  counts.edits_refused_busy += reason == world::RefusalReason::kServerBusy ? 1 : 0;
+}
+
+}  // namespace
+
+EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, ProtectedRegions& regions,
+                      const EditRules& rules, Clock::time_point now) {
+  EditBatch b;
+  world.memory.new_batch();
+  b.edit_dirty.resize(tasks.size());
+  b.results.resize(tasks.size());
+  std::unordered_map<LoadOwner, size_t> generated_by;  // this batch's terrain per sender
+  BatchCounts& delta = b.counts;
+  for (size_t t = 0; t < tasks.size(); ++t) {
+    if (auto* insp = std::get_if<InspectTask>(&tasks[t])) {
+      // Sees every edit queued before it applied; the meshes of this batch are not
+      // published yet, but densities are final.
+      insp->run(false);
+      continue;
+    }
+    if (auto* region = std::get_if<RegionTask>(&tasks[t])) {
+      b.any_edit = true;  // answered with the batch
+      regions.apply(*region, t, rules.store_resting, b.regions, kStorageMessage);
+      continue;
+    }
+    const EditTask& task = std::get<EditTask>(tasks[t]);
+    const world::Edit& edit = task.edit;
+    EditResult& result = b.results[t];
+    b.any_edit = true;
+    if (auto refusal = world::validate(edit, rules.limits)) {
+      refuse(result, refusal->reason, refusal->message, delta);
+      continue;
+    }
+    if (rules.store_resting) {
+      refuse(result, world::RefusalReason::kStorageUnavailable, kStorageMessage, delta);
+      continue;
+    }
+    if (rules.durable && world.checkpoints->log_full(rules.log_tail + b.accepted.size())) {
+      refuse(result, world::RefusalReason::kServerBusy, kLogFullMessage, delta);
+      continue;
+    }
+    world::Protection protection;
+    if (!task.bypass_regions && !regions.in_force().empty())
+      protection = world::protection_for(regions.in_force(), edit, task.author);
+    if (protection.forbidden_by) {
+      refuse(result, world::RefusalReason::kForbidden,
+             "it lies wholly inside protected region " + std::to_string(*protection.forbidden_by),
+             delta);
+      continue;
+    }
+    size_t& generated = generated_by[task.owner];
+    const size_t max_generate =
+        task.owner == 0
+            ? SIZE_MAX
+            : rules.max_generated_per_owner - std::min(generated, rules.max_generated_per_owner);
+    const world::RefusalReason refused =
+        apply_edit_step(world, edit, now, max_generate, b.edit_dirty[t], result,
+                        rules.durable ? &b.undo : nullptr, protection.keep);
+    if (refused != world::RefusalReason::kNone) {
+      refuse(result, refused,
+             refused == world::RefusalReason::kServerBusy
+                 ? "the server's memory budget is full: edits needing new terrain are refused"
+             : refused == world::RefusalReason::kStorageUnavailable
+                 ? kStorageReadMessage
+                 : "your edits made the server generate too much terrain at once",
+             delta);
+      continue;
+    }
+    generated += result.chunks_generated;
+    result.accepted = true;
+    result.clipped_by = std::move(protection.regions);
+    b.accepted.push_back(&task);
+    b.keep.push_back(std::move(protection.keep));
+    ++delta.edits_applied;
+    delta.chunks_generated += result.chunks_generated;
+    b.dirty.insert(b.dirty.end(), b.edit_dirty[t].begin(), b.edit_dirty[t].end());
+    for (const ChunkCoord& c : b.edit_dirty[t])
+      b.edited_at.try_emplace(c, task.submitted);  // arrival order
+  }
+  b.tasks = std::move(tasks);
+  regions.seal(b.regions);
+  return b;
+}
+
+}  // namespace vox::pipeline

@@ -1,0 +1,39 @@
+// A batch's edit pass, as a function of what it reads and writes: its edits, region
+// changes and inspections applied in arrival order on the world (edit_step.hpp), each edit
+// validated, held to the generation and memory limits and to the protected regions, or
+// refused with its reason: untried while the store rests after a failure, or while the
+// log's tail is at its bound. Pipeline thread only.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "server/pipeline/edit_batch.hpp"
+#include "server/pipeline/edit_step.hpp"
+#include "server/world/edit.hpp"
+
+namespace vox::pipeline {
+
+class ProtectedRegions;
+
+// What an edit refused because the store could not write is told.
+inline constexpr const char* kStorageMessage =
+    "the world store cannot write now (disk full or database unreachable); the edit was not "
+    "applied";
+
+// The rules in force for one pass.
+struct EditRules {
+  const world::EditLimits& limits;
+  size_t max_generated_per_owner;  // terrain one sender's edits may generate in a batch
+  bool durable;                    // with a store (edits record their undo)
+  bool store_resting;              // after a failed append: edits are refused untried
+  uint64_t log_tail;               // logged edits no checkpoint holds (world.checkpoints)
+};
+
+// Applies `tasks` (moved into the batch) and runs its inspections; returns the batch with
+// each task's result, the chunks to re-mesh and what undoes it.
+EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, ProtectedRegions& regions,
+                      const EditRules& rules, Clock::time_point now);
+
+}  // namespace vox::pipeline
