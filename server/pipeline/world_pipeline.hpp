@@ -57,8 +57,8 @@ class WorldPipeline {
   void change_regions(RegionTask task);
   // Any thread: the protected regions in force, as of the last durable change.
   std::shared_ptr<const std::vector<world::Region>> regions() const { return regions_.published(); }
-  // Any thread. Generates and meshes whatever of the box is missing; `done` runs on the
-  // pipeline thread once every chunk of the box has a published mesh.
+  // Any thread. Generates and meshes what the box misses; `done` runs on the pipeline
+  // thread once every chunk of it has a published mesh.
   void load(mesh::ChunkBox box, std::function<void()> done);
   std::future<void> load(mesh::ChunkBox box);
   // Any thread. The view of `owner` (a session id, below 2^63) becomes the ball of
@@ -68,13 +68,11 @@ class WorldPipeline {
   // level-of-detail layout's level 0); the whole ball stays safe from eviction.
   void set_view(LoadOwner owner, world::ChunkCoord center, int radius, uint64_t budget_group = 0,
                 const std::function<bool(world::ChunkCoord)>& keep = {});
-  // Any thread: drops the owner's queued loads and its level-of-detail view (its session
-  // closed).
+  // Any thread: drops the owner's queued loads and its LOD view (its session closed).
   void drop_view(LoadOwner owner);
   // Any thread. The level-of-detail meshes (levels >= 1, with their seams) `owner`'s
-  // layout needs, nearest first, replacing its previous ones; meshed between batches,
-  // re-meshed after edits (coalesced, see LodStageConfig); each new version reaches the
-  // LOD subscribers whose layouts want it (subscribers.hpp).
+  // layout needs, nearest first, replacing its previous ones; each new version reaches
+  // the LOD subscribers whose layouts want it (subscribers.hpp).
   void set_lod_view(LoadOwner owner, std::vector<LodKey> keys);
   // Runs fn on the pipeline thread between batches, and waits for it (tests, persistence).
   void inspect(std::function<void(const world::ChunkMap&)> fn);
@@ -93,8 +91,7 @@ class WorldPipeline {
   void set_other_bytes(size_t bytes) { memory_.set_other_bytes(bytes); }
   const PipelineConfig& config() const { return config_; }
   // Finishes the batch in flight, refuses queued edits (kShuttingDown), runs queued load
-  // callbacks, writes a checkpoint of every unsaved chunk (with a store), joins the
-  // thread. Idempotent.
+  // callbacks, checkpoints every unsaved chunk (with a store), joins the thread. Idempotent.
   void stop();
 
   // Batches in flight (applied, their appends not yet landed) are at most this many:
@@ -142,8 +139,7 @@ class WorldPipeline {
   std::unique_ptr<StoredChunkReader> reader_;  // with a store
   std::unique_ptr<LodStage> lod_;              // lod_meshes(): any thread
   ProtectedRegions regions_;                   // regions(): any thread
-  // With a store. These three are reset by stop() once thread_ has ended (their threads
-  // wake the pipeline).
+  // With a store; reset by stop() once thread_ has ended (their threads wake the pipeline).
   std::unique_ptr<Checkpoints> checkpoints_;
   std::unique_ptr<DurableCommit> commit_;
   std::unique_ptr<ViewLoads> loads_;
