@@ -40,6 +40,7 @@ class ServerProcess {
         {"--threads", "2"},
         {"--stats-interval", "0"},
         {"--log-level", "warn"},
+        {"--http-port", "0"},  // off: a test that wants it sets --http-port auto
         {"--max-per-address", "0"},
         {"--max-handshaking-per-address", "0"},
         {"--world", (dir_ / "world").string()}};
@@ -50,6 +51,10 @@ class ServerProcess {
       }
     }
     args.insert(args.end(), extra_args.begin(), extra_args.end());
+    if (std::find(extra_args.begin(), extra_args.end(), "--http-port") != extra_args.end()) {
+      args.push_back("--http-port-file");
+      args.push_back((dir_ / "http_port").string());
+    }
     if (std::find(extra_args.begin(), extra_args.end(), "--metrics-port") != extra_args.end()) {
       args.push_back("--metrics-port-file");
       args.push_back((dir_ / "metrics_port").string());
@@ -97,9 +102,10 @@ class ServerProcess {
   uint16_t port() const { return port_; }
   std::filesystem::path log_path() const { return dir_ / "voxeld.log"; }
   // With --metrics-port: the bound metrics port (written just after the main port file).
-  uint16_t metrics_port() const {
+  uint16_t metrics_port() const { return port_from("metrics_port"); }
+  uint16_t port_from(const char* file) const {
     for (int i = 0; i < 500; ++i) {
-      std::ifstream in(dir_ / "metrics_port");
+      std::ifstream in(dir_ / file);
       uint16_t port = 0;
       if (in >> port && port != 0) return port;
       std::this_thread::sleep_for(
@@ -107,6 +113,8 @@ class ServerProcess {
     }
     return 0;
   }
+  // With --http-port: the bound HTTP port (written just after the main port file).
+  uint16_t http_port() const { return port_from("http_port"); }
   pid_t pid() const { return pid_; }
   // SIGTERM, then the exit code (-1 when it did not exit within the timeout).
   int terminate(std::chrono::seconds timeout = std::chrono::seconds(10)) {

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <memory>
@@ -60,6 +61,19 @@ pipeline::PipelineObserver observe_into(net::ServerCounters& counters) {
               }};
 }
 
+// The viewer's files as the build leaves them: web/ beside the bin/ voxeld runs from
+// (build/web), or share/voxeld/web in an install; empty when neither exists.
+std::filesystem::path default_http_root() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  for (const auto& candidate : {exe.parent_path().parent_path() / "web",
+                                exe.parent_path().parent_path() / "share" / "voxeld" / "web"}) {
+    if (std::filesystem::is_regular_file(candidate / "index.html", ec)) return candidate;
+  }
+  return {};
+}
+
 // Runs the opened world until a signal; throws what the server throws.
 void serve(const VoxeldConfig& c) {
   net::ServerCounters counters;
@@ -78,6 +92,10 @@ void serve(const VoxeldConfig& c) {
     if (!c.metrics_port_file.empty()) write_port_file(c.metrics_port_file, metrics->port());
   }
   if (!c.port_file.empty()) write_port_file(c.port_file, server.port());
+  if (server.http_port() != 0) {
+    spdlog::info("open http://{}:{}/ in a browser", c.net.bind, server.http_port());
+    if (!c.http_port_file.empty()) write_port_file(c.http_port_file, server.http_port());
+  }
   if (c.stats_seconds > 0) server.start_stats_log(std::chrono::seconds(c.stats_seconds));
   asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](boost::system::error_code ec, int signal) {
@@ -99,6 +117,7 @@ void serve(const VoxeldConfig& c) {
 
 int run_voxeld(VoxeldConfig c, const char* allocator) {
   spdlog::set_level(spdlog::level::from_str(c.log_level));
+  if (c.net.http && c.net.http->root.empty()) c.net.http->root = default_http_root();
   log_start(c, allocator);
   // The durable world: opened (and checked) before anything listens.
   std::unique_ptr<store::WorldStore> store, checkpoint_store;

@@ -24,6 +24,8 @@ struct RawFlags {
   long evict_after_s = 120, lod_remesh_ms = 250;
   double checkpoint_s = 10;
   int metrics_port = -1;
+  std::string http_port = "7780", http_root;
+  std::vector<std::string> http_origins;
 };
 
 po::options_description describe(VoxeldConfig& c, RawFlags& r) {
@@ -36,6 +38,15 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
   add("bind", po::value<std::string>(&net.bind)->default_value("127.0.0.1"),
       "address to listen on");
   add("port-file", po::value<std::string>(&c.port_file), "write the bound port to this file");
+  add("http-port", po::value<std::string>(&r.http_port)->default_value("7780"),
+      "serve the viewer and WebSocket (/ws) on --bind:PORT (0: off; auto: a free port)");
+  add("http-port-file", po::value<std::string>(&c.http_port_file),
+      "write the HTTP port to this file");
+  add("http-root", po::value<std::string>(&r.http_root),
+      "the viewer's files (default: web/ beside voxeld's bin/, as the build leaves them)");
+  add("http-allow-origin", po::value<std::vector<std::string>>(&r.http_origins)->composing(),
+      "a page origin (https://game.example) allowed to open the WebSocket besides the "
+      "server's own; repeat for more; * allows any");
   add("metrics-port", po::value<int>(&r.metrics_port),
       "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)");
   add("metrics-port-file", po::value<std::string>(&c.metrics_port_file),
@@ -120,6 +131,15 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
   return opts;
 }
 
+// "1".."65535", or nullopt.
+std::optional<int> port_number(const std::string& text) {
+  if (text.empty() || text.size() > 5 ||
+      !std::all_of(text.begin(), text.end(), [](char ch) { return ch >= '0' && ch <= '9'; }))
+    return std::nullopt;
+  const int port = std::stoi(text);
+  return port >= 1 && port <= 65535 ? std::optional<int>(port) : std::nullopt;
+}
+
 // The key in `file`, or why not.
 std::string read_public_key(const std::string& file, std::optional<auth::PublicKey>& key) {
   auth::init_crypto();
@@ -158,6 +178,16 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   positive_ms("--frame-timeout-ms", r.frame_ms);
   rule(r.evict_after_s >= 1, fmt::format("--evict-after must be >= 1 (got {})", r.evict_after_s));
   if (vm.count("metrics-port")) range("--metrics-port", r.metrics_port, 0, 65535);
+  const std::optional<int> http_port = r.http_port == "auto" ? std::optional<int>(0)
+                                       : r.http_port == "0"  ? std::optional<int>(-1)
+                                                             : port_number(r.http_port);
+  rule(http_port.has_value(),
+       "--http-port must be 1..65535, 0 (off) or auto (got '" + r.http_port + "')");
+  for (const std::string& origin : r.http_origins) {
+    rule(origin == "*" || origin.starts_with("http://") || origin.starts_with("https://"),
+         "--http-allow-origin must be * or an origin such as https://game.example (got '" + origin +
+             "')");
+  }
   rule(r.checkpoint_s >= 0.01 && r.checkpoint_s <= 86400,
        fmt::format("--checkpoint-interval must be 0.01..86400 (got {})", r.checkpoint_s));
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
@@ -212,6 +242,16 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   if (vm.count("seed")) c.seed = vm["seed"].as<uint64_t>();
   world.seed = c.seed.value_or(1);  // a stored world's own seed replaces it when opened
   if (r.metrics_port >= 0) c.metrics_port = static_cast<uint16_t>(r.metrics_port);
+  if (*http_port >= 0) {
+    net::HttpConfig http;
+    http.bind = net.bind;
+    http.port = static_cast<uint16_t>(*http_port);
+    http.root = r.http_root;
+    http.allow_origins = r.http_origins;
+    http.request_timeout = net.handshake_timeout;
+    net.http = std::move(http);
+    net.http_port_required = !vm["http-port"].defaulted();
+  }
   return bad;
 }
 

@@ -159,7 +159,28 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
       add(errors, value_of(c_.errors_sent[code]),
           {{"code", wire::Error::Code_Name(static_cast<wire::Error::Code>(code))}});
     }
-    for (auto* f : {&players, &conns, &refused, &disconnects, &errors})
+    auto ws_closed = family("voxeld_websocket_closed_total",
+                            "WebSocket connections closed for breaking the transport's rules",
+                            MetricType::Counter);
+    const char* ws_reasons[] = {"too_big", "text", "ping_flood", "frame_timeout"};
+    static_assert(std::size(ws_reasons) == static_cast<size_t>(net::WsClosedBy::kCount));
+    for (size_t i = 0; i < c_.ws_closed.size(); ++i)
+      add(ws_closed, value_of(c_.ws_closed[i]), {{"reason", ws_reasons[i]}});
+    auto http_refused =
+        family("voxeld_http_refused_total",
+               "HTTP requests refused or connections closed, by reason", MetricType::Counter);
+    const char* http_reasons[] = {"bad_request", "not_found", "bad_method", "header_too_big",
+                                  "origin",      "busy",      "timeout"};
+    static_assert(std::size(http_reasons) == static_cast<size_t>(net::HttpRefusedBy::kCount));
+    for (size_t i = 0; i < c_.http_refused.size(); ++i)
+      add(http_refused, value_of(c_.http_refused[i]), {{"reason", http_reasons[i]}});
+    auto http = family("voxeld_http_requests_total", "HTTP requests answered", MetricType::Counter);
+    add(http, value_of(c_.http_requests));
+    auto upgrades = family("voxeld_websocket_upgrades_total", "WebSocket connections accepted",
+                           MetricType::Counter);
+    add(upgrades, value_of(c_.ws_upgrades));
+    for (auto* f : {&players, &conns, &refused, &disconnects, &errors, &ws_closed, &http_refused,
+                    &http, &upgrades})
       out.push_back(std::move(*f));
   }
 

@@ -3,25 +3,11 @@
 #include <spdlog/spdlog.h>
 
 #include "proto/framing.hpp"
+#include "server/net/address_key.hpp"
 #include "server/net/tcp_connection.hpp"
+#include "server/net/ws_connection.hpp"
 
 namespace vox::net {
-
-namespace {
-
-// What the per-address caps count by: an IPv4 address, or an IPv6 /64 (one subscriber's
-// prefix: a client owns all of it).
-std::string address_key(const asio::ip::address& a) {
-  if (a.is_v6() && !a.to_v6().is_v4_mapped()) {
-    auto bytes = a.to_v6().to_bytes();
-    std::fill(bytes.begin() + 8, bytes.end(), 0);
-    return asio::ip::address_v6(bytes).to_string() + "/64";
-  }
-  return a.is_v6() ? asio::ip::make_address_v4(asio::ip::v4_mapped, a.to_v6()).to_string()
-                   : a.to_string();
-}
-
-}  // namespace
 
 Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline,
                ServerCounters& counters)
@@ -95,6 +81,25 @@ void Server::start() {
   last_stats_.at = std::chrono::steady_clock::now();
   housekeeping();
   accept();
+  start_http();
+}
+
+// The HTTP port: an explicit one that cannot be bound stops the start; the default one
+// (taken by another program) only leaves the viewer off.
+void Server::start_http() {
+  if (!config_.http) return;
+  http_ = std::make_unique<HttpFront>(io_, *config_.http, counters_, logs_,
+                                      [this](WsStream ws, std::string address) {
+                                        admit_websocket(std::move(ws), std::move(address));
+                                      });
+  try {
+    http_->start();
+  } catch (const boost::system::system_error& e) {
+    if (config_.http_port_required) throw;
+    spdlog::warn("HTTP port {}:{} not available ({}): no viewer and no WebSocket; set --http-port",
+                 config_.http->bind, config_.http->port, e.what());
+    http_.reset();
+  }
 }
 
 void Server::accept() {
@@ -131,6 +136,10 @@ void Server::admit(asio::ip::tcp::socket socket) {
                                       shared_config_->frame_timeout),
       address, next_session_++, pipeline_,
       SessionServices{counters_, shared_config_, admission_, logs_, players_});
+  add_session(session);
+}
+
+void Server::add_session(const std::shared_ptr<ClientSession>& session) {
   {
     std::lock_guard lock(sessions_mutex_);
     std::erase_if(sessions_, [](const auto& p) { return p.second.expired(); });
@@ -139,9 +148,43 @@ void Server::admit(asio::ip::tcp::socket socket) {
   session->start();
 }
 
+// The same admission as TCP; a refused one gets its Error as one message, written without
+// waiting, and is closed.
+void Server::admit_websocket(WsStream ws, std::string address) {
+  const auto verdict = admission_->connect(address);
+  if (verdict != AdmissionControl::Verdict::kAdmit) {
+    const std::string body = refusal(verdict);
+    boost::system::error_code ec;
+    auto& socket = boost::beast::get_lowest_layer(ws).socket();
+    socket.non_blocking(true, ec);
+    ws.binary(true);
+    ws.write(asio::buffer(body), ec);
+    socket.close(ec);
+    return;
+  }
+  auto strand = asio::make_strand(ws.get_executor());
+  auto session = std::make_shared<ClientSession>(
+      std::make_unique<WsConnection>(std::move(ws), std::move(strand),
+                                     shared_config_->max_frame_bytes, shared_config_->frame_timeout,
+                                     counters_),
+      std::move(address), next_session_++, pipeline_,
+      SessionServices{counters_, shared_config_, admission_, logs_, players_});
+  add_session(session);
+}
+
 // A refused connection gets one Error frame, written without waiting (a full socket
 // buffer just loses it), and is closed at once: it costs no session and no timer.
 void Server::refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why) {
+  const std::string body = refusal(why);
+  std::vector<uint8_t> frame;
+  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);
+  boost::system::error_code ec;
+  socket.non_blocking(true, ec);
+  socket.write_some(asio::buffer(frame), ec);
+  socket.close(ec);
+}
+
+std::string Server::refusal(AdmissionControl::Verdict why) {
   const bool handshakes = why == AdmissionControl::Verdict::kHandshakesFull;
   ServerCounters::bump(counters_.refused[static_cast<size_t>(
       handshakes ? RefusedBy::kHandshakesFull : RefusedBy::kAddressFull)]);
@@ -150,18 +193,12 @@ void Server::refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why)
   error.mutable_error()->set_code(wire::Error::TOO_MANY_CONNECTIONS);
   error.mutable_error()->set_message(handshakes ? "too many connections are in their handshake"
                                                 : "too many connections from your address");
-  std::vector<uint8_t> frame;
-  const std::string body = error.SerializeAsString();
-  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);
-  boost::system::error_code ec;
-  socket.non_blocking(true, ec);
-  socket.write_some(asio::buffer(frame), ec);
-  socket.close(ec);
   if (auto suppressed = logs_->allow(std::string("refused:") + to_string(why))) {
     spdlog::warn("refusing a connection: {}{}", to_string(why),
                  *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
                              : std::string());
   }
+  return error.SerializeAsString();
 }
 
 void Server::housekeeping() {
@@ -179,6 +216,7 @@ void Server::stop() {
     stats_timer_.cancel();
     housekeeping_timer_.cancel();
   });
+  if (http_) http_->stop();
   std::vector<std::shared_ptr<ClientSession>> live;
   {
     std::lock_guard lock(sessions_mutex_);

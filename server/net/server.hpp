@@ -1,5 +1,6 @@
-// The TCP front end: accepts connections, keeps the session registry, forwards the
-// pipeline's publications to the sessions, logs a stats line, and shuts down cleanly.
+// The network front end: accepts TCP connections, and WebSocket ones through the HTTP
+// port (HttpFront), keeps the session registry, forwards the pipeline's publications to
+// the sessions, logs a stats line, and shuts down cleanly.
 #pragma once
 
 #include <chrono>
@@ -10,6 +11,7 @@
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
 #include "server/net/client_session.hpp"
+#include "server/net/http_front.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/server_counters.hpp"
 
@@ -26,6 +28,8 @@ class Server {
   // Before the io_context runs (or on strand_).
   void start();
   uint16_t port() const { return port_; }  // the bound port (after start)
+  // The HTTP port (after start; 0: none: off, or its default port was taken).
+  uint16_t http_port() const { return http_ ? http_->port() : 0; }
   // Stops accepting and tells every client SHUTTING_DOWN; sessions close themselves.
   void stop();                   // any thread
   size_t session_count() const;  // any thread
@@ -37,6 +41,12 @@ class Server {
   void accept();
   void admit(asio::ip::tcp::socket socket);
   void refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why);
+  // A WebSocket connection's strand (not strand_): admitted like a TCP one.
+  void admit_websocket(WsStream ws, std::string address);
+  void start_http();
+  // Connection or session members (any strand).
+  void add_session(const std::shared_ptr<ClientSession>& session);
+  std::string refusal(AdmissionControl::Verdict why);  // counts it; the Error's bytes
   void housekeeping();  // every second: the sessions' memory into the pipeline's budget
   void log_stats();
   void arm_stats_timer();
@@ -58,7 +68,8 @@ class Server {
   std::shared_ptr<PlayerRegistry<ClientSession>> players_;
   uint64_t subscription_ = 0;
   uint64_t lod_subscription_ = 0;
-  uint64_t next_session_ = 1;  // strand_ only
+  std::atomic<uint64_t> next_session_{1};
+  std::unique_ptr<HttpFront> http_;
 
   // Leaf lock: guards sessions_; no call into a session while it is held.
   mutable std::mutex sessions_mutex_;

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "server/auth/player_token.hpp"
+#include "server/net/http_config.hpp"
 
 namespace vox::net {
 
@@ -54,6 +55,10 @@ struct ServerConfig {
   // without one the server is open and every player has `open_role`.
   std::optional<auth::PublicKey> auth_key;
   auth::Role open_role = auth::Role::kPlayer;
+  // The HTTP port (the viewer and WebSocket at /ws; http_front.hpp); none: off.
+  // `http_port_required`: set explicitly, so a port that cannot be bound stops the start.
+  std::optional<HttpConfig> http;
+  bool http_port_required = false;
 };
 
 }  // namespace vox::net

@@ -12,6 +12,20 @@ namespace vox::net {
 
 enum class RefusedBy : uint8_t { kHandshakesFull, kAddressFull, kServerFull, kToken, kCount };
 enum class DroppedBy : uint8_t { kSlowReader, kWriteTimeout, kCount };
+// WebSocket connections closed for breaking the transport's rules (ws_connection.hpp).
+enum class WsClosedBy : uint8_t { kTooBig, kText, kPingFlood, kFrameTimeout, kCount };
+// HTTP requests answered with an error, or connections closed before a request was whole
+// (http_front.hpp).
+enum class HttpRefusedBy : uint8_t {
+  kBadRequest,    // 400: unparsable, a body, a path that leaves the static root
+  kNotFound,      // 404
+  kBadMethod,     // 405: not GET or HEAD
+  kHeaderTooBig,  // 431
+  kOrigin,        // 403: an upgrade from an origin not allowed
+  kBusy,          // 503: over the HTTP connection caps
+  kTimeout,       // the request (or the upgrade) not complete in time: closed
+  kCount
+};
 
 struct ServerCounters {
   using Counter = std::atomic<uint64_t>;
@@ -33,6 +47,10 @@ struct ServerCounters {
   std::array<Counter, kErrorCodes> errors_sent{};  // by Error.Code
   std::array<Counter, static_cast<size_t>(RefusedBy::kCount)> refused{};
   std::array<Counter, static_cast<size_t>(DroppedBy::kCount)> dropped{};
+  std::array<Counter, static_cast<size_t>(WsClosedBy::kCount)> ws_closed{};
+  std::array<Counter, static_cast<size_t>(HttpRefusedBy::kCount)> http_refused{};
+  Counter http_requests{0};  // answered, whatever the status
+  Counter ws_upgrades{0};    // WebSocket connections accepted
   Counter session_bytes{0};  // gauge: sessions' accounted memory
 
   LatencyHistogram edit_to_publish;        // submit -> the pipeline's result (meshes published)

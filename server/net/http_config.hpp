@@ -1,0 +1,28 @@
+// What voxeld's HTTP port is set to (http_front.hpp): where it listens, where the viewer's
+// files are, which page origins may open a WebSocket, and its caps. Read-only after start.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace vox::net {
+
+struct HttpConfig {
+  std::string bind = "127.0.0.1";
+  uint16_t port = 7780;
+  // The viewer's files (index.html, its bundle); empty or missing: a page saying how to
+  // build it.
+  std::filesystem::path root;
+  std::vector<std::string> allow_origins;  // besides the page's own origin; "*": any
+  size_t max_connections = 256;            // HTTP connections open at once (0: no cap)
+  size_t max_per_address = 32;             // of them from one address (0: no cap)
+  std::chrono::milliseconds request_timeout{5000};
+  size_t max_header_bytes = 8 * 1024;
+  size_t max_file_bytes = size_t{64} << 20;  // larger files are not served (404)
+};
+
+}  // namespace vox::net

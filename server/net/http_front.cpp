@@ -1,0 +1,378 @@
+#include "server/net/http_front.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <boost/beast/http.hpp>
+#include <optional>
+
+#include "server/net/address_key.hpp"
+
+namespace vox::net {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+
+namespace {
+
+// Requests one connection may make (keep-alive) before it is closed.
+constexpr int kMaxRequests = 100;
+// A response must be written within this (a file to a slow reader).
+constexpr auto kWriteTimeout = std::chrono::seconds(30);
+
+int hex_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+bool plain_char(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
+         c == '-' || c == '_';
+}
+
+std::string_view content_type(std::string_view path) {
+  const auto dot = path.rfind('.');
+  const std::string_view ext = dot == std::string_view::npos ? "" : path.substr(dot + 1);
+  if (ext == "html") return "text/html; charset=utf-8";
+  if (ext == "js" || ext == "mjs") return "text/javascript; charset=utf-8";
+  if (ext == "css") return "text/css; charset=utf-8";
+  if (ext == "json" || ext == "map") return "application/json";
+  if (ext == "png") return "image/png";
+  if (ext == "svg") return "image/svg+xml";
+  if (ext == "wasm") return "application/wasm";
+  if (ext == "proto" || ext == "txt") return "text/plain; charset=utf-8";
+  return "application/octet-stream";
+}
+
+// Served at / when the viewer was not built.
+constexpr std::string_view kNoViewerPage =
+    "<!doctype html><html><head><meta charset=\"utf-8\"><title>voxeld</title></head><body>"
+    "<h1>voxeld</h1><p>This server speaks the voxeld protocol over WebSocket at "
+    "<code>/ws</code>, but its viewer was not built: run <code>bash scripts/setup.sh</code> "
+    "(it runs <code>npm ci</code> in <code>clients/web</code> and bundles the viewer), or "
+    "start voxeld with <code>--http-root</code> naming the viewer's folder.</p></body></html>";
+
+}  // namespace
+
+std::string static_path(std::string_view target) {
+  target = target.substr(0, target.find_first_of("?#"));
+  if (target.empty() || target.front() != '/') return {};
+  std::string path;
+  for (size_t i = 1; i < target.size(); ++i) {
+    char c = target[i];
+    if (c == '%') {
+      if (i + 2 >= target.size()) return {};
+      const int hi = hex_value(target[i + 1]), lo = hex_value(target[i + 2]);
+      if (hi < 0 || lo < 0) return {};
+      c = static_cast<char>(hi * 16 + lo);
+      i += 2;
+    }
+    if (c != '/' && !plain_char(c)) return {};
+    path.push_back(c);
+  }
+  if (path.empty()) return "index.html";
+  // Plain segments only: no "", ".", "..".
+  size_t start = 0;
+  for (;;) {
+    const size_t end = path.find('/', start);
+    const std::string_view segment =
+        std::string_view(path).substr(start, end == std::string::npos ? end : end - start);
+    if (segment.empty() || segment == "." || segment == "..") return {};
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  return path;
+}
+
+bool origin_allowed(std::string_view origin, std::string_view host,
+                    const std::vector<std::string>& allow_origins) {
+  if (origin.empty()) return true;  // not a page: a program can send any Origin anyway
+  for (const std::string& o : allow_origins) {
+    if (o == "*" || o == origin) return true;
+  }
+  // The page's own origin: its scheme, then the host it asked for (a TLS proxy in front
+  // keeps the Host header).
+  for (std::string_view scheme : {"http://", "https://"}) {
+    if (origin.size() == scheme.size() + host.size() && origin.starts_with(scheme) &&
+        origin.substr(scheme.size()) == host && !host.empty())
+      return true;
+  }
+  return false;
+}
+
+// One HTTP connection, on its own strand (the stream's executor): requests in turn, then
+// either the end or an upgrade handed over.
+class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
+ public:
+  struct Shared {
+    std::shared_ptr<const HttpConfig> config;
+    ServerCounters& counters;
+    std::shared_ptr<SharedLogRateLimit> logs;
+    std::shared_ptr<AdmissionGate> gate;
+    std::shared_ptr<const Upgraded> upgraded;
+    std::shared_ptr<std::atomic<bool>> stopped;
+  };
+
+  Conn(asio::ip::tcp::socket socket, std::string address, Shared shared)
+      : stream_(std::move(socket)), address_(std::move(address)), s_(std::move(shared)) {}
+  ~Conn() { s_.gate->release(address_, false); }
+
+  void start() { read_request(); }
+
+ private:
+  void read_request() {
+    if (s_.stopped->load() || ++requests_ > kMaxRequests) return close();
+    parser_.emplace();
+    parser_->header_limit(static_cast<uint32_t>(s_.config->max_header_bytes));
+    parser_->body_limit(0);
+    stream_.expires_after(s_.config->request_timeout);
+    http::async_read(
+        stream_, buffer_, *parser_,
+        [self = shared_from_this()](beast::error_code ec, size_t) { self->on_request(ec); });
+  }
+
+  void on_request(beast::error_code ec) {
+    if (ec == http::error::end_of_stream || ec == asio::error::eof ||
+        ec == asio::error::connection_reset)
+      return close();
+    if (ec == beast::error::timeout) {
+      refused(HttpRefusedBy::kTimeout, "a request not complete in time");
+      return close();
+    }
+    if (ec == http::error::header_limit) {
+      return respond_error(http::status::request_header_fields_too_large,
+                           HttpRefusedBy::kHeaderTooBig, "the request's header is too large");
+    }
+    if (ec) {
+      return respond_error(http::status::bad_request, HttpRefusedBy::kBadRequest,
+                           "a request that is not well-formed HTTP/1.1 without a body");
+    }
+    const auto& req = parser_->get();
+    const std::string_view target(req.target().data(), req.target().size());
+    if (target.substr(0, target.find('?')) == "/ws") return upgrade();
+    if (req.method() != http::verb::get && req.method() != http::verb::head)
+      return respond_error(http::status::method_not_allowed, HttpRefusedBy::kBadMethod,
+                           "only GET and HEAD are served");
+    const std::string path = static_path(target);
+    if (path.empty())
+      return respond_error(http::status::bad_request, HttpRefusedBy::kBadRequest,
+                           "the path must name a file by plain segments");
+    serve_file(path);
+  }
+
+  void upgrade() {
+    const auto& req = parser_->get();
+    if (!websocket::is_upgrade(req))
+      return respond_error(http::status::upgrade_required, HttpRefusedBy::kBadRequest,
+                           "/ws takes a WebSocket upgrade");
+    const auto origin = req[http::field::origin];
+    const auto host = req[http::field::host];
+    if (!origin_allowed({origin.data(), origin.size()}, {host.data(), host.size()},
+                        s_.config->allow_origins)) {
+      return respond_error(http::status::forbidden, HttpRefusedBy::kOrigin,
+                           "WebSocket connections from this origin are not allowed "
+                           "(--http-allow-origin)");
+    }
+    stream_.expires_never();
+    ws_.emplace(std::move(stream_));
+    websocket::stream_base::timeout timeouts{};
+    timeouts.handshake_timeout = s_.config->request_timeout;
+    timeouts.idle_timeout = websocket::stream_base::none();
+    timeouts.keep_alive_pings = false;
+    ws_->set_option(timeouts);
+    ws_->set_option(websocket::stream_base::decorator(
+        [](websocket::response_type& res) { res.set(http::field::server, "voxeld"); }));
+    ws_->async_accept(req, [self = shared_from_this()](beast::error_code ec) {
+      if (ec) {
+        if (ec == beast::error::timeout) self->refused(HttpRefusedBy::kTimeout, "a slow upgrade");
+        return;  // the stream closes with this connection
+      }
+      ServerCounters::bump(self->s_.counters.ws_upgrades);
+      if (self->s_.stopped->load()) return;
+      (*self->s_.upgraded)(std::move(*self->ws_), self->address_);
+      self->ws_.reset();
+    });
+  }
+
+  void serve_file(const std::string& path) {
+    const auto& req = parser_->get();
+    const HttpConfig& config = *s_.config;
+    http::response<http::file_body> res;
+    bool found = false;
+    if (!config.root.empty()) {
+      const std::filesystem::path file = config.root / path;
+      std::error_code fs_ec;
+      if (std::filesystem::is_regular_file(file, fs_ec) &&
+          std::filesystem::file_size(file, fs_ec) <= config.max_file_bytes) {
+        beast::error_code ec;
+        res.body().open(file.c_str(), beast::file_mode::scan, ec);
+        found = !ec;
+      }
+    }
+    if (!found) {
+      if (path == "index.html")
+        return respond(http::status::ok, "text/html; charset=utf-8", std::string(kNoViewerPage));
+      return respond_error(http::status::not_found, HttpRefusedBy::kNotFound, "no such file");
+    }
+    res.result(http::status::ok);
+    res.version(req.version());
+    res.set(http::field::server, "voxeld");
+    const std::string_view type = content_type(path);
+    res.set(http::field::content_type, beast::string_view(type.data(), type.size()));
+    res.set(http::field::cache_control, "no-cache");
+    res.set("X-Content-Type-Options", "nosniff");
+    res.keep_alive(req.keep_alive());
+    res.prepare_payload();
+    const bool head = req.method() == http::verb::head;
+    auto sp = std::make_shared<http::response<http::file_body>>(std::move(res));
+    send(std::move(sp), head);
+  }
+
+  void respond(http::status status, std::string_view type, std::string body, bool keep = true) {
+    const auto& req = parser_->get();
+    auto res = std::make_shared<http::response<http::string_body>>(status, req.version());
+    res->set(http::field::server, "voxeld");
+    res->set(http::field::content_type, beast::string_view(type.data(), type.size()));
+    res->set("X-Content-Type-Options", "nosniff");
+    res->keep_alive(keep && req.keep_alive());
+    res->body() = std::move(body);
+    res->prepare_payload();
+    send(std::move(res), req.method() == http::verb::head);
+  }
+
+  void respond_error(http::status status, HttpRefusedBy why, std::string_view message) {
+    refused(why, message);
+    // After a request that was not whole (or too large), the stream cannot be read on.
+    const bool keep = why != HttpRefusedBy::kHeaderTooBig && why != HttpRefusedBy::kBadRequest;
+    respond(status, "text/plain; charset=utf-8", std::string(message) + "\n", keep);
+  }
+
+  template <class Response>
+  void send(std::shared_ptr<Response> res, bool head) {
+    ServerCounters::bump(s_.counters.http_requests);
+    stream_.expires_after(kWriteTimeout);
+    const bool keep = res->keep_alive();
+    auto done = [self = shared_from_this(), res, keep](beast::error_code ec, size_t) {
+      if (ec || !keep) return self->close();
+      self->read_request();
+    };
+    if (head) {  // the same header, without its body
+      auto sr = std::make_shared<http::response_serializer<typename Response::body_type>>(*res);
+      http::async_write_header(
+          stream_, *sr,
+          [sr, done = std::move(done)](beast::error_code ec, size_t n) mutable { done(ec, n); });
+      return;
+    }
+    http::async_write(stream_, *res, std::move(done));
+  }
+
+  void refused(HttpRefusedBy why, std::string_view message) {
+    ServerCounters::bump(s_.counters.http_refused[static_cast<size_t>(why)]);
+    if (auto suppressed = s_.logs->allow("http_refused")) {
+      spdlog::info("http: {} from {}: {}{}", static_cast<int>(why), address_, message,
+                   *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
+                               : std::string());
+    }
+  }
+
+  void close() {
+    beast::error_code ignored;
+    stream_.socket().shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
+    stream_.close();
+  }
+
+  beast::tcp_stream stream_;
+  std::optional<WsStream> ws_;
+  const std::string address_;
+  Shared s_;
+  beast::flat_buffer buffer_;
+  std::optional<http::request_parser<http::empty_body>> parser_;
+  int requests_ = 0;
+};
+
+HttpFront::HttpFront(asio::io_context& io, HttpConfig config, ServerCounters& counters,
+                     std::shared_ptr<SharedLogRateLimit> logs, Upgraded upgraded)
+    : io_(io),
+      strand_(asio::make_strand(io)),
+      config_(std::make_shared<const HttpConfig>(std::move(config))),
+      counters_(counters),
+      logs_(std::move(logs)),
+      gate_(std::make_shared<AdmissionGate>(AdmissionLimits{
+          .max_players = 0,
+          .max_handshaking = config_->max_connections ? config_->max_connections : SIZE_MAX,
+          .max_per_address = config_->max_per_address,
+          .max_handshaking_per_address = config_->max_per_address})),
+      upgraded_(std::make_shared<const Upgraded>(std::move(upgraded))),
+      acceptor_(strand_),
+      stopped_(std::make_shared<std::atomic<bool>>(false)) {}
+
+HttpFront::~HttpFront() { stopped_->store(true); }
+
+void HttpFront::start() {
+  const asio::ip::tcp::endpoint endpoint(asio::ip::make_address(config_->bind), config_->port);
+  acceptor_.open(endpoint.protocol());
+  acceptor_.set_option(asio::ip::tcp::acceptor::reuse_address(true));
+  acceptor_.bind(endpoint);
+  acceptor_.listen();
+  port_ = acceptor_.local_endpoint().port();
+  spdlog::info("voxeld serving HTTP and WebSocket (/ws) on {}:{} ({})", config_->bind, port_,
+               config_->root.empty() ? std::string("no viewer files")
+                                     : "files from " + config_->root.string());
+  accept();
+}
+
+void HttpFront::stop() {
+  stopped_->store(true);
+  asio::post(strand_, [this] {
+    boost::system::error_code ignored;
+    acceptor_.close(ignored);
+  });
+}
+
+void HttpFront::accept() {
+  acceptor_.async_accept(
+      asio::make_strand(io_), [this](boost::system::error_code ec, asio::ip::tcp::socket socket) {
+        if (ec == asio::error::operation_aborted) return;
+        if (!ec) {
+          boost::system::error_code peer_ec;
+          const auto peer = socket.remote_endpoint(peer_ec);
+          if (!peer_ec) {
+            std::string address = address_key(peer.address());
+            if (gate_->connect(address) != AdmissionControl::Verdict::kAdmit) {
+              busy(std::move(socket), address);
+            } else {
+              socket.set_option(asio::ip::tcp::no_delay(true), peer_ec);
+              std::make_shared<Conn>(
+                  std::move(socket), std::move(address),
+                  Conn::Shared{config_, counters_, logs_, gate_, upgraded_, stopped_})
+                  ->start();
+            }
+          }
+        } else if (auto suppressed = logs_->allow("http_accept")) {
+          spdlog::warn("http accept failed: {} [{} more]", ec.message(), *suppressed);
+        }
+        accept();
+      });
+}
+
+// Over the caps: a 503 written without waiting (a full socket buffer just loses it).
+void HttpFront::busy(asio::ip::tcp::socket socket, const std::string& address) {
+  ServerCounters::bump(counters_.http_refused[static_cast<size_t>(HttpRefusedBy::kBusy)]);
+  static constexpr std::string_view kBusy =
+      "HTTP/1.1 503 Service Unavailable\r\nServer: voxeld\r\nContent-Type: text/plain\r\n"
+      "Content-Length: 38\r\nConnection: close\r\n\r\ntoo many connections from your address\n";
+  boost::system::error_code ec;
+  socket.non_blocking(true, ec);
+  socket.write_some(asio::buffer(kBusy.data(), kBusy.size()), ec);
+  socket.close(ec);
+  if (auto suppressed = logs_->allow("http_busy")) {
+    spdlog::warn("http: refusing a connection from {}: over the connection caps [{} more]", address,
+                 *suppressed);
+  }
+}
+
+}  // namespace vox::net
