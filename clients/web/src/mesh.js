@@ -42,6 +42,19 @@ const fail = (message) => {
   throw new MeshDecodeError(message);
 };
 
+// Per-row scratch of decodeMesh, for the largest grid (33 × 33 rows); axis a's rows at a · ROWS.
+const ROWS = 33 * 33;
+const SCRATCH = {
+  rowLo: new Uint32Array(ROWS),
+  rowHi: new Uint8Array(ROWS),
+  cutLo: new Uint32Array(3 * ROWS),
+  cutHi: new Uint8Array(3 * ROWS),
+  first: new Uint32Array(3 * ROWS),
+};
+
+// Bit xx (0..32) of a 33-bit row kept as (low 32 bits, bit 32).
+const bit = (l, h, xx) => (xx < 32 ? (l >>> xx) & 1 : h);
+
 function popcount32(v) {
   v -= (v >>> 1) & 0x55555555;
   v = (v & 0x33333333) + ((v >>> 2) & 0x33333333);
@@ -151,7 +164,7 @@ export function decodeMesh(bytes, options = {}) {
   const cx = bytes[1];
   const cy = bytes[2];
   const cz = bytes[3];
-  for (const c of [cx, cy, cz]) if (c < 1 || c > 32) fail(`cells ${cx}, ${cy}, ${cz} out of 1..32`);
+  if (cx < 1 || cx > 32 || cy < 1 || cy > 32 || cz < 1 || cz > 32) fail(`cells ${cx}, ${cy}, ${cz} out of 1..32`);
   if (format === 2 && (cx !== 32 || cy !== 32 || cz !== 32)) fail(`format 2 with cells ${cx}, ${cy}, ${cz}`);
   const V = u32(bytes, 4);
   const T = u32(bytes, 8);
@@ -190,8 +203,8 @@ export function decodeMesh(bytes, options = {}) {
   if (T > 5 * cx * cy * cz) fail(`triangle_count ${T} over 5 per cell`);
 
   // §2.2 solid rows: bits 0..31 in rowLo, bit 32 in rowHi.
-  const rowLo = new Uint32Array(R);
-  const rowHi = new Uint8Array(R);
+  // Scratch reused across calls (decoding is synchronous; R is at most 33·33).
+  const { rowLo, rowHi, cutLo, cutHi, first } = SCRATCH;
   const validLo = cx >= 31 ? 0xffffffff : ((1 << (cx + 1)) - 1) >>> 0;
   const validHi = cx === 32 ? 1 : 0;
   let p = headerBytes + bitmapBytes;
@@ -219,9 +232,6 @@ export function decodeMesh(bytes, options = {}) {
 
   // §2.3 cut edges and vertex numbering, per (row, axis).
   const xMask = cx >= 32 ? 0xffffffff : ((1 << cx) - 1) >>> 0;
-  const cutLo = [new Uint32Array(R), new Uint32Array(R), new Uint32Array(R)];
-  const cutHi = [new Uint8Array(R), new Uint8Array(R), new Uint8Array(R)];
-  const first = [new Uint32Array(R), new Uint32Array(R), new Uint32Array(R)];
   let count = 0;
   for (let z = 0; z <= cz; z++) {
     for (let y = 0; y <= cy; y++) {
@@ -229,28 +239,33 @@ export function decodeMesh(bytes, options = {}) {
       const l = rowLo[r];
       const h = rowHi[r];
       const xl = (l ^ ((l >>> 1) | (h << 31))) & xMask;
-      cutLo[0][r] = xl >>> 0;
-      first[0][r] = count;
+      cutLo[r] = xl >>> 0;
+      cutHi[r] = 0;
+      first[r] = count;
       count += popcount32(xl);
       if (y < cy) {
         const yl = (l ^ rowLo[r + 1]) >>> 0;
         const yh = h ^ rowHi[r + 1];
-        cutLo[1][r] = yl;
-        cutHi[1][r] = yh;
-        first[1][r] = count;
+        cutLo[ROWS + r] = yl;
+        cutHi[ROWS + r] = yh;
+        first[ROWS + r] = count;
         count += popcount32(yl) + yh;
       } else {
-        first[1][r] = count;
+        cutLo[ROWS + r] = 0;
+        cutHi[ROWS + r] = 0;
+        first[ROWS + r] = count;
       }
       if (z < cz) {
         const zl = (l ^ rowLo[r + cy + 1]) >>> 0;
         const zh = h ^ rowHi[r + cy + 1];
-        cutLo[2][r] = zl;
-        cutHi[2][r] = zh;
-        first[2][r] = count;
+        cutLo[2 * ROWS + r] = zl;
+        cutHi[2 * ROWS + r] = zh;
+        first[2 * ROWS + r] = count;
         count += popcount32(zl) + zh;
       } else {
-        first[2][r] = count;
+        cutLo[2 * ROWS + r] = 0;
+        cutHi[2 * ROWS + r] = 0;
+        first[2 * ROWS + r] = count;
       }
     }
   }
@@ -268,39 +283,43 @@ export function decodeMesh(bytes, options = {}) {
   const pMat = p + 4 * V;
   let i = 0;
   let material = 0;
-  const vertex = (x, y, z, axis) => {
-    const q = bytes[pLow + i] | (bytes[pHigh + i] << 8);
-    if (q > 1024) fail(`vertex ${i}: fraction ${q} over 1024`);
-    const t = q / 1024;
-    positions[3 * i] = axis === 0 ? x + t : x;
-    positions[3 * i + 1] = axis === 1 ? y + t : y;
-    positions[3 * i + 2] = axis === 2 ? z + t : z;
-    decodeNormal(bytes[pU + i], bytes[pV + i], normals, 3 * i);
-    material = (material + bytes[pMat + i]) & 255;
-    materials[i] = material;
-    i++;
-  };
   for (let z = 0; z <= cz; z++) {
     for (let y = 0; y <= cy; y++) {
       const r = y + (cy + 1) * z;
       for (let axis = 0; axis < 3; axis++) {
-        let m = cutLo[axis][r];
-        while (m !== 0) {
-          const low = m & -m;
-          vertex(31 - Math.clz32(low), y, z, axis);
-          m = (m ^ low) >>> 0;
+        let m = cutLo[axis * ROWS + r];
+        const last = cutHi[axis * ROWS + r];
+        while (m !== 0 || last) {
+          let x;
+          if (m !== 0) {
+            const low = m & -m;
+            x = 31 - Math.clz32(low);
+            m = (m ^ low) >>> 0;
+          } else {
+            x = 32;  // bit 32, the row's last sample
+          }
+          const q = bytes[pLow + i] | (bytes[pHigh + i] << 8);
+          if (q > 1024) fail(`vertex ${i}: fraction ${q} over 1024`);
+          const t = q / 1024;
+          positions[3 * i] = axis === 0 ? x + t : x;
+          positions[3 * i + 1] = axis === 1 ? y + t : y;
+          positions[3 * i + 2] = axis === 2 ? z + t : z;
+          decodeNormal(bytes[pU + i], bytes[pV + i], normals, 3 * i);
+          material = (material + bytes[pMat + i]) & 255;
+          materials[i] = material;
+          i++;
+          if (x === 32) break;
         }
-        if (cutHi[axis][r]) vertex(32, y, z, axis);
       }
     }
   }
   p += 5 * V;
 
   // §2.5 dropped ordinals.
-  const dropped = new Uint32Array(D);
-  for (let k = 0; k < D; k++) {
-    dropped[k] = u32(bytes, p + 4 * k);
-    if (k > 0 && dropped[k] <= dropped[k - 1]) fail(`dropped ordinals not strictly increasing at ${k}`);
+  const droppedAt = p;
+  const dropped = (k) => u32(bytes, droppedAt + 4 * k);
+  for (let k = 1; k < D; k++) {
+    if (dropped(k) <= dropped(k - 1)) fail(`dropped ordinals not strictly increasing at ${k}`);
   }
   p += 4 * D;
 
@@ -337,7 +356,7 @@ export function decodeMesh(bytes, options = {}) {
   const cellMask = xMask;
   let ordinal = 0;
   let dp = 0;
-  let nextDrop = D > 0 ? dropped[0] : -1;
+  let nextDrop = D > 0 ? dropped(0) : -1;
   let out = 0;
   const rowStride = cy + 1;
   for (let z = 0; z < cz; z++) {
@@ -365,14 +384,13 @@ export function decodeMesh(bytes, options = {}) {
         const x = 31 - Math.clz32(low);
         mixed = (mixed ^ low) >>> 0;
         const x1 = x + 1;
-        const bit = (l, h, xx) => (xx < 32 ? (l >>> xx) & 1 : h);
         const cse =
           bit(a, ah, x) | (bit(a, ah, x1) << 1) | (bit(bl, bh, x1) << 2) | (bit(bl, bh, x) << 3) |
           (bit(cl, ch, x) << 4) | (bit(cl, ch, x1) << 5) | (bit(dl, dh, x1) << 6) | (bit(dl, dh, x) << 7);
         for (let k = offset[cse]; k < offset[cse + 1]; k += 3) {
           if (ordinal === nextDrop) {
             dp++;
-            nextDrop = dp < D ? dropped[dp] : -1;
+            nextDrop = dp < D ? dropped(dp) : -1;
             ordinal++;
             continue;
           }
@@ -383,15 +401,16 @@ export function decodeMesh(bytes, options = {}) {
             const axis = EDGE_AXIS[e];
             const xx = x + EDGE_DX[e];
             const rr = y + EDGE_DY[e] + rowStride * (z + EDGE_DZ[e]);
-            const below = xx >= 32 ? cutLo[axis][rr] : cutLo[axis][rr] & ((1 << xx) - 1);
-            indices[3 * out + j] = first[axis][rr] + popcount32(below);
+            const at = axis * ROWS + rr;
+            const below = xx >= 32 ? cutLo[at] : cutLo[at] & ((1 << xx) - 1);
+            indices[3 * out + j] = first[at] + popcount32(below);
           }
           out++;
         }
       }
     }
   }
-  if (dp !== D) fail(`dropped ordinal ${dropped[dp]} is not a table triangle (there are ${ordinal})`);
+  if (dp !== D) fail(`dropped ordinal ${dropped(dp)} is not a table triangle (there are ${ordinal})`);
   if (out !== T) fail(`triangle_count ${T}, but the table gives ${ordinal} triangles less ${D} dropped`);
   for (let k = 0; k < 3 * ST; k++) {
     const v = u32(bytes, p + 4 * k);

@@ -1,5 +1,6 @@
 // Writes mesh fixtures for the JavaScript client's bit-for-bit test (clients/web/README.md):
-// for a handful of chunks, the C++ encoder's bytes (NAME.bin) and what the C++ decoder
+// for a handful of chunks, the C++ encoder's bytes (NAME.bin), them as the server's zstd
+// full message (NAME.zst), and what the C++ decoder
 // rebuilds from them (NAME.json: positions and normals as float32 bit patterns, materials,
 // indices), plus manifest.json naming them and delta.json (a zstd full frame and a delta
 // against another encoding, made by the server's codec).
@@ -120,6 +121,10 @@ void write_fixture(const std::string& name, const Bytes& encoding, const mesh::C
   }
   j += "]\n}\n";
   write_file(name + ".bin", std::string(encoding.begin(), encoding.end()));
+  static proto::ZstdCodec codec;  // the server's full-message level
+  Bytes frame;
+  codec.compress(encoding, {}, frame);
+  write_file(name + ".zst", std::string(frame.begin(), frame.end()));
   write_file(name + ".json", j);
   names.push_back(name);
   std::printf("%-24s format %d level %d: %zu bytes, %zu vertices, %zu triangles, %u dropped\n",
