@@ -13,6 +13,7 @@
 #include <set>
 
 #include "server/net/wire_convert.hpp"
+#include "tests/alloc_counter.hpp"
 
 namespace vox::net {
 namespace {
@@ -272,6 +273,19 @@ TEST(ViewFeed, ResyncSendsAHeldChunkAgainInFullAndIgnoresOneOutsideTheView) {
   const auto again = f.drain();
   ASSERT_EQ(again.size(), 1u);
   EXPECT_EQ(again[0].base_version(), 0u);
+}
+
+TEST(ViewFeed, MeshMessagesOnceWarmAllocateNothing) {
+  Fixture f;
+  f.feed.apply_view(view({0, 0, 0}, 2, 1));
+  f.publish(f.wanted_chunks());
+  f.feed.begin_write();
+  ASSERT_TRUE(f.feed.next_mesh(UINT64_MAX));  // warms the reused message
+  const size_t before = test::allocations_on_this_thread();
+  size_t sent = 1;
+  while (f.feed.next_mesh(UINT64_MAX)) ++sent;
+  EXPECT_EQ(test::allocations_on_this_thread() - before, 0u);
+  EXPECT_EQ(sent, f.wanted_chunks().size());
 }
 
 TEST(ViewFeed, AVersionThatMayShowAnUnansweredEditWaitsUntilReleased) {

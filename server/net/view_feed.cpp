@@ -14,6 +14,16 @@ using world::ChunkCoord;
 using world::LodChunk;
 using Clock = std::chrono::steady_clock;
 
+namespace {
+
+// Into the payload's capacity: set_payload(p, n) builds a temporary string (protobuf 3.21),
+// an allocation per mesh.
+void set_payload(wire::ChunkMesh& m, std::span<const uint8_t> bytes) {
+  m.mutable_payload()->assign(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+}
+
+}  // namespace
+
 ViewFeed::ViewFeed(const pipeline::MeshStore& meshes, const pipeline::LodMeshStore& lod_meshes,
                    Wants wants, ServerCounters& counters)
     : meshes_(meshes), lod_meshes_(lod_meshes), wants_(std::move(wants)), counters_(counters) {}
@@ -172,14 +182,14 @@ bool ViewFeed::next_level0_mesh(uint64_t first_unsendable) {
   if (send->base) {
     const auto delta = send->version->delta_from(*send->base);
     m->set_base_version(send->base->version);
-    m->set_payload(delta->data(), delta->size());
+    set_payload(*m, *delta);
     counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
     if (send->version->edited_at != Clock::time_point{})
       write_edits_.push_back(send->version->edited_at);
   } else {
     m->set_base_version(0);
     const std::span<const uint8_t> full = send->version->full();
-    m->set_payload(full.data(), full.size());
+    set_payload(*m, full);
   }
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
@@ -197,12 +207,12 @@ bool ViewFeed::next_lod_mesh() {
   if (send->base) {
     const auto delta = send->version->delta_from(*send->base);
     m->set_base_version(send->wire_base);
-    m->set_payload(delta->data(), delta->size());
+    set_payload(*m, *delta);
     counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
   } else {
     m->set_base_version(0);
     const std::span<const uint8_t> full = send->version->full();
-    m->set_payload(full.data(), full.size());
+    set_payload(*m, full);
   }
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
