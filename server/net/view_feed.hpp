@@ -34,12 +34,13 @@ class ViewFeed {
  public:
   // What the feed asks of the pipeline for its client (the session binds its id): the
   // chunks to load (a ball, filtered by `keep` for a level-of-detail layout), and the
-  // coarser meshes its layout wants, nearest first.
+  // coarser meshes its layout wants, nearest first. Called on the feed's thread.
   struct Wants {
     std::function<void(world::ChunkCoord center, int radius, const SendScheduler::Keep& keep)>
         set_view;
     std::function<void(std::vector<pipeline::LodKey> keys)> set_lod_view;
   };
+  // Any thread, before the feed is used; the stores and counters outlive it.
   ViewFeed(const pipeline::MeshStore& meshes, const pipeline::LodMeshStore& lod_meshes, Wants wants,
            ServerCounters& counters);
 
@@ -64,7 +65,7 @@ class ViewFeed {
 
   // Strand only: new versions were published; false when there is no view to feed.
   bool chunks_published(const std::vector<world::ChunkCoord>& chunks);
-  bool lod_published(const std::vector<pipeline::LodKey>& keys);
+  bool lod_published(const std::vector<pipeline::LodKey>& keys);  // strand only
   // Strand only: the client dropped `c` of `level`; its newest version goes in full. False
   // when it is not in the view.
   bool resync(int level, world::ChunkCoord c);
