@@ -34,7 +34,7 @@ std::vector<wire::Envelope> lod_view(client::Client& c, Eye e, uint32_t radius, 
   return test::view_messages(c, e.x, e.y, e.z, radius, id, level, distance);
 }
 
-// The layout the server lays out for that SetView (session_lod.cpp's settings).
+// The layout the server lays out for that SetView (view_feed.cpp's settings).
 LodLayout layout_for(Eye e, uint32_t radius, uint32_t level, double distance) {
   LodLayout layout({.levels = static_cast<int>(level) + 1,
                     .top_radius = 1,

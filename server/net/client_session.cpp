@@ -20,6 +20,20 @@ std::vector<uint8_t> serialized(const wire::Envelope& message) {
   return out;
 }
 
+// The feed's wants, as the pipeline's wants of this session; `budget_group`: its address.
+ViewFeed::Wants pipeline_wants(pipeline::WorldPipeline& pipeline, uint64_t owner,
+                               uint64_t budget_group) {
+  return {.set_view =
+              [&pipeline, owner, budget_group](ChunkCoord center, int radius,
+                                               const SendScheduler::Keep& keep) {
+                pipeline.set_view(owner, center, radius, budget_group, keep);
+              },
+          .set_lod_view =
+              [&pipeline, owner](std::vector<pipeline::LodKey> keys) {
+                pipeline.set_lod_view(owner, std::move(keys));
+              }};
+}
+
 }  // namespace
 
 ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string address,
@@ -41,7 +55,10 @@ ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string
       edits_(pipeline.config().limits, config_.max_edits_in_flight),
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
-      error_budget_(config_.protocol_error_rate, config_.protocol_error_burst) {
+      error_budget_(config_.protocol_error_rate, config_.protocol_error_burst),
+      feed_(pipeline.meshes(), pipeline.lod_meshes(),
+            pipeline_wants(pipeline, id_, std::hash<std::string>{}(address_) | 1),  // never 0
+            counters_) {
   counters_.handshaking.fetch_add(1, std::memory_order_relaxed);
 }
 
@@ -114,7 +131,7 @@ void ClientSession::on_written(size_t bytes) {
     shutdown();
     return;
   }
-  observe_written_edits();
+  feed_.written();
   update_memory();
   pump();
 }
@@ -225,61 +242,9 @@ void ClientSession::drop_slow(DroppedBy why, const char* what) {
   shutdown();
 }
 
-// Appends the newest version of the nearest stale chunk the client does not hold yet
-// (a delta when it holds an older one); false when nothing is left to send.
-bool ClientSession::append_next_mesh() {
-  // No version that may show an edit of this client goes out before the edit's result.
-  const auto send = scheduler_.next([this](ChunkCoord c) { return pipeline_.meshes().get(c); },
-                                    results_.first_unsendable_version());
-  if (!send) return false;
-  // One message object reused for every mesh: its payload string keeps its capacity.
-  auto* m = mesh_message_.mutable_chunk_mesh();
-  *m->mutable_coord() = to_wire(send->coord);
-  m->set_version(send->version->version);
-  if (send->base) {
-    const auto delta = send->version->delta_from(*send->base);
-    m->set_base_version(send->base->version);
-    m->set_payload(delta->data(), delta->size());
-    counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
-    if (send->version->edited_at != Clock::time_point{})
-      write_edits_.push_back(send->version->edited_at);
-  } else {
-    m->set_base_version(0);
-    const std::span<const uint8_t> full = send->version->full();
-    m->set_payload(full.data(), full.size());
-  }
-  connection_->append(mesh_message_);
-  counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
-  return true;
-}
-
-// Once per applied view, when its every chunk (of every level) has been sent or found
-// empty; true when it was appended.
-bool ClientSession::append_view_ready() {
-  if (!level0_done_) level0_done_ = scheduler_.take_view_complete();
-  if (!level0_done_) return false;
-  if (lod_view_ && !lod_done_) lod_done_ = lod_queue_.take_complete();
-  if (lod_view_ && !lod_done_) return false;
-  wire::Envelope ready;
-  auto* r = ready.mutable_view_ready();
-  r->set_view_id(view_id_);
-  *r->mutable_center() = to_wire(view_center_);  // strand: its only writer
-  r->set_radius(static_cast<uint32_t>(view_radius_));
-  r->set_chunks_sent(level0_done_->sent);
-  r->set_chunks_empty(level0_done_->empty);
-  if (lod_done_) {
-    r->set_lod_chunks_sent(lod_done_->sent);
-    r->set_lod_chunks_empty(lod_done_->empty);
-  }
-  connection_->append(ready);
-  level0_done_.reset();
-  lod_done_.reset();
-  return true;
-}
-
 void ClientSession::pump() {
   if (connection_->writing() || applying_view_ || !connection_->open()) return;
-  write_edits_.clear();
+  feed_.begin_write();
   const size_t limit = config_.max_bytes_in_flight;
   size_t messages = 0;
   while (!control_.empty() && connection_->pending_bytes() < limit) {
@@ -289,10 +254,19 @@ void ClientSession::pump() {
     ++messages;
   }
   if (!closing_) {
-    while (connection_->pending_bytes() < limit && append_next_mesh()) ++messages;
-    // Coarser levels after every level-0 mesh due (PROTOCOL 4.10), nearest first.
-    while (connection_->pending_bytes() < limit && append_next_lod_mesh()) ++messages;
-    if (append_view_ready()) ++messages;  // after the view's last first mesh
+    // No version that may show an edit of this client goes out before the edit's result.
+    const uint64_t first_unsendable = results_.first_unsendable_version();
+    while (connection_->pending_bytes() < limit) {
+      const wire::Envelope* mesh = feed_.next_mesh(first_unsendable);
+      if (!mesh) break;
+      connection_->append(*mesh);
+      ++messages;
+    }
+    wire::Envelope ready;
+    if (feed_.take_view_ready(ready)) {  // after the view's last first mesh
+      connection_->append(ready);
+      ++messages;
+    }
   }
   if (connection_->pending_bytes() == 0) return;
   counters_.messages_sent.fetch_add(messages, std::memory_order_relaxed);
@@ -300,29 +274,11 @@ void ClientSession::pump() {
   connection_->write(events(), closing_ ? std::chrono::milliseconds(0) : config_.write_timeout);
 }
 
-// Strand, after a write completed: the kernel has every delta it carried.
-void ClientSession::observe_written_edits() {
-  if (write_edits_.empty()) return;
-  const auto now = Clock::now();
-  for (const auto submitted : write_edits_) {
-    counters_.edit_to_delta_written.observe(std::chrono::duration<double>(now - submitted).count());
-  }
-  write_edits_.clear();
-}
-
 // The session's accounted memory: its view map and send queues, queued control frames,
 // the write and read buffers and a partial frame.
 void ClientSession::update_memory() {
-  // Map node (~64) + an entry in the updates or new-chunk heap (24), in the waiting heap
-  // (24) and in the deferred list (12), at most.
-  constexpr size_t kPerVisibleChunk = 128;
-  // A layout chunk: in the LodView's leaves and held map, the LodSendQueue and the
-  // level-0 set.
-  constexpr size_t kPerLodChunk = 384;
-  const size_t lod_chunks = lod_view_ ? lod_view_->held().size() : 0;
-  const size_t bytes = sizeof(ClientSession) + scheduler_.visible_count() * kPerVisibleChunk +
-                       lod_chunks * kPerLodChunk + control_bytes_ + connection_->memory_bytes() +
-                       results_.size() * 64;
+  const size_t bytes = sizeof(ClientSession) + feed_.memory_bytes() + control_bytes_ +
+                       connection_->memory_bytes() + results_.size() * 64;
   const size_t old = memory_bytes_.exchange(bytes, std::memory_order_relaxed);
   counters_.session_bytes.fetch_add(bytes - old, std::memory_order_relaxed);  // wraps: exact
 }
@@ -344,10 +300,7 @@ void ClientSession::shutdown() {
     }
   }
   if (!player_id_.empty()) services_.players->release(player_id_, this);
-  scheduler_.clear();
-  lod_queue_.clear();
-  lod_view_.reset();
-  lod_active_.store(false, std::memory_order_relaxed);
+  feed_.clear();
   control_.clear();
   control_bytes_ = 0;
   pending_view_.reset();

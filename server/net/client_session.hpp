@@ -1,19 +1,17 @@
 // One connected player. Each session runs on its connection's strand: messages come in
 // from the Connection (the transport: TCP frames, connection.hpp), are parsed and
-// dispatched to the handlers; a write sends control messages first, then the meshes the
-// SendScheduler picks (updates of held chunks, then new chunks nearest first), each the
-// newest version as a delta from what the client holds. Other threads only post to the
+// dispatched to the handlers; edits pass its EditGate (edit_gate.hpp), views its checks
+// and rate into its ViewFeed (view_feed.hpp). A write sends control messages first, then
+// what the feed gives (meshes, then the view's ViewReady). Other threads only post to the
 // strand.
 #pragma once
 
 #include <chrono>
 #include <deque>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
-#include <unordered_set>
 #include <vector>
 
 #include "server/auth/player_token.hpp"
@@ -21,16 +19,14 @@
 #include "server/net/asio.hpp"
 #include "server/net/connection.hpp"
 #include "server/net/edit_gate.hpp"
-#include "server/net/lod_send_queue.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/player_registry.hpp"
 #include "server/net/result_order.hpp"
-#include "server/net/send_scheduler.hpp"
 #include "server/net/server_config.hpp"
 #include "server/net/server_counters.hpp"
+#include "server/net/view_feed.hpp"
 #include "server/pipeline/token_bucket.hpp"
 #include "server/pipeline/world_pipeline.hpp"
-#include "server/world/lod_view.hpp"
 #include "voxel.pb.h"
 
 namespace vox::net {
@@ -65,13 +61,11 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void on_chunks_published(
       std::shared_ptr<const std::vector<world::ChunkCoord>> chunks);  // any thread
   // Any thread: false when none of `chunks` can be in this session's view, so the publish
-  // fan-out skips it (the scheduler still decides what is really sent). The view is
-  // updated before the session first looks its chunks up in the store, so a mesh
-  // published meanwhile is either seen by that lookup or passes this filter.
-  bool may_see(const std::vector<world::ChunkCoord>& chunks) const;
-  // Any thread: new level-of-detail meshes (session_lod.cpp); ignored without a LOD view.
+  // fan-out skips it (ViewFeed::may_see).
+  bool may_see(const std::vector<world::ChunkCoord>& chunks) const { return feed_.may_see(chunks); }
+  // Any thread: new level-of-detail meshes; ignored without a LOD view.
   void on_lod_published(std::shared_ptr<const std::vector<pipeline::LodKey>> keys);
-  bool has_lod_view() const { return lod_active_.load(std::memory_order_relaxed); }
+  bool has_lod_view() const { return feed_.has_lod_view(); }  // any thread
   // Sends an Error and closes (SHUTTING_DOWN, SERVER_FULL); any thread.
   void close_with_error(wire::Error::Code code, std::string message);
   uint64_t id() const { return id_; }
@@ -98,23 +92,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   BudgetLimits edit_limits(const auth::PlayerClaims* claims) const;
   void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
-  struct PendingView {
-    world::ChunkCoord center;
-    int radius = 0;
-    uint64_t view_id = 0;
-    std::array<double, 3> eye{};  // voxels
-    int lod_level = 0;            // 0: level 0 only
-    double lod_distance = 1.0;
-  };
+  using PendingView = ViewFeed::View;
   void apply_view(const PendingView& v);
   // SetView's lod_level and lod_distance into `v`; false after a BAD_VALUE error.
   bool check_lod(const wire::SetView& view, PendingView& v);
-  // Level of detail (session_lod.cpp): lays the view out and returns the level-0 part's
-  // radius and chunks (the layout's level-0 leaves); unloads what the layout dropped.
-  int apply_lod_view(const PendingView& v, std::function<bool(world::ChunkCoord)>& keep);
-  void drop_lod_view();  // unloads every LOD chunk the client holds
-  void queue_lod_unload(const std::vector<world::LodChunk>& chunks);
-  bool append_next_lod_mesh();  // onto the connection's next write
   void handle_resync(const wire::Resync& resync);
   void handle_region_command(const wire::RegionCommand& command);  // region_commands.cpp
   void list_regions(uint64_t after_id, wire::Envelope& reply);
@@ -126,13 +107,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void log_refusal(wire::EditResult::Status status, const std::string& reason);
   void queue_control(const wire::Envelope& message);
   void pump();
-  bool append_next_mesh();
-  bool append_view_ready();
   void arm_idle_timer();
   void drop_slow(DroppedBy why, const char* what);
   void shutdown();
   void update_memory();
-  void observe_written_edits();
 
   const std::unique_ptr<Connection> connection_;
   asio::strand<asio::any_io_executor>& strand_;  // the connection's
@@ -159,28 +137,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
   ResultOrder results_;
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
-
-  SendScheduler scheduler_;
-  // Level of detail: the client's layout (none: a level-0 view), what it holds of levels
-  // >= 1, and the two halves of the view-complete marker.
-  std::optional<world::LodView> lod_view_;
-  world::LodSettings lod_settings_;
-  // The level-0 chunks of lod_view_'s layout (shared with the SendScheduler's filter).
-  std::shared_ptr<const std::unordered_set<world::ChunkCoord, world::ChunkCoordHash>> lod_level0_;
-  LodSendQueue lod_queue_;
-  std::atomic<bool> lod_active_{false};
-  std::optional<SendScheduler::ViewComplete> level0_done_;
-  std::optional<LodSendQueue::Complete> lod_done_;
-  uint64_t view_id_ = 0;           // of the view applied last (echoed in its ViewReady)
-  mutable std::mutex view_mutex_;  // guards the two below (also read by the fan-out)
-  world::ChunkCoord view_center_{};
-  int view_radius_ = -1;
+  ViewFeed feed_;  // what the client sees: its view, what it holds, the next mesh
   std::deque<std::vector<uint8_t>> control_;  // serialized messages sent before meshes
   size_t control_bytes_ = 0;
-  wire::Envelope mesh_message_;  // reused by append_next_mesh
-  // When the edits shown by the deltas of the write in flight were submitted (observed
-  // into counters_.edit_to_delta_written when the write completes); capacity reused.
-  std::vector<std::chrono::steady_clock::time_point> write_edits_;
 };
 
 }  // namespace vox::net

@@ -1,6 +1,6 @@
-// The session's message handlers: Hello (admission), SetView (rate, coalescing), Edit
-// (budget, ordered results), and the publish fan-out's entry points. Strand only, but
-// where a comment says otherwise.
+// The session's message handlers: Hello (admission), SetView (checks, rate, coalescing;
+// then the feed), Edit (budget, ordered results), and the publish fan-out's entry points.
+// Strand only, but where a comment says otherwise.
 #include <spdlog/spdlog.h>
 
 #include <cmath>
@@ -188,29 +188,9 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
 }
 
 void ClientSession::apply_view(const PendingView& v) {
-  // Unloads queued on the way must not pump: a pump between here and the scheduler's
-  // new view could take the old view's completion for this one's.
+  // The unloads go in one write, before anything of the new view: no pump on the way.
   applying_view_ = true;
-  view_id_ = v.view_id;
-  level0_done_.reset();
-  lod_done_.reset();
-  std::function<bool(ChunkCoord)> keep;  // a LOD view's level-0 chunks
-  const int r = v.lod_level > 0 ? apply_lod_view(v, keep) : v.radius;
-  if (v.lod_level == 0) drop_lod_view();
-  {
-    std::lock_guard lock(view_mutex_);
-    view_center_ = v.center;
-    view_radius_ = r;
-  }
-  const std::vector<ChunkCoord> left = scheduler_.set_view(v.center, r, keep);
-  if (!left.empty()) {
-    wire::Envelope unload;
-    for (const ChunkCoord& c : left) *unload.mutable_chunk_unload()->add_coords() = to_wire(c);
-    queue_control(unload);
-  }
-  // The pipeline loads what is missing (this view replaces the session's previous one);
-  // newly published meshes arrive through on_chunks_published.
-  pipeline_.set_view(id_, v.center, r, std::hash<std::string>{}(address_) | 1, keep);  // never 0
+  for (const wire::Envelope& unload : feed_.apply_view(v)) queue_control(unload);
   applying_view_ = false;
   update_memory();
   pump();
@@ -229,13 +209,10 @@ void ClientSession::handle_resync(const wire::Resync& resync) {
   // Each chunk costs a message of the client's message rate (the frame itself paid one):
   // a Resync of 64 full copies must not cost what one Ping does.
   if (resync.coords_size() > 1) message_budget_.charge(resync.coords_size() - 1, Clock::now());
-  if (!scheduler_.has_view()) return;
+  if (!feed_.has_view()) return;
   size_t queued = 0;
   const int level = static_cast<int>(std::min<uint32_t>(resync.level(), config_.max_lod_level + 1));
-  for (const auto& c : resync.coords()) {
-    queued += level == 0 ? scheduler_.resync(from_wire(c))
-                         : lod_queue_.resync(world::LodChunk{level, from_wire(c)});
-  }
+  for (const auto& c : resync.coords()) queued += feed_.resync(level, from_wire(c));
   counters_.chunks_resynced.fetch_add(queued, std::memory_order_relaxed);
   pump();
 }
@@ -298,10 +275,7 @@ void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_
   results_.fill(ticket, std::move(result));
   results_.drain([this](const wire::Envelope& e) { queue_control(e); });
   // The result is queued ahead of any mesh: versions held back for it may go now.
-  if (scheduler_.deferred_count() > 0) {
-    scheduler_.release_deferred();
-    pump();
-  }
+  if (feed_.release_deferred()) pump();
 }
 
 // A refused edit, naming its player: a few lines per second per status, with a count of
@@ -318,28 +292,11 @@ void ClientSession::log_refusal(wire::EditResult::Status status, const std::stri
   }
 }
 
-bool ClientSession::may_see(const std::vector<ChunkCoord>& chunks) const {  // any thread
-  ChunkCoord center;
-  int64_t r;
-  {
-    std::lock_guard lock(view_mutex_);
-    center = view_center_;
-    r = view_radius_;
-  }
-  if (r < 0) return false;
-  for (const ChunkCoord& c : chunks) {
-    const int64_t dx = c.x - center.x, dy = c.y - center.y, dz = c.z - center.z;
-    if (dx * dx + dy * dy + dz * dz <= r * r) return true;
-  }
-  return false;
-}
-
 void ClientSession::on_chunks_published(  // any thread
     std::shared_ptr<const std::vector<ChunkCoord>> chunks) {
   asio::post(strand_, [self = shared_from_this(), chunks = std::move(chunks)] {
-    if (self->closing_ || !self->scheduler_.has_view()) return;
-    for (const ChunkCoord& c : *chunks) self->scheduler_.mark_stale(c);
-    self->pump();
+    if (self->closing_) return;
+    if (self->feed_.chunks_published(*chunks)) self->pump();
   });
 }
 
