@@ -308,4 +308,12 @@ void ClientSession::shutdown() {
   update_memory();
 }
 
+void ClientSession::on_lod_published(  // any thread
+    std::shared_ptr<const std::vector<pipeline::LodKey>> keys) {
+  asio::post(strand_, [self = shared_from_this(), keys = std::move(keys)] {
+    if (self->closing_) return;
+    if (self->feed_.lod_published(*keys)) self->pump();
+  });
+}
+
 }  // namespace vox::net

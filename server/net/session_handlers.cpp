@@ -3,6 +3,7 @@
 // Strand only, but where a comment says otherwise.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "proto/mesh_codec.hpp"
@@ -298,6 +299,30 @@ void ClientSession::on_chunks_published(  // any thread
     if (self->closing_) return;
     if (self->feed_.chunks_published(*chunks)) self->pump();
   });
+}
+
+// A SetView's level of detail (docs/PROTOCOL.md 4.10): its level and distance checked
+// against the limits.
+bool ClientSession::check_lod(const wire::SetView& view, PendingView& v) {
+  const uint32_t max_level = std::min<uint32_t>(
+      config_.max_lod_level, static_cast<uint32_t>(std::max(0, pipeline_.config().lod.levels - 1)));
+  if (view.lod_level() > max_level) {
+    send_error(wire::Error::BAD_VALUE,
+               "lod_level " + std::to_string(view.lod_level()) + " is over the limit of " +
+                   std::to_string(max_level),
+               false);
+    return false;
+  }
+  const float d = view.lod_distance() == 0.0f ? 1.0f : view.lod_distance();
+  if (!std::isfinite(d) || d < 1.0f || d > config_.max_lod_distance) {
+    send_error(wire::Error::BAD_VALUE,
+               "lod_distance must be 0 or within 1 .. " + std::to_string(config_.max_lod_distance),
+               false);
+    return false;
+  }
+  v.lod_level = static_cast<int>(view.lod_level());
+  v.lod_distance = d;
+  return true;
 }
 
 }  // namespace vox::net
