@@ -21,6 +21,12 @@ packages=(
   libpqxx-dev postgresql
 )
 
+# The web client and viewer (clients/web): node and npm, Debian's unless the machine has
+# them already; the test step also drives Debian's chromium, headless.
+command -v node >/dev/null || packages+=(nodejs)
+command -v npm >/dev/null || packages+=(npm)
+[ "$mode" = test ] && packages+=(chromium)
+
 missing=()
 for p in "${packages[@]}"; do
   if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
@@ -33,6 +39,14 @@ if [ ${#missing[@]} -gt 0 ]; then
   [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
   "${sudo_cmd[@]}" apt-get update -qq
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+# The web client's packages, exactly as its lock says (again only when the lock changed).
+web="$root/clients/web"
+if ! cmp -s "$web/package-lock.json" "$web/node_modules/.voxel-lock"; then
+  echo "setup: npm ci in clients/web"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+  cp "$web/package-lock.json" "$web/node_modules/.voxel-lock"
 fi
 
 launcher=()
