@@ -22,10 +22,11 @@ packages=(
 )
 
 # The web client and viewer (clients/web): node and npm, Debian's unless the machine has
-# them already; the test step also drives Debian's chromium, headless.
+# them already; the test step also drives Debian's chromium, headless, and runs the
+# viewer behind haproxy with a certificate openssl makes.
 command -v node >/dev/null || packages+=(nodejs)
 command -v npm >/dev/null || packages+=(npm)
-[ "$mode" = test ] && packages+=(chromium)
+[ "$mode" = test ] && packages+=(chromium haproxy openssl)
 
 missing=()
 for p in "${packages[@]}"; do
