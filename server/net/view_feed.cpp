@@ -179,19 +179,10 @@ bool ViewFeed::next_level0_mesh(uint64_t first_unsendable) {
   m->set_level(0);  // the message is reused for coarser meshes
   *m->mutable_coord() = to_wire(send->coord);
   m->set_version(send->version->version);
-  if (send->base) {
-    const auto delta = send->version->delta_from(*send->base);
-    m->set_base_version(send->base->version);
-    set_payload(*m, *delta);
-    counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
-    if (send->version->edited_at != Clock::time_point{})
-      write_edits_.push_back(send->version->edited_at);
-  } else {
-    m->set_base_version(0);
-    const std::span<const uint8_t> full = send->version->full();
-    set_payload(*m, full);
-  }
-  counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
+  const bool delta =
+      fill_payload(*m, *send->version, send->base.get(), send->base ? send->base->version : 0);
+  if (delta && send->version->edited_at != Clock::time_point{})
+    write_edits_.push_back(send->version->edited_at);
   return true;
 }
 
@@ -204,17 +195,23 @@ bool ViewFeed::next_lod_mesh() {
   *m->mutable_coord() = to_wire(send->chunk.c);
   m->set_level(static_cast<uint32_t>(send->chunk.level));
   m->set_version(send->wire_version);
-  if (send->base) {
-    const auto delta = send->version->delta_from(*send->base);
-    m->set_base_version(send->wire_base);
-    set_payload(*m, *delta);
-    counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
-  } else {
-    m->set_base_version(0);
-    const std::span<const uint8_t> full = send->version->full();
-    set_payload(*m, full);
-  }
+  fill_payload(*m, *send->version, send->base.get(), send->wire_base);
+  return true;
+}
+
+// `version` as a delta from `base` (the client holds it, as `wire_base` on the wire), or
+// in full without one; counted. Returns whether it was a delta.
+bool ViewFeed::fill_payload(wire::ChunkMesh& m, const pipeline::MeshVersion& version,
+                            const pipeline::MeshVersion* base, uint64_t wire_base) {
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
+  if (!base) {
+    m.set_base_version(0);
+    set_payload(m, version.full());
+    return false;
+  }
+  m.set_base_version(wire_base);
+  set_payload(m, *version.delta_from(*base));
+  counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
   return true;
 }
 

@@ -95,6 +95,8 @@ class ViewFeed {
                               std::vector<wire::Envelope>& out);
   bool next_level0_mesh(uint64_t first_unsendable);
   bool next_lod_mesh();
+  bool fill_payload(wire::ChunkMesh& m, const pipeline::MeshVersion& version,
+                    const pipeline::MeshVersion* base, uint64_t wire_base);
 
   const pipeline::MeshStore& meshes_;
   const pipeline::LodMeshStore& lod_meshes_;

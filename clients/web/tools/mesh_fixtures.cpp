@@ -187,8 +187,8 @@ int main(int argc, char** argv) {
         if (e.mesh.empty()) continue;
         const bool dropped = u32_at(e.encoding, 12) > 0;
         if (terrain < 3 || (dropped && !dropped_found)) {
-          const std::string name = "terrain_" + std::to_string(x) + "_" + std::to_string(y) +
-                                   "_" + std::to_string(z);
+          const std::string name =
+              "terrain_" + std::to_string(x) + "_" + std::to_string(y) + "_" + std::to_string(z);
           write_fixture(name, e.encoding, e.mesh, 0, "seed 3 terrain chunk");
           ++terrain;
           dropped_found |= dropped;
@@ -204,15 +204,17 @@ int main(int argc, char** argv) {
     write_fixture("empty_sky", e.encoding, e.mesh, 0, "seed 3 chunk (0, 5, 0): all air");
   }
   {
-    Meshed e = mesh_function({32, 32, 32}, [](int, int, int) { return world::Density{20000}; }, 3);
+    Meshed e = mesh_function(
+        {32, 32, 32}, [](int, int, int) { return world::Density{20000}; }, 3);
     write_fixture("full_rock", e.encoding, e.mesh, 0, "every sample solid: no vertex");
   }
   {
     Meshed e = mesh_function(
         {5, 7, 3},
         [](int x, int y, int z) {
-          const float d = 3.1f - std::sqrt(float((x - 2) * (x - 2) + (y - 3) * (y - 3) +
-                                                 (z - 1) * (z - 1)) + 0.3f);
+          const float d =
+              3.1f -
+              std::sqrt(float((x - 2) * (x - 2) + (y - 3) * (y - 3) + (z - 1) * (z - 1)) + 0.3f);
           return world::quantize_density(d / 4.0f);
         },
         7);
@@ -261,10 +263,10 @@ int main(int argc, char** argv) {
       if (c.level == 0) continue;
       const world::LodSeams seams = layout.seams(c);
       const uint32_t key = seams.faces | uint32_t{seams.edges} << 8;
-      const bool want = seams.empty() ? without < 1
-                                      : with_seams < 5 && std::find(seen_seams.begin(),
-                                                                    seen_seams.end(),
-                                                                    key) == seen_seams.end();
+      const bool want = seams.empty()
+                            ? without < 1
+                            : with_seams < 5 && std::find(seen_seams.begin(), seen_seams.end(),
+                                                          key) == seen_seams.end();
       if (!want) continue;
       mesh::ChunkMesh m;
       Bytes encoding;
@@ -315,7 +317,8 @@ int main(int argc, char** argv) {
     table.reserve(65536 * 12);
     for (int u = 0; u < 256; ++u)
       for (int v = 0; v < 256; ++v) {
-        const mesh::Vec3f n = proto::decode_normal(static_cast<uint8_t>(u), static_cast<uint8_t>(v));
+        const mesh::Vec3f n =
+            proto::decode_normal(static_cast<uint8_t>(u), static_cast<uint8_t>(v));
         for (float c : {n.x, n.y, n.z}) {
           const uint32_t b = bits(c);
           for (int k = 0; k < 4; ++k) table += static_cast<char>(b >> (8 * k));
