@@ -151,7 +151,8 @@ window.voxelViewer = {
   chunks: () => Object.fromEntries([...meshes.info].map(([k, v]) => [k, { ...v, version: String(v.version) }])),
   /** The edits sent and their results. */
   edits: counters.edits,
-  selectTool: (id) => toolbar.select(id),
+  /** The tool bar: tool, settings {radius, strength, material, carve}, select(id). */
+  toolbar,
   camera,
   controls,
   connection,

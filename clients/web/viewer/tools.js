@@ -19,6 +19,7 @@ const ndc = new THREE.Vector2();
 export function pick(camera, element, x, y, chunks) {
   const r = element.getBoundingClientRect();
   ndc.set(((x - r.left) / r.width) * 2 - 1, -((y - r.top) / r.height) * 2 + 1);
+  camera.updateMatrixWorld();  // the camera may have turned since the last frame drew
   raycaster.setFromCamera(ndc, camera);
   const hit = raycaster.intersectObject(chunks, true).find((h) => h.object.visible);
   return hit ? [hit.point.x, hit.point.y, hit.point.z] : null;
