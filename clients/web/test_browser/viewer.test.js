@@ -7,6 +7,7 @@
 // killed at the end, also on failure; every wait has a deadline.
 import assert from "node:assert/strict";
 import { execFileSync, spawn } from "node:child_process";
+import { createPrivateKey, createPublicKey, sign } from "node:crypto";
 import { existsSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
 import { tmpdir } from "node:os";
 import { dirname, join } from "node:path";
@@ -49,18 +50,43 @@ async function readPort(file, deadline) {
   }
 }
 
+/** Starts voxeld serving the bundle on that HTTP port ("auto": a free one), with more flags. */
+function startServer(httpPort, ...more) {
+  rmSync(join(dir, "http-port"), { force: true });
+  server = spawn(voxeld, ["--in-memory", "--seed", "1", "--threads", "2", "--port", "0", "--port-file", join(dir, "port"),
+    "--http-port", String(httpPort), "--http-port-file", join(dir, "http-port"), "--http-root", join(dir, "web"), ...more], {
+    cwd: dir, stdio: ["ignore", "pipe", "pipe"],
+  });
+  server.stdout.on("data", (d) => { serverLog += d; });
+  server.stderr.on("data", (d) => { serverLog += d; });
+}
+
+/**
+ * An Ed25519 key pair and a player token signed with it (PROTOCOL §4.8), made here.
+ * @returns {{publicKey: string, token: string}} both unpadded base64url
+ */
+function keyAndToken(playerId, name) {
+  const seed = Buffer.alloc(32, 7);
+  const key = createPrivateKey({ key: Buffer.concat([Buffer.from("302e020100300506032b657004220420", "hex"), seed]), format: "der", type: "pkcs8" });
+  const publicKey = createPublicKey(key).export({ format: "der", type: "spki" }).subarray(-32);
+  const pid = Buffer.from(playerId);
+  const nm = Buffer.from(name);
+  const claims = Buffer.alloc(18);
+  claims[0] = 1;
+  claims.writeBigInt64LE(BigInt(Math.floor(Date.now() / 1000) + 3600), 1);
+  claims[9] = 1;  // player; edit_rate and edit_burst 0: the role's
+  const body = Buffer.concat([claims, Buffer.from([pid.length]), pid, Buffer.from([nm.length]), nm]);
+  const signature = sign(null, Buffer.concat([Buffer.from("voxeld-token-v1"), body]), key);
+  return { publicKey: publicKey.toString("base64url"), token: Buffer.concat([body, signature]).toString("base64url") };
+}
+
 before(async () => {
   if (skip) return;
   dir = mkdtempSync(join(tmpdir(), "voxeld-viewer-"));
   const web = join(dir, "web");
   execFileSync(process.execPath, [join(here, "..", "tools", "build_viewer.js"), web], { stdio: "pipe", timeout: 60000 });
   assert.ok(existsSync(join(web, "index.html")) && existsSync(join(web, "viewer.js")), "the bundle was built");
-  server = spawn(voxeld, ["--in-memory", "--seed", "1", "--threads", "2", "--port", "0", "--port-file", join(dir, "port"),
-    "--http-port", "auto", "--http-port-file", join(dir, "http-port"), "--http-root", web], {
-    cwd: dir, stdio: ["ignore", "pipe", "pipe"],
-  });
-  server.stdout.on("data", (d) => { serverLog += d; });
-  server.stderr.on("data", (d) => { serverLog += d; });
+  startServer("auto");
   process.on("exit", () => {
     server?.kill("SIGKILL");
     browser?.process()?.kill("SIGKILL");
@@ -127,7 +153,8 @@ test("a click with the explode tool makes a crater that a second page sees", { s
   await page.evaluate(() => {
     const v = window.voxelViewer;
     v.toolbar.select("explode");
-    Object.assign(v.toolbar.settings, { radius: 8, strength: 4 });
+    v.toolbar.set("radius", 8);
+    v.toolbar.set("strength", 4);
     v.controls.setAngles(0, -1.0);  // look down: the centre of the screen is terrain close by
   });
   const before1 = await chunksOf(page);
@@ -190,5 +217,35 @@ test("frame rate of a level-of-detail view (software WebGL)", { skip, timeout: 1
   t.diagnostic(`lod 6 (to ±${64 * 2 ** 6} voxels): complete ${s.firstViewMs} ms after navigation, ${s.chunks} chunks, ${s.triangles} triangles, ${fps.toFixed(1)} frames/s at ${SIZE.width}x${SIZE.height}`);
   assert.ok(s.triangles > 100000, `triangles: ${s.triangles}`);
   assert.ok(fps > 0.3, `frames per second: ${fps}`);
+  assert.deepEqual(pageErrors, []);
+  await lod.page.close();
+});
+
+test("the page says when the server goes away, reconnects, and asks for a token when one is needed", { skip, timeout: 120000 }, async () => {
+  const { page } = await open("radius=2&lod=0&pos=0,16,0&name=back");
+  const status = () => page.$eval("#status", (e) => e.textContent);
+  const waitStatus = (re, ms) => page.waitForFunction((src) => new RegExp(src).test(document.getElementById("status").textContent),
+    { timeout: ms, polling: 100 }, re.source);
+  const httpPort = new URL(base).port;
+  server.kill("SIGKILL");
+  await new Promise((r) => server.once("exit", r));
+  await waitStatus(/reconnecting in/, 10000);
+
+  // Back with tokens required: the page says why and waits for one (no retry loop).
+  const { publicKey, token } = keyAndToken("tester-1", "Tester");
+  writeFileSync(join(dir, "game.pub"), `${publicKey}\n`);
+  startServer(httpPort, "--auth-public-key", join(dir, "game.pub"));
+  await readPort(join(dir, "http-port"), Date.now() + 20000);
+  await waitStatus(/AUTH_REQUIRED.*token/, 30000);
+  await sleep(2500);
+  assert.match(await status(), /AUTH_REQUIRED/, "no reconnection loop after a token refusal");
+
+  await page.type("#token", token);
+  await page.click("#token-form button");
+  await page.waitForFunction(() => window.voxelViewer.stats().viewComplete, { timeout: 60000, polling: 100 })
+    .catch(async (e) => assert.fail(`${e.message}; status: ${await status()}; ${JSON.stringify(await page.evaluate(() => window.voxelViewer.stats()))}; ${serverLog.slice(-1500)}`));
+  assert.match(await status(), /connected/);
+  const s = await page.evaluate(() => window.voxelViewer.stats());
+  assert.ok(s.triangles > 1000, `triangles after reconnecting: ${s.triangles}`);
   assert.deepEqual(pageErrors, []);
 });

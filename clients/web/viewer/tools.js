@@ -57,6 +57,18 @@ export class ToolBar {
     for (const b of this.buttons.children) b.classList.toggle("on", b.dataset.tool === id);
   }
 
+  /**
+   * Sets a setting and the control that shows it.
+   * @param {"radius"|"strength"|"material"|"carve"} key
+   * @param {number|boolean} value
+   */
+  set(key, value) {
+    const input = /** @type {HTMLInputElement} */ (document.getElementById(key));
+    if (key === "carve") input.checked = !!value;
+    else input.value = String(value);
+    input.dispatchEvent(new Event(key === "radius" || key === "strength" ? "input" : "change"));
+  }
+
   /** Sets the sliders' ranges to the server's edit limits (Welcome). */
   setLimits(welcome) {
     if (welcome.maxEditRadius) this.radius.max = String(welcome.maxEditRadius);
