@@ -77,7 +77,8 @@ export class Connection extends Emitter {
     if (generation !== this.generation || this.endedGeneration === generation) return;
     this.endedGeneration = generation;
     this.client = null;
-    const why = error?.message ?? "connection closed";
+    // A server's Error says why itself; anything else is the connection going away.
+    const why = error?.codeName ? error.message : `no connection to the server (${error?.message ?? "closed"})`;
     if (!shouldRetry(error)) {
       const hint = error.codeName === "REPLACED" ? "reload the page to take over" : "enter a token and press Connect";
       this.emit("status", `${why} — ${hint}`, "error");
