@@ -13,6 +13,7 @@
 // whose rounding drops triangles, and level-of-detail chunks in format 2, with and without
 // seams.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -41,6 +42,7 @@ using proto::Bytes;
 
 std::string out_dir;
 std::vector<std::string> names;
+std::vector<Bytes> frames;  // each fixture's zstd full frame, for --time
 
 uint32_t bits(float f) {
   uint32_t u;
@@ -125,6 +127,7 @@ void write_fixture(const std::string& name, const Bytes& encoding, const mesh::C
   Bytes frame;
   codec.compress(encoding, {}, frame);
   write_file(name + ".zst", std::string(frame.begin(), frame.end()));
+  frames.push_back(frame);
   write_file(name + ".json", j);
   names.push_back(name);
   std::printf("%-24s format %d level %d: %zu bytes, %zu vertices, %zu triangles, %u dropped\n",
@@ -163,9 +166,41 @@ Meshed mesh_function(std::array<int, 3> cells, F&& f, world::Material material) 
 
 }  // namespace
 
+// --time: the C++ client's decode time per fixture, as the other clients' benchmarks
+// report it (median of at least 30 runs and 300 ms, after a warm-up): zstd, then the
+// decoder with every check, into reused buffers.
+void time_decoding() {
+  proto::ZstdCodec codec;
+  proto::CodecScratch scratch;
+  mesh::Buffer<uint8_t> encoding;
+  mesh::ChunkMesh mesh;
+  std::printf("C++ decode (zstd + every check), median per chunk:\n");
+  for (size_t i = 0; i < names.size(); ++i) {
+    const auto once = [&] {
+      if (codec.decompress_into(frames[i], {}, size_t{4} << 20, encoding) ||
+          proto::decode_mesh({encoding.data(), encoding.size()}, {}, scratch, mesh)) {
+        std::fprintf(stderr, "%s: does not decode\n", names[i].c_str());
+        std::exit(1);
+      }
+    };
+    for (int w = 0; w < 20; ++w) once();
+    std::vector<double> us;
+    const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(300);
+    while (us.size() < 30 || std::chrono::steady_clock::now() < end) {
+      const auto t = std::chrono::steady_clock::now();
+      once();
+      us.push_back(
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t).count());
+    }
+    std::nth_element(us.begin(), us.begin() + us.size() / 2, us.end());
+    std::printf("  %-24s %8.1f us\n", names[i].c_str(), us[us.size() / 2]);
+  }
+}
+
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s OUT_DIR\n", argv[0]);
+  const bool timing = argc == 3 && std::string(argv[2]) == "--time";
+  if (argc != 2 && !timing) {
+    std::fprintf(stderr, "usage: %s OUT_DIR [--time]\n", argv[0]);
     return 2;
   }
   out_dir = argv[1];
@@ -334,5 +369,6 @@ int main(int argc, char** argv) {
   }
   manifest += "]}\n";
   write_file("manifest.json", manifest);
+  if (timing) time_decoding();
   return 0;
 }
