@@ -152,9 +152,27 @@ TEST(HttpRules, APathNamesAFileByPlainSegmentsOnly) {
   EXPECT_EQ(net::static_path("/viewer.js"), "viewer.js");
   EXPECT_EQ(net::static_path("/assets/a-b_c.1.js#top"), "assets/a-b_c.1.js");
   EXPECT_EQ(net::static_path("/%76iewer.js"), "viewer.js");
-  for (const char* bad : {"", "viewer.js", "/../etc/passwd", "/a/../../b", "/%2e%2e/etc/passwd",
-                          "/%2E%2E%2Fetc", "/a//b", "/./a", "/a/.", "/a\\b", "/a%5c..%5cb",
-                          "/a%00b", "/%", "/%4", "/%zz", "/a b", "/a/", "/..%2f..%2fetc"}) {
+  for (const char* bad : {"",
+                          "viewer.js",
+                          "/../etc/passwd",
+                          "/a/../../b",
+                          "/%2e%2e/etc/passwd",
+                          "/%2E%2E%2Fetc",
+                          "/a//b",
+                          "/./a",
+                          "/a/.",
+                          "/a\\b",
+                          "/a%5c..%5cb",
+                          "/a%00b",
+                          "/%",
+                          "/%4",
+                          "/%zz",
+                          "/a b",
+                          "/a/",
+                          "/..%2f..%2fetc",
+                          "/.env",
+                          "/.git/config",
+                          "/assets/.hidden"}) {
     EXPECT_EQ(net::static_path(bad), "") << bad;
   }
 }
@@ -170,6 +188,16 @@ TEST(HttpRules, AnUpgradeIsAllowedFromItsOwnOriginAListedOneOrAProgram) {
   EXPECT_TRUE(net::origin_allowed("https://game.example", "127.0.0.1:7780", listed));
   EXPECT_FALSE(net::origin_allowed("https://game.example.evil", "127.0.0.1:7780", listed));
   EXPECT_TRUE(net::origin_allowed("http://anything", "x", any));
+}
+
+TEST(HttpRules, ALoopbackServerTakesUpgradesOnlyToALoopbackNameAgainstDnsRebinding) {
+  EXPECT_TRUE(net::host_allowed("127.0.0.1:7780", "127.0.0.1"));
+  EXPECT_TRUE(net::host_allowed("localhost:7780", "127.0.0.1"));
+  EXPECT_TRUE(net::host_allowed("[::1]:7780", "::1"));
+  EXPECT_TRUE(net::host_allowed("127.0.0.2", "127.0.0.1"));
+  EXPECT_FALSE(net::host_allowed("evil.example:7780", "127.0.0.1"));
+  EXPECT_FALSE(net::host_allowed("localhost.evil.example", "127.0.0.1"));
+  EXPECT_TRUE(net::host_allowed("game.example", "0.0.0.0"));  // a public server
 }
 
 TEST(WebSocket, APlayerJoinsGetsItsViewAndEditsAsOverTcp) {
@@ -312,7 +340,13 @@ TEST(Http, ServesTheViewerAndRefusesWhatLeavesItsRootWithAClearStatus) {
     EXPECT_TRUE(get(bad).starts_with("HTTP/1.1 400")) << bad;
   }
   EXPECT_TRUE(get("/nosuch.js").starts_with("HTTP/1.1 404"));
-  EXPECT_TRUE(get("/", "POST").starts_with("HTTP/1.1 405"));
+  const std::string post = get("/", "POST");
+  EXPECT_TRUE(post.starts_with("HTTP/1.1 405"));
+  EXPECT_NE(post.find("Allow: GET, HEAD"), std::string::npos) << post;
+  std::ofstream(files.path() / ".env") << "SECRET=1";
+  EXPECT_TRUE(get("/.env").starts_with("HTTP/1.1 400"));
+  std::filesystem::create_symlink("/etc/hostname", files.path() / "outside.txt");
+  EXPECT_TRUE(get("/outside.txt").starts_with("HTTP/1.1 404")) << "a link out of the root";
   EXPECT_TRUE(get("/ws").starts_with("HTTP/1.1 426"));
   const std::string huge = http_exchange(port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " +
                                                    std::string(16 * 1024, 'a') + "\r\n\r\n");
@@ -321,12 +355,33 @@ TEST(Http, ServesTheViewerAndRefusesWhatLeavesItsRootWithAClearStatus) {
   EXPECT_TRUE(foreign.handshake_error) << "an upgrade from another origin was accepted";
   WsClient own(port, "http://127.0.0.1:" + std::to_string(port));
   EXPECT_FALSE(own.handshake_error) << own.handshake_error.message();
+  // A page whose name an attacker points at 127.0.0.1 (DNS rebinding): its Origin matches
+  // its Host, but a loopback server takes upgrades only to loopback names.
+  const std::string p = std::to_string(port);
+  const std::string rebound = http_exchange(
+      port, "GET /ws HTTP/1.1\r\nHost: evil.example:" + p + "\r\nOrigin: http://evil.example:" + p +
+                "\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\n"
+                "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n");
+  EXPECT_TRUE(rebound.starts_with("HTTP/1.1 403")) << rebound.substr(0, 80);
   auto m = metrics(server.metrics_port());
-  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"bad_request\"}"], 6);  // 5 paths and /ws
-  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"not_found\"}"], 1);
+  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"bad_request\"}"], 7);  // 6 paths and /ws
+  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"not_found\"}"], 2);
   EXPECT_EQ(m["voxeld_http_refused_total{reason=\"bad_method\"}"], 1);
   EXPECT_EQ(m["voxeld_http_refused_total{reason=\"header_too_big\"}"], 1);
-  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"origin\"}"], 1);
+  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"origin\"}"], 2);
+  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"timeout\"}"], 0);
+}
+
+TEST(Http, AnIdleKeepAliveConnectionIsClosedQuietlyAndIsNoSlowRequest) {
+  ServerProcess server({"--http-port", "auto", "--in-memory", "--metrics-port", "0"});
+  const auto start = std::chrono::steady_clock::now();
+  // One request kept alive, then nothing: closed within the keep-alive idle time.
+  const std::string response =
+      http_exchange(server.http_port(), "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", 10s);
+  EXPECT_TRUE(response.starts_with("HTTP/1.1 200")) << response.substr(0, 80);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 4s * kSlow);
+  auto m = metrics(server.metrics_port());
+  EXPECT_EQ(m["voxeld_http_refused_total{reason=\"timeout\"}"], 0);
 }
 
 TEST(Http, ASlowRequestIsClosedAtTheRequestTimeoutWhilePlayersGoOn) {

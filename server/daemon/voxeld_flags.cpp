@@ -249,6 +249,10 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
     http.root = r.http_root;
     http.allow_origins = r.http_origins;
     http.request_timeout = net.handshake_timeout;
+    // A page takes a few connections: the HTTP cap per address follows the game's, at least
+    // 32 (behind a TLS proxy, where every player has the proxy's address, set both to 0).
+    http.max_per_address =
+        net.max_per_address == 0 ? 0 : std::max<size_t>(32, 2 * net.max_per_address);
     net.http = std::move(http);
     net.http_port_required = !vm["http-port"].defaulted();
   }

@@ -162,7 +162,7 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     auto ws_closed = family("voxeld_websocket_closed_total",
                             "WebSocket connections closed for breaking the transport's rules",
                             MetricType::Counter);
-    const char* ws_reasons[] = {"too_big", "text", "ping_flood", "frame_timeout"};
+    const char* ws_reasons[] = {"too_big", "text", "ping_flood", "frame_timeout", "protocol"};
     static_assert(std::size(ws_reasons) == static_cast<size_t>(net::WsClosedBy::kCount));
     for (size_t i = 0; i < c_.ws_closed.size(); ++i)
       add(ws_closed, value_of(c_.ws_closed[i]), {{"reason", ws_reasons[i]}});

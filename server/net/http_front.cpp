@@ -17,8 +17,12 @@ namespace websocket = beast::websocket;
 
 namespace {
 
-// Requests one connection may make (keep-alive) before it is closed.
-constexpr int kMaxRequests = 100;
+// Requests one connection may make (keep-alive) before it is closed, and how long it may
+// wait idle for the next: a connection is not held for long by keeping it alive.
+constexpr int kMaxRequests = 32;
+constexpr auto kKeepAliveIdle = std::chrono::seconds(2);
+// After a failed accept (out of descriptors), the next waits this long.
+constexpr auto kAcceptRetry = std::chrono::milliseconds(100);
 // A response must be written within this (a file to a slow reader).
 constexpr auto kWriteTimeout = std::chrono::seconds(30);
 
@@ -81,7 +85,7 @@ std::string static_path(std::string_view target) {
     const size_t end = path.find('/', start);
     const std::string_view segment =
         std::string_view(path).substr(start, end == std::string::npos ? end : end - start);
-    if (segment.empty() || segment == "." || segment == "..") return {};
+    if (segment.empty() || segment.front() == '.') return {};  // ., .., dotfiles
     if (end == std::string::npos) break;
     start = end + 1;
   }
@@ -129,7 +133,9 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     parser_.emplace();
     parser_->header_limit(static_cast<uint32_t>(s_.config->max_header_bytes));
     parser_->body_limit(0);
-    stream_.expires_after(s_.config->request_timeout);
+    stream_.expires_after(requests_ == 1 ? s_.config->request_timeout
+                                         : std::min<std::chrono::milliseconds>(
+                                               s_.config->request_timeout, kKeepAliveIdle));
     http::async_read(
         stream_, buffer_, *parser_,
         [self = shared_from_this()](beast::error_code ec, size_t) { self->on_request(ec); });
@@ -140,7 +146,9 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
         ec == asio::error::connection_reset)
       return close();
     if (ec == beast::error::timeout) {
-      refused(HttpRefusedBy::kTimeout, "a request not complete in time");
+      // An idle keep-alive connection is closed quietly; a request begun and not finished
+      // in time is a slow one.
+      if (parser_->got_some()) refused(HttpRefusedBy::kTimeout, "a request not complete in time");
       return close();
     }
     if (ec == http::error::header_limit) {
@@ -156,7 +164,7 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     if (target.substr(0, target.find('?')) == "/ws") return upgrade();
     if (req.method() != http::verb::get && req.method() != http::verb::head)
       return respond_error(http::status::method_not_allowed, HttpRefusedBy::kBadMethod,
-                           "only GET and HEAD are served");
+                           "only GET and HEAD are served", Header{http::field::allow, "GET, HEAD"});
     const std::string path = static_path(target);
     if (path.empty())
       return respond_error(http::status::bad_request, HttpRefusedBy::kBadRequest,
@@ -168,11 +176,13 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     const auto& req = parser_->get();
     if (!websocket::is_upgrade(req))
       return respond_error(http::status::upgrade_required, HttpRefusedBy::kBadRequest,
-                           "/ws takes a WebSocket upgrade");
+                           "/ws takes a WebSocket upgrade",
+                           Header{http::field::upgrade, "websocket"});
     const auto origin = req[http::field::origin];
     const auto host = req[http::field::host];
     if (!origin_allowed({origin.data(), origin.size()}, {host.data(), host.size()},
-                        s_.config->allow_origins)) {
+                        s_.config->allow_origins) ||
+        (!origin.empty() && !host_allowed({host.data(), host.size()}, s_.config->bind))) {
       return respond_error(http::status::forbidden, HttpRefusedBy::kOrigin,
                            "WebSocket connections from this origin are not allowed "
                            "(--http-allow-origin)");
@@ -187,9 +197,13 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     ws_->set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, "voxeld"); }));
     ws_->async_accept(req, [self = shared_from_this()](beast::error_code ec) {
-      if (ec) {
-        if (ec == beast::error::timeout) self->refused(HttpRefusedBy::kTimeout, "a slow upgrade");
-        return;  // the stream closes with this connection
+      if (ec) {  // the stream closes with this connection
+        if (ec == beast::error::timeout) {
+          self->refused(HttpRefusedBy::kTimeout, "a slow upgrade");
+        } else {
+          self->refused(HttpRefusedBy::kBadRequest, "a WebSocket handshake that is not valid");
+        }
+        return;
       }
       ServerCounters::bump(self->s_.counters.ws_upgrades);
       if (self->s_.stopped->load()) return;
@@ -206,10 +220,15 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     if (!config.root.empty()) {
       const std::filesystem::path file = config.root / path;
       std::error_code fs_ec;
-      if (std::filesystem::is_regular_file(file, fs_ec) &&
+      // A link may not lead out of the root.
+      const auto real = std::filesystem::canonical(file, fs_ec);
+      const auto root = std::filesystem::canonical(config.root, fs_ec);
+      const auto rel = real.lexically_relative(root);
+      if (!fs_ec && !rel.empty() && *rel.begin() != ".." &&
+          std::filesystem::is_regular_file(real, fs_ec) &&
           std::filesystem::file_size(file, fs_ec) <= config.max_file_bytes) {
         beast::error_code ec;
-        res.body().open(file.c_str(), beast::file_mode::scan, ec);
+        res.body().open(real.c_str(), beast::file_mode::scan, ec);
         found = !ec;
       }
     }
@@ -232,9 +251,15 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     send(std::move(sp), head);
   }
 
-  void respond(http::status status, std::string_view type, std::string body, bool keep = true) {
+  struct Header {
+    http::field field;
+    const char* value;
+  };
+  void respond(http::status status, std::string_view type, std::string body, bool keep = true,
+               std::optional<Header> extra = {}) {
     const auto& req = parser_->get();
     auto res = std::make_shared<http::response<http::string_body>>(status, req.version());
+    if (extra) res->set(extra->field, extra->value);
     res->set(http::field::server, "voxeld");
     res->set(http::field::content_type, beast::string_view(type.data(), type.size()));
     res->set("X-Content-Type-Options", "nosniff");
@@ -244,11 +269,12 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     send(std::move(res), req.method() == http::verb::head);
   }
 
-  void respond_error(http::status status, HttpRefusedBy why, std::string_view message) {
+  void respond_error(http::status status, HttpRefusedBy why, std::string_view message,
+                     std::optional<Header> extra = {}) {
     refused(why, message);
     // After a request that was not whole (or too large), the stream cannot be read on.
     const bool keep = why != HttpRefusedBy::kHeaderTooBig && why != HttpRefusedBy::kBadRequest;
-    respond(status, "text/plain; charset=utf-8", std::string(message) + "\n", keep);
+    respond(status, "text/plain; charset=utf-8", std::string(message) + "\n", keep, extra);
   }
 
   template <class Response>
@@ -273,7 +299,7 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
   void refused(HttpRefusedBy why, std::string_view message) {
     ServerCounters::bump(s_.counters.http_refused[static_cast<size_t>(why)]);
     if (auto suppressed = s_.logs->allow("http_refused")) {
-      spdlog::info("http: {} from {}: {}{}", static_cast<int>(why), address_, message,
+      spdlog::info("http: refused ({}) from {}: {}{}", to_string(why), address_, message,
                    *suppressed ? fmt::format(" [{} more since the last such line]", *suppressed)
                                : std::string());
     }
@@ -308,6 +334,7 @@ HttpFront::HttpFront(asio::io_context& io, HttpConfig config, ServerCounters& co
           .max_handshaking_per_address = config_->max_per_address})),
       upgraded_(std::make_shared<const Upgraded>(std::move(upgraded))),
       acceptor_(strand_),
+      retry_timer_(strand_),
       stopped_(std::make_shared<std::atomic<bool>>(false)) {}
 
 HttpFront::~HttpFront() { stopped_->store(true); }
@@ -342,8 +369,9 @@ void HttpFront::accept() {
           const auto peer = socket.remote_endpoint(peer_ec);
           if (!peer_ec) {
             std::string address = address_key(peer.address());
-            if (gate_->connect(address) != AdmissionControl::Verdict::kAdmit) {
-              busy(std::move(socket), address);
+            if (const auto verdict = gate_->connect(address);
+                verdict != AdmissionControl::Verdict::kAdmit) {
+              busy(std::move(socket), address, verdict == AdmissionControl::Verdict::kAddressFull);
             } else {
               socket.set_option(asio::ip::tcp::no_delay(true), peer_ec);
               std::make_shared<Conn>(
@@ -352,27 +380,76 @@ void HttpFront::accept() {
                   ->start();
             }
           }
-        } else if (auto suppressed = logs_->allow("http_accept")) {
-          spdlog::warn("http accept failed: {} [{} more]", ec.message(), *suppressed);
+        } else {
+          // Out of descriptors and the like: log (rate-limited) and try again a little later
+          // (at once, the loop would spin while the condition lasts).
+          if (auto suppressed = logs_->allow("http_accept"))
+            spdlog::warn("http accept failed: {} [{} more]", ec.message(), *suppressed);
+          retry_timer_.expires_after(kAcceptRetry);
+          retry_timer_.async_wait([this](boost::system::error_code e) {
+            if (!e) accept();
+          });
+          return;
         }
         accept();
       });
 }
 
 // Over the caps: a 503 written without waiting (a full socket buffer just loses it).
-void HttpFront::busy(asio::ip::tcp::socket socket, const std::string& address) {
+void HttpFront::busy(asio::ip::tcp::socket socket, const std::string& address, bool address_full) {
   ServerCounters::bump(counters_.http_refused[static_cast<size_t>(HttpRefusedBy::kBusy)]);
-  static constexpr std::string_view kBusy =
+  const std::string_view why = address_full ? "too many connections from your address\n"
+                                            : "too many connections to this server\n";
+  const std::string response = fmt::format(
       "HTTP/1.1 503 Service Unavailable\r\nServer: voxeld\r\nContent-Type: text/plain\r\n"
-      "Content-Length: 38\r\nConnection: close\r\n\r\ntoo many connections from your address\n";
+      "Content-Length: {}\r\nRetry-After: 5\r\nConnection: close\r\n\r\n{}",
+      why.size(), why);
   boost::system::error_code ec;
   socket.non_blocking(true, ec);
-  socket.write_some(asio::buffer(kBusy.data(), kBusy.size()), ec);
+  socket.write_some(asio::buffer(response), ec);
   socket.close(ec);
   if (auto suppressed = logs_->allow("http_busy")) {
-    spdlog::warn("http: refusing a connection from {}: over the connection caps [{} more]", address,
-                 *suppressed);
+    spdlog::warn("http: refusing a connection from {}: {} [{} more]", address,
+                 why.substr(0, why.size() - 1), *suppressed);
   }
+}
+
+const char* to_string(HttpRefusedBy why) {
+  switch (why) {
+    case HttpRefusedBy::kBadRequest:
+      return "bad request";
+    case HttpRefusedBy::kNotFound:
+      return "not found";
+    case HttpRefusedBy::kBadMethod:
+      return "method not allowed";
+    case HttpRefusedBy::kHeaderTooBig:
+      return "header too large";
+    case HttpRefusedBy::kOrigin:
+      return "origin not allowed";
+    case HttpRefusedBy::kBusy:
+      return "busy";
+    case HttpRefusedBy::kTimeout:
+      return "timeout";
+    case HttpRefusedBy::kCount:
+      break;
+  }
+  return "?";
+}
+
+bool host_allowed(std::string_view host, std::string_view bind) {
+  const auto loopback = [](std::string_view name) {
+    return name == "localhost" || name.starts_with("127.") || name == "[::1]" || name == "::1";
+  };
+  if (!loopback(bind)) return true;  // a public server: any name may lead to it
+  // A loopback server answers upgrades only to a loopback name, so that a page whose name
+  // an attacker points at 127.0.0.1 (DNS rebinding) cannot open it.
+  std::string_view name = host;
+  if (name.starts_with("[")) {
+    name = name.substr(0, name.find(']') + 1);
+  } else if (const size_t colon = name.rfind(':'); colon != std::string_view::npos) {
+    name = name.substr(0, colon);
+  }
+  return loopback(name);
 }
 
 }  // namespace vox::net

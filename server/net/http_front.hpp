@@ -6,8 +6,12 @@
 // - GET and HEAD only (405); a path is percent-decoded and must name a file under the
 //   static root by plain segments (`..`, `.`, `\`, NUL or an empty segment: 400), else 404;
 // - an upgrade is taken at /ws only (elsewhere 404; a plain request there: 426), and only
-//   from the page's own origin or one of `allow_origins` ("*": any); no Origin header (a
-//   program, not a page) is let in (403 otherwise);
+//   from the page's own origin or one of `allow_origins` ("*": any), and on a loopback
+//   server only to a loopback host name (DNS rebinding); no Origin header (a program, not
+//   a page) is let in (403 otherwise);
+// - a path names no dotfile, and a link under the root may not lead out of it;
+// - a keep-alive connection waits at most kKeepAliveIdle for its next request (closed
+//   quietly), and makes at most kMaxRequests;
 // - connections are capped in total and per address (503).
 // Each refusal is counted (ServerCounters::http_refused) and, rate-limited, logged.
 #pragma once
@@ -38,6 +42,12 @@ std::string static_path(std::string_view target);
 bool origin_allowed(std::string_view origin, std::string_view host,
                     const std::vector<std::string>& allow_origins);
 
+// Whether an upgrade's Host (with its port) may reach a server bound to `bind`: any, unless
+// it is bound to loopback; then only a loopback name (DNS rebinding). Pure.
+bool host_allowed(std::string_view host, std::string_view bind);
+
+const char* to_string(HttpRefusedBy why);
+
 class HttpFront {
  public:
   // A WebSocket connection accepted: its stream (handshake done) and the peer's address
@@ -59,7 +69,7 @@ class HttpFront {
  private:
   class Conn;
   void accept();  // strand_ only
-  void busy(boost::asio::ip::tcp::socket socket, const std::string& address);
+  void busy(boost::asio::ip::tcp::socket socket, const std::string& address, bool address_full);
 
   boost::asio::io_context& io_;
   boost::asio::strand<boost::asio::io_context::executor_type> strand_;
@@ -69,6 +79,7 @@ class HttpFront {
   std::shared_ptr<AdmissionGate> gate_;  // HTTP connections by address
   std::shared_ptr<const Upgraded> upgraded_;
   boost::asio::ip::tcp::acceptor acceptor_;
+  boost::asio::steady_timer retry_timer_;  // the next accept after a failed one
   uint16_t port_ = 0;
   std::shared_ptr<std::atomic<bool>> stopped_;  // shared with the connections
 };

@@ -159,6 +159,8 @@ void Server::admit_websocket(WsStream ws, std::string address) {
     socket.non_blocking(true, ec);
     ws.binary(true);
     ws.write(asio::buffer(body), ec);
+    // Then a close frame, "try again later" (not waited for: the socket does not block).
+    if (!ec) ws.close(boost::beast::websocket::close_code::try_again_later, ec);
     socket.close(ec);
     return;
   }

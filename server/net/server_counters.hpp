@@ -13,7 +13,7 @@ namespace vox::net {
 enum class RefusedBy : uint8_t { kHandshakesFull, kAddressFull, kServerFull, kToken, kCount };
 enum class DroppedBy : uint8_t { kSlowReader, kWriteTimeout, kCount };
 // WebSocket connections closed for breaking the transport's rules (ws_connection.hpp).
-enum class WsClosedBy : uint8_t { kTooBig, kText, kPingFlood, kFrameTimeout, kCount };
+enum class WsClosedBy : uint8_t { kTooBig, kText, kPingFlood, kFrameTimeout, kProtocol, kCount };
 // HTTP requests answered with an error, or connections closed before a request was whole
 // (http_front.hpp).
 enum class HttpRefusedBy : uint8_t {

@@ -55,7 +55,8 @@ struct WsConnection::State {
   std::vector<uint8_t> write_buffer;  // the next write's messages, back to back
   std::vector<size_t> message_ends;   // where each of them ends in write_buffer
   bool writing = false;
-  bool closed = false;  // close() was called
+  uint64_t write_seq = 0;  // of the write in flight: a late deadline of an earlier one is ignored
+  bool closed = false;     // close() was called
   std::optional<websocket::close_code> close_code;
   std::weak_ptr<Connection::Events> reader;  // the session reading (the ping flood's)
   double ping_tokens;
@@ -166,6 +167,10 @@ void WsConnection::read_some(std::shared_ptr<Events> owner) {
           return;
         }
         if (ec) {
+          // The peer broke the WebSocket protocol (the stream closed with 1002): counted.
+          if (ec.category() == websocket::make_error_code(websocket::error::closed).category() &&
+              ec != websocket::error::closed)
+            ServerCounters::bump(s.counters.ws_closed[static_cast<size_t>(WsClosedBy::kProtocol)]);
           owner->on_closed();
           return;
         }
@@ -233,10 +238,11 @@ void WsConnection::write(std::shared_ptr<Events> owner, std::chrono::millisecond
   State& s = *state_;
   if (s.writing || s.message_ends.empty() || !open()) return;
   s.writing = true;
+  const uint64_t seq = ++s.write_seq;
   if (deadline.count() > 0) {
     s.write_timer.expires_after(deadline);
-    s.write_timer.async_wait([this, owner](boost::system::error_code ec) {
-      if (!ec && state_->writing) owner->on_write_timeout();
+    s.write_timer.async_wait([this, owner, seq](boost::system::error_code ec) {
+      if (!ec && state_->writing && state_->write_seq == seq) owner->on_write_timeout();
     });
   }
   write_next(std::move(owner), 0, 0);
