@@ -81,10 +81,12 @@ void TcpConnection::append_serialized(std::span<const uint8_t> body) {
 void TcpConnection::write(std::shared_ptr<Events> owner, std::chrono::milliseconds deadline) {
   if (writing_ || write_buffer_.empty() || !open()) return;
   writing_ = true;
+  const uint64_t seq = ++write_seq_;
   if (deadline.count() > 0) {
     write_timer_.expires_after(deadline);
-    write_timer_.async_wait([this, owner](boost::system::error_code ec) {
-      if (!ec && writing_) owner->on_write_timeout();
+    // A deadline that fell due as its write finished is not the next write's.
+    write_timer_.async_wait([this, owner, seq](boost::system::error_code ec) {
+      if (!ec && writing_ && write_seq_ == seq) owner->on_write_timeout();
     });
   }
   asio::async_write(socket_, asio::buffer(write_buffer_),

@@ -50,6 +50,7 @@ class TcpConnection final : public Connection {
   bool frame_watch_ = false;           // frame_timer_ is armed for a partial frame
   std::vector<uint8_t> write_buffer_;  // the next write's frames; capacity reused
   bool writing_ = false;
+  uint64_t write_seq_ = 0;  // of the write in flight
 };
 
 }  // namespace vox::net
