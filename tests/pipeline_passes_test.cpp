@@ -269,9 +269,16 @@ TEST(Checkpoints, ATurnAnswersTheBatchesInFlightBeforeItStartsOrTakesInACheckpoi
   state.info[{1, 0, 0}] = {.modified = true, .unsaved = true};
   checkpoints.changed({1, 0, 0});
   checkpoints.logged(3);
-  EXPECT_TRUE(checkpoints.turn(state, t0 + seconds(9), drain).empty());
+  std::vector<CheckpointResult> done;
+  // Each finished checkpoint is heard of at once, its chunks already marked stored.
+  const auto finished = [&](const CheckpointResult& r) {
+    EXPECT_FALSE(state.info.at({1, 0, 0}).checkpointing);
+    done.push_back(r);
+  };
+  checkpoints.turn(state, t0 + seconds(9), drain, finished);
+  EXPECT_TRUE(done.empty());
   EXPECT_EQ(drains, 0);  // not due: the batches in flight go on
-  const auto done = checkpoints.turn(state, t0 + seconds(10), drain);
+  checkpoints.turn(state, t0 + seconds(10), drain, finished);
   EXPECT_EQ(drains, 1);
   ASSERT_EQ(done.size(), 1u);  // the pipeline's own connection: written and taken in
   EXPECT_TRUE(done[0].ok);
@@ -290,13 +297,16 @@ TEST(Checkpoints, TheLastOneAtStopWritesEverythingUnsaved) {
     state.info[{x, 0, 0}] = {.modified = true, .unsaved = true};
     checkpoints.changed({x, 0, 0});
   }
-  const auto done = checkpoints.last(state, 40);
+  std::vector<CheckpointResult> done;
+  const auto finished = [&](const CheckpointResult& r) { done.push_back(r); };
+  checkpoints.last(state, 40, finished);
   ASSERT_EQ(done.size(), 1u);
   EXPECT_EQ(done[0].coords.size(), 3u);
   EXPECT_EQ(store.chunks.size(), 3u);
   EXPECT_EQ(store.checkpoint_seq, 40u);
   EXPECT_FALSE(checkpoints.has_unsaved());
-  EXPECT_TRUE(checkpoints.last(state, 40).empty());  // nothing more to write
+  checkpoints.last(state, 40, finished);
+  EXPECT_EQ(done.size(), 1u);  // nothing more to write
 }
 
 TEST(LodStage, HeldBackForItsStarvationTimeItAsksForTheStoreAndARunStartsTheClockAgain) {

@@ -79,45 +79,41 @@ void Checkpoints::finish(WorldState& st, const CheckpointResult& r, Clock::time_
   failing_ = !r.ok;
 }
 
-std::vector<CheckpointResult> Checkpoints::turn(WorldState& st, Clock::time_point now,
-                                                const std::function<uint64_t()>& drain) {
-  std::vector<CheckpointResult> done;
+void Checkpoints::turn(WorldState& st, Clock::time_point now,
+                       const std::function<uint64_t()>& drain, const Finished& finished) {
   if (auto r = take_result()) {
     drain();
     finish(st, *r, now);
-    done.push_back(std::move(*r));
+    finished(*r);
   }
-  if (!due(now)) return done;
+  if (!due(now)) return;
   const uint64_t seq = drain();
   // Every applied edit, and no other; written on this thread without a second connection.
   if (auto r = start(st, seq, now)) {
     finish(st, *r, Clock::now());
-    done.push_back(std::move(*r));
+    finished(*r);
   }
-  return done;
 }
 
-std::vector<CheckpointResult> Checkpoints::last(WorldState& st, uint64_t seq) {
-  std::vector<CheckpointResult> done;
+void Checkpoints::last(WorldState& st, uint64_t seq, const Finished& finished) {
   const auto take_in = [&] {
     if (auto r = take_result()) {
       finish(st, *r, Clock::now());
-      done.push_back(std::move(*r));
+      finished(*r);
     }
   };
   wait();
   take_in();
-  if (!has_unsaved()) return done;
+  if (!has_unsaved()) return;
   const size_t chunks = unsaved_chunks();
   if (auto r = start(st, seq, Clock::now())) {
     finish(st, *r, Clock::now());
-    done.push_back(std::move(*r));
+    finished(*r);
   }
   wait();
   take_in();
   if (!has_unsaved())
     spdlog::info("checkpoint at shutdown: {} chunks through edit {}", chunks, seq);
-  return done;
 }
 
 }  // namespace vox::pipeline

@@ -68,13 +68,15 @@ class Checkpoints {
   // `drain` runs first whenever either happens: it answers every batch in flight and
   // returns the last durable edit's sequence number (a checkpoint holds every applied edit,
   // and a batch undone after a finished one was taken in would put back its chunks'
-  // "saved" flags from before: they would never be written). Returns those finished.
-  std::vector<CheckpointResult> turn(WorldState& state, Clock::time_point now,
-                                     const std::function<uint64_t()>& drain);
+  // "saved" flags from before: they would never be written). `finished` hears of each
+  // checkpoint taken in, at once (before another may start).
+  using Finished = std::function<void(const CheckpointResult&)>;
+  void turn(WorldState& state, Clock::time_point now, const std::function<uint64_t()>& drain,
+            const Finished& finished);
   // At stop, every batch answered (`seq`: the last edit): the checkpoint in flight, then
   // one of everything still unsaved, waited for, so that a restart replays nothing (if the
-  // store fails, the log still has every edit). Returns those finished.
-  std::vector<CheckpointResult> last(WorldState& state, uint64_t seq);
+  // store fails, the log still has every edit).
+  void last(WorldState& state, uint64_t seq, const Finished& finished);
   // Before chunk c of the checkpoint in flight changes (an edit, an undo).
   void preserve(world::ChunkCoord c, const world::Chunk& live) { writer_->preserve(c, live); }
   void wait() { writer_->wait(); }  // until the checkpoint in flight is written

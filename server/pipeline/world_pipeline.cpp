@@ -307,7 +307,9 @@ void WorldPipeline::run() {
   repair_regions(Clock::now(), true);
   drain_commits();
   drain_after_stop();
-  if (checkpoints_) record(checkpoints_->last(*state_, commit_->last_seq()));
+  if (checkpoints_)
+    checkpoints_->last(*state_, commit_->last_seq(),
+                       [this](const CheckpointResult& r) { record(r); });
 }
 
 // Edits, region changes and inspections, in arrival order. Without a store the batch is
@@ -542,23 +544,25 @@ void WorldPipeline::keep_memory(Clock::time_point now) {
 
 void WorldPipeline::checkpoints_turn(Clock::time_point now) {
   if (!checkpoints_) return;
-  record(checkpoints_->turn(*state_, now, [this] {
-    drain_commits();
-    return commit_->last_seq();
-  }));
+  checkpoints_->turn(
+      *state_, now,
+      [this] {
+        drain_commits();
+        return commit_->last_seq();
+      },
+      [this](const CheckpointResult& r) { record(r); });
 }
 
-void WorldPipeline::record(const std::vector<CheckpointResult>& finished) {
-  for (const CheckpointResult& r : finished) {
-    if (observer_.checkpoint) observer_.checkpoint(r.seconds, r.coords.size(), r.bytes, r.ok);
-    stats_.update([&](PipelineStats& s) {
-      s.stored_chunks = state_->stored.size();
-      s.unsaved_chunks = checkpoints_->unsaved_chunks();
-      s.checkpoints += r.ok ? 1 : 0;
-      s.checkpoint_failures += r.ok ? 0 : 1;
-      if (r.ok) s.checkpoint_seq = r.seq;
-    });
-  }
+// A checkpoint taken in, at once (the observer may read the store before the next starts).
+void WorldPipeline::record(const CheckpointResult& r) {
+  if (observer_.checkpoint) observer_.checkpoint(r.seconds, r.coords.size(), r.bytes, r.ok);
+  stats_.update([&](PipelineStats& s) {
+    s.stored_chunks = state_->stored.size();
+    s.unsaved_chunks = checkpoints_->unsaved_chunks();
+    s.checkpoints += r.ok ? 1 : 0;
+    s.checkpoint_failures += r.ok ? 0 : 1;
+    if (r.ok) s.checkpoint_seq = r.seq;
+  });
 }
 
 void WorldPipeline::count(const BatchCounts& delta) {

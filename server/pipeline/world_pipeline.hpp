@@ -118,7 +118,7 @@ class WorldPipeline {
   void lod_pass(Clock::time_point now);
   void keep_memory(Clock::time_point now);
   void checkpoints_turn(Clock::time_point now);
-  void record(const std::vector<CheckpointResult>& finished);
+  void record(const CheckpointResult& r);
   void count(const BatchCounts& delta);
   size_t resident_bytes() const;  // chunks, meshes, LOD meshes, sessions
   size_t load_work_allowed(bool edits_waiting) const;
