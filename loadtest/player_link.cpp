@@ -96,4 +96,8 @@ std::unique_ptr<PlayerLink> make_tcp_link(PlayerStrand strand, LinkTarget target
   return std::make_unique<TcpLink>(std::move(strand), std::move(target));
 }
 
+size_t ws_server_frame_bytes(size_t payload) {
+  return payload + (payload < 126 ? 2 : payload < 65536 ? 4 : 10);
+}
+
 }  // namespace vox::loadtest

@@ -1,8 +1,8 @@
 // A simulated player's connection to voxeld: the transport under one SimPlayer, so the
-// player's logic (view, edits, decoding, latency) does not depend on how the Envelopes
-// travel. TCP sends each as a length-prefixed frame (docs/PROTOCOL.md 4.1). A link is used from its
-// player's strand only: its socket's executor is that strand, so every completion handler runs
-// there too.
+// player's logic (view, edits, decoding, latency) is the same code over both. TCP sends
+// each Envelope as a length-prefixed frame; a WebSocket (GET /ws on the HTTP port) as one
+// binary message (docs/PROTOCOL.md 4.1). A link is used from its player's strand only: its
+// socket's executor is that strand, so every completion handler runs there too.
 #pragma once
 
 #include <cstdint>
@@ -21,7 +21,8 @@ using PlayerStrand = boost::asio::strand<boost::asio::io_context::executor_type>
 struct LinkTarget {
   std::string host;
   uint16_t port = 0;
-  std::string source;  // the local address to connect from; empty: any
+  std::string source;      // the local address to connect from; empty: any
+  bool websocket = false;  // ws://host:port/ws instead of TCP
 };
 
 class PlayerLink {
@@ -47,8 +48,14 @@ class PlayerLink {
 };
 
 std::unique_ptr<PlayerLink> make_tcp_link(PlayerStrand strand, LinkTarget target);
+std::unique_ptr<PlayerLink> make_ws_link(PlayerStrand strand, LinkTarget target);
 inline std::unique_ptr<PlayerLink> make_player_link(PlayerStrand strand, LinkTarget target) {
-  return make_tcp_link(std::move(strand), std::move(target));
+  return target.websocket ? make_ws_link(std::move(strand), std::move(target))
+                          : make_tcp_link(std::move(strand), std::move(target));
 }
+
+// The bytes of a server's WebSocket message of `payload` bytes on the wire: voxeld sends
+// each as one unmasked frame (no fragments), with a 2-, 4- or 10-byte header (RFC 6455 5.2).
+size_t ws_server_frame_bytes(size_t payload);
 
 }  // namespace vox::loadtest

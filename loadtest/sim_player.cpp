@@ -38,11 +38,14 @@ std::vector<uint8_t> bytes_of(const wire::Envelope& m) {
   return out;
 }
 
-// Where player `id` connects: from its own loopback address with --spread-addresses.
+// Where player `id` connects: --websocket's HTTP port or the TCP port, from its own
+// loopback address with --spread-addresses.
 LinkTarget target_of(const LoadConfig& c, int id) {
-  return {.host = c.host,
-          .port = c.port,
-          .source = c.spread_addresses ? spread_source_address(0, id) : std::string()};
+  const bool ws = c.ws_port != 0;
+  return {.host = ws ? c.ws_host : c.host,
+          .port = ws ? c.ws_port : c.port,
+          .source = c.spread_addresses ? spread_source_address(0, id) : std::string(),
+          .websocket = ws};
 }
 }  // namespace
 
