@@ -41,6 +41,10 @@ using GroundForSeed = std::function<GroundHeight(uint64_t seed)>;
 struct LoadConfig {
   std::string host = "127.0.0.1";
   uint16_t port = 7777;
+  // --websocket: the players connect to ws://ws_host:ws_port/ws (voxeld's HTTP port)
+  // instead of the TCP port above, which the verifier and the attackers still use. 0: TCP.
+  std::string ws_host;
+  uint16_t ws_port = 0;
   int players = 20;
   double duration_s = 10;
   double edit_rate = 0.5;  // edits per second per player

@@ -25,7 +25,7 @@ vox::loadtest::GroundHeight ground_for_seed(uint64_t seed) {
 
 struct Options {
   vox::loadtest::LoadConfig config;
-  std::string server, json, svg, sweep, attack, token_key;
+  std::string server, websocket, json, svg, sweep, attack, token_key;
   double sweep_limit_ms = 100, max_p99_ms = 0, max_rss_mib = 0;
   vox::loadtest::Limits limits;  // from max_p99_ms and max_rss_mib, when given
 };
@@ -35,12 +35,17 @@ namespace po = boost::program_options;
 void describe(po::options_description& opts, Options& o) {
   opts.add_options()("help,h", "show this help")(
       "server", po::value<std::string>(&o.server)->default_value("127.0.0.1:7777"),
-      "HOST:PORT of voxeld")("players", po::value<int>(&o.config.players)->default_value(20),
-                             "simulated players (1..10000)")(
-      "duration", po::value<double>(&o.config.duration_s)->default_value(10),
-      "seconds of play after the ramp")("edit-rate",
-                                        po::value<double>(&o.config.edit_rate)->default_value(0.5),
-                                        "edits per second per player")(
+      "HOST:PORT of voxeld (with --websocket: for --verify and --attack only)")(
+      "websocket", po::value<std::string>(&o.websocket),
+      "HOST:PORT of voxeld's HTTP port: the players connect over WebSocket (GET /ws, one "
+      "Envelope per binary message) instead of TCP; hostile clients (--attack) and the "
+      "--verify client stay on TCP (--server)")(
+      "players", po::value<int>(&o.config.players)->default_value(20),
+      "simulated players (1..10000)")("duration",
+                                      po::value<double>(&o.config.duration_s)->default_value(10),
+                                      "seconds of play after the ramp")(
+      "edit-rate", po::value<double>(&o.config.edit_rate)->default_value(0.5),
+      "edits per second per player")(
       "view-radius", po::value<uint32_t>(&o.config.view_radius)->default_value(4),
       "view radius in chunks (with --lod-level: how far level 0 reaches)")(
       "lod-level", po::value<uint32_t>(&o.config.lod_level)->default_value(0),
@@ -141,6 +146,23 @@ std::optional<int> check(const po::variables_map& vm, Options& o) {
   return std::nullopt;
 }
 
+// --websocket HOST:PORT, HOST an IP address (the players connect to it as given).
+void parse_websocket(Options& o) {
+  const std::string bad =
+      "--websocket must be IP:PORT with a port 1..65535, got '" + o.websocket + "'";
+  std::pair<std::string, uint16_t> hp;
+  try {
+    hp = vox::options::parse_server(o.websocket);
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument(bad);
+  }
+  boost::system::error_code ec;
+  boost::asio::ip::make_address(hp.first, ec);
+  if (ec) throw std::invalid_argument(bad);
+  o.config.ws_host = hp.first;
+  o.config.ws_port = hp.second;
+}
+
 // The command line into `o`; an exit code when no run should start (0: --help, 2: usage).
 std::optional<int> parse(int argc, char** argv, Options& o) {
   po::options_description opts("voxel-loadtest options");
@@ -156,8 +178,11 @@ std::optional<int> parse(int argc, char** argv, Options& o) {
     const auto [host, port] = vox::options::parse_server(o.server);
     o.config.host = host;
     o.config.port = port;
-    if (o.config.spread_addresses && host != "127.0.0.1")
-      throw std::invalid_argument("--spread-addresses needs --server 127.0.0.1:PORT");
+    if (vm.count("websocket")) parse_websocket(o);
+    if (o.config.spread_addresses &&
+        (host != "127.0.0.1" || (o.config.ws_port && o.config.ws_host != "127.0.0.1")))
+      throw std::invalid_argument(
+          "--spread-addresses needs --server (and --websocket) 127.0.0.1:PORT");
   } catch (const std::exception& e) {
     return usage(std::string(e.what()) + " (see --help)");
   }

@@ -32,11 +32,20 @@ std::string status_name(int status) {
   return name.empty() ? "status " + std::to_string(status) : name;
 }
 
-std::vector<uint8_t> frame_of(const wire::Envelope& m) {
-  std::vector<uint8_t> out;
-  const std::string body = m.SerializeAsString();
-  proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, out);
+std::vector<uint8_t> bytes_of(const wire::Envelope& m) {
+  std::vector<uint8_t> out(m.ByteSizeLong());
+  m.SerializeWithCachedSizesToArray(out.data());
   return out;
+}
+
+// Where player `id` connects: --websocket's HTTP port or the TCP port, from its own
+// loopback address with --spread-addresses.
+LinkTarget target_of(const LoadConfig& c, int id) {
+  const bool ws = c.ws_port != 0;
+  return {.host = ws ? c.ws_host : c.host,
+          .port = ws ? c.ws_port : c.port,
+          .source = c.spread_addresses ? spread_source_address(0, id) : std::string(),
+          .websocket = ws};
 }
 }  // namespace
 
@@ -45,7 +54,7 @@ SimPlayer::SimPlayer(LoadTest& test, int id, uint32_t seed)
       id_(id),
       rng_(seed),
       strand_(asio::make_strand(test.io())),
-      socket_(strand_),
+      link_(make_player_link(strand_, target_of(test.config(), id))),
       timer_(strand_) {
   const auto half_width = static_cast<float>(test.half_width());
   std::uniform_real_distribution<float> spawn(-half_width, half_width);
@@ -73,24 +82,11 @@ void SimPlayer::start() {
 }
 
 void SimPlayer::connect() {
-  asio::ip::tcp::endpoint endpoint(asio::ip::make_address(test_.config().host),
-                                   test_.config().port);
-  if (test_.config().spread_addresses) {
-    boost::system::error_code ec;
-    socket_.open(endpoint.protocol(), ec);
-    if (!ec) socket_.bind({asio::ip::make_address(spread_source_address(0, id_)), 0}, ec);
-    if (ec) {
-      fail("cannot bind a spread source address: " + ec.message(), true);
+  link_->connect([self = shared_from_this()](const std::string& error) {
+    if (!error.empty()) {
+      self->fail(error, true);
       return;
     }
-  }
-  socket_.async_connect(endpoint, [self = shared_from_this()](boost::system::error_code ec) {
-    if (ec) {
-      self->fail("connect failed: " + ec.message(), true);
-      return;
-    }
-    boost::system::error_code ignored;
-    self->socket_.set_option(asio::ip::tcp::no_delay(true), ignored);
     wire::Envelope hello;
     hello.mutable_hello()->set_protocol_version(1);
     hello.mutable_hello()->set_player_name("sim" + std::to_string(self->id_));
@@ -105,9 +101,7 @@ void SimPlayer::close() {
   closed_ = true;
   gone_.store(true, std::memory_order_release);
   timer_.cancel();
-  boost::system::error_code ignored;
-  socket_.shutdown(asio::ip::tcp::socket::shutdown_both, ignored);
-  socket_.close(ignored);
+  link_->close();
 }
 
 void SimPlayer::fail(const std::string& cause, bool disconnect) {
@@ -122,51 +116,47 @@ void SimPlayer::fail(const std::string& cause, bool disconnect) {
 
 void SimPlayer::send(const wire::Envelope& m) {
   if (closed_) return;
-  outbox_.push_back(frame_of(m));
+  outbox_.push_back(bytes_of(m));
   write_more();
 }
 
 void SimPlayer::write_more() {
   if (writing_ || outbox_.empty() || closed_) return;
   writing_ = true;
-  asio::async_write(socket_, asio::buffer(outbox_.front()),
-                    [self = shared_from_this()](boost::system::error_code ec, size_t) {
-                      self->writing_ = false;
-                      if (ec) {
-                        if (!self->test_.stopping())
-                          self->fail("write failed: " + ec.message(), true);
-                        return;
-                      }
-                      self->outbox_.pop_front();
-                      self->write_more();
-                    });
+  link_->write(outbox_.front(), [self = shared_from_this()](const std::string& error) {
+    self->writing_ = false;
+    if (!error.empty()) {
+      if (!self->test_.stopping()) self->fail(error, true);
+      return;
+    }
+    self->outbox_.pop_front();
+    self->write_more();
+  });
 }
 
 void SimPlayer::read_more() {
-  socket_.async_read_some(
-      asio::buffer(buffer_), [self = shared_from_this()](boost::system::error_code ec, size_t n) {
-        if (ec) {
-          if (!self->closed_ && !self->test_.stopping()) self->fail("closed by the server", true);
-          return;
-        }
-        self->test_.count_bytes(n);
-        self->decoder_.feed({self->buffer_.data(), n});
-        while (auto frame = self->decoder_.next()) {
-          wire::Envelope m;
-          if (!m.ParseFromArray(frame->data(), static_cast<int>(frame->size()))) {
-            self->fail("unparsable message from the server", true);
-            return;
-          }
-          self->test_.count_message();
-          self->on_message(m);
-          if (self->closed_) return;
-        }
-        if (!self->decoder_.error().empty()) {
-          self->fail("frame over the limit from the server", true);
-          return;
-        }
-        self->read_more();
-      });
+  link_->read([self = shared_from_this()](const std::string& error, size_t n) {
+    if (!error.empty()) {
+      if (!self->closed_ && !self->test_.stopping()) self->fail(error, true);
+      return;
+    }
+    self->test_.count_bytes(n);
+    while (auto bytes = self->link_->next_message()) {
+      wire::Envelope m;
+      if (!m.ParseFromArray(bytes->data(), static_cast<int>(bytes->size()))) {
+        self->fail("unparsable message from the server", true);
+        return;
+      }
+      self->test_.count_message();
+      self->on_message(m);
+      if (self->closed_) return;
+    }
+    if (!self->link_->message_error().empty()) {
+      self->fail(self->link_->message_error(), true);
+      return;
+    }
+    self->read_more();
+  });
 }
 
 bool SimPlayer::in_view(const ChunkKey& k) const {

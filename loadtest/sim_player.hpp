@@ -1,6 +1,7 @@
-// One simulated player: an asynchronous client on the load test's event loop. Its socket
-// and timer live on its own strand, so its handlers never run at once on two threads;
-// only its published position is read by other players.
+// One simulated player: an asynchronous client on the load test's event loop. Its
+// connection (a PlayerLink: TCP or WebSocket) and timer live on its own strand, so its
+// handlers never run at once on two threads; only its published position is read by
+// other players.
 #pragma once
 
 #include <atomic>
@@ -12,7 +13,7 @@
 
 #include "client/chunk_cache.hpp"
 #include "loadtest/load_test.hpp"
-#include "proto/framing.hpp"
+#include "loadtest/player_link.hpp"
 
 namespace vox::loadtest {
 
@@ -61,12 +62,10 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   LoadTest& test_;
   const int id_;
   std::mt19937 rng_;
-  boost::asio::strand<boost::asio::io_context::executor_type> strand_;
-  boost::asio::ip::tcp::socket socket_;
+  PlayerStrand strand_;
+  std::unique_ptr<PlayerLink> link_;
   boost::asio::steady_timer timer_;
-  proto::FrameDecoder decoder_{64 << 20};
-  std::array<uint8_t, 64 * 1024> buffer_;
-  std::deque<std::vector<uint8_t>> outbox_;
+  std::deque<std::vector<uint8_t>> outbox_;  // serialized Envelopes, the front one being written
   bool writing_ = false, welcomed_ = false, closed_ = false;
 
   float x_ = 0, y_ = 0, z_ = 0, heading_ = 0;

@@ -10,8 +10,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <regex>
 #include <set>
+#include <sstream>
 
 #include "client/asio.hpp"
 #include "loadtest/attack_mix.hpp"
@@ -81,6 +83,73 @@ TEST(LoadTest, TwentyPlayersFiveSecondsWithoutErrorsAndVerified) {
                                    "\"p99\":([0-9.]+),\"p999\":([0-9.]+),\"max\":([0-9.]+),"
                                    "\"count\":(\\d+)")));
   EXPECT_GT(std::stoul(m[6]), 0u) << "some edits' deltas were measured";
+}
+
+// voxeld's /metrics as name -> value (a blocking HTTP/1.0 GET on 127.0.0.1).
+std::map<std::string, double> scrape_metrics(uint16_t port) {
+  boost::asio::io_context io;
+  boost::asio::ip::tcp::socket socket(io);
+  socket.connect({boost::asio::ip::make_address("127.0.0.1"), port});
+  const std::string request = "GET /metrics HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
+  boost::asio::write(socket, boost::asio::buffer(request));
+  std::string response;
+  boost::system::error_code ec;
+  boost::asio::read(socket, boost::asio::dynamic_buffer(response), ec);  // to the close
+  std::map<std::string, double> out;
+  std::istringstream lines(response.substr(std::min(response.size(), response.find("\r\n\r\n"))));
+  for (std::string line; std::getline(lines, line);) {
+    const size_t space = line.rfind(' ');
+    if (line.empty() || line[0] == '#' || space == std::string::npos) continue;
+    out[line.substr(0, space)] = std::atof(line.c_str() + space + 1);
+  }
+  return out;
+}
+
+// --websocket: the same players over voxeld's HTTP port (GET /ws, one Envelope per binary
+// message), each from its own address; the verifier's fresh client stays on TCP, so it
+// also checks that both transports carry the same meshes.
+TEST(LoadTest, PlayersOverWebSocketAnswerEditsDecodeMeshesAndVerify) {
+  vox::test::ServerProcess server(
+      {"--load-budget", "0", "--http-port", "auto", "--metrics-port", "0"});
+  const int players = 5;
+  const TesterRun run =
+      run_tester(server, "--websocket 127.0.0.1:" + std::to_string(server.http_port()) +
+                             " --players " + std::to_string(players) +
+                             " --duration 3 --ramp 0.5 --edit-rate 2 --view-radius 3"
+                             " --spread-addresses --verify");
+  EXPECT_EQ(run.exit_code, 0);
+  const std::string& text = run.json;
+  for (const std::string& key :
+       {"\"players_connected\":" + std::to_string(players), std::string("\"errors\":0"),
+        std::string("\"disconnects\":0"), std::string("\"decode_failures\":0"),
+        std::string("\"verified\":true"), std::string("\"verify_mismatches\":0")}) {
+    EXPECT_NE(text.find(key), std::string::npos) << key << " in " << text;
+  }
+  std::smatch m;
+  ASSERT_TRUE(
+      std::regex_search(text, m, std::regex("\"edit_to_result_ms\":\\{[^}]*\"count\":(\\d+)")));
+  EXPECT_GT(std::stoul(m[1]), 0u) << "edits were answered";
+  ASSERT_TRUE(std::regex_search(text, m, std::regex("\"chunks_streamed\":(\\d+)")));
+  EXPECT_GT(std::stoul(m[1]), 0u) << "meshes were decoded";
+  // The players came over WebSocket, not over the TCP port (the verifier's clients did).
+  auto metrics = scrape_metrics(server.metrics_port());
+  EXPECT_EQ(metrics["voxeld_websocket_upgrades_total"], players);
+}
+
+TEST(LoadTest, ABadWebSocketAddressIsAUsageErrorWithExitCode2) {
+  for (const char* value : {"127.0.0.1", "127.0.0.1:0", "127.0.0.1:70000", "localhost:80", ":80",
+                            "127.0.0.1:80x", ""}) {
+    const std::string cmd = std::string(VOXEL_LOADTEST_PATH) + " --websocket '" + value +
+                            "' --players 1 --duration 1 > /dev/null 2>&1";
+    const int status = std::system(cmd.c_str());
+    ASSERT_TRUE(WIFEXITED(status)) << value;
+    EXPECT_EQ(WEXITSTATUS(status), 2) << value;
+  }
+  const std::string remote = std::string(VOXEL_LOADTEST_PATH) +
+                             " --websocket 10.0.0.1:80 --spread-addresses > /dev/null 2>&1";
+  const int status = std::system(remote.c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2) << "--spread-addresses needs a loopback --websocket";
 }
 
 }  // namespace

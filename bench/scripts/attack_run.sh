@@ -9,6 +9,8 @@
 # EDIT_RATE=N: edits per second per player (default 0.5).
 # With the default world store it also prints commit p50/p99, how long the pipeline stood waiting for commits,
 # edits per commit and the world's size; VOXELD_ARGS=--in-memory runs without a store.
+# TRANSPORT=ws: voxeld also serves HTTP on a free port (--http-port auto) and the players
+# connect there over WebSocket (voxel-loadtest --websocket); hostile clients stay on TCP.
 # Output files: /tmp/voxeld_bench/NAME.{json,log,metrics}.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -18,17 +20,23 @@ name="$1" players="$2" duration="$3" attack="${4:-}"
 shift 3; [ $# -gt 0 ] && shift
 [ "${1:-}" = "--" ] && shift
 out=/tmp/voxeld_bench; mkdir -p "$out"
-rm -f "$out/$name".{port,mport}
+rm -f "$out/$name".{port,mport,hport}
+http_args=()
+[ "${TRANSPORT:-tcp}" = ws ] && http_args=(--http-port auto --http-port-file "$out/$name.hport")
 rm -rf "$out/$name.world"
 LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --world "$out/$name.world" --port 0 --port-file "$out/$name.port" --metrics-port 0 --metrics-port-file "$out/$name.mport" \
   --max-memory 1G --max-clients 4000 --stats-interval 10 \
-  ${VOXELD_ARGS:-} > "$out/$name.log" 2>&1 &
+  "${http_args[@]}" ${VOXELD_ARGS:-} > "$out/$name.log" 2>&1 &
 server=$!
 trap 'kill $server 2>/dev/null || true' EXIT
 for _ in $(seq 100); do [ -s "$out/$name.mport" ] && break; sleep 0.1; done
 args=(--server "127.0.0.1:$(cat "$out/$name.port")" --players "$players" --duration "$duration" --ramp 10
       --edit-rate "${EDIT_RATE:-0.5}" --view-radius 4 --server-pid "$server" --json "$out/$name.json" --spread-addresses)
 [ -n "$attack" ] && args+=(--attack "$attack")
+if [ "${TRANSPORT:-tcp}" = ws ]; then
+  for _ in $(seq 100); do [ -s "$out/$name.hport" ] && break; sleep 0.1; done
+  args+=(--websocket "127.0.0.1:$(cat "$out/$name.hport")")
+fi
 set +e
 "$bin/voxel-loadtest" "${args[@]}" "$@" > "$out/$name.table" 2> "$out/$name.progress"
 code=$?
