@@ -23,6 +23,8 @@ test("URL parameters are read, and a value that does not parse keeps its default
   assert.equal(parseParams("?lod=0", http).lod, 0);
   assert.equal(parseParams("?server=10.0.0.1:7780", http).server, "ws://10.0.0.1:7780/ws");
   assert.equal(parseParams("?server=wss://h/x/ws", http).server, "wss://h/x/ws");
+  assert.equal(parseParams("?server=10.0.0.1:7780", { protocol: "https:", host: "game.example" }).server, "wss://10.0.0.1:7780/ws",
+    "an https page may open only wss://");
 });
 
 test("a view goes out at once, then after 16 voxels of movement and never twice in 500 ms", () => {

@@ -41,7 +41,8 @@ export function parseParams(search, location) {
   let name = (q.get("name") ?? "").trim();
   if (!name || new TextEncoder().encode(name).length > 32) name = "viewer";
   let server = q.get("server") ?? "";
-  if (server && !/^wss?:\/\//.test(server)) server = `ws://${server}`;
+  // A bare host:port takes the page's scheme: a page served over https may open only wss://.
+  if (server && !/^wss?:\/\//.test(server)) server = `${location.protocol === "https:" ? "wss" : "ws"}://${server}`;
   if (server && !/\/ws$/.test(server) && new URL(server).pathname === "/") server = server.replace(/\/?$/, "/ws");
   return {
     server: server || defaultServerUrl(location),
