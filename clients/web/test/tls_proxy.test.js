@@ -6,74 +6,21 @@
 // own origin and gets its view and an edit's result, and a page of another origin is refused
 // (403). Skipped when haproxy or openssl is missing.
 import assert from "node:assert/strict";
-import { execFileSync, spawn } from "node:child_process";
-import { existsSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from "node:fs";
+import { writeFileSync } from "node:fs";
 import { get } from "node:https";
-import { createServer } from "node:net";
-import { tmpdir } from "node:os";
 import { join } from "node:path";
 import { after, before, test } from "node:test";
 import WebSocket from "ws";
 import { Client } from "../src/client.js";
 import { connectWebSocket } from "../src/transport_ws.js";
+import { Services, haproxy, openssl } from "./services.js";
 import { findTool } from "./tools.js";
 
 const voxeld = findTool("VOXELD", "voxeld");
-const haproxy = ["/usr/sbin/haproxy", "/usr/bin/haproxy"].find((p) => existsSync(p));
-const openssl = ["/usr/bin/openssl"].find((p) => existsSync(p));
 const skip = !voxeld ? "voxeld not built" : !haproxy ? "haproxy not installed" : !openssl ? "openssl not installed" : false;
 
-const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
-let dir;
-const children = [];
+let services;
 let tlsPort;
-let logs = "";
-
-function start(cmd, args) {
-  const child = spawn(cmd, args, { cwd: dir, stdio: ["ignore", "pipe", "pipe"] });
-  child.stdout.on("data", (d) => { logs += d; });
-  child.stderr.on("data", (d) => { logs += d; });
-  children.push(child);
-  return child;
-}
-
-async function readPort(file, child, what) {
-  const deadline = Date.now() + 20000;
-  for (;;) {
-    if (child.exitCode !== null) throw new Error(`${what} exited ${child.exitCode}: ${logs}`);
-    if (Date.now() > deadline) throw new Error(`${what} wrote no port in 20 s: ${logs}`);
-    try {
-      const port = Number(readFileSync(file, "utf8").trim());
-      if (port) return port;
-    } catch {}
-    await sleep(50);
-  }
-}
-
-function freePort() {
-  return new Promise((resolve, reject) => {
-    const s = createServer();
-    s.once("error", reject);
-    s.listen(0, "127.0.0.1", () => {
-      const { port } = s.address();
-      s.close(() => resolve(port));
-    });
-  });
-}
-
-// Waits until the proxy accepts TLS connections.
-async function waitTls(port) {
-  const deadline = Date.now() + 20000;
-  while (Date.now() < deadline) {
-    try {
-      await httpsGet(port, "/");
-      return;
-    } catch {
-      await sleep(100);
-    }
-  }
-  throw new Error(`haproxy did not answer on ${port}: ${logs}`);
-}
 
 function httpsGet(port, path) {
   return new Promise((resolve, reject) => {
@@ -89,34 +36,13 @@ function httpsGet(port, path) {
 
 before(async () => {
   if (skip) return;
-  dir = mkdtempSync(join(tmpdir(), "voxeld-tls-"));
-  writeFileSync(join(dir, "index.html"), "<!doctype html><title>viewer</title>");
-  execFileSync(openssl, ["req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "1", "-subj", "/CN=127.0.0.1",
-    "-keyout", join(dir, "key.pem"), "-out", join(dir, "cert.pem")], { stdio: "ignore" });
-  writeFileSync(join(dir, "site.pem"), readFileSync(join(dir, "cert.pem")) + readFileSync(join(dir, "key.pem")));
-  const server = start(voxeld, ["--port", "0", "--port-file", "port", "--http-port", "auto", "--http-port-file", "http_port",
-    "--http-root", dir, "--in-memory", "--threads", "2", "--log-level", "warn"]);
-  const httpPort = await readPort(join(dir, "http_port"), server, "voxeld");
-  tlsPort = await freePort();
-  // The README's configuration, with these ports.
-  const config = readFileSync(new URL("../../../docs/haproxy.cfg", import.meta.url), "utf8")
-    .replace("/etc/haproxy/voxeld.pem", join(dir, "site.pem"))
-    .replace("0.0.0.0:443", `127.0.0.1:${tlsPort}`)
-    .replace("127.0.0.1:7780", `127.0.0.1:${httpPort}`)
-    .replace(/^\s*(log|chroot|user|group|daemon|stats socket).*$/gm, "");
-  writeFileSync(join(dir, "haproxy.cfg"), config);
-  start(haproxy, ["-db", "-f", join(dir, "haproxy.cfg")]);
-  await waitTls(tlsPort);
+  services = new Services("voxeld-tls-");
+  writeFileSync(join(services.dir, "index.html"), "<!doctype html><title>viewer</title>");
+  tlsPort = await services.tlsProxy(await services.voxeld(voxeld, services.dir));
 });
 
 after(async () => {
-  for (const c of children) {
-    if (c.exitCode === null) {
-      c.kill("SIGKILL");
-      await new Promise((r) => c.once("exit", r));
-    }
-  }
-  if (dir) rmSync(dir, { recursive: true, force: true });
+  await services?.stop();
 });
 
 test("the page loads over HTTPS through the proxy", { skip, timeout: 30000 }, async () => {
