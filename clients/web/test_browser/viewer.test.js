@@ -14,21 +14,13 @@ import { dirname, join } from "node:path";
 import { fileURLToPath } from "node:url";
 import { after, before, test } from "node:test";
 import { findTool } from "../test/tools.js";
+import { SIZE, launch, missing } from "./chromium.js";
 
 const here = dirname(fileURLToPath(import.meta.url));
-const chromium = process.env.CHROMIUM || "/usr/bin/chromium";
 const voxeld = findTool("VOXELD", "voxeld");
-let puppeteer = null;
-try {
-  puppeteer = (await import("puppeteer-core")).default;
-} catch {}
-const skip = !existsSync(chromium) ? `no Chromium at ${chromium}`
-  : !puppeteer ? "puppeteer-core not installed (npm ci)"
+const skip = missing ? missing
   : !voxeld ? "voxeld not built (VOXELD unset)" : false;
 
-const SIZE = { width: 960, height: 540 };
-const FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-  "--ignore-gpu-blocklist", `--window-size=${SIZE.width},${SIZE.height}`];
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 let dir;
@@ -93,7 +85,7 @@ before(async () => {
   });
   const httpPort = await readPort(join(dir, "http-port"), Date.now() + 20000);
   base = `http://127.0.0.1:${httpPort}/`;
-  browser = await puppeteer.launch({ executablePath: chromium, headless: true, args: FLAGS, timeout: 30000, protocolTimeout: 60000 });
+  browser = await launch();
 });
 
 after(async () => {

@@ -14,23 +14,15 @@ import { fileURLToPath } from "node:url";
 import { after, before, test } from "node:test";
 import { Services, haproxy, openssl } from "../test/services.js";
 import { findTool } from "../test/tools.js";
+import { SIZE, launch, missing } from "./chromium.js";
 
 const here = dirname(fileURLToPath(import.meta.url));
-const chromium = process.env.CHROMIUM || "/usr/bin/chromium";
 const voxeld = findTool("VOXELD", "voxeld");
-let puppeteer = null;
-try {
-  puppeteer = (await import("puppeteer-core")).default;
-} catch {}
-const skip = !existsSync(chromium) ? `no Chromium at ${chromium}`
-  : !puppeteer ? "puppeteer-core not installed (npm ci)"
+const skip = missing ? missing
   : !voxeld ? "voxeld not built (VOXELD unset)"
   : !haproxy ? "haproxy not installed"
   : !openssl ? "openssl not installed" : false;
 
-const SIZE = { width: 960, height: 540 };
-const FLAGS = ["--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-  "--ignore-gpu-blocklist", `--window-size=${SIZE.width},${SIZE.height}`, "--ignore-certificate-errors"];
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 let services;
@@ -44,7 +36,7 @@ before(async () => {
   const web = join(services.dir, "web");
   execFileSync(process.execPath, [join(here, "..", "tools", "build_viewer.js"), web], { stdio: "pipe", timeout: 60000 });
   tlsPort = await services.tlsProxy(await services.voxeld(voxeld, web));
-  browser = await puppeteer.launch({ executablePath: chromium, headless: true, args: FLAGS, timeout: 30000, protocolTimeout: 60000 });
+  browser = await launch(["--ignore-certificate-errors"]);
 });
 
 after(async () => {
