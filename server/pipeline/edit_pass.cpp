@@ -111,4 +111,18 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
   return b;
 }
 
+void refuse_undone(EditBatch& b) {
+  for (EditResult& r : b.results) {
+    if (!r.accepted) continue;
+    r.accepted = false;
+    r.reason = world::RefusalReason::kStorageUnavailable;
+    r.message = kStorageMessage;
+  }
+  for (auto& d : b.edit_dirty) d.clear();
+  b.counts.edits_applied -= b.accepted.size();
+  b.counts.edits_refused += b.accepted.size();
+  b.dirty.clear();
+  b.fresh.clear();
+}
+
 }  // namespace vox::pipeline

@@ -36,4 +36,8 @@ struct EditRules {
 EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, ProtectedRegions& regions,
                       const EditRules& rules, Clock::time_point now);
 
+// A batch the store could not make durable (it was undone): each edit it accepted is
+// refused STORAGE_UNAVAILABLE, and nothing of it is to be published.
+void refuse_undone(EditBatch& b);
+
 }  // namespace vox::pipeline

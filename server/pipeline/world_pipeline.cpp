@@ -340,17 +340,7 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
 // rolled back), then answers its edits and notifies the subscribers.
 void WorldPipeline::answer(EditBatch& b, bool durable) {
   if (!durable) {
-    for (EditResult& r : b.results) {
-      if (!r.accepted) continue;
-      r.accepted = false;
-      r.reason = world::RefusalReason::kStorageUnavailable;
-      r.message = kStorageMessage;
-    }
-    for (auto& d : b.edit_dirty) d.clear();
-    b.counts.edits_applied -= b.accepted.size();
-    b.counts.edits_refused += b.accepted.size();
-    b.dirty.clear();
-    b.fresh.clear();
+    refuse_undone(b);
   } else {
     if (checkpoints_) checkpoints_->logged(b.accepted.size());
     // The coarse levels re-mesh what durable edits changed.
