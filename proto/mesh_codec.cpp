@@ -8,10 +8,6 @@
 
 #include "proto/crc32c.hpp"
 
-#if defined(__SSE__)
-#include <xmmintrin.h>
-#endif
-
 namespace vox::proto {
 namespace {
 
@@ -125,17 +121,6 @@ std::array<uint8_t, 2> encode_normal(const mesh::Vec3f& n) {
   return {q(px), q(py)};
 }
 
-// 1/sqrt(x) to about 1e-7 relative: the hardware estimate refined by one Newton step
-// (much cheaper than sqrt and divide, which dominated decoding).
-inline float inverse_sqrt(float x) {
-#if defined(__SSE__)
-  const float r = _mm_cvtss_f32(_mm_rsqrt_ss(_mm_set_ss(x)));
-  return r * (1.5f - 0.5f * x * r * r);
-#else
-  return 1.0f / std::sqrt(x);
-#endif
-}
-
 namespace {
 inline mesh::Vec3f decode_normal_inline(uint8_t u, uint8_t v) {
   const float px = static_cast<float>(u) * (2.0f / 255.0f) - 1.0f,
@@ -145,8 +130,10 @@ inline mesh::Vec3f decode_normal_inline(uint8_t u, uint8_t v) {
   const float fx = (1.0f - std::fabs(py)) * std::copysign(1.0f, px),
               fy = (1.0f - std::fabs(px)) * std::copysign(1.0f, py);
   const float x = z < 0.0f ? fx : px, y = z < 0.0f ? fy : py;
-  const float inv = inverse_sqrt(x * x + y * y + z * z);
-  return {x * inv, y * inv, z * inv};
+  // Correctly rounded float32 operations in a fixed order (-ffp-contract=off, no
+  // reciprocal estimate), so that every decoder following PROTOCOL §2.4 gets these bits.
+  const float length = std::sqrt(x * x + y * y + z * z);
+  return {x / length, y / length, z / length};
 }
 }  // namespace
 

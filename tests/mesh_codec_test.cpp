@@ -4,6 +4,7 @@
 #include <link.h>
 #include <zstd.h>
 
+#include <bit>
 #include <cmath>
 #include <random>
 #include <span>
@@ -396,6 +397,27 @@ TEST(MeshCodec, OctahedralNormalsRoundTrip) {
     const auto e = encode_normal(n);
     const auto d = decode_normal(e[0], e[1]);
     ASSERT_GT(n.x * d.x + n.y * d.y + n.z * d.z, 0.999f);
+  }
+}
+
+// Normals were normalised with the processor's reciprocal-square-root estimate, whose
+// bits differ between x86 processors and which no JavaScript client can reproduce. The
+// bits below are PROTOCOL §2.4's float32 steps, worked out apart (Python, rounding to
+// float32 after every operation).
+TEST(MeshCodec, DecodedNormalsAreTheSameBitsOnEveryProcessor) {
+  auto bits = [](float f) { return std::bit_cast<uint32_t>(f); };
+  const struct {
+    uint8_t u, v;
+    uint32_t x, y, z;
+  } cases[] = {{0, 0, 0x80000000, 0x80000000, 0xbf800000},
+               {191, 159, 0x3f507749, 0x3eced313, 0x3ed563e9},
+               {128, 128, 0x3b81848b, 0x3b81848b, 0x3f7ffefa},
+               {3, 250, 0xbd2b2d32, 0x3ccd6998, 0xbf7fb21f}};
+  for (const auto& c : cases) {
+    const auto d = decode_normal(c.u, c.v);
+    EXPECT_EQ(bits(d.x), c.x) << int{c.u} << "," << int{c.v};
+    EXPECT_EQ(bits(d.y), c.y) << int{c.u} << "," << int{c.v};
+    EXPECT_EQ(bits(d.z), c.z) << int{c.u} << "," << int{c.v};
   }
 }
 

@@ -113,9 +113,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void update_memory();
 
   const std::unique_ptr<Connection> connection_;
-  asio::strand<asio::any_io_executor>& strand_;  // the connection's
+  Strand& strand_;  // the connection's
   // Close: the grace an Error gets to leave before the connection closes.
-  asio::steady_timer handshake_timer_, idle_timer_, close_timer_, read_pause_timer_, view_timer_;
+  StrandTimer handshake_timer_, idle_timer_, close_timer_, read_pause_timer_, view_timer_;
   const std::string address_;  // the peer's address, as admitted
   const uint64_t id_;
   SessionServices services_;  // before config_, which refers into it

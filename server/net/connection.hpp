@@ -43,7 +43,7 @@ class Connection {
   };
 
   virtual ~Connection() = default;
-  virtual boost::asio::strand<boost::asio::any_io_executor>& strand() = 0;
+  virtual Strand& strand() = 0;
   virtual bool open() const = 0;
 
   // Handles the messages already received, then reads on, until on_message says stop, a

@@ -121,7 +121,7 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     std::shared_ptr<std::atomic<bool>> stopped;
   };
 
-  Conn(asio::ip::tcp::socket socket, std::string address, Shared shared)
+  Conn(StrandSocket socket, std::string address, Shared shared)
       : stream_(std::move(socket)), address_(std::move(address)), s_(std::move(shared)) {}
   ~Conn() { s_.gate->release(address_, false); }
 
@@ -311,7 +311,7 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     stream_.close();
   }
 
-  beast::tcp_stream stream_;
+  WsStream::next_layer_type stream_;
   std::optional<WsStream> ws_;
   const std::string address_;
   Shared s_;
@@ -362,7 +362,7 @@ void HttpFront::stop() {
 
 void HttpFront::accept() {
   acceptor_.async_accept(
-      asio::make_strand(io_), [this](boost::system::error_code ec, asio::ip::tcp::socket socket) {
+      Strand(io_.get_executor()), [this](boost::system::error_code ec, StrandSocket socket) {
         if (ec == asio::error::operation_aborted) return;
         if (!ec) {
           boost::system::error_code peer_ec;
@@ -396,7 +396,7 @@ void HttpFront::accept() {
 }
 
 // Over the caps: a 503 written without waiting (a full socket buffer just loses it).
-void HttpFront::busy(asio::ip::tcp::socket socket, const std::string& address, bool address_full) {
+void HttpFront::busy(StrandSocket socket, const std::string& address, bool address_full) {
   ServerCounters::bump(counters_.http_refused[static_cast<size_t>(HttpRefusedBy::kBusy)]);
   const std::string_view why = address_full ? "too many connections from your address\n"
                                             : "too many connections to this server\n";

@@ -69,7 +69,7 @@ class HttpFront {
  private:
   class Conn;
   void accept();  // strand_ only
-  void busy(boost::asio::ip::tcp::socket socket, const std::string& address, bool address_full);
+  void busy(StrandSocket socket, const std::string& address, bool address_full);
 
   boost::asio::io_context& io_;
   boost::asio::strand<boost::asio::io_context::executor_type> strand_;

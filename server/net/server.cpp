@@ -104,7 +104,7 @@ void Server::start_http() {
 
 void Server::accept() {
   acceptor_.async_accept(
-      asio::make_strand(io_), [this](boost::system::error_code ec, asio::ip::tcp::socket socket) {
+      Strand(io_.get_executor()), [this](boost::system::error_code ec, StrandSocket socket) {
         if (ec) {
           if (ec == asio::error::operation_aborted) return;
           // Out of descriptors and the like: log (rate-limited) and go on accepting.
@@ -120,7 +120,7 @@ void Server::accept() {
 
 // Admission: handshaking connections have their own cap, each address its own; players
 // are counted at Hello (the session asks the gate).
-void Server::admit(asio::ip::tcp::socket socket) {
+void Server::admit(StrandSocket socket) {
   boost::system::error_code ec;
   const auto peer = socket.remote_endpoint(ec);
   if (ec) return;  // already gone
@@ -164,11 +164,9 @@ void Server::admit_websocket(WsStream ws, std::string address) {
     socket.close(ec);
     return;
   }
-  auto strand = asio::make_strand(ws.get_executor());
   auto session = std::make_shared<ClientSession>(
-      std::make_unique<WsConnection>(std::move(ws), std::move(strand),
-                                     shared_config_->max_frame_bytes, shared_config_->frame_timeout,
-                                     counters_),
+      std::make_unique<WsConnection>(std::move(ws), shared_config_->max_frame_bytes,
+                                     shared_config_->frame_timeout, counters_),
       std::move(address), next_session_++, pipeline_,
       SessionServices{counters_, shared_config_, admission_, logs_, players_});
   add_session(session);
@@ -176,7 +174,7 @@ void Server::admit_websocket(WsStream ws, std::string address) {
 
 // A refused connection gets one Error frame, written without waiting (a full socket
 // buffer just loses it), and is closed at once: it costs no session and no timer.
-void Server::refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why) {
+void Server::refuse(StrandSocket socket, AdmissionControl::Verdict why) {
   const std::string body = refusal(why);
   std::vector<uint8_t> frame;
   proto::append_frame({reinterpret_cast<const uint8_t*>(body.data()), body.size()}, frame);

@@ -39,8 +39,8 @@ class Server {
  private:
   // All strand_ only.
   void accept();
-  void admit(asio::ip::tcp::socket socket);
-  void refuse(asio::ip::tcp::socket socket, AdmissionControl::Verdict why);
+  void admit(StrandSocket socket);
+  void refuse(StrandSocket socket, AdmissionControl::Verdict why);
   // A WebSocket connection's strand (not strand_): admitted like a TCP one.
   void admit_websocket(WsStream ws, std::string address);
   void start_http();

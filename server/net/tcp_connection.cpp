@@ -7,10 +7,10 @@ namespace vox::net {
 namespace asio = boost::asio;
 using Clock = std::chrono::steady_clock;
 
-TcpConnection::TcpConnection(asio::ip::tcp::socket socket, size_t max_frame_bytes,
+TcpConnection::TcpConnection(StrandSocket socket, size_t max_frame_bytes,
                              std::chrono::milliseconds frame_timeout)
     : socket_(std::move(socket)),
-      strand_(asio::make_strand(socket_.get_executor())),
+      strand_(socket_.get_executor()),
       frame_timer_(strand_),
       write_timer_(strand_),
       frame_timeout_(frame_timeout),
@@ -40,34 +40,34 @@ void TcpConnection::read(std::shared_ptr<Events> owner) {
 void TcpConnection::read_some(std::shared_ptr<Events> owner) {
   if (reading_ || !open()) return;
   reading_ = true;
-  socket_.async_read_some(
-      asio::buffer(read_buffer_),
-      asio::bind_executor(strand_, [this, owner = std::move(owner)](boost::system::error_code ec,
-                                                                    size_t n) mutable {
-        reading_ = false;
-        if (ec) {
-          owner->on_closed();
-          return;
-        }
-        decoder_.feed({read_buffer_.data(), n});
-        read(std::move(owner));
-      }));
+  socket_.async_read_some(asio::buffer(read_buffer_),
+                          with_memory(memory_, [this, owner = std::move(owner)](
+                                                   boost::system::error_code ec, size_t n) mutable {
+                            reading_ = false;
+                            if (ec) {
+                              owner->on_closed();
+                              return;
+                            }
+                            decoder_.feed({read_buffer_.data(), n});
+                            read(std::move(owner));
+                          }));
 }
 
 void TcpConnection::watch_partial_frame(std::shared_ptr<Events> owner) {
   if (!partial_since_ || frame_watch_) return;
   frame_watch_ = true;
   frame_timer_.expires_at(*partial_since_ + frame_timeout_);
-  frame_timer_.async_wait([this, owner = std::move(owner)](boost::system::error_code ec) mutable {
-    frame_watch_ = false;
-    if (ec || !open() || !partial_since_) return;
-    if (Clock::now() >= *partial_since_ + frame_timeout_) {
-      owner->on_stream_error(wire::Error::FRAME_TIMEOUT,
-                             "a frame was not completed within the frame timeout");
-      return;
-    }
-    watch_partial_frame(std::move(owner));  // a later frame is partial now: watch it
-  });
+  frame_timer_.async_wait(
+      with_memory(memory_, [this, owner = std::move(owner)](boost::system::error_code ec) mutable {
+        frame_watch_ = false;
+        if (ec || !open() || !partial_since_) return;
+        if (Clock::now() >= *partial_since_ + frame_timeout_) {
+          owner->on_stream_error(wire::Error::FRAME_TIMEOUT,
+                                 "a frame was not completed within the frame timeout");
+          return;
+        }
+        watch_partial_frame(std::move(owner));  // a later frame is partial now: watch it
+      }));
 }
 
 void TcpConnection::append(const google::protobuf::MessageLite& message) {
@@ -85,13 +85,13 @@ void TcpConnection::write(std::shared_ptr<Events> owner, std::chrono::millisecon
   if (deadline.count() > 0) {
     write_timer_.expires_after(deadline);
     // A deadline that fell due as its write finished is not the next write's.
-    write_timer_.async_wait([this, owner, seq](boost::system::error_code ec) {
+    write_timer_.async_wait(with_memory(memory_, [this, owner, seq](boost::system::error_code ec) {
       if (!ec && writing_ && write_seq_ == seq) owner->on_write_timeout();
-    });
+    }));
   }
   asio::async_write(socket_, asio::buffer(write_buffer_),
-                    asio::bind_executor(strand_, [this, owner = std::move(owner)](
-                                                     boost::system::error_code ec, size_t n) {
+                    with_memory(memory_, [this, owner = std::move(owner)](
+                                             boost::system::error_code ec, size_t n) {
                       writing_ = false;
                       write_timer_.cancel();
                       write_buffer_.clear();  // capacity kept for the next write

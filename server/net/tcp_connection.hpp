@@ -3,7 +3,8 @@
 // (FRAME_TOO_LARGE), and a frame that has started must finish within `frame_timeout`, so
 // a client cannot hold a connection by trickling bytes (FRAME_TIMEOUT). Reads go through
 // a 16 KiB buffer; a write sends every message appended since the last one in one
-// async_write, under a deadline. Strand only (see connection.hpp).
+// async_write, under a deadline; their operations' memory is reused (handler_memory.hpp).
+// Strand only (see connection.hpp).
 #pragma once
 
 #include <array>
@@ -12,15 +13,16 @@
 
 #include "proto/framing.hpp"
 #include "server/net/connection.hpp"
+#include "server/net/handler_memory.hpp"
 
 namespace vox::net {
 
 class TcpConnection final : public Connection {
  public:
-  TcpConnection(boost::asio::ip::tcp::socket socket, size_t max_frame_bytes,
+  TcpConnection(StrandSocket socket, size_t max_frame_bytes,
                 std::chrono::milliseconds frame_timeout);
 
-  boost::asio::strand<boost::asio::any_io_executor>& strand() override { return strand_; }
+  Strand& strand() override { return strand_; }
   bool open() const override { return socket_.is_open(); }
   void read(std::shared_ptr<Events> owner) override;
   bool writing() const override { return writing_; }
@@ -30,7 +32,8 @@ class TcpConnection final : public Connection {
   void write(std::shared_ptr<Events> owner, std::chrono::milliseconds deadline) override;
   void close() override;
   size_t memory_bytes() const override {
-    return write_buffer_.capacity() + decoder_.buffered() + read_buffer_.size();
+    return write_buffer_.capacity() + decoder_.buffered() + read_buffer_.size() +
+           HandlerMemory::bytes();
   }
   size_t bytes_buffered() const override { return decoder_.buffered(); }
 
@@ -38,9 +41,10 @@ class TcpConnection final : public Connection {
   void read_some(std::shared_ptr<Events> owner);
   void watch_partial_frame(std::shared_ptr<Events> owner);
 
-  boost::asio::ip::tcp::socket socket_;
-  boost::asio::strand<boost::asio::any_io_executor> strand_;
-  boost::asio::steady_timer frame_timer_, write_timer_;
+  HandlerMemory::Owner memory_ = HandlerMemory::make();  // for its operations
+  StrandSocket socket_;
+  Strand strand_;  // the socket's executor
+  StrandTimer frame_timer_, write_timer_;
   const std::chrono::milliseconds frame_timeout_;
   proto::FrameDecoder decoder_;
   std::array<uint8_t, 16 * 1024> read_buffer_;

@@ -29,10 +29,9 @@ void close_socket(WsStream& ws) {
 }  // namespace
 
 struct WsConnection::State {
-  State(WsStream s, asio::strand<asio::any_io_executor> st, std::chrono::milliseconds timeout,
-        ServerCounters& c)
+  State(WsStream s, std::chrono::milliseconds timeout, ServerCounters& c)
       : ws(std::move(s)),
-        strand(std::move(st)),
+        strand(ws.get_executor()),
         frame_timer(strand),
         write_timer(strand),
         close_timer(strand),
@@ -41,9 +40,10 @@ struct WsConnection::State {
         ping_tokens(kMaxPingsPerSecond),
         ping_at(Clock::now()) {}
 
+  HandlerMemory::Owner memory = HandlerMemory::make();  // for the operations below
   WsStream ws;
-  asio::strand<asio::any_io_executor> strand;
-  asio::steady_timer frame_timer, write_timer, close_timer;
+  Strand strand;  // the stream's executor
+  StrandTimer frame_timer, write_timer, close_timer;
   const std::chrono::milliseconds frame_timeout;
   ServerCounters& counters;
   beast::flat_buffer message;  // the message being received (whole once message_ready)
@@ -72,10 +72,9 @@ void WsConnection::ping_flood(State& s, Events& owner) {
   owner.on_closed();
 }
 
-WsConnection::WsConnection(WsStream ws, asio::strand<asio::any_io_executor> strand,
-                           size_t max_frame_bytes, std::chrono::milliseconds frame_timeout,
-                           ServerCounters& counters)
-    : state_(std::make_shared<State>(std::move(ws), std::move(strand), frame_timeout, counters)) {
+WsConnection::WsConnection(WsStream ws, size_t max_frame_bytes,
+                           std::chrono::milliseconds frame_timeout, ServerCounters& counters)
+    : state_(std::make_shared<State>(std::move(ws), frame_timeout, counters)) {
   State& s = *state_;
   s.ws.binary(true);
   s.ws.auto_fragment(false);
@@ -113,7 +112,7 @@ WsConnection::~WsConnection() {
   if (!state_->closed) close_socket(state_->ws);
 }
 
-asio::strand<asio::any_io_executor>& WsConnection::strand() { return state_->strand; }
+Strand& WsConnection::strand() { return state_->strand; }
 
 bool WsConnection::open() const {
   return !state_->closed && beast::get_lowest_layer(state_->ws).socket().is_open();
@@ -126,7 +125,7 @@ size_t WsConnection::pending_bytes() const { return state_->write_buffer.size();
 size_t WsConnection::memory_bytes() const {
   const State& s = *state_;
   return s.write_buffer.capacity() + s.message_ends.capacity() * sizeof(size_t) +
-         s.message.capacity() + kReadChunk;
+         s.message.capacity() + kReadChunk + HandlerMemory::bytes();
 }
 
 size_t WsConnection::bytes_buffered() const {
@@ -154,7 +153,8 @@ void WsConnection::read_some(std::shared_ptr<Events> owner) {
   s.reader = owner;
   s.ws.async_read_some(
       s.message, kReadChunk,
-      [this, owner = std::move(owner)](boost::system::error_code ec, size_t) mutable {
+      with_memory(s.memory, [this, owner = std::move(owner)](boost::system::error_code ec,
+                                                             size_t) mutable {
         State& s = *state_;
         s.reading = false;
         if (s.ping_flood) {
@@ -187,7 +187,7 @@ void WsConnection::read_some(std::shared_ptr<Events> owner) {
         }
         s.message_ready = true;
         read(std::move(owner));
-      });
+      }));
 }
 
 void WsConnection::stream_error(const std::shared_ptr<Events>& owner, wire::Error::Code code,
@@ -206,17 +206,18 @@ void WsConnection::watch_partial_message(std::shared_ptr<Events> owner) {
   if (!s.partial_since || s.frame_watch) return;
   s.frame_watch = true;
   s.frame_timer.expires_at(*s.partial_since + s.frame_timeout);
-  s.frame_timer.async_wait([this, owner = std::move(owner)](boost::system::error_code ec) mutable {
-    State& s = *state_;
-    s.frame_watch = false;
-    if (ec || !open() || !s.partial_since) return;
-    if (Clock::now() >= *s.partial_since + s.frame_timeout) {
-      stream_error(owner, wire::Error::FRAME_TIMEOUT, websocket::close_code::policy_error,
-                   "a message was not completed within the frame timeout");
-      return;
-    }
-    watch_partial_message(std::move(owner));  // a later message is partial now: watch it
-  });
+  s.frame_timer.async_wait(
+      with_memory(s.memory, [this, owner = std::move(owner)](boost::system::error_code ec) mutable {
+        State& s = *state_;
+        s.frame_watch = false;
+        if (ec || !open() || !s.partial_since) return;
+        if (Clock::now() >= *s.partial_since + s.frame_timeout) {
+          stream_error(owner, wire::Error::FRAME_TIMEOUT, websocket::close_code::policy_error,
+                       "a message was not completed within the frame timeout");
+          return;
+        }
+        watch_partial_message(std::move(owner));  // a later message is partial now: watch it
+      }));
 }
 
 void WsConnection::append(const google::protobuf::MessageLite& message) {
@@ -241,9 +242,10 @@ void WsConnection::write(std::shared_ptr<Events> owner, std::chrono::millisecond
   const uint64_t seq = ++s.write_seq;
   if (deadline.count() > 0) {
     s.write_timer.expires_after(deadline);
-    s.write_timer.async_wait([this, owner, seq](boost::system::error_code ec) {
-      if (!ec && state_->writing && state_->write_seq == seq) owner->on_write_timeout();
-    });
+    s.write_timer.async_wait(
+        with_memory(s.memory, [this, owner, seq](boost::system::error_code ec) {
+          if (!ec && state_->writing && state_->write_seq == seq) owner->on_write_timeout();
+        }));
   }
   write_next(std::move(owner), 0, 0);
 }
@@ -254,8 +256,8 @@ void WsConnection::write_next(std::shared_ptr<Events> owner, size_t index, size_
   const size_t begin = index == 0 ? 0 : s.message_ends[index - 1];
   const size_t end = s.message_ends[index];
   s.ws.async_write(asio::buffer(s.write_buffer.data() + begin, end - begin),
-                   [this, owner = std::move(owner), index, written](boost::system::error_code ec,
-                                                                    size_t n) mutable {
+                   with_memory(s.memory, [this, owner = std::move(owner), index, written](
+                                             boost::system::error_code ec, size_t n) mutable {
                      State& s = *state_;
                      if (!ec && index + 1 < s.message_ends.size()) {
                        write_next(std::move(owner), index + 1, written + n);
@@ -270,7 +272,7 @@ void WsConnection::write_next(std::shared_ptr<Events> owner, size_t index, size_
                        return;
                      }
                      owner->on_written(written + n);
-                   });
+                   }));
 }
 
 void WsConnection::close() {

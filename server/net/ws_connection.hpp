@@ -5,7 +5,8 @@
 // has started must finish within `frame_timeout` (FRAME_TIMEOUT), and more pings than
 // kMaxPingsPerSecond (with a burst of as many) close the connection (close code 1008).
 // A write sends every message appended since the last one, each as its own binary
-// message, under one deadline. Strand only (see connection.hpp): the stream's executor is
+// message, under one deadline; their operations' memory is reused (handler_memory.hpp).
+// Strand only (see connection.hpp): the stream's executor is
 // the strand its connection was accepted on, and strand() wraps it, so the session's
 // handlers and the stream's run one at a time.
 //
@@ -20,23 +21,24 @@
 #include <vector>
 
 #include "server/net/connection.hpp"
+#include "server/net/handler_memory.hpp"
 #include "server/net/server_counters.hpp"
 
 namespace vox::net {
 
-using WsStream = boost::beast::websocket::stream<boost::beast::tcp_stream>;
+using WsStream = boost::beast::websocket::stream<
+    boost::beast::basic_stream<boost::asio::ip::tcp, Strand, boost::beast::unlimited_rate_policy>>;
 
 class WsConnection final : public Connection {
  public:
   static constexpr double kMaxPingsPerSecond = 10;
 
-  // `ws` has completed its handshake; its executor is `strand`. `counters`: outlive it.
-  WsConnection(WsStream ws, boost::asio::strand<boost::asio::any_io_executor> strand,
-               size_t max_frame_bytes, std::chrono::milliseconds frame_timeout,
+  // `ws` has completed its handshake (its executor is the strand). `counters`: outlive it.
+  WsConnection(WsStream ws, size_t max_frame_bytes, std::chrono::milliseconds frame_timeout,
                ServerCounters& counters);
   ~WsConnection() override;
 
-  boost::asio::strand<boost::asio::any_io_executor>& strand() override;
+  Strand& strand() override;
   bool open() const override;
   void read(std::shared_ptr<Events> owner) override;
   bool writing() const override;

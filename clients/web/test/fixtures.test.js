@@ -1,10 +1,8 @@
 // The decoder against the C++ codec (clients/web/tools/mesh_fixtures.cpp): for terrain
 // chunks in format 1, an empty and a full chunk, an odd-sized block, chunks with dropped
 // triangles and level-of-detail chunks in format 2 with and without seams, the JS decoder
-// gives the C++ decoder's positions (float32 bits), materials and indices exactly, and its
-// normals within 2.5e-7 (the C++ normalisation is an approximate reciprocal square root,
-// see README "Where PROTOCOL.md was unclear"). The server's zstd frames, full and delta,
-// decompress to its encoding.
+// gives the C++ decoder's positions and normals (float32 bits), materials and indices
+// exactly. The server's zstd frames, full and delta, decompress to its encoding.
 import assert from "node:assert/strict";
 import { execFileSync } from "node:child_process";
 import { mkdtempSync, readFileSync, rmSync } from "node:fs";
@@ -19,7 +17,6 @@ import { findTool } from "./tools.js";
 
 const tool = findTool("VOXEL_MESH_FIXTURES", "voxel_mesh_fixtures");
 const skip = tool ? false : "voxel_mesh_fixtures not built (VOXEL_MESH_FIXTURES unset)";
-const NORMAL_TOLERANCE = 2.5e-7;
 let dir;
 let names = [];
 const fixture = (name) => ({
@@ -60,34 +57,27 @@ test("every fixture decodes to the C++ decoder's mesh", { skip }, () => {
     assert.deepEqual([...new Uint32Array(m.positions.buffer)], want.positions, `${name}: positions, float32 bits`);
     assert.deepEqual([...m.materials], want.materials, `${name}: materials`);
     assert.deepEqual([...m.indices], want.indices, `${name}: indices`);
-    const wantNormals = new Float32Array(Uint32Array.from(want.normals).buffer);
-    for (let i = 0; i < wantNormals.length; i++) {
-      assert.ok(Math.abs(m.normals[i] - wantNormals[i]) <= NORMAL_TOLERANCE, `${name}: normal component ${i}: ${m.normals[i]} vs ${wantNormals[i]}`);
-    }
+    assert.deepEqual([...new Uint32Array(m.normals.buffer)], want.normals, `${name}: normals, float32 bits`);
   }
 });
 
-test("all 65,536 octahedral normals within 2.5e-7 of the C++ decode_normal", { skip }, () => {
+test("all 65,536 octahedral normals are the C++ decode_normal's, bit for bit", { skip }, () => {
   const raw = readFileSync(join(dir, "normals.bin"));
   const want = new Float32Array(raw.buffer.slice(raw.byteOffset, raw.byteOffset + raw.length));
   // Decode each (u, v) through a one-vertex format-1 mesh: the worked example with its normal bytes replaced.
   const ex = Uint8Array.from(Buffer.from("01010101030000000100000000000000030101000000020202bf9f9f9fbf9f030000e42739aa", "hex"));
-  let exact = 0;
+  const bits = new Uint32Array(want.buffer);
   for (let u = 0; u < 256; u++) {
     for (let v = 0; v < 256; v++) {
       ex[25] = u;
       ex[28] = v;
-      const n = decodeMesh(fixCrc(ex)).normals;
-      let same = true;
+      const n = new Uint32Array(decodeMesh(fixCrc(ex)).normals.buffer);
       for (let j = 0; j < 3; j++) {
-        const w = want[3 * (256 * u + v) + j];
-        assert.ok(Math.abs(n[j] - w) <= NORMAL_TOLERANCE, `(${u}, ${v})[${j}]: ${n[j]} vs ${w}`);
-        same &&= n[j] === w;
+        const w = bits[3 * (256 * u + v) + j];
+        if (n[j] !== w) assert.fail(`(${u}, ${v})[${j}]: bits ${n[j].toString(16)}, C++ ${w.toString(16)}`);
       }
-      exact += same;
     }
   }
-  assert.ok(exact > 10000, `${exact} bit-identical`);
 });
 
 test("every truncation of a seamed format-2 chunk is refused; so is a seam index past the end", { skip }, () => {
