@@ -123,6 +123,8 @@ TEST(VoxeldFlags, EachBadFlagIsRefusedWithItsOwnLine) {
       {{"--max-memory=-1"}, "--max-memory must be bytes"},
       {{"--max-memory", "63M"}, "--max-memory must be bytes"},
       {{"--store", "mysql://x"}, "--store must be a postgresql:// URI"},
+      {{"--http-trusted-proxy", "proxy.example"},
+       "--http-trusted-proxy must be an IP address such as 127.0.0.1 (got 'proxy.example')"},
   };
   for (const auto& [args, message] : cases) {
     const Parsed p = parse(args);

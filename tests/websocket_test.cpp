@@ -32,10 +32,16 @@ bool run_until(asio::io_context& io, const bool& done, std::chrono::milliseconds
 
 // A WebSocket client of /ws, every wait bounded.
 struct WsClient {
-  explicit WsClient(uint16_t port, std::string origin = {}) : ws(io) {
+  // `forwarded_for`: an X-Forwarded-For header, as a proxy in front adds it; `host`: the
+  // Host header, when not 127.0.0.1:port.
+  explicit WsClient(uint16_t port, std::string origin = {}, std::string forwarded_for = {},
+                    std::string host = {})
+      : ws(io) {
     beast::get_lowest_layer(ws).connect({asio::ip::make_address("127.0.0.1"), port});
-    ws.set_option(websocket::stream_base::decorator([origin](websocket::request_type& req) {
+    ws.set_option(websocket::stream_base::decorator([=](websocket::request_type& req) {
       if (!origin.empty()) req.set(beast::http::field::origin, origin);
+      if (!forwarded_for.empty()) req.set("X-Forwarded-For", forwarded_for);
+      if (!host.empty()) req.set(beast::http::field::host, host);
     }));
     bool done = false;
     ws.async_handshake("127.0.0.1:" + std::to_string(port), "/ws",
@@ -198,6 +204,20 @@ TEST(HttpRules, ALoopbackServerTakesUpgradesOnlyToALoopbackNameAgainstDnsRebindi
   EXPECT_FALSE(net::host_allowed("evil.example:7780", "127.0.0.1"));
   EXPECT_FALSE(net::host_allowed("localhost.evil.example", "127.0.0.1"));
   EXPECT_TRUE(net::host_allowed("game.example", "0.0.0.0"));  // a public server
+}
+
+TEST(HttpRules, TheForwardedClientIsTheRightmostEntryThatIsNotATrustedProxy) {
+  const std::vector<std::string> trusted = {"127.0.0.1", "10.0.0.2"};
+  EXPECT_EQ(net::forwarded_client("203.0.113.7", trusted), "203.0.113.7");
+  // A client may send its own header: the proxy appends, so only the rightmost is believed.
+  EXPECT_EQ(net::forwarded_client("1.2.3.4, 203.0.113.7", trusted), "203.0.113.7");
+  EXPECT_EQ(net::forwarded_client("198.51.100.1,203.0.113.7, 10.0.0.2", trusted), "203.0.113.7");
+  EXPECT_EQ(net::forwarded_client("2001:db8::1", trusted), "2001:db8::/64");
+  EXPECT_EQ(net::forwarded_client("[2001:db8::1]", trusted), "2001:db8::/64");
+  EXPECT_EQ(net::forwarded_client("::ffff:203.0.113.7", trusted), "203.0.113.7");
+  EXPECT_EQ(net::forwarded_client("127.0.0.1", trusted), "127.0.0.1");  // all trusted
+  for (const char* bad : {"", " ", "unknown", "203.0.113.7, nope", "203.0.113.7:4000", "1.2.3.4,,"})
+    EXPECT_EQ(net::forwarded_client(bad, trusted), std::nullopt) << bad;
 }
 
 TEST(WebSocket, APlayerJoinsGetsItsViewAndEditsAsOverTcp) {
@@ -408,6 +428,55 @@ TEST(Http, ASlowRequestIsClosedAtTheRequestTimeoutWhilePlayersGoOn) {
     run_until(io, done, 5s);
   }
   EXPECT_EQ(closed, slow.size());
+}
+
+}  // namespace
+}  // namespace vox::test
+
+namespace vox::test {
+namespace {
+
+// Hello on `ws`; whether it was welcomed (else refused with TOO_MANY_CONNECTIONS).
+bool welcomed(WsClient& ws) {
+  if (ws.handshake_error) return false;
+  ws.send(client::make_hello("browser"));
+  auto m = ws.wait_for([](const wire::Envelope& e) { return e.has_welcome() || e.has_error(); });
+  if (m && m->has_error()) {
+    EXPECT_EQ(m->error().code(), wire::Error::TOO_MANY_CONNECTIONS);
+  }
+  return m && m->has_welcome();
+}
+
+// Behind a TLS proxy every browser came from the proxy's address, so one address's cap
+// held the whole server. A trusted proxy's players are capped by the client it names.
+TEST(WebSocket, BehindATrustedProxyEachClientIsCappedByItsOwnAddress) {
+  ServerProcess server({"--http-port", "auto", "--in-memory", "--max-per-address", "1",
+                        "--http-trusted-proxy", "127.0.0.1"});
+  // Pages of https://play.example, whose upgrades the proxy passes on with their Host.
+  WsClient a(server.http_port(), "https://play.example", "203.0.113.5", "play.example");
+  WsClient b(server.http_port(), "https://play.example", "198.51.100.1, 203.0.113.6",
+             "play.example");
+  EXPECT_TRUE(welcomed(a));
+  EXPECT_TRUE(welcomed(b));
+  WsClient again(server.http_port(), {}, "203.0.113.5");
+  EXPECT_FALSE(welcomed(again)) << "a second player from 203.0.113.5";
+  WsClient proxy_itself(server.http_port());  // no header: the proxy's own address
+  EXPECT_TRUE(welcomed(proxy_itself));
+  // An entry that is not an address is refused at the upgrade.
+  WsClient garbled(server.http_port(), {}, "not-an-address");
+  EXPECT_TRUE(garbled.handshake_error);
+  // Without the header, a page naming another host is still refused (DNS rebinding).
+  WsClient rebound(server.http_port(), "http://evil.example", {}, "evil.example");
+  EXPECT_TRUE(rebound.handshake_error);
+}
+
+// Without --http-trusted-proxy the header is anybody's to write: it is ignored.
+TEST(WebSocket, XForwardedForFromAnUntrustedPeerIsIgnored) {
+  ServerProcess server({"--http-port", "auto", "--in-memory", "--max-per-address", "1"});
+  WsClient a(server.http_port(), {}, "203.0.113.5");
+  WsClient b(server.http_port(), {}, "203.0.113.6");
+  EXPECT_TRUE(welcomed(a));
+  EXPECT_FALSE(welcomed(b)) << "127.0.0.1's second player";
 }
 
 }  // namespace

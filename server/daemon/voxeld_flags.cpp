@@ -9,6 +9,7 @@
 
 #include "options/option_values.hpp"
 #include "server/auth/player_token.hpp"
+#include "server/net/address_key.hpp"
 #include "server/store/world_store.hpp"
 
 namespace vox::daemon {
@@ -26,6 +27,7 @@ struct RawFlags {
   int metrics_port = -1;
   std::string http_port = "7780", http_root;
   std::vector<std::string> http_origins;
+  std::vector<std::string> http_proxies;
 };
 
 po::options_description describe(VoxeldConfig& c, RawFlags& r) {
@@ -47,6 +49,10 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
   add("http-allow-origin", po::value<std::vector<std::string>>(&r.http_origins)->composing(),
       "a page origin (https://game.example) allowed to open the WebSocket besides the "
       "server's own; repeat for more; * allows any");
+  add("http-trusted-proxy", po::value<std::vector<std::string>>(&r.http_proxies)->composing(),
+      "the IP address of a proxy in front of the HTTP port (a TLS terminator): its "
+      "WebSocket players are the clients its X-Forwarded-For names, each capped by its own "
+      "address; repeat for more");
   add("metrics-port", po::value<int>(&r.metrics_port),
       "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)");
   add("metrics-port-file", po::value<std::string>(&c.metrics_port_file),
@@ -188,6 +194,13 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
          "--http-allow-origin must be * or an origin such as https://game.example (got '" + origin +
              "')");
   }
+  std::vector<std::string> proxies;
+  for (const std::string& proxy : r.http_proxies) {
+    boost::system::error_code ec;
+    const auto address = boost::asio::ip::make_address(proxy, ec);
+    rule(!ec, "--http-trusted-proxy must be an IP address such as 127.0.0.1 (got '" + proxy + "')");
+    if (!ec) proxies.push_back(net::address_key(address));
+  }
   rule(r.checkpoint_s >= 0.01 && r.checkpoint_s <= 86400,
        fmt::format("--checkpoint-interval must be 0.01..86400 (got {})", r.checkpoint_s));
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
@@ -248,9 +261,10 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
     http.port = static_cast<uint16_t>(*http_port);
     http.root = r.http_root;
     http.allow_origins = r.http_origins;
+    http.trusted_proxies = std::move(proxies);
     http.request_timeout = net.handshake_timeout;
     // A page takes a few connections: the HTTP cap per address follows the game's, at least
-    // 32 (behind a TLS proxy, where every player has the proxy's address, set both to 0).
+    // 32 (a trusted proxy has none).
     http.max_per_address =
         net.max_per_address == 0 ? 0 : std::max<size_t>(32, 2 * net.max_per_address);
     net.http = std::move(http);

@@ -2,13 +2,13 @@
 
 namespace vox::net {
 
-AdmissionControl::Verdict AdmissionControl::connect(const std::string& address) {
+AdmissionControl::Verdict AdmissionControl::connect(const std::string& address, bool capped) {
   if (handshaking_ >= limits_.max_handshaking) return Verdict::kHandshakesFull;
   auto it = per_address_.find(address);
   const Count from = it == per_address_.end() ? Count{} : it->second;
-  if (limits_.max_per_address != 0 && from.all >= limits_.max_per_address)
+  if (capped && limits_.max_per_address != 0 && from.all >= limits_.max_per_address)
     return Verdict::kAddressFull;
-  if (limits_.max_handshaking_per_address != 0 &&
+  if (capped && limits_.max_handshaking_per_address != 0 &&
       from.handshaking >= limits_.max_handshaking_per_address)
     return Verdict::kAddressFull;
   Count& c = per_address_[address];

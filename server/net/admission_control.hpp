@@ -32,8 +32,9 @@ class AdmissionControl {
   const AdmissionLimits& limits() const { return limits_; }
 
   // A new connection from `address`; on kAdmit it counts as handshaking until promote()
-  // or release().
-  Verdict connect(const std::string& address);
+  // or release(). Not `capped`: only the totals apply (a trusted proxy's connections, each
+  // a different client).
+  Verdict connect(const std::string& address, bool capped = true);
   // Its Hello arrived: kAdmit makes it a player; kServerFull leaves it handshaking (the
   // caller closes it and calls release).
   Verdict promote(const std::string& address);
@@ -60,9 +61,9 @@ const char* to_string(AdmissionControl::Verdict v);
 class AdmissionGate {
  public:
   explicit AdmissionGate(AdmissionLimits limits) : control_(limits) {}
-  AdmissionControl::Verdict connect(const std::string& address) {
+  AdmissionControl::Verdict connect(const std::string& address, bool capped = true) {
     std::lock_guard lock(mutex_);
-    return control_.connect(address);
+    return control_.connect(address, capped);
   }
   AdmissionControl::Verdict promote(const std::string& address) {
     std::lock_guard lock(mutex_);

@@ -18,8 +18,12 @@ struct HttpConfig {
   // build it.
   std::filesystem::path root;
   std::vector<std::string> allow_origins;  // besides the page's own origin; "*": any
-  size_t max_connections = 256;            // HTTP connections open at once (0: no cap)
-  size_t max_per_address = 32;             // of them from one address (0: no cap)
+  // Address keys (address_key.hpp) of proxies in front (a TLS terminator): a connection
+  // from one has no per-address HTTP cap, and its upgrade's player is the client its
+  // X-Forwarded-For names.
+  std::vector<std::string> trusted_proxies;
+  size_t max_connections = 256;  // HTTP connections open at once (0: no cap)
+  size_t max_per_address = 32;   // of them from one address (0: no cap)
   std::chrono::milliseconds request_timeout{5000};
   size_t max_header_bytes = 8 * 1024;
   size_t max_file_bytes = size_t{64} << 20;  // larger files are not served (404)

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <atomic>
 #include <boost/beast/http.hpp>
 #include <optional>
@@ -121,8 +122,12 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     std::shared_ptr<std::atomic<bool>> stopped;
   };
 
-  Conn(StrandSocket socket, std::string address, Shared shared)
-      : stream_(std::move(socket)), address_(std::move(address)), s_(std::move(shared)) {}
+  // `proxy`: the peer is a trusted proxy.
+  Conn(StrandSocket socket, std::string address, bool proxy, Shared shared)
+      : stream_(std::move(socket)),
+        address_(std::move(address)),
+        proxy_(proxy),
+        s_(std::move(shared)) {}
   ~Conn() { s_.gate->release(address_, false); }
 
   void start() { read_request(); }
@@ -178,11 +183,31 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
       return respond_error(http::status::upgrade_required, HttpRefusedBy::kBadRequest,
                            "/ws takes a WebSocket upgrade",
                            Header{http::field::upgrade, "websocket"});
+    // The player's address: behind a trusted proxy, the client X-Forwarded-For names.
+    std::string player = address_;
+    std::string forwarded;
+    if (proxy_) {
+      const auto [first, last] = req.equal_range("X-Forwarded-For");
+      for (auto field = first; field != last; ++field) {
+        if (!forwarded.empty()) forwarded += ',';
+        forwarded.append(field->value().data(), field->value().size());
+      }
+      if (!forwarded.empty()) {
+        auto client = forwarded_client(forwarded, s_.config->trusted_proxies);
+        if (!client)
+          return respond_error(http::status::bad_request, HttpRefusedBy::kBadRequest,
+                               "X-Forwarded-For from the proxy names no IP address");
+        player = std::move(*client);
+      }
+    }
+    // A proxied upgrade carries the public host name; a page cannot add X-Forwarded-For
+    // (DNS rebinding comes straight from the browser).
     const auto origin = req[http::field::origin];
     const auto host = req[http::field::host];
     if (!origin_allowed({origin.data(), origin.size()}, {host.data(), host.size()},
                         s_.config->allow_origins) ||
-        (!origin.empty() && !host_allowed({host.data(), host.size()}, s_.config->bind))) {
+        (!origin.empty() && forwarded.empty() &&
+         !host_allowed({host.data(), host.size()}, s_.config->bind))) {
       return respond_error(http::status::forbidden, HttpRefusedBy::kOrigin,
                            "WebSocket connections from this origin are not allowed "
                            "(--http-allow-origin)");
@@ -196,20 +221,21 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     ws_->set_option(timeouts);
     ws_->set_option(websocket::stream_base::decorator(
         [](websocket::response_type& res) { res.set(http::field::server, "voxeld"); }));
-    ws_->async_accept(req, [self = shared_from_this()](beast::error_code ec) {
-      if (ec) {  // the stream closes with this connection
-        if (ec == beast::error::timeout) {
-          self->refused(HttpRefusedBy::kTimeout, "a slow upgrade");
-        } else {
-          self->refused(HttpRefusedBy::kBadRequest, "a WebSocket handshake that is not valid");
-        }
-        return;
-      }
-      ServerCounters::bump(self->s_.counters.ws_upgrades);
-      if (self->s_.stopped->load()) return;
-      (*self->s_.upgraded)(std::move(*self->ws_), self->address_);
-      self->ws_.reset();
-    });
+    ws_->async_accept(
+        req, [self = shared_from_this(), player = std::move(player)](beast::error_code ec) mutable {
+          if (ec) {  // the stream closes with this connection
+            if (ec == beast::error::timeout) {
+              self->refused(HttpRefusedBy::kTimeout, "a slow upgrade");
+            } else {
+              self->refused(HttpRefusedBy::kBadRequest, "a WebSocket handshake that is not valid");
+            }
+            return;
+          }
+          ServerCounters::bump(self->s_.counters.ws_upgrades);
+          if (self->s_.stopped->load()) return;
+          (*self->s_.upgraded)(std::move(*self->ws_), std::move(player));
+          self->ws_.reset();
+        });
   }
 
   void serve_file(const std::string& path) {
@@ -313,7 +339,8 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
 
   WsStream::next_layer_type stream_;
   std::optional<WsStream> ws_;
-  const std::string address_;
+  const std::string address_;  // the peer's key: the gate's
+  const bool proxy_;
   Shared s_;
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::empty_body>> parser_;
@@ -369,13 +396,15 @@ void HttpFront::accept() {
           const auto peer = socket.remote_endpoint(peer_ec);
           if (!peer_ec) {
             std::string address = address_key(peer.address());
-            if (const auto verdict = gate_->connect(address);
+            const auto& proxies = config_->trusted_proxies;
+            const bool proxy = std::find(proxies.begin(), proxies.end(), address) != proxies.end();
+            if (const auto verdict = gate_->connect(address, !proxy);
                 verdict != AdmissionControl::Verdict::kAdmit) {
               busy(std::move(socket), address, verdict == AdmissionControl::Verdict::kAddressFull);
             } else {
               socket.set_option(asio::ip::tcp::no_delay(true), peer_ec);
               std::make_shared<Conn>(
-                  std::move(socket), std::move(address),
+                  std::move(socket), std::move(address), proxy,
                   Conn::Shared{config_, counters_, logs_, gate_, upgraded_, stopped_})
                   ->start();
             }
@@ -450,6 +479,29 @@ bool host_allowed(std::string_view host, std::string_view bind) {
     name = name.substr(0, colon);
   }
   return loopback(name);
+}
+
+std::optional<std::string> forwarded_client(std::string_view forwarded_for,
+                                            const std::vector<std::string>& trusted_proxies) {
+  std::optional<std::string> client;
+  while (!forwarded_for.empty()) {
+    const size_t comma = forwarded_for.rfind(',');
+    std::string_view entry =
+        comma == std::string_view::npos ? forwarded_for : forwarded_for.substr(comma + 1);
+    forwarded_for = forwarded_for.substr(0, comma == std::string_view::npos ? 0 : comma);
+    while (!entry.empty() && (entry.front() == ' ' || entry.front() == '\t'))
+      entry.remove_prefix(1);
+    while (!entry.empty() && (entry.back() == ' ' || entry.back() == '\t')) entry.remove_suffix(1);
+    if (entry.size() > 2 && entry.front() == '[' && entry.back() == ']')
+      entry = entry.substr(1, entry.size() - 2);
+    boost::system::error_code ec;
+    const auto address = asio::ip::make_address(std::string(entry), ec);
+    if (ec) return std::nullopt;
+    client = address_key(address);
+    if (std::find(trusted_proxies.begin(), trusted_proxies.end(), *client) == trusted_proxies.end())
+      return client;
+  }
+  return client;
 }
 
 }  // namespace vox::net

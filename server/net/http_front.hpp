@@ -9,6 +9,8 @@
 //   from the page's own origin or one of `allow_origins` ("*": any), and on a loopback
 //   server only to a loopback host name (DNS rebinding); no Origin header (a program, not
 //   a page) is let in (403 otherwise);
+// - behind a trusted proxy (`trusted_proxies`), the player is the client X-Forwarded-For
+//   names (an entry that is not an address: 400), and the proxy has no per-address cap;
 // - a path names no dotfile, and a link under the root may not lead out of it;
 // - a keep-alive connection waits at most kKeepAliveIdle for its next request (closed
 //   quietly), and makes at most kMaxRequests;
@@ -20,6 +22,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -45,6 +48,13 @@ bool origin_allowed(std::string_view origin, std::string_view host,
 // Whether an upgrade's Host (with its port) may reach a server bound to `bind`: any, unless
 // it is bound to loopback; then only a loopback name (DNS rebinding). Pure.
 bool host_allowed(std::string_view host, std::string_view bind);
+
+// The client a trusted proxy's X-Forwarded-For names (the values of every such header,
+// joined by commas): the address key of the rightmost entry that is not itself a trusted
+// proxy (each proxy appends the address it accepted from), or of the leftmost when all are.
+// None when an entry is not an IP address or there is none. Pure.
+std::optional<std::string> forwarded_client(std::string_view forwarded_for,
+                                            const std::vector<std::string>& trusted_proxies);
 
 const char* to_string(HttpRefusedBy why);
 

@@ -58,10 +58,10 @@ export class Services {
     }
   }
 
-  /** voxeld in memory with its HTTP port serving `root`; resolves to that port. */
-  async voxeld(path, root) {
+  /** voxeld in memory with its HTTP port serving `root` (and `extra` flags); resolves to that port. */
+  async voxeld(path, root, extra = []) {
     const server = this.start(path, ["--in-memory", "--seed", "1", "--threads", "2", "--port", "0", "--port-file", "port",
-      "--http-port", "auto", "--http-port-file", "http_port", "--http-root", root, "--log-level", "warn"]);
+      "--http-port", "auto", "--http-port-file", "http_port", "--http-root", root, "--log-level", "warn", ...extra]);
     return this.readPort("http_port", server, "voxeld");
   }
 

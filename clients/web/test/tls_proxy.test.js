@@ -3,15 +3,16 @@
 // /ws upgrade to voxeld's HTTP port. Started here on loopback (a self-signed certificate made
 // with openssl in a temporary directory; voxeld in memory; both killed at the end, also on
 // failure): the viewer's page loads over HTTPS, the client joins over wss:// from the page's
-// own origin and gets its view and an edit's result, and a page of another origin is refused
-// (403). Skipped when haproxy or openssl is missing.
+// own origin and gets its view and an edit's result, a page of another origin is refused
+// (403), and each client is capped by its own address, which the proxy's X-Forwarded-For
+// names (voxeld --http-trusted-proxy 127.0.0.1). Skipped when haproxy or openssl is missing.
 import assert from "node:assert/strict";
 import { writeFileSync } from "node:fs";
 import { get } from "node:https";
 import { join } from "node:path";
 import { after, before, test } from "node:test";
 import WebSocket from "ws";
-import { Client } from "../src/client.js";
+import { Client, ServerError } from "../src/client.js";
 import { connectWebSocket } from "../src/transport_ws.js";
 import { Services, haproxy, openssl } from "./services.js";
 import { findTool } from "./tools.js";
@@ -38,7 +39,9 @@ before(async () => {
   if (skip) return;
   services = new Services("voxeld-tls-");
   writeFileSync(join(services.dir, "index.html"), "<!doctype html><title>viewer</title>");
-  tlsPort = await services.tlsProxy(await services.voxeld(voxeld, services.dir));
+  // One player per address: behind the proxy, per client address, not the proxy's.
+  const extra = ["--http-trusted-proxy", "127.0.0.1", "--max-per-address", "1"];
+  tlsPort = await services.tlsProxy(await services.voxeld(voxeld, services.dir, extra));
 });
 
 after(async () => {
@@ -81,4 +84,38 @@ test("a page of another origin is refused through the proxy", { skip, timeout: 3
     ws.on("error", () => {});
   });
   assert.equal(status, 403);
+});
+
+test("behind the proxy each client is capped by its own address, not the proxy's", { skip, timeout: 60000 }, async () => {
+  // Clients from two loopback addresses; the proxy connects to voxeld from 127.0.0.1 for all.
+  const join = async (localAddress) => {
+    const origin = `https://127.0.0.1:${tlsPort}`;
+    class FromAddress extends WebSocket {
+      constructor(url) {
+        super(url, { rejectUnauthorized: false, origin, localAddress });
+      }
+    }
+    const client = new Client(await connectWebSocket(`wss://127.0.0.1:${tlsPort}/ws`, { WebSocket: FromAddress }), { keepaliveMs: 0 });
+    try {
+      await client.hello({ playerName: localAddress });
+      return { client, refused: null };
+    } catch (e) {
+      client.close();
+      // The refusal comes at once, maybe before hello() was sent: then it is why the client closed.
+      return { client: null, refused: client.closeError instanceof ServerError ? client.closeError : e };
+    }
+  };
+  const a = await join("127.0.0.2");
+  const b = await join("127.0.0.3");
+  try {
+    assert.equal(a.refused, null);
+    assert.equal(b.refused, null);
+    const again = await join("127.0.0.2");
+    again.client?.close();
+    assert.ok(again.refused instanceof ServerError, `a second player from 127.0.0.2: ${again.refused}`);
+    assert.equal(again.refused.codeName, "TOO_MANY_CONNECTIONS");
+  } finally {
+    a.client?.close();
+    b.client?.close();
+  }
 });
