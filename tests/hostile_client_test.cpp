@@ -5,6 +5,8 @@
 // own per-address cap.
 #include <gtest/gtest.h>
 #include <sys/ioctl.h>
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <fstream>
@@ -375,6 +377,52 @@ TEST(HostileClients, ClientThatStopsReadingDoesNotDelayOthersAndIsDroppedOnceIts
   fast->send(make_brush(edits + 1, 20, y, 20, 2, 1, false));
   EXPECT_TRUE(wait_for(
       *fast, [](const wire::Envelope& m) { return m.has_edit_result(); }, edit_deadline));
+}
+
+}  // namespace
+}  // namespace vox::net
+
+namespace vox::net {
+namespace {
+
+// CPU time (user + system) `pid` has used, in seconds.
+double cpu_seconds(pid_t pid) {
+  std::istringstream stat(read_file("/proc/" + std::to_string(pid) + "/stat"));
+  std::string field;
+  std::getline(stat, field, ')');  // pid (comm): the name may hold spaces
+  long utime = 0, stime = 0;
+  for (int i = 3; i <= 15 && stat >> field; ++i) {
+    if (i == 14) utime = std::stol(field);
+    if (i == 15) stime = std::stol(field);
+  }
+  return static_cast<double>(utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
+}
+
+// Out of descriptors, a failed accept was tried again at once: the accept loop spun on the
+// waiting connection at a whole core for as long as the condition lasted.
+TEST(HostileClients, OutOfDescriptorsTheAcceptLoopWaitsInsteadOfSpinning) {
+  test::ServerProcess server({"--in-memory", "--handshake-timeout-ms", "30000"});
+  const pid_t pid = server.pid();
+  const auto open = static_cast<rlim_t>(std::distance(
+      std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/fd"), {}));
+  rlimit before{};
+  ASSERT_EQ(::prlimit(pid, RLIMIT_NOFILE, nullptr, &before), 0);
+  const rlimit tight{open + 4, before.rlim_max};  // the soft limit: it may be raised again
+  ASSERT_EQ(::prlimit(pid, RLIMIT_NOFILE, &tight, nullptr), 0);
+  std::vector<std::unique_ptr<RawSocket>> flood;  // more than the descriptors left
+  for (int i = 0; i < 12; ++i)
+    flood.push_back(std::make_unique<RawSocket>("127.0.0.3", server.port()));
+  std::this_thread::sleep_for(300ms);
+  const double cpu_before = cpu_seconds(pid);
+  std::this_thread::sleep_for(2s);
+  const double share = (cpu_seconds(pid) - cpu_before) / 2.0;
+  EXPECT_LT(share, 0.25) << "voxeld used " << share * 100
+                         << " % of a core while out of descriptors";
+  // Descriptors back: the waiting connections are taken and a player joins.
+  ASSERT_EQ(::prlimit(pid, RLIMIT_NOFILE, &before, nullptr), 0);
+  flood.clear();
+  EXPECT_TRUE(player(server, "after"));
+  EXPECT_TRUE(server.running());
 }
 
 }  // namespace

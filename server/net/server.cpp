@@ -9,6 +9,11 @@
 
 namespace vox::net {
 
+namespace {
+// After a failed accept (out of descriptors): the wait before the next one.
+constexpr auto kAcceptRetry = std::chrono::milliseconds(100);
+}  // namespace
+
 Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipeline& pipeline,
                ServerCounters& counters)
     : io_(io),
@@ -19,6 +24,7 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
       acceptor_(strand_),
       stats_timer_(strand_),
       housekeeping_timer_(strand_),
+      accept_retry_timer_(strand_),
       counters_(counters),
       admission_(std::make_shared<AdmissionGate>(
           AdmissionLimits{config_.max_clients, config_.max_handshaking, config_.max_per_address,
@@ -107,10 +113,16 @@ void Server::accept() {
       Strand(io_.get_executor()), [this](boost::system::error_code ec, StrandSocket socket) {
         if (ec) {
           if (ec == asio::error::operation_aborted) return;
-          // Out of descriptors and the like: log (rate-limited) and go on accepting.
+          // Out of descriptors and the like: log (rate-limited) and try again a little later
+          // (at once, the loop would spin on the waiting connection while the condition lasts).
           if (auto suppressed = logs_->allow("accept")) {
             spdlog::warn("accept failed: {} [{} more]", ec.message(), *suppressed);
           }
+          accept_retry_timer_.expires_after(kAcceptRetry);
+          accept_retry_timer_.async_wait([this](boost::system::error_code e) {
+            if (!e) accept();
+          });
+          return;
         } else {
           admit(std::move(socket));
         }
@@ -214,6 +226,7 @@ void Server::stop() {
     boost::system::error_code ignored;
     acceptor_.close(ignored);
     stats_timer_.cancel();
+    accept_retry_timer_.cancel();
     housekeeping_timer_.cancel();
   });
   if (http_) http_->stop();

@@ -60,6 +60,7 @@ class Server {
   pipeline::WorldPipeline& pipeline_;
   asio::ip::tcp::acceptor acceptor_;
   asio::steady_timer stats_timer_, housekeeping_timer_;
+  asio::steady_timer accept_retry_timer_;  // the next accept after a failed one
   std::chrono::seconds stats_interval_{10};
   uint16_t port_ = 0;
   ServerCounters& counters_;
