@@ -1,6 +1,9 @@
 #include "server/net/ws_connection.hpp"
 
+#include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <spdlog/spdlog.h>
+#include <sys/socket.h>
 
 #include <algorithm>
 
@@ -17,6 +20,15 @@ namespace {
 constexpr size_t kReadChunk = 16 * 1024;
 // A close frame that does not go out in this time: the socket is closed anyway.
 constexpr auto kCloseGrace = std::chrono::seconds(1);
+
+// Corks the socket while a write's messages go out one Beast write each, so that the
+// kernel sends them as full segments at the uncork instead of pushing each message
+// through the network path alone (the TCP transport writes them in one call).
+void cork(WsStream& ws, bool on) {
+  const int value = on ? 1 : 0;
+  ::setsockopt(beast::get_lowest_layer(ws).socket().native_handle(), IPPROTO_TCP, TCP_CORK, &value,
+               sizeof value);
+}
 
 void close_socket(WsStream& ws) {
   boost::system::error_code ignored;
@@ -55,6 +67,7 @@ struct WsConnection::State {
   std::vector<uint8_t> write_buffer;  // the next write's messages, back to back
   std::vector<size_t> message_ends;   // where each of them ends in write_buffer
   bool writing = false;
+  bool corked = false;     // the write in flight corked the socket
   uint64_t write_seq = 0;  // of the write in flight: a late deadline of an earlier one is ignored
   bool closed = false;     // close() was called
   std::optional<websocket::close_code> close_code;
@@ -247,6 +260,8 @@ void WsConnection::write(std::shared_ptr<Events> owner, std::chrono::millisecond
           if (!ec && state_->writing && state_->write_seq == seq) owner->on_write_timeout();
         }));
   }
+  s.corked = s.message_ends.size() > 1;
+  if (s.corked) cork(s.ws, true);
   write_next(std::move(owner), 0, 0);
 }
 
@@ -265,6 +280,8 @@ void WsConnection::write_next(std::shared_ptr<Events> owner, size_t index, size_
                      }
                      s.writing = false;
                      s.write_timer.cancel();
+                     if (s.corked) cork(s.ws, false);
+                     s.corked = false;
                      s.write_buffer.clear();  // capacity kept for the next write
                      s.message_ends.clear();
                      if (ec) {
