@@ -5,7 +5,8 @@
 # and budgets at their defaults), runs voxel-loadtest --spread-addresses (every player and
 # hostile client from its own loopback address) with --json, then prints the honest players' edit->delta p50/p99, errors,
 # disconnects, refusals, voxeld's max RSS, the first full view p99 and the server's own
-# edit->publish and edit->delta-written p99 (bench/scripts/metrics_quantile.py).
+# edit->publish and edit->delta-written p99 (bench/scripts/metrics_quantile.py), and each
+# voxeld thread's CPU share while the players play (bench/scripts/thread_cpu.py).
 # EDIT_RATE=N: edits per second per player (default 0.5).
 # With the default world store it also prints commit p50/p99, how long the pipeline stood waiting for commits,
 # edits per commit and the world's size; VOXELD_ARGS=--in-memory runs without a store.
@@ -29,6 +30,10 @@ LD_PRELOAD="${VOXELD_PRELOAD:-}" "$bin/voxeld" --world "$out/$name.world" --port
   "${http_args[@]}" ${VOXELD_ARGS:-} > "$out/$name.log" 2>&1 &
 server=$!
 trap 'kill $server 2>/dev/null || true' EXIT
+# Each voxeld thread's CPU share while the players play (after the 10 s ramp).
+"$root/bench/scripts/thread_cpu.py" "$server" 10 $((duration > 10 ? duration - 5 : duration)) \
+  > "$out/$name.threads" 2>/dev/null &
+sampler=$!
 for _ in $(seq 100); do [ -s "$out/$name.mport" ] && break; sleep 0.1; done
 args=(--server "127.0.0.1:$(cat "$out/$name.port")" --players "$players" --duration "$duration" --ramp 10
       --edit-rate "${EDIT_RATE:-0.5}" --view-radius 4 --server-pid "$server" --json "$out/$name.json" --spread-addresses)
@@ -42,6 +47,7 @@ set +e
 code=$?
 set -e
 curl -s "http://127.0.0.1:$(cat "$out/$name.mport")/metrics" > "$out/$name.metrics" || true
+wait $sampler 2>/dev/null || true
 kill -TERM $server; wait $server || true
 if [ ! -s "$out/$name.json" ]; then  # the tester refused its arguments or could not run
   echo "$name: exit $code, no results: $(tail -1 "$out/$name.progress")"
@@ -76,4 +82,5 @@ if grep -q '^voxeld_store_commits_total [1-9]' "$out/$name.metrics"; then
     "$(/usr/bin/python3 -c "print(f'{$edits/$commits:.1f}')") edits per commit ($commits commits)," \
     "world $(du -sb "$out/$name.world" | cut -f1) bytes"
 fi
+echo "$name: threads (name count %CPU): $(awk '{printf "%s%s %s %s", sep, $1, $2, $3; sep=", "}' "$out/$name.threads")"
 exit "$code"

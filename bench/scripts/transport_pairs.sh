@@ -2,8 +2,8 @@
 # voxeld's CPU per player over TCP against WebSocket (docs/PERFORMANCE.md, the browser):
 #   bench/scripts/transport_pairs.sh PAIRS [PLAYERS] [DURATION]
 # Runs bench/scripts/attack_run.sh alternately with TRANSPORT=tcp and ws (PAIRS pairs of
-# PLAYERS players, default 200, for DURATION s, default 70), samples each voxeld thread's
-# CPU share over seconds 10..DURATION-10 (thread_cpu.py), and prints one line per run:
+# PLAYERS players, default 200, for DURATION s, default 70; attack_run.sh samples each
+# voxeld thread's CPU share with thread_cpu.py), and prints one line per run:
 # voxeld CPU (mean of the load tester's per-second samples in that window), per player,
 # the tester's CPU, steal, edit->result and edit->delta p99, bytes/s per player, threads.
 set -euo pipefail
@@ -14,23 +14,12 @@ echo "CPU: $(lscpu | sed -n 's/^Model name: *//p'), $(nproc) cores; load before:
 for i in $(seq "$pairs"); do
   for t in tcp ws; do
     name="transport_${t}_$i"
-    rm -f "$out/$name.threads"
-    TRANSPORT=$t "$root/bench/scripts/attack_run.sh" "$name" "$players" "$duration" > "$out/$name.summary" 2>&1 &
-    run=$!
-    pid=""
-    for _ in $(seq 100); do
-      pid=$(pgrep -f -- "--world $out/$name.world" | head -1 || true)
-      [ -n "$pid" ] && break
-      sleep 0.1
-    done
-    [ -n "$pid" ] && "$root/bench/scripts/thread_cpu.py" "$pid" 10 $((duration - 20)) > "$out/$name.threads" 2>/dev/null &
-    wait $run || true
-    wait || true
+    TRANSPORT=$t "$root/bench/scripts/attack_run.sh" "$name" "$players" "$duration" > "$out/$name.summary" 2>&1 || true
     /usr/bin/python3 - "$out/$name.json" "$out/$name.threads" "$name" "$players" "$duration" <<'PY'
 import json, sys
 j = json.load(open(sys.argv[1]))
 name, players, duration = sys.argv[3], int(sys.argv[4]), int(sys.argv[5])
-window = [s for s in j["per_second"] if 10 <= s["t"] < duration - 10 and s.get("cpu_percent") is not None]
+window = [s for s in j["per_second"] if 10 <= s["t"] < duration + 5 and s.get("cpu_percent") is not None]
 mean = lambda k: sum(s[k] or 0 for s in window) / max(1, len(window))
 cpu = mean("cpu_percent")
 threads = ", ".join(" ".join(l.split()[::2]) + "%" for l in open(sys.argv[2]).read().split("\n") if l.strip())

@@ -22,7 +22,7 @@ namespace po = boost::program_options;
 struct RawFlags {
   std::string max_memory, auth_key_file, open_role = "player";
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000;
-  long evict_after_s = 120, lod_remesh_ms = 250;
+  long evict_after_s = 120, lod_remesh_ms = 750;
   double checkpoint_s = 10;
   int metrics_port = -1;
   std::string http_port = "7780", http_root;
@@ -117,9 +117,9 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "coarsest level of detail a view may ask for (0: none; level 6 chunks are 2,048 voxels)");
   add("max-lod-distance", po::value<float>(&net.max_lod_distance)->default_value(2.0f),
       "largest SetView.lod_distance (1..4; larger: more coarse chunks per view)");
-  add("lod-remesh-interval-ms", po::value<long>(&r.lod_remesh_ms)->default_value(250),
-      "an edited coarse chunk is re-meshed at most this often (10..750; its update reaches "
-      "players within about this plus a pass)");
+  add("lod-remesh-interval-ms", po::value<long>(&r.lod_remesh_ms)->default_value(750),
+      "an edited level-1 chunk is re-meshed at most this often, each coarser level half as "
+      "often down to 1/8 (10..750; an update reaches players within about this plus a pass)");
   add("idle-timeout-ms", po::value<long>(&r.idle_ms)->default_value(60000),
       "disconnect clients silent this long");
   add("handshake-timeout-ms", po::value<long>(&r.handshake_ms)->default_value(5000),

@@ -57,9 +57,13 @@ void LodRemeshQueue::mark(const world::VoxelBox& changed, Clock::time_point now,
   if (last_taken_.size() > 2 * max_pending_) forget_old_takes(now);
 }
 
+LodRemeshQueue::Clock::duration LodRemeshQueue::interval(int level) const {
+  return interval_ * std::min(kMaxIntervalFactor, 1 << std::clamp(level - 1, 0, 16));
+}
+
 LodRemeshQueue::Clock::time_point LodRemeshQueue::due_time(const world::LodChunk& c) const {
   const auto it = last_taken_.find(c);
-  return it == last_taken_.end() ? Clock::time_point{} : it->second + interval_;
+  return it == last_taken_.end() ? Clock::time_point{} : it->second + interval(c.level);
 }
 
 std::vector<world::LodChunk> LodRemeshQueue::take_due(Clock::time_point now, size_t max) {
@@ -95,7 +99,7 @@ void LodRemeshQueue::forget(const world::LodChunk& c) {
 
 void LodRemeshQueue::forget_old_takes(Clock::time_point now) {
   for (auto it = last_taken_.begin(); it != last_taken_.end();) {
-    if (it->second + interval_ <= now)
+    if (it->second + interval(it->first.level) <= now)
       it = last_taken_.erase(it);
     else
       ++it;

@@ -6,11 +6,14 @@
 //   whose samples (padded block and seams: voxels [lo - 2^k, lo + 33 * 2^k]) meet the box.
 // - Only chunks somebody views are queued (the caller says which); the others have no
 //   mesh to update, and are meshed fresh when next viewed (the caller drops their meshes).
-// - A chunk is re-meshed at most once per interval: marked again before its interval has
-//   passed since it was last taken, it waits until then, and many marks make one re-mesh.
-//   So an explosion storm does not re-mesh the horizon every batch, and an edit reaches
-//   every level within one interval (plus the re-mesh itself). Due chunks are taken in
-//   the order they fell due (finest first between equals), so no level starves another.
+// - A chunk is re-meshed at most once per its level's interval: `interval` at level 1,
+//   doubling with each coarser level up to kMaxIntervalFactor times it. Marked again
+//   before that has passed since it was last taken, it waits until then, and many marks
+//   make one re-mesh. A chunk not taken within its interval is due at once. So an
+//   explosion storm does not re-mesh the horizon every batch (a coarse chunk covers many
+//   players' edits, and each re-mesh goes to every viewer of it), and an edit reaches
+//   level k within its interval (plus the re-mesh itself). Due chunks are taken in the
+//   order they fell due (finest first between equals), so no level starves another.
 // - At most max_pending chunks wait; past that the coarsest are dropped first (whoever
 //   views them gets a fresh mesh: the caller drops their meshes, take_dropped()), and
 //   `dropped` counts them.
@@ -36,7 +39,12 @@ class LodRemeshQueue {
  public:
   using Clock = std::chrono::steady_clock;
 
+  static constexpr int kMaxIntervalFactor = 8;
+
+  // `interval`: level 1's.
   LodRemeshQueue(int levels, Clock::duration interval, size_t max_pending);
+  // How often a chunk of `level` (1 ..) may be re-meshed.
+  Clock::duration interval(int level) const;
 
   // The coarse chunks whose samples meet `changed` (voxels, inclusive), for every level
   // 1 .. levels-1, into out (cleared first).

@@ -40,7 +40,8 @@ using Clock = std::chrono::steady_clock;
 
 struct LodStageConfig {
   int levels = 7;  // levels 0 .. levels-1 (level 0 is the pipeline's own)
-  std::chrono::milliseconds remesh_interval{250};  // a chunk re-meshed at most this often
+  // A level-1 chunk re-meshed at most this often; coarser ones less (LodRemeshQueue).
+  std::chrono::milliseconds remesh_interval{750};
   size_t max_pending_remesh = 65536;
   // Generator grids kept for re-meshing (an edit's re-mesh then computes no noise).
   size_t grid_cache_bytes = size_t{64} << 20;
