@@ -221,7 +221,7 @@ TEST(HttpRules, TheForwardedClientIsTheRightmostEntryThatIsNotATrustedProxy) {
 }
 
 TEST(WebSocket, APlayerJoinsGetsItsViewAndEditsAsOverTcp) {
-  ServerProcess server({"--http-port", "auto", "--in-memory"});
+  ServerProcess server({"--http-port", "auto", "--in-memory", "--metrics-port", "0"});
   WsClient ws(server.http_port());
   ASSERT_FALSE(ws.handshake_error) << ws.handshake_error.message();
   ws.send(client::make_hello("browser"));
@@ -245,6 +245,11 @@ TEST(WebSocket, APlayerJoinsGetsItsViewAndEditsAsOverTcp) {
   EXPECT_TRUE(ws.wait_for([](const wire::Envelope& m) {
     return m.has_chunk_mesh() && m.chunk_mesh().base_version() != 0;
   })) << "no delta for the crater";
+  // The mesh bytes are counted by level and kind (what a LOD view's traffic is made of).
+  auto m = metrics(server.metrics_port());
+  EXPECT_GT((m["voxeld_mesh_payload_bytes_total{level=\"0\",kind=\"full\"}"]), 0);
+  EXPECT_GE((m["voxeld_mesh_messages_total{level=\"0\",kind=\"full\"}"]), double(meshes));
+  EXPECT_GE((m["voxeld_mesh_messages_total{level=\"0\",kind=\"delta\"}"]), 1);
 }
 
 TEST(WebSocket, ATcpPlayerAndABrowserSeeEachOthersEdits) {

@@ -280,6 +280,22 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     counter(out, "voxeld_meshes_sent_total", "ChunkMesh messages sent", value_of(c_.meshes_sent));
     counter(out, "voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas",
             value_of(c_.deltas_sent));
+    auto bytes = family("voxeld_mesh_payload_bytes_total",
+                        "ChunkMesh payload bytes sent, by level and kind (full copy or delta)",
+                        MetricType::Counter);
+    auto messages = family("voxeld_mesh_messages_total",
+                           "ChunkMesh messages sent, by level and kind (full copy or delta)",
+                           MetricType::Counter);
+    for (size_t level = 0; level < net::ServerCounters::kLevels; ++level) {
+      for (size_t delta = 0; delta < 2; ++delta) {
+        const std::vector<ClientMetric::Label> labels = {{"level", std::to_string(level)},
+                                                         {"kind", delta ? "delta" : "full"}};
+        add(bytes, value_of(c_.mesh_bytes[level][delta]), labels);
+        add(messages, value_of(c_.mesh_messages[level][delta]), labels);
+      }
+    }
+    out.push_back(std::move(bytes));
+    out.push_back(std::move(messages));
   }
 
   const net::ServerCounters& c_;

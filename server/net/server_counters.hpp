@@ -37,6 +37,10 @@ struct ServerCounters {
   Counter edits{0};
   Counter meshes_sent{0};
   Counter deltas_sent{0};
+  static constexpr size_t kLevels = 7;  // mesh levels 0..6
+  // ChunkMesh payload bytes and messages by level, [0] full copies and [1] deltas.
+  std::array<std::array<Counter, 2>, kLevels> mesh_bytes{};
+  std::array<std::array<Counter, 2>, kLevels> mesh_messages{};
   Counter bytes_sent{0};
   Counter messages_sent{0};
   Counter disconnects{0};

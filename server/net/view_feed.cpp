@@ -204,15 +204,19 @@ bool ViewFeed::next_lod_mesh() {
 bool ViewFeed::fill_payload(wire::ChunkMesh& m, const pipeline::MeshVersion& version,
                             const pipeline::MeshVersion* base, uint64_t wire_base) {
   counters_.meshes_sent.fetch_add(1, std::memory_order_relaxed);
+  const size_t level = std::min<size_t>(m.level(), ServerCounters::kLevels - 1);
+  const size_t delta = base ? 1 : 0;
   if (!base) {
     m.set_base_version(0);
     set_payload(m, version.full());
-    return false;
+  } else {
+    m.set_base_version(wire_base);
+    set_payload(m, *version.delta_from(*base));
+    counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
   }
-  m.set_base_version(wire_base);
-  set_payload(m, *version.delta_from(*base));
-  counters_.deltas_sent.fetch_add(1, std::memory_order_relaxed);
-  return true;
+  counters_.mesh_bytes[level][delta].fetch_add(m.payload().size(), std::memory_order_relaxed);
+  counters_.mesh_messages[level][delta].fetch_add(1, std::memory_order_relaxed);
+  return base != nullptr;
 }
 
 // Once per applied view, when its every chunk (of every level) has been sent or found

@@ -112,8 +112,11 @@ test("behind the proxy each client is capped by its own address, not the proxy's
     assert.equal(b.refused, null);
     const again = await join("127.0.0.2");
     again.client?.close();
-    assert.ok(again.refused instanceof ServerError, `a second player from 127.0.0.2: ${again.refused}`);
-    assert.equal(again.refused.codeName, "TOO_MANY_CONNECTIONS");
+    // Refused: the Error, or (when it came before the client was listening) the close code
+    // that follows it, 1013 "try again later".
+    assert.ok(again.refused, "a second player from 127.0.0.2 was let in");
+    if (again.refused instanceof ServerError) assert.equal(again.refused.codeName, "TOO_MANY_CONNECTIONS");
+    else assert.match(String(again.refused), /1013/);
   } finally {
     a.client?.close();
     b.client?.close();
