@@ -88,8 +88,9 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "memory budget for chunks, meshes and sessions, e.g. 2G (default: half the RAM, at most 4G)");
   add("load-budget", po::value<double>(&world.load_work_per_owner)->default_value(250),
       "terrain load work per second per player (4 per chunk generated, 1 per mesh; 0: unlimited)");
-  add("load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(4000),
-      "load work a player may take at once (a first radius-4 view is 2,925)");
+  add("load-burst", po::value<double>(&world.load_burst_per_owner)->default_value(8000),
+      "load work a player may take at once (a first radius-4 view is 2,925; one to the "
+      "horizon, --lod-level 6, about 6,100)");
   add("load-budget-per-address",
       po::value<double>(&world.load_work_per_address)->default_value(1000),
       "load work per second for all players from one address together, burst 8x that; kept "

@@ -38,10 +38,12 @@ struct PipelineConfig {
   // Chunks the load scheduler considers per pass (most of a moved view is meshed already).
   size_t load_scan_limit = 16384;
   // Load work one session's views may take per second (4 units per chunk generated), and
-  // at once: a first radius-4 view fits the burst; a view flood gets a fair share, not the
+  // at once: a first view fits the burst (radius 4: 2,925; the viewer's level-of-detail
+  // view to the horizon, radius 4 and level 6: about 6,100, its level-0 part being every
+  // level-0 chunk of the split level-1 ones); a view flood gets a fair share, not the
   // pipeline. 0: unlimited.
   double load_work_per_owner = 250;
-  double load_burst_per_owner = 4000;
+  double load_burst_per_owner = 8000;
   // The same for all sessions from one address together (set_view's budget_group); it
   // outlives them until refilled, so reconnecting does not bring a fresh burst. 0: none.
   double load_work_per_address = 1000;
