@@ -17,8 +17,11 @@ namespace asio = boost::asio;
 using namespace std::chrono_literals;
 
 namespace {
-constexpr double kDrainS = 3.0;    // after the editing stops: results and meshes of the last edits
-constexpr double kViewWaitS = 60;  // --verify: longest wait for a view to complete
+constexpr double kDrainS = 3.0;  // after the editing stops: results and meshes of the last edits
+// The same with level-of-detail views: voxeld re-meshes a coarse chunk at most every 6 s
+// (levels 4 and up; PROTOCOL 4.10), so its last edit may reach it that late.
+constexpr double kDrainLodS = 8.0;
+constexpr double kViewWaitS = 60;       // --verify: longest wait for a view to complete
 constexpr int64_t kTokenSlackS = 3600;  // tokens expire this long after the planned end
 
 // --token-key: the players' tokens, then the verifier's (its own player id, so that it
@@ -59,7 +62,8 @@ LoadTest::LoadTest(LoadConfig config)
       half_width_(spawn_half_width(config_)),
       server_(server_pid_of(config_)),
       tokens_(tokens_for(config_)),
-      bytes_per_second_(static_cast<size_t>(config_.ramp_s + config_.duration_s + kDrainS) + 16) {
+      bytes_per_second_(static_cast<size_t>(config_.ramp_s + config_.duration_s + kDrainLodS) +
+                        16) {
   stats_.players = config_.players;
 }
 LoadTest::~LoadTest() = default;
@@ -286,8 +290,9 @@ LoadStats LoadTest::run(std::ostream& progress) {
     std::lock_guard lock(mutex_);
     stats_.duration_s = now_s();
   }
-  for (double slept = 0; slept < kDrainS; slept += 1) {
-    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(1.0, kDrainS - slept)));
+  const double drain = config_.lod_level > 0 ? kDrainLodS : kDrainS;
+  for (double slept = 0; slept < drain; slept += 1) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(std::min(1.0, drain - slept)));
     sample_machine();
   }
   // The players stand still now: before verifying, every view must be complete (the

@@ -417,3 +417,96 @@ TEST(SendScheduler, AChunkResyncedAndThenUnloadedGetsNoChunkUnload) {
 
 }  // namespace
 }  // namespace vox::net
+
+namespace vox::net {
+namespace {
+
+using namespace std::chrono_literals;
+using Clock = SendScheduler::Clock;
+
+// Every chunk of a radius-5 view at the origin published empty (so none holds back the
+// others), then `with` published with triangles.
+void publish_view(FakeStore& store, std::initializer_list<ChunkCoord> with) {
+  for (int32_t x = -5; x <= 5; ++x)
+    for (int32_t y = -5; y <= 5; ++y)
+      for (int32_t z = -5; z <= 5; ++z) store.publish({x, y, z}, true);
+  for (const ChunkCoord c : with) store.publish(c);
+}
+
+// A crowd's edits far from a client reached it one delta each. Far updates are paced: at
+// most one per interval per chunk, the newest then (a delta from what the client holds);
+// near chunks, where the client's own edits are, go at once.
+TEST(SendScheduler, FarUpdatesArePacedAndCoalescedNearOnesGoAtOnce) {
+  FakeStore store;
+  const ChunkCoord near{1, 0, 0}, far{4, 0, 0};
+  publish_view(store, {near, far});
+  SendScheduler s;
+  s.set_pacing(4, 1s);  // near: within 2 chunks
+  s.set_view({0, 0, 0}, 5);
+  const Clock::time_point t0{1s};
+  size_t first = 0;
+  while (s.next(store.lookup(), UINT64_MAX, t0)) ++first;  // first copies: never paced
+  ASSERT_EQ(first, 2u);
+  const MeshVersionPtr held = store.meshes[far];
+  store.publish(near);
+  store.publish(far);
+  s.mark_stale(near);
+  s.mark_stale(far);
+  const auto sent = s.next(store.lookup(), UINT64_MAX, t0 + 100ms);
+  ASSERT_TRUE(sent);
+  EXPECT_EQ(sent->coord, near);
+  EXPECT_FALSE(s.next(store.lookup(), UINT64_MAX, t0 + 100ms)) << "the far update waits";
+  EXPECT_EQ(s.paced_count(), 1u);
+  ASSERT_TRUE(s.next_paced());
+  EXPECT_EQ(*s.next_paced(), t0 + 1s);
+  store.publish(far);  // another edit there meanwhile: coalesced
+  s.mark_stale(far);
+  EXPECT_FALSE(s.next(store.lookup(), UINT64_MAX, t0 + 200ms));
+  EXPECT_FALSE(s.release_paced(t0 + 999ms));
+  EXPECT_TRUE(s.release_paced(t0 + 1s));
+  const auto late = s.next(store.lookup(), UINT64_MAX, t0 + 1s);
+  ASSERT_TRUE(late);
+  EXPECT_EQ(late->coord, far);
+  EXPECT_EQ(late->version, store.meshes[far]) << "the newest";
+  EXPECT_EQ(late->base, held) << "a delta from what the client holds";
+  EXPECT_FALSE(s.next_paced());
+}
+
+// A client that dropped a far chunk (a delta did not apply) gets it at once, paced or not.
+TEST(SendScheduler, AResyncOfAPacedChunkGoesAtOnce) {
+  FakeStore store;
+  const ChunkCoord far{0, 0, 4};
+  publish_view(store, {far});
+  SendScheduler s;
+  s.set_pacing(4, 1s);
+  s.set_view({0, 0, 0}, 5);
+  const Clock::time_point t0{1s};
+  while (s.next(store.lookup(), UINT64_MAX, t0)) {
+  }
+  store.publish(far);
+  s.mark_stale(far);
+  EXPECT_FALSE(s.next(store.lookup(), UINT64_MAX, t0 + 10ms));
+  ASSERT_TRUE(s.resync(far));
+  const auto copy = s.next(store.lookup(), UINT64_MAX, t0 + 20ms);
+  ASSERT_TRUE(copy);
+  EXPECT_EQ(copy->coord, far);
+  EXPECT_FALSE(copy->base) << "in full";
+  EXPECT_FALSE(s.release_paced(t0 + 2s)) << "its paced entry is void";
+}
+
+// Without pacing (the default, or interval zero) every update goes at once.
+TEST(SendScheduler, UnpacedUpdatesGoAtOnce) {
+  FakeStore store;
+  const ChunkCoord far{4, 0, 0};
+  publish_view(store, {far});
+  SendScheduler s;
+  s.set_view({0, 0, 0}, 5);
+  while (s.next(store.lookup(), UINT64_MAX, Clock::time_point{1s})) {
+  }
+  store.publish(far);
+  s.mark_stale(far);
+  EXPECT_TRUE(s.next(store.lookup(), UINT64_MAX, Clock::time_point{1s} + 1ms));
+}
+
+}  // namespace
+}  // namespace vox::net

@@ -161,3 +161,45 @@ TEST(ViewSync, ResyncOverTheLimitIsRefusedAndOutsideTheViewIgnored) {
 
 }  // namespace
 }  // namespace vox::net
+
+namespace vox::net {
+namespace {
+
+// A crowd's edits far from a player reached it one delta each. A held chunk more than 2
+// chunks from the view's center gets its changes at most once per --far-update-interval-ms:
+// edits in quick succession arrive coalesced, and the last one always arrives (the
+// session's timer releases it with nothing else to send).
+TEST(ViewSync, FarEditsArriveCoalescedAndTheLastOneAlwaysArrives) {
+  test::ServerProcess server({"--far-update-interval-ms", "1000"});
+  auto watcher = player(server, "watcher");
+  test::view(*watcher, 16, surface_y(16, 16), 16, 5);
+  // Four chunks east of the watcher's center chunk.
+  const float x = 144, z = 16, y = surface_y(x, z);
+  const ChunkKey far = client::chunk_of_voxel(static_cast<int>(x), static_cast<int>(y), 16);
+  auto editor = player(server, "editor");
+  test::view(*editor, x, y, z, 1);
+  constexpr int kEdits = 5;
+  for (int i = 0; i < kEdits; ++i) {
+    auto r = test::edit_and_wait(*editor,
+                                 make_brush(i + 1, x - 4 + 2 * i, y, z, 1.5f, 1.0f, i % 2 == 0));
+    ASSERT_TRUE(r && r->edit_result().status() == wire::EditResult::ACCEPTED);
+  }
+  // The editor holds the newest version of the chunk (its own view: at once).
+  ASSERT_TRUE(wait_for(
+                  *editor, [&](const wire::Envelope&) { return false; }, 500ms) == std::nullopt);
+  const uint64_t newest = editor->chunks().at(far).version;
+  size_t deltas = 0;
+  wait_for(
+      *watcher,
+      [&](const wire::Envelope& m) {
+        if (m.has_chunk_mesh() && client::key_of(m.chunk_mesh().coord()) == far) ++deltas;
+        return watcher->chunks().at(far).version == newest;
+      },
+      5s);
+  EXPECT_EQ(watcher->chunks().at(far).version, newest) << "the last edit reached the watcher";
+  EXPECT_GE(deltas, 1u);
+  EXPECT_LT(deltas, size_t{kEdits}) << "edits within the interval coalesce";
+}
+
+}  // namespace
+}  // namespace vox::net

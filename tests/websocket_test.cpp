@@ -216,8 +216,22 @@ TEST(HttpRules, TheForwardedClientIsTheRightmostEntryThatIsNotATrustedProxy) {
   EXPECT_EQ(net::forwarded_client("[2001:db8::1]", trusted), "2001:db8::/64");
   EXPECT_EQ(net::forwarded_client("::ffff:203.0.113.7", trusted), "203.0.113.7");
   EXPECT_EQ(net::forwarded_client("127.0.0.1", trusted), "127.0.0.1");  // all trusted
+  // A trusted proxy is one address, not its /64: a neighbour's entry is a client.
+  const std::vector<std::string> v6 = {"2001:db8::10"};
+  EXPECT_EQ(net::forwarded_client("203.0.113.7, 2001:db8::11", v6), "2001:db8::/64");
+  EXPECT_EQ(net::forwarded_client("203.0.113.7, 2001:db8::10", v6), "203.0.113.7");
   for (const char* bad : {"", " ", "unknown", "203.0.113.7, nope", "203.0.113.7:4000", "1.2.3.4,,"})
     EXPECT_EQ(net::forwarded_client(bad, trusted), std::nullopt) << bad;
+}
+
+TEST(HttpRules, AProxiedHostMustBeTheHostOfAnAllowedOrigin) {
+  const std::vector<std::string> allowed = {"https://play.example", "http://lan.example:8080"};
+  EXPECT_TRUE(net::host_listed("play.example", allowed));
+  EXPECT_TRUE(net::host_listed("lan.example:8080", allowed));
+  EXPECT_FALSE(net::host_listed("evil.example", allowed));
+  EXPECT_FALSE(net::host_listed("play.example.evil", allowed));
+  EXPECT_FALSE(net::host_listed("", allowed));
+  EXPECT_FALSE(net::host_listed("play.example", {"*"}));
 }
 
 TEST(WebSocket, APlayerJoinsGetsItsViewAndEditsAsOverTcp) {
@@ -456,7 +470,8 @@ bool welcomed(WsClient& ws) {
 // held the whole server. A trusted proxy's players are capped by the client it names.
 TEST(WebSocket, BehindATrustedProxyEachClientIsCappedByItsOwnAddress) {
   ServerProcess server({"--http-port", "auto", "--in-memory", "--max-per-address", "1",
-                        "--http-trusted-proxy", "127.0.0.1"});
+                        "--http-trusted-proxy", "127.0.0.1", "--http-allow-origin",
+                        "https://play.example"});
   // Pages of https://play.example, whose upgrades the proxy passes on with their Host.
   WsClient a(server.http_port(), "https://play.example", "203.0.113.5", "play.example");
   WsClient b(server.http_port(), "https://play.example", "198.51.100.1, 203.0.113.6",
@@ -470,9 +485,12 @@ TEST(WebSocket, BehindATrustedProxyEachClientIsCappedByItsOwnAddress) {
   // An entry that is not an address is refused at the upgrade.
   WsClient garbled(server.http_port(), {}, "not-an-address");
   EXPECT_TRUE(garbled.handshake_error);
-  // Without the header, a page naming another host is still refused (DNS rebinding).
+  // A page naming another host is refused (DNS rebinding), straight or through the proxy.
   WsClient rebound(server.http_port(), "http://evil.example", {}, "evil.example");
   EXPECT_TRUE(rebound.handshake_error);
+  WsClient rebound_via_proxy(server.http_port(), "http://evil.example", "203.0.113.9",
+                             "evil.example");
+  EXPECT_TRUE(rebound_via_proxy.handshake_error);
 }
 
 // Without --http-trusted-proxy the header is anybody's to write: it is ignored.

@@ -9,6 +9,23 @@
 
 namespace vox::net {
 
+// The address itself, an IPv4-mapped IPv6 one as IPv4: what a trusted proxy is matched by
+// (exactly: trusting a proxy must not trust its /64).
+inline std::string address_text(const boost::asio::ip::address& a) {
+  namespace ip = boost::asio::ip;
+  if (a.is_v6() && a.to_v6().is_v4_mapped())
+    return ip::make_address_v4(ip::v4_mapped, a.to_v6()).to_string();
+  return a.to_string();
+}
+
+// Whether a failed accept is for want of a resource (descriptors, buffers, memory): then
+// the next one waits a little; another error (the peer's, passed on by accept) does not.
+inline bool out_of_resources(const boost::system::error_code& ec) {
+  namespace errc = boost::system::errc;
+  return ec == boost::asio::error::no_descriptors || ec == boost::asio::error::no_buffer_space ||
+         ec == boost::asio::error::no_memory || ec == errc::too_many_files_open_in_system;
+}
+
 inline std::string address_key(const boost::asio::ip::address& a) {
   namespace ip = boost::asio::ip;
   if (a.is_v6() && !a.to_v6().is_v4_mapped()) {

@@ -18,9 +18,10 @@ struct HttpConfig {
   // build it.
   std::filesystem::path root;
   std::vector<std::string> allow_origins;  // besides the page's own origin; "*": any
-  // Address keys (address_key.hpp) of proxies in front (a TLS terminator): a connection
-  // from one has no per-address HTTP cap, and its upgrade's player is the client its
-  // X-Forwarded-For names.
+  // Addresses (address_text in address_key.hpp, matched exactly) of proxies in front (a
+  // TLS terminator): a connection from one has no per-address HTTP cap, and its upgrade's
+  // player is the client its X-Forwarded-For names. A proxied upgrade to a loopback-bound
+  // server must name a loopback host or the host of one of allow_origins.
   std::vector<std::string> trusted_proxies;
   size_t max_connections = 256;  // HTTP connections open at once (0: no cap)
   size_t max_per_address = 32;   // of them from one address (0: no cap)

@@ -200,14 +200,13 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
         player = std::move(*client);
       }
     }
-    // A proxied upgrade carries the public host name; a page cannot add X-Forwarded-For
-    // (DNS rebinding comes straight from the browser).
+    // A proxied upgrade carries the public host name: on a loopback-bound server it must be
+    // one the operator listed (DNS rebinding also works through a proxy).
     const auto origin = req[http::field::origin];
-    const auto host = req[http::field::host];
-    if (!origin_allowed({origin.data(), origin.size()}, {host.data(), host.size()},
-                        s_.config->allow_origins) ||
-        (!origin.empty() && forwarded.empty() &&
-         !host_allowed({host.data(), host.size()}, s_.config->bind))) {
+    const std::string_view host(req[http::field::host].data(), req[http::field::host].size());
+    if (!origin_allowed({origin.data(), origin.size()}, host, s_.config->allow_origins) ||
+        (!origin.empty() && !host_allowed(host, s_.config->bind) &&
+         !(proxy_ && host_listed(host, s_.config->allow_origins)))) {
       return respond_error(http::status::forbidden, HttpRefusedBy::kOrigin,
                            "WebSocket connections from this origin are not allowed "
                            "(--http-allow-origin)");
@@ -384,20 +383,22 @@ void HttpFront::stop() {
   asio::post(strand_, [this] {
     boost::system::error_code ignored;
     acceptor_.close(ignored);
+    retry_timer_.cancel();
   });
 }
 
 void HttpFront::accept() {
   acceptor_.async_accept(
       Strand(io_.get_executor()), [this](boost::system::error_code ec, StrandSocket socket) {
-        if (ec == asio::error::operation_aborted) return;
+        if (ec == asio::error::operation_aborted || !acceptor_.is_open()) return;
         if (!ec) {
           boost::system::error_code peer_ec;
           const auto peer = socket.remote_endpoint(peer_ec);
           if (!peer_ec) {
             std::string address = address_key(peer.address());
             const auto& proxies = config_->trusted_proxies;
-            const bool proxy = std::find(proxies.begin(), proxies.end(), address) != proxies.end();
+            const bool proxy = std::find(proxies.begin(), proxies.end(),
+                                         address_text(peer.address())) != proxies.end();
             if (const auto verdict = gate_->connect(address, !proxy);
                 verdict != AdmissionControl::Verdict::kAdmit) {
               busy(std::move(socket), address, verdict == AdmissionControl::Verdict::kAddressFull);
@@ -409,7 +410,7 @@ void HttpFront::accept() {
                   ->start();
             }
           }
-        } else {
+        } else if (out_of_resources(ec)) {
           // Out of descriptors and the like: log (rate-limited) and try again a little later
           // (at once, the loop would spin while the condition lasts).
           if (auto suppressed = logs_->allow("http_accept"))
@@ -481,6 +482,16 @@ bool host_allowed(std::string_view host, std::string_view bind) {
   return loopback(name);
 }
 
+bool host_listed(std::string_view host, const std::vector<std::string>& allow_origins) {
+  for (std::string_view origin : allow_origins) {
+    for (std::string_view scheme : {"http://", "https://"}) {
+      if (origin.starts_with(scheme) && origin.substr(scheme.size()) == host && !host.empty())
+        return true;
+    }
+  }
+  return false;
+}
+
 std::optional<std::string> forwarded_client(std::string_view forwarded_for,
                                             const std::vector<std::string>& trusted_proxies) {
   std::optional<std::string> client;
@@ -498,7 +509,8 @@ std::optional<std::string> forwarded_client(std::string_view forwarded_for,
     const auto address = asio::ip::make_address(std::string(entry), ec);
     if (ec) return std::nullopt;
     client = address_key(address);
-    if (std::find(trusted_proxies.begin(), trusted_proxies.end(), *client) == trusted_proxies.end())
+    if (std::find(trusted_proxies.begin(), trusted_proxies.end(), address_text(address)) ==
+        trusted_proxies.end())
       return client;
   }
   return client;

@@ -10,7 +10,9 @@
 //   server only to a loopback host name (DNS rebinding); no Origin header (a program, not
 //   a page) is let in (403 otherwise);
 // - behind a trusted proxy (`trusted_proxies`), the player is the client X-Forwarded-For
-//   names (an entry that is not an address: 400), and the proxy has no per-address cap;
+//   names (an entry that is not an address: 400), and the proxy has no per-address cap; a
+//   proxied upgrade to a loopback-bound server must name a loopback host or the host of
+//   an allowed origin (the public name);
 // - a path names no dotfile, and a link under the root may not lead out of it;
 // - a keep-alive connection waits at most kKeepAliveIdle for its next request (closed
 //   quietly), and makes at most kMaxRequests;
@@ -48,6 +50,10 @@ bool origin_allowed(std::string_view origin, std::string_view host,
 // Whether an upgrade's Host (with its port) may reach a server bound to `bind`: any, unless
 // it is bound to loopback; then only a loopback name (DNS rebinding). Pure.
 bool host_allowed(std::string_view host, std::string_view bind);
+
+// Whether `host` (a Host header) is the host of one of `allow_origins` ("*" names none).
+// Pure.
+bool host_listed(std::string_view host, const std::vector<std::string>& allow_origins);
 
 // The client a trusted proxy's X-Forwarded-For names (the values of every such header,
 // joined by commas): the address key of the rightmost entry that is not itself a trusted

@@ -111,18 +111,21 @@ void Server::start_http() {
 void Server::accept() {
   acceptor_.async_accept(
       Strand(io_.get_executor()), [this](boost::system::error_code ec, StrandSocket socket) {
+        if (ec == asio::error::operation_aborted || !acceptor_.is_open()) return;  // stopped
         if (ec) {
-          if (ec == asio::error::operation_aborted) return;
-          // Out of descriptors and the like: log (rate-limited) and try again a little later
-          // (at once, the loop would spin on the waiting connection while the condition lasts).
           if (auto suppressed = logs_->allow("accept")) {
             spdlog::warn("accept failed: {} [{} more]", ec.message(), *suppressed);
           }
-          accept_retry_timer_.expires_after(kAcceptRetry);
-          accept_retry_timer_.async_wait([this](boost::system::error_code e) {
-            if (!e) accept();
-          });
-          return;
+          // Out of descriptors and the like: try again a little later (at once, the loop
+          // would spin on the waiting connection while the condition lasts). A peer's own
+          // error passed on by accept does not slow the others.
+          if (out_of_resources(ec)) {
+            accept_retry_timer_.expires_after(kAcceptRetry);
+            accept_retry_timer_.async_wait([this](boost::system::error_code e) {
+              if (!e) accept();
+            });
+            return;
+          }
         } else {
           admit(std::move(socket));
         }
