@@ -77,7 +77,7 @@ struct Fixture {
   // Every mesh the feed has now, in order (one write after another).
   std::vector<wire::ChunkMesh> drain() {
     std::vector<wire::ChunkMesh> out;
-    feed.begin_write(std::chrono::steady_clock::now());
+    feed.begin_write();
     while (const wire::Envelope* m = feed.next_mesh(UINT64_MAX)) out.push_back(m->chunk_mesh());
     return out;
   }
@@ -279,7 +279,7 @@ TEST(ViewFeed, MeshMessagesOnceWarmAllocateNothing) {
   Fixture f;
   f.feed.apply_view(view({0, 0, 0}, 2, 1));
   f.publish(f.wanted_chunks());
-  f.feed.begin_write(std::chrono::steady_clock::now());
+  f.feed.begin_write();
   ASSERT_TRUE(f.feed.next_mesh(UINT64_MAX));  // warms the reused message
   const size_t before = test::allocations_on_this_thread();
   size_t sent = 1;
@@ -293,11 +293,11 @@ TEST(ViewFeed, AVersionThatMayShowAnUnansweredEditWaitsUntilReleased) {
   f.feed.apply_view(view({0, 0, 0}, 0, 1));
   f.publish({{0, 0, 0}});
   const uint64_t limit = f.next_version - 1;  // the version just published
-  f.feed.begin_write(std::chrono::steady_clock::now());
+  f.feed.begin_write();
   EXPECT_FALSE(f.feed.next_mesh(limit));
   EXPECT_TRUE(f.feed.release_deferred());
   EXPECT_FALSE(f.feed.release_deferred()) << "nothing deferred any more";
-  f.feed.begin_write(std::chrono::steady_clock::now());
+  f.feed.begin_write();
   EXPECT_TRUE(f.feed.next_mesh(UINT64_MAX));
 }
 

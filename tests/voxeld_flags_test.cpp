@@ -110,7 +110,6 @@ TEST(VoxeldFlags, EachBadFlagIsRefusedWithItsOwnLine) {
       {{"--max-lod-level", "7"}, "--max-lod-level must be 0..6"},
       {{"--max-lod-distance", "0.5"}, "--max-lod-distance must be 1..4"},
       {{"--lod-remesh-interval-ms", "5"}, "--lod-remesh-interval-ms must be 10..750"},
-      {{"--far-update-interval-ms", "20000"}, "--far-update-interval-ms must be 0..10000"},
       {{"--max-clients", "0"}, "--max-clients must be >= 1"},
       {{"--max-handshaking", "0"}, "--max-handshaking must be >= 1"},
       {{"--load-budget-per-address", "0.1"}, "--load-budget-per-address must be 0"},

@@ -22,7 +22,7 @@ namespace po = boost::program_options;
 struct RawFlags {
   std::string max_memory, auth_key_file, open_role = "player";
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000;
-  long evict_after_s = 120, lod_remesh_ms = 750, far_update_ms = 1000;
+  long evict_after_s = 120, lod_remesh_ms = 750;
   double checkpoint_s = 10;
   int metrics_port = -1;
   std::string http_port = "7780", http_root;
@@ -121,9 +121,6 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
   add("lod-remesh-interval-ms", po::value<long>(&r.lod_remesh_ms)->default_value(750),
       "an edited level-1 chunk is re-meshed at most this often, each coarser level half as "
       "often down to 1/8 (10..750; an update reaches players within about this plus a pass)");
-  add("far-update-interval-ms", po::value<long>(&r.far_update_ms)->default_value(1000),
-      "a client gets the updates of a level-0 chunk more than 2 chunks from its view's "
-      "center at most this often, coalesced (0..10000; 0: at once)");
   add("idle-timeout-ms", po::value<long>(&r.idle_ms)->default_value(60000),
       "disconnect clients silent this long");
   add("handshake-timeout-ms", po::value<long>(&r.handshake_ms)->default_value(5000),
@@ -212,7 +209,6 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   range("--max-lod-level", net.max_lod_level, 0u, 6u);
   range("--max-lod-distance", net.max_lod_distance, 1.0f, 4.0f);
   range("--lod-remesh-interval-ms", r.lod_remesh_ms, 10L, 750L);
-  range("--far-update-interval-ms", r.far_update_ms, 0L, 10000L);
   rule(net.max_clients >= 1, "--max-clients must be >= 1");
   rule(net.max_handshaking >= 1, "--max-handshaking must be >= 1");
   // The burst (8x) must hold one work unit, or no view of the address would ever load.
@@ -255,7 +251,6 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   world.max_memory = *bytes;
   world.load_burst_per_address = 8 * world.load_work_per_address;
   world.lod.remesh_interval = std::chrono::milliseconds(r.lod_remesh_ms);
-  net.far_update_interval = std::chrono::milliseconds(r.far_update_ms);
   world.evict_after = std::chrono::seconds(r.evict_after_s);
   world.checkpoint.interval = std::chrono::milliseconds(static_cast<long>(r.checkpoint_s * 1000));
   if (vm.count("seed")) c.seed = vm["seed"].as<uint64_t>();

@@ -46,7 +46,6 @@ ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string
       close_timer_(strand_),
       read_pause_timer_(strand_),
       view_timer_(strand_),
-      pace_timer_(strand_),
       address_(std::move(address)),
       id_(id),
       services_(std::move(services)),
@@ -61,8 +60,6 @@ ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string
             pipeline_wants(pipeline, id_, std::hash<std::string>{}(address_) | 1),  // never 0
             counters_) {
   counters_.handshaking.fetch_add(1, std::memory_order_relaxed);
-  feed_.set_pacing(int64_t{config_.far_update_chunks} * config_.far_update_chunks,
-                   config_.far_update_interval);
 }
 
 ClientSession::~ClientSession() {
@@ -247,7 +244,7 @@ void ClientSession::drop_slow(DroppedBy why, const char* what) {
 
 void ClientSession::pump() {
   if (connection_->writing() || applying_view_ || !connection_->open()) return;
-  feed_.begin_write(Clock::now());
+  feed_.begin_write();
   const size_t limit = config_.max_bytes_in_flight;
   size_t messages = 0;
   while (!control_.empty() && connection_->pending_bytes() < limit) {
@@ -271,27 +268,10 @@ void ClientSession::pump() {
       ++messages;
     }
   }
-  arm_pacing();
   if (connection_->pending_bytes() == 0) return;
   counters_.messages_sent.fetch_add(messages, std::memory_order_relaxed);
   // Closing: no deadline of its own (the close timer ends it).
   connection_->write(events(), closing_ ? std::chrono::milliseconds(0) : config_.write_timeout);
-}
-
-// Paced far updates (SendScheduler::set_pacing) go when their interval has passed: the
-// timer waits for the earliest; a sooner one re-arms it (the old wait ends aborted).
-void ClientSession::arm_pacing() {
-  const auto due = feed_.next_paced();
-  if (!due || closing_ || (pace_armed_ && pace_due_ <= *due)) return;
-  pace_armed_ = true;
-  pace_due_ = *due;
-  pace_timer_.expires_at(*due);
-  pace_timer_.async_wait([self = shared_from_this()](boost::system::error_code ec) {
-    if (ec) return;  // re-armed sooner, or the session ends
-    self->pace_armed_ = false;
-    if (self->feed_.release_paced(std::chrono::steady_clock::now())) self->pump();
-    self->arm_pacing();
-  });
 }
 
 // The session's accounted memory: its view map and send queues, queued control frames,
@@ -310,7 +290,6 @@ void ClientSession::shutdown() {
   close_timer_.cancel();
   read_pause_timer_.cancel();
   view_timer_.cancel();
-  pace_timer_.cancel();
   if (connection_->open()) {
     connection_->close();
     if (player_) {

@@ -107,7 +107,6 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void log_refusal(wire::EditResult::Status status, const std::string& reason);
   void queue_control(const wire::Envelope& message);
   void pump();
-  void arm_pacing();  // pace_timer_ for the earliest paced far update, if sooner
   void arm_idle_timer();
   void drop_slow(DroppedBy why, const char* what);
   void shutdown();
@@ -117,9 +116,6 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   Strand& strand_;  // the connection's
   // Close: the grace an Error gets to leave before the connection closes.
   StrandTimer handshake_timer_, idle_timer_, close_timer_, read_pause_timer_, view_timer_;
-  StrandTimer pace_timer_;  // the earliest paced far update (feed_.next_paced())
-  bool pace_armed_ = false;
-  std::chrono::steady_clock::time_point pace_due_{};
   const std::string address_;  // the peer's address, as admitted
   const uint64_t id_;
   SessionServices services_;  // before config_, which refers into it

@@ -39,12 +39,10 @@ std::vector<ChunkCoord> SendScheduler::set_view(ChunkCoord center, int radius, c
   fresh_.clear();
   waiting_.clear();
   deferred_.clear();
-  paced_.clear();
   for (auto& [c, held] : visible_) {
     held.queued = true;
     held.deferred = false;
     held.waiting = false;
-    held.paced = false;
     (held.version || held.resync ? updates_ : fresh_).push_back({distance2(c), c});
   }
   std::make_heap(updates_.begin(), updates_.end(), std::greater<>());
@@ -64,7 +62,7 @@ void SendScheduler::mark_stale(ChunkCoord c) {
   // Most published chunks are outside this view: the distance says so without a lookup.
   if (distance2(c) > static_cast<int64_t>(radius_) * radius_) return;
   auto it = visible_.find(c);
-  if (it == visible_.end() || it->second.queued || it->second.paced) return;
+  if (it == visible_.end() || it->second.queued) return;
   queue(c, it->second);
 }
 
@@ -77,7 +75,6 @@ bool SendScheduler::resync(ChunkCoord c) {
   held.version = nullptr;
   held.sent = false;  // the client holds nothing of it now: no ChunkUnload is due either
   held.resync = true;
-  held.paced = false;  // its entry in paced_ is skipped
   if (!held.queued) queue(c, held);
   return true;
 }
@@ -111,37 +108,15 @@ int64_t SendScheduler::nearest_waiting() {
   return INT64_MAX;
 }
 
-std::optional<SendScheduler::Clock::time_point> SendScheduler::next_paced() const {
-  if (paced_.empty()) return std::nullopt;
-  return paced_.front().first;
-}
-
-bool SendScheduler::release_paced(Clock::time_point now) {
-  bool released = false;
-  while (!paced_.empty() && paced_.front().first <= now) {
-    const ChunkCoord c = paced_.front().second;
-    std::pop_heap(paced_.begin(), paced_.end(), std::greater<>());
-    paced_.pop_back();
-    auto it = visible_.find(c);
-    if (it == visible_.end() || !it->second.paced) continue;  // left the view, or resynced
-    it->second.paced = false;
-    mark_stale(c);
-    released = true;
-  }
-  return released;
-}
-
 std::optional<SendScheduler::Send> SendScheduler::next(const Lookup& lookup,
-                                                       uint64_t first_unsendable,
-                                                       Clock::time_point now) {
-  if (auto send = take(updates_, false, lookup, first_unsendable, now)) return send;
-  return take(fresh_, true, lookup, first_unsendable, now);
+                                                       uint64_t first_unsendable) {
+  if (auto send = take(updates_, false, lookup, first_unsendable)) return send;
+  return take(fresh_, true, lookup, first_unsendable);
 }
 
 std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap, bool fresh,
                                                        const Lookup& lookup,
-                                                       uint64_t first_unsendable,
-                                                       Clock::time_point now) {
+                                                       uint64_t first_unsendable) {
   while (!heap.empty()) {
     if (fresh && heap.front().first > nearest_waiting()) return std::nullopt;  // a nearer one loads
     std::pop_heap(heap.begin(), heap.end(), std::greater<>());
@@ -169,14 +144,6 @@ std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap,
       }
       continue;
     }
-    // A far chunk's update within the interval since its last one waits (the newest goes).
-    if (held.sent && !held.resync && pace_interval_ > Clock::duration::zero() &&
-        now < held.sent_at + pace_interval_ && distance2(c) > pace_near2_) {
-      held.paced = true;
-      paced_.push_back({held.sent_at + pace_interval_, c});
-      std::push_heap(paced_.begin(), paced_.end(), std::greater<>());
-      continue;
-    }
     if (!held.version) --unresolved_;
     if (!held.version && current->mesh.empty() && !held.resync) {
       held.version = std::move(current);  // nothing to draw; sent only once it changes
@@ -185,7 +152,6 @@ std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap,
     // A client that never received the empty first version gets the new one in full.
     Send send{c, current, held.sent ? held.version : nullptr};
     held = {std::move(current), true};
-    held.sent_at = now;
     return send;
   }
   return std::nullopt;
@@ -197,7 +163,6 @@ void SendScheduler::clear() {
   fresh_.clear();
   waiting_.clear();
   deferred_.clear();
-  paced_.clear();
   radius_ = -1;
   unresolved_ = 0;
   view_announced_ = true;

@@ -3,15 +3,10 @@
 // edit's delta never waits behind terrain the client does not have yet), nearest first;
 // then chunks new to the client, strictly nearest first: one farther away waits while a
 // nearer one is still being loaded (not published), even if it was loaded long ago.
-// Far updates are paced (set_pacing): a held chunk farther than the near distance from
-// the view's center gets a newer version at most once per interval, the newest then, so
-// the edits of a crowd far away reach a client coalesced instead of one delta each; near
-// chunks (where the client's own edits are), first copies and resyncs are never held.
 // Pure bookkeeping (no I/O, no threads): the session calls it on its strand, tests call
 // it directly.
 #pragma once
 
-#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -25,14 +20,6 @@ namespace vox::net {
 class SendScheduler {
  public:
   using Lookup = std::function<pipeline::MeshVersionPtr(world::ChunkCoord)>;
-  using Clock = std::chrono::steady_clock;
-
-  // Updates of held chunks whose squared distance (chunk units) from the center is over
-  // `near_distance2` go at most once per `interval` each (zero: at once, the default).
-  void set_pacing(int64_t near_distance2, Clock::duration interval) {
-    pace_near2_ = near_distance2;
-    pace_interval_ = interval;
-  }
 
   // The view becomes the chunks within `radius` (Euclidean, chunk units) of `center` (and,
   // given `keep`, for which it is true: a level-of-detail layout's level-0 chunks);
@@ -72,18 +59,10 @@ class SendScheduler {
   // first version without triangles is recorded but not sent. A newest version at or above
   // `first_unsendable` (one that may show an edit whose result the client has not been sent) is
   // deferred until release_deferred(). nullopt when nothing is left.
-  // `now`: for the pacing (updates of far chunks sent within the interval wait in paced,
-  // see release_paced()).
-  std::optional<Send> next(const Lookup& lookup, uint64_t first_unsendable = UINT64_MAX,
-                           Clock::time_point now = {});
+  std::optional<Send> next(const Lookup& lookup, uint64_t first_unsendable = UINT64_MAX);
   // Marks the deferred chunks stale again (the limit given to next() has moved).
   void release_deferred();
   size_t deferred_count() const { return deferred_.size(); }
-  // When the earliest paced update falls due (none: nothing is paced).
-  std::optional<Clock::time_point> next_paced() const;
-  // Marks the paced chunks due at `now` stale again; false when none was.
-  bool release_paced(Clock::time_point now);
-  size_t paced_count() const { return paced_.size(); }
 
   void clear();
 
@@ -99,13 +78,11 @@ class SendScheduler {
     bool deferred = false;             // in deferred_
     bool waiting = false;              // new to the client, not published yet (in waiting_)
     bool resync = false;               // the client asked for it in full (sent even if empty)
-    bool paced = false;                // in paced_
-    Clock::time_point sent_at{};       // when its version last went (for the pacing)
   };
   using Entry = std::pair<int64_t, world::ChunkCoord>;  // distance², chunk
   void queue(world::ChunkCoord c, Held& held);
   std::optional<Send> take(std::vector<Entry>& heap, bool fresh, const Lookup& lookup,
-                           uint64_t first_unsendable, Clock::time_point now);
+                           uint64_t first_unsendable);
   int64_t nearest_waiting();  // distance² of the nearest waiting chunk (max: none)
 
   std::unordered_map<world::ChunkCoord, Held, world::ChunkCoordHash> visible_;
@@ -115,10 +92,6 @@ class SendScheduler {
   // when their turn came (entries of chunks no longer waiting are skipped lazily).
   std::vector<Entry> updates_, fresh_, waiting_;
   std::vector<world::ChunkCoord> deferred_;  // each visible chunk at most once
-  int64_t pace_near2_ = 0;
-  Clock::duration pace_interval_{};
-  using Paced = std::pair<Clock::time_point, world::ChunkCoord>;  // due, chunk
-  std::vector<Paced> paced_;    // min-heap by due; each visible chunk at most once
   size_t unresolved_ = 0;       // visible chunks with no version recorded (held.version null)
   bool view_announced_ = true;  // take_view_complete() answered for this view
 };

@@ -32,11 +32,6 @@ struct ServerConfig {
   size_t max_control_bytes = 1 << 20;
   size_t max_edits_in_flight = 256;  // a client's edits queued in the pipeline at once
   size_t max_resync_chunks = 64;     // coordinates in one Resync
-  // A held level-0 chunk farther than far_update_chunks from a client's view center gets
-  // its updates at most once per far_update_interval (coalesced: the newest goes); 0: at
-  // once. Nearer chunks, where the client's own edits are, always at once.
-  std::chrono::milliseconds far_update_interval{1000};
-  int far_update_chunks = 2;
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect

@@ -157,8 +157,7 @@ bool ViewFeed::release_deferred() {
   return true;
 }
 
-void ViewFeed::begin_write(Clock::time_point now) {
-  write_now_ = now;
+void ViewFeed::begin_write() {
   write_edits_.clear();
   level0_exhausted_ = false;
 }
@@ -173,8 +172,8 @@ const wire::Envelope* ViewFeed::next_mesh(uint64_t first_unsendable) {
 // The newest version of the nearest stale chunk the client does not hold yet (a delta
 // when it holds an older one) into mesh_message_; false when nothing is left to send.
 bool ViewFeed::next_level0_mesh(uint64_t first_unsendable) {
-  const auto send = scheduler_.next([this](ChunkCoord c) { return meshes_.get(c); },
-                                    first_unsendable, write_now_);
+  const auto send =
+      scheduler_.next([this](ChunkCoord c) { return meshes_.get(c); }, first_unsendable);
   if (!send) return false;
   auto* m = mesh_message_.mutable_chunk_mesh();
   m->set_level(0);  // the message is reused for coarser meshes
@@ -258,11 +257,11 @@ void ViewFeed::clear() {
   lod_active_.store(false, std::memory_order_relaxed);
 }
 
-// Map node (~80) + an entry in the updates or new-chunk heap (24), in the waiting heap (24),
-// the deferred list (12) and the paced heap (24), at most, per visible chunk; a layout
-// chunk: in the LodView's leaves and held map, the LodSendQueue and the level-0 set.
+// Map node (~64) + an entry in the updates or new-chunk heap (24), in the waiting heap (24)
+// and in the deferred list (12), at most, per visible chunk; a layout chunk: in the
+// LodView's leaves and held map, the LodSendQueue and the level-0 set.
 size_t ViewFeed::memory_bytes() const {
-  constexpr size_t kPerVisibleChunk = 168;
+  constexpr size_t kPerVisibleChunk = 128;
   constexpr size_t kPerLodChunk = 384;
   const size_t lod_chunks = lod_view_ ? lod_view_->held().size() : 0;
   return scheduler_.visible_count() * kPerVisibleChunk + lod_chunks * kPerLodChunk;

@@ -71,22 +71,9 @@ class ViewFeed {
   bool resync(int level, world::ChunkCoord c);
   // Strand only: versions held back for an edit's result may go; false when there were none.
   bool release_deferred();
-  // Strand only: far chunks' updates at most once per `interval` each (SendScheduler).
-  void set_pacing(int64_t near_distance2, std::chrono::steady_clock::duration interval) {
-    scheduler_.set_pacing(near_distance2, interval);
-  }
-  // Strand only: when the earliest paced update falls due; release_paced() then (false:
-  // none was due).
-  std::optional<std::chrono::steady_clock::time_point> next_paced() const {
-    return scheduler_.next_paced();
-  }
-  bool release_paced(std::chrono::steady_clock::time_point now) {
-    return scheduler_.release_paced(now);
-  }
 
-  // Strand only: a new write begins (what an unfinished one carried is forgotten); `now`
-  // paces its far updates.
-  void begin_write(std::chrono::steady_clock::time_point now);
+  // Strand only: a new write begins (what an unfinished one carried is forgotten).
+  void begin_write();
   // Strand only: the next mesh (level 0, then coarser levels), recorded as held; no version
   // at or above `first_unsendable` goes (it may show an edit whose result is not sent). The
   // message is reused: valid until the next call. Null when nothing is left.
@@ -133,7 +120,6 @@ class ViewFeed {
 
   wire::Envelope mesh_message_;    // reused for every mesh: its payload keeps its capacity
   bool level0_exhausted_ = false;  // in this write: the coarser levels' turn
-  std::chrono::steady_clock::time_point write_now_{};  // when this write began
   // When the edits shown by the deltas of the write in flight were submitted; capacity
   // reused.
   std::vector<std::chrono::steady_clock::time_point> write_edits_;
