@@ -148,6 +148,32 @@ TEST(TcpConnection, AWriteOnceWarmAllocatesNothing) {
   EXPECT_EQ(received.load(), 4 * 64 * (4 + raw.size()));
 }
 
+// A view's first meshes fill a write of up to max_bytes_in_flight; the buffer kept that
+// capacity, so a thousand sessions held 256 KiB each long after their views were sent.
+TEST(TcpConnection, AfterABurstASmallWriteGivesTheBuffersMemoryBack) {
+  Pair p;
+  std::atomic<size_t> received{0};
+  std::thread reader([&] {
+    std::vector<uint8_t> buffer(1 << 16);
+    boost::system::error_code ec;
+    while (!ec) received += p.client.read_some(asio::buffer(buffer), ec);
+  });
+  const auto write = [&](size_t messages, size_t bytes) {
+    const std::vector<uint8_t> raw(bytes, 7);
+    const size_t before = p.events->written;
+    for (size_t i = 0; i < messages; ++i) p.connection->append_serialized(raw);
+    p.connection->write(p.events, 5s);
+    p.run_until([&] { return p.events->written > before; });
+  };
+  write(256, 1000);  // a burst: 257 KB
+  EXPECT_GT(p.connection->memory_bytes(), 256u * 1024);
+  write(2, 1000);  // steady play: small writes
+  EXPECT_LT(p.connection->memory_bytes(), 64u * 1024) << "the burst's capacity was kept";
+  p.run_until([&] { return received.load() == p.events->written; });
+  p.client.shutdown(asio::ip::tcp::socket::shutdown_both);
+  reader.join();
+}
+
 TEST(TcpConnection, ThePeerClosingEndsTheReadOnce) {
   Pair p;
   asio::post(p.connection->strand(), [&] { p.connection->read(p.events); });

@@ -23,6 +23,20 @@ class MessageLite;
 
 namespace vox::net {
 
+// After a write: empties `buffer` and keeps its capacity for the next write, unless a
+// burst (a view's first meshes: up to max_bytes_in_flight) grew it past kKeptWriteBytes
+// and this write used under a quarter of it. Then the memory goes back: kept, a thousand
+// sessions held 256 KiB each long after their views were sent.
+inline constexpr size_t kKeptWriteBytes = 32 * 1024;
+template <class Buffer>
+void clear_write_buffer(Buffer& buffer, size_t used) {
+  if (buffer.capacity() > kKeptWriteBytes && used * 4 < buffer.capacity()) {
+    Buffer().swap(buffer);
+    return;
+  }
+  buffer.clear();
+}
+
 class Connection {
  public:
   // What the connection tells its session, on the strand.

@@ -282,7 +282,7 @@ void WsConnection::write_next(std::shared_ptr<Events> owner, size_t index, size_
                      s.write_timer.cancel();
                      if (s.corked) cork(s.ws, false);
                      s.corked = false;
-                     s.write_buffer.clear();  // capacity kept for the next write
+                     clear_write_buffer(s.write_buffer, s.write_buffer.size());
                      s.message_ends.clear();
                      if (ec) {
                        owner->on_closed();
