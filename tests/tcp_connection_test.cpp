@@ -12,6 +12,7 @@
 
 #include "proto/framing.hpp"
 #include "tests/alloc_counter.hpp"
+#include "tests/run_io_until.hpp"
 
 namespace vox::net {
 namespace {
@@ -44,14 +45,9 @@ struct Pair {
     connection = std::make_unique<TcpConnection>(acceptor.accept(Strand(io.get_executor())),
                                                  max_frame, frame_timeout);
   }
-  // Runs the io_context until `done` or 10 s.
   template <class Done>
   void run_until(Done&& done) {
-    const auto deadline = std::chrono::steady_clock::now() + 10s;
-    while (!done() && std::chrono::steady_clock::now() < deadline) {
-      io.restart();
-      io.run_for(20ms);
-    }
+    test::run_io_until(io, done);
   }
   asio::io_context io;
   asio::ip::tcp::socket client{io};

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "tests/alloc_counter.hpp"
+#include "tests/run_io_until.hpp"
 
 namespace vox::net {
 namespace {
@@ -52,11 +53,7 @@ struct Pair {
   }
   template <class Done>
   void run_until(Done&& done) {
-    const auto deadline = std::chrono::steady_clock::now() + 10s;
-    while (!done() && std::chrono::steady_clock::now() < deadline) {
-      io.restart();
-      io.run_for(5ms);
-    }
+    test::run_io_until(io, done);
   }
   // Appends `count` messages of `bytes` each and writes them (called while `io` is not
   // running: nothing else is on the strand).
