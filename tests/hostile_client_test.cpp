@@ -10,7 +10,6 @@
 
 #include <cmath>
 #include <fstream>
-#include <iostream>
 #include <map>
 #include <sstream>
 
@@ -402,6 +401,14 @@ double cpu_seconds(pid_t pid) {
 // Out of descriptors, a failed accept was tried again at once: the accept loop spun on the
 // waiting connection at a whole core for as long as the condition lasted.
 TEST(HostileClients, OutOfDescriptorsTheAcceptLoopWaitsInsteadOfSpinning) {
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+  // UBSan's vptr check (in the ASan+UBSan build) reads /proc/self/maps for a type it has
+  // not seen at that place yet; out of descriptors it cannot, reports "invalid vptr" and,
+  // halting on error, kills voxeld. The release and TSan builds run this test.
+  GTEST_SKIP() << "UBSan's vptr check needs descriptors";
+#endif
+#endif
   test::ServerProcess server({"--in-memory", "--handshake-timeout-ms", "30000"});
   const pid_t pid = server.pid();
   const auto open = static_cast<rlim_t>(std::distance(
@@ -422,20 +429,7 @@ TEST(HostileClients, OutOfDescriptorsTheAcceptLoopWaitsInsteadOfSpinning) {
   // Descriptors back: the waiting connections are taken and a player joins.
   ASSERT_EQ(::prlimit(pid, RLIMIT_NOFILE, &before, nullptr), 0);
   flood.clear();
-  // (Under a sanitizer on a busy machine a first try has failed once, quickly, with an
-  // exception: said on stderr, and tried again.)
-  std::unique_ptr<client::Client> after;
-  std::string why;
-  for (int attempt = 0; attempt < 3 && !after; ++attempt) {
-    try {
-      after = player(server, "after");
-    } catch (const std::exception& e) {
-      why = e.what();
-      std::cerr << "OutOfDescriptors: joining after the limit was raised: " << why << "\n";
-      std::this_thread::sleep_for(500ms);
-    }
-  }
-  EXPECT_TRUE(after) << why;
+  EXPECT_TRUE(player(server, "after"));
   EXPECT_TRUE(server.running());
 }
 
