@@ -19,14 +19,9 @@ class TcpLink final : public PlayerLink {
 
   void connect(Done done) override {
     const asio::ip::tcp::endpoint endpoint(asio::ip::make_address(target_.host), target_.port);
-    if (!target_.source.empty()) {
-      boost::system::error_code ec;
-      socket_.open(endpoint.protocol(), ec);
-      if (!ec) socket_.bind({asio::ip::make_address(target_.source), 0}, ec);
-      if (ec) {
-        done("cannot bind a spread source address: " + ec.message());
-        return;
-      }
+    if (std::string error = bind_source(socket_, endpoint, target_.source); !error.empty()) {
+      done(error);
+      return;
     }
     socket_.async_connect(endpoint, [this, done = std::move(done)](boost::system::error_code ec) {
       if (ec) {

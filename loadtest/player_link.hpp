@@ -54,6 +54,19 @@ inline std::unique_ptr<PlayerLink> make_player_link(PlayerStrand strand, LinkTar
                           : make_tcp_link(std::move(strand), std::move(target));
 }
 
+// Opens `socket` and binds it to `source` (a spread source address, LinkTarget::source)
+// before it connects to `to`; nothing when `source` is empty. The error, or empty.
+template <class Socket>
+std::string bind_source(Socket& socket, const boost::asio::ip::tcp::endpoint& to,
+                        const std::string& source) {
+  if (source.empty()) return {};
+  boost::system::error_code ec;
+  const auto from = boost::asio::ip::make_address(source, ec);
+  if (!ec) socket.open(to.protocol(), ec);
+  if (!ec) socket.bind({from, 0}, ec);
+  return ec ? "cannot bind a spread source address: " + ec.message() : std::string();
+}
+
 // The bytes of a server's WebSocket message of `payload` bytes on the wire: voxeld sends
 // each as one unmasked frame (no fragments), with a 2-, 4- or 10-byte header (RFC 6455 5.2).
 size_t ws_server_frame_bytes(size_t payload);

@@ -26,14 +26,9 @@ class WsLink final : public PlayerLink {
   void connect(Done done) override {
     const asio::ip::tcp::endpoint endpoint(asio::ip::make_address(target_.host), target_.port);
     auto& socket = beast::get_lowest_layer(ws_).socket();
-    if (!target_.source.empty()) {
-      boost::system::error_code ec;
-      socket.open(endpoint.protocol(), ec);
-      if (!ec) socket.bind({asio::ip::make_address(target_.source), 0}, ec);
-      if (ec) {
-        done("cannot bind a spread source address: " + ec.message());
-        return;
-      }
+    if (std::string error = bind_source(socket, endpoint, target_.source); !error.empty()) {
+      done(error);
+      return;
     }
     beast::get_lowest_layer(ws_).async_connect(
         endpoint, [this, done = std::move(done)](beast::error_code ec) mutable {
