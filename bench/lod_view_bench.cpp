@@ -221,6 +221,43 @@ BENCHMARK(BM_LodRemeshVariants)
     ->ArgName("shared_vertices")
     ->Unit(benchmark::kMillisecond);
 
+// One level's chunks of the view the load tester's players hold (split 1.0, level 0 within
+// 4 chunks), each made as a new mesh is: its samples gathered with its seams, then (work:1)
+// meshed, encoded and compressed. Where a first view's time goes, level by level.
+// Counters: chunks of the level, of them with a surface, and the time per chunk.
+void BM_LodChunksOfLevel(benchmark::State& state) {
+  const int level = static_cast<int>(state.range(0));
+  const bool whole = state.range(1) != 0;
+  world::LodLayout layout(
+      {.levels = 7, .top_radius = 1, .split_distance = 1.0, .near_split_distance = 2.0});
+  layout.update(eye());
+  std::vector<world::LodChunk> chunks;
+  for (const world::LodChunk& c : layout.chunks())
+    if (c.level == level) chunks.push_back(c);
+  LodWork w;
+  size_t surfaced = 0;
+  for (auto _ : state) {
+    surfaced = 0;
+    for (const world::LodChunk& c : chunks) {
+      if (whole) {
+        surfaced += w.make(c, layout.seams(c)) ? 1 : 0;
+      } else {
+        mesh::gather_lod_block(w.sampler, c, layout.seams(c), w.block);
+        benchmark::DoNotOptimize(w.block.coarse.density[0]);
+      }
+    }
+  }
+  state.counters["chunks"] = static_cast<double>(chunks.size());
+  if (whole) state.counters["surfaced"] = static_cast<double>(surfaced);
+  state.counters["per_chunk_us"] = benchmark::Counter(
+      static_cast<double>(chunks.size()) * 1e-6,
+      benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_LodChunksOfLevel)
+    ->ArgsProduct({{1, 2, 3, 4, 5, 6}, {0, 1}})
+    ->ArgNames({"level", "work"})
+    ->Unit(benchmark::kMillisecond);
+
 // What a walking player's SetViews cost the server's network thread: the view of the
 // near-split-2.0 layout updated every 2 voxels along a 2,048-voxel walk (most updates are
 // within the settled margin; the others lay the layout out again and diff it).

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <stdexcept>
 
 #include "proto/mesh_codec.hpp"
@@ -35,6 +36,8 @@ namespace {
 
 // Keys an owner gets per round-robin turn.
 constexpr size_t kOwnerTurn = 4;
+// Every this many take_missing calls, owners past their first view go first.
+constexpr uint64_t kSettledTurn = 4;
 // Evicted modified chunks one pass reads back from the store at most, and how long after a
 // failed read the stage waits before trying again.
 constexpr size_t kStoreReadsPerPass = 32;
@@ -146,7 +149,7 @@ std::vector<LodKey> LodStage::set_wants(LoadOwner owner, std::vector<LodKey> key
       owners_.erase(it);
       return late;
     }
-    it->second = {std::move(keys), 0};
+    it->second = Owner{std::move(keys), 0, it->second.first_view};  // still first, or not
   } else if (!keys.empty()) {
     owners_.emplace(owner, Owner{std::move(keys), 0});
   }
@@ -183,34 +186,59 @@ std::optional<Clock::time_point> LodStage::next_due() const {
   return due;
 }
 
-void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
-  std::vector<LoadOwner> order;
-  order.reserve(owners_.size());
-  for (const auto& [id, o] : owners_) order.push_back(id);
-  std::sort(order.begin(), order.end());
-  std::unordered_set<LodKey, LodKeyHash> taken(out.begin(), out.end());
-  bool any = true;
-  while (out.size() < max && any) {
-    any = false;
-    for (size_t i = 0; i < order.size() && out.size() < max; ++i) {
-      Owner& o = owners_.at(order[(next_owner_ + i) % order.size()]);
-      size_t turn = 0;
-      for (size_t at = o.cursor; at < o.keys.size() && turn < kOwnerTurn && out.size() < max;
-           ++at) {
-        const LodKey& k = o.keys[at];
-        if (meshes_.get(k)) {
-          if (at == o.cursor) ++o.cursor;
-          continue;
-        }
-        if (taken.insert(k).second) {
-          out.push_back(k);
-          ++turn;
-          any = true;
-        }
-      }
+size_t LodStage::take_keys(Owner& o, size_t turn, size_t max, std::vector<LodKey>& out,
+                           std::unordered_set<LodKey, LodKeyHash>& taken) const {
+  size_t took = 0;
+  for (size_t at = o.cursor; at < o.keys.size() && took < turn && out.size() < max; ++at) {
+    const LodKey& k = o.keys[at];
+    if (meshes_.get(k)) {
+      if (at == o.cursor) ++o.cursor;
+      continue;
+    }
+    if (taken.insert(k).second) {
+      out.push_back(k);
+      ++took;
     }
   }
-  if (!order.empty()) next_owner_ = (next_owner_ + 1) % order.size();
+  if (o.cursor == o.keys.size()) o.first_view = false;
+  return took;
+}
+
+void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
+  // First views before the rest: a joining player sees nothing until its whole layout has
+  // come, while a walking one only misses a few far chunks for a moment. And first come,
+  // first served between first views: shared round robin, every joining player would wait
+  // for the whole crowd's backlog, while the oldest first gets most of them done early
+  // (and their chunks are most of what the later ones want).
+  std::vector<LoadOwner> first, settled;
+  for (const auto& [id, o] : owners_) (o.first_view ? first : settled).push_back(id);
+  std::sort(first.begin(), first.end());
+  std::sort(settled.begin(), settled.end());
+  std::unordered_set<LodKey, LodKeyHash> taken(out.begin(), out.end());
+  const auto serve_first = [&] {
+    for (const LoadOwner id : first) {
+      if (out.size() >= max) return;
+      take_keys(owners_.at(id), SIZE_MAX, max, out, taken);
+    }
+  };
+  const auto serve_settled = [&] {
+    bool any = true;
+    while (out.size() < max && any) {
+      any = false;
+      for (size_t i = 0; i < settled.size() && out.size() < max; ++i) {
+        Owner& o = owners_.at(settled[(next_owner_ + i) % settled.size()]);
+        any |= take_keys(o, kOwnerTurn, max, out, taken) > 0;
+      }
+    }
+    if (!settled.empty()) next_owner_ = (next_owner_ + 1) % settled.size();
+  };
+  if (++missing_calls_ % kSettledTurn == 0) {
+    serve_settled();
+    serve_first();
+  } else {
+    serve_first();
+    serve_settled();
+  }
   if (out.size() < max) missing_ = false;  // every owner's keys are published or taken
 }
 

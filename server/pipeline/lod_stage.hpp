@@ -107,10 +107,21 @@ class LodStage {
   struct Owner {
     std::vector<LodKey> keys;
     size_t cursor = 0;  // keys before it were published when last looked at
+    // Until every key of its first layout was published once: a player who sees nothing
+    // until then (see take_missing).
+    bool first_view = true;
   };
   void want(LoadOwner owner, const LodKey& k);
   void unwant(LoadOwner owner, const LodKey& k);
+  // Up to `max` keys not published yet: the owners still waiting for their first view
+  // first, the oldest (lowest id) first; then the others, round robin, kOwnerTurn keys
+  // each. Every kSettledTurn-th call the others go first, so that a stream of arrivals
+  // cannot starve a walking player's new chunks.
   void take_missing(size_t max, std::vector<LodKey>& out);
+  // Takes owner `o`'s missing keys, at most `turn` of them, into `out` (up to `max`);
+  // advances its cursor past the published ones; returns how many it took.
+  size_t take_keys(Owner& o, size_t turn, size_t max, std::vector<LodKey>& out,
+                   std::unordered_set<LodKey, LodKeyHash>& taken) const;
   // Makes the modified chunks a mesh of `c` reads resident, reading at most `reads_left`
   // from the store (kLater: more than that are needed; kFailed: the store failed).
   enum class Resident { kReady, kLater, kFailed };
@@ -137,7 +148,8 @@ class LodStage {
   uint64_t next_version_ = 1;
   tbb::enumerable_thread_specific<std::unique_ptr<LodWorker>> workers_;
   world::GridCache grids_;
-  size_t next_owner_ = 0;  // round robin
+  size_t next_owner_ = 0;       // round robin
+  uint64_t missing_calls_ = 0;  // take_missing calls (every kSettledTurn-th: settled first)
   StoredChunkReader* const reader_;
   // After a failed read of the store: not before this (else a time long past).
   Clock::time_point store_retry_at() const;

@@ -1,6 +1,7 @@
 #include "server/world/grid_cache.hpp"
 
 #include <algorithm>
+#include <cstdint>
 
 namespace vox::world {
 namespace {
@@ -9,7 +10,13 @@ size_t count_of(const GridCache::Key& k) {
   return static_cast<size_t>(k.n[0]) * static_cast<size_t>(k.n[1]) * static_cast<size_t>(k.n[2]);
 }
 
+static_assert(sizeof(GridCache::Run) == 4);
+
 constexpr size_t kEntryOverhead = 128;  // map node, list node, vector header
+
+size_t size_of(const std::vector<GridCache::Run>& runs) {
+  return runs.size() * sizeof(GridCache::Run) + kEntryOverhead;
+}
 
 }  // namespace
 
@@ -29,15 +36,28 @@ bool GridCache::get(const Key& k, Sample* out) {
     order_.splice(order_.begin(), order_, it->second.at);
     grid = it->second.grid;
   }
-  std::copy(grid->begin(), grid->end(), out);
+  for (const Run& r : *grid)
+    out = std::fill_n(out, size_t{r.more} + 1, Sample{r.density, r.material});
   return true;
 }
 
 void GridCache::put(const Key& k, const Sample* samples) {
   const size_t count = count_of(k);
-  const size_t size = count * sizeof(Sample) + kEntryOverhead;
+  if (count == 0) return;
+  auto runs = std::make_shared<std::vector<Run>>();
+  runs->push_back({samples[0].density, samples[0].material, 0});
+  for (size_t i = 1; i < count; ++i) {
+    Run& last = runs->back();
+    if (samples[i].density == last.density && samples[i].material == last.material &&
+        last.more < UINT8_MAX)
+      ++last.more;
+    else
+      runs->push_back({samples[i].density, samples[i].material, 0});
+  }
+  runs->shrink_to_fit();
+  const size_t size = size_of(*runs);
   if (size > max_bytes_ / 4) return;  // one grid never takes most of the cache
-  auto grid = std::make_shared<const std::vector<Sample>>(samples, samples + count);
+  Grid grid = std::move(runs);
   std::vector<Grid> dropped;  // freed outside the lock
   std::lock_guard lock(mutex_);
   if (grids_.count(k)) return;  // another thread put it meanwhile
@@ -46,7 +66,7 @@ void GridCache::put(const Key& k, const Sample* samples) {
   size_t bytes = bytes_.load(std::memory_order_relaxed) + size;
   while (bytes > max_bytes_ && !order_.empty()) {
     const auto last = grids_.find(order_.back());
-    bytes -= count_of(last->first) * sizeof(Sample) + kEntryOverhead;
+    bytes -= size_of(*last->second.grid);
     dropped.push_back(std::move(last->second.grid));
     grids_.erase(last);
     order_.pop_back();

@@ -1,8 +1,12 @@
 // Generated terrain grids kept for reuse: a coarse chunk is re-meshed after each
 // edit near it, and a layout change meshes it again with other seams; both read the same
 // generator grids (only the modified chunks laid over them differ). Bounded in bytes, the
-// least recently used grid dropped first. Any thread: one leaf mutex, held to look up or
-// insert (grids are shared immutable vectors, copied outside it).
+// least recently used grid dropped first. A grid is kept as runs of equal samples in its
+// own order, 4 bytes a run of up to 256: terrain is mostly sky and rock, so a coarse
+// chunk's 35^3 samples take a tenth to a fifth of their size, and the bound keeps ten times as many
+// grids (a crowd's first views mesh each chunk once per seams variant, a player at a time). Any
+// thread: one leaf mutex, held to look up or insert (grids are shared immutable vectors, copied
+// outside it).
 #pragma once
 
 #include <array>
@@ -27,9 +31,15 @@ class GridCache {
     friend bool operator==(const Key&, const Key&) = default;
   };
 
+  struct Run {  // `more` + 1 samples in a row (the grid's order) equal to this one
+    Density density;
+    Material material;
+    uint8_t more;
+  };
+
   explicit GridCache(size_t max_bytes) : max_bytes_(max_bytes) {}
 
-  // Copies the grid to `out` (n[0] * n[1] * n[2] samples); false when it is not kept.
+  // Writes the grid to `out` (n[0] * n[1] * n[2] samples); false when it is not kept.
   bool get(const Key& k, Sample* out);
   void put(const Key& k, const Sample* samples);
   size_t bytes() const { return bytes_.load(std::memory_order_relaxed); }
@@ -38,7 +48,7 @@ class GridCache {
   struct KeyHash {
     size_t operator()(const Key& k) const;
   };
-  using Grid = std::shared_ptr<const std::vector<Sample>>;
+  using Grid = std::shared_ptr<const std::vector<Run>>;
   using Order = std::list<Key>;  // most recently used first
   struct Entry {
     Grid grid;
