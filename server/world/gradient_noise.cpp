@@ -3,7 +3,6 @@
 // integer hash of (seed, lattice point), so any seed works without tables.
 #include "server/world/gradient_noise.hpp"
 
-#include <bit>
 #include <cmath>
 
 namespace vox::world {
@@ -12,29 +11,63 @@ namespace {
 inline float fade(float t) { return t * t * t * (t * (t * 6.0f - 15.0f) + 10.0f); }
 inline float lerp(float a, float b, float t) { return a + t * (b - a); }
 
-// -v when `bit` is 1, exactly (the sign flipped), without a branch.
-inline float negated_if(float v, uint32_t bit) {
-  return std::bit_cast<float>(std::bit_cast<uint32_t>(v) ^ (bit << 31));
-}
-
-// Gradients picked by the hash's low bits: 0..3 are +-x +-y, 4..7 are +-x and +-y. Without
-// branches (the hash is random: a switch mispredicted most calls), and bit for bit the
-// values of the table these were first written as.
 inline float grad2(uint32_t h, float x, float y) {
-  const float pair = negated_if(x, h & 1u) + negated_if(y, (h >> 1) & 1u);
-  const float single = negated_if((h & 2u) != 0 ? y : x, h & 1u);
-  return (h & 4u) != 0 ? single : pair;
+  switch (h & 7u) {
+    case 0:
+      return x + y;
+    case 1:
+      return -x + y;
+    case 2:
+      return x - y;
+    case 3:
+      return -x - y;
+    case 4:
+      return x;
+    case 5:
+      return -x;
+    case 6:
+      return y;
+    default:
+      return -y;
+  }
 }
 
-// The 12 cube-edge directions of improved noise (16 entries, 4 repeated), as Perlin's
-// reference picks them: u is x below 8, else y; v is y below 4, x for 12 and 14, else z;
-// bit 0 negates u and bit 1 negates v. (12 and 14 give y + x and y - x: the same bits as
-// x + y and -x + y, addition being commutative.)
+// The 12 cube-edge directions of improved noise (16 entries, 4 repeated).
 inline float grad3(uint32_t h, float x, float y, float z) {
-  h &= 15u;
-  const float u = h < 8 ? x : y;
-  const float v = h < 4 ? y : (h == 12 || h == 14 ? x : z);
-  return negated_if(u, h & 1u) + negated_if(v, (h >> 1) & 1u);
+  switch (h & 15u) {
+    case 0:
+      return x + y;
+    case 1:
+      return -x + y;
+    case 2:
+      return x - y;
+    case 3:
+      return -x - y;
+    case 4:
+      return x + z;
+    case 5:
+      return -x + z;
+    case 6:
+      return x - z;
+    case 7:
+      return -x - z;
+    case 8:
+      return y + z;
+    case 9:
+      return -y + z;
+    case 10:
+      return y - z;
+    case 11:
+      return -y - z;
+    case 12:
+      return x + y;
+    case 13:
+      return -y + z;
+    case 14:
+      return -x + y;
+    default:
+      return -y - z;
+  }
 }
 
 }  // namespace
