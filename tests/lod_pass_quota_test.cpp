@@ -27,5 +27,16 @@ TEST(LodPassQuota, ABacklogTheStorePutOffNeitherWrapsNorStopsMissingMeshes) {
   EXPECT_EQ(lod_missing_quota(2, 1000, true), 1u);
 }
 
+// With edits at 0.5 a second per player, 200 players' first views waited 8 to 14 s: each
+// pass took one re-mesh (a chunk's every seams variant, 5 to 10 meshes) beside one
+// missing mesh. While a first view waits, re-meshes take one pass in kFirstViewRemeshTurn.
+TEST(LodPassQuota, WhileAFirstViewWaitsReMeshesTakeOnePassInEight) {
+  int turns = 0;
+  for (uint64_t pass = 1; pass <= 64; ++pass) turns += lod_remesh_turn(true, pass) ? 1 : 0;
+  EXPECT_EQ(turns, 64 / static_cast<int>(kFirstViewRemeshTurn));
+  for (uint64_t pass = 1; pass <= 64; ++pass)
+    EXPECT_TRUE(lod_remesh_turn(false, pass)) << "no first view waits: every pass";
+}
+
 }  // namespace
 }  // namespace vox::pipeline

@@ -118,6 +118,13 @@ MeshVersionPtr DurableCommit::newest_mesh(ChunkCoord c) const {
   return nullptr;
 }
 
+std::vector<ChunkCoord> DurableCommit::pending_chunks() const {
+  std::vector<ChunkCoord> out;
+  for (const EditBatch& b : pending_)
+    for (const Undo::Patch& p : b.undo.patches) out.push_back(p.coord);
+  return out;
+}
+
 bool DurableCommit::near_pending_edits(const std::vector<ChunkCoord>& chunks) const {
   if (pending_.empty() || chunks.empty()) return false;
   std::unordered_set<ChunkCoord, world::ChunkCoordHash> touched;

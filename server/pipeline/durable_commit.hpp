@@ -65,6 +65,8 @@ class DurableCommit {
 
   // The newest mesh a pending batch made of `c` (null: none made one).
   MeshVersionPtr newest_mesh(world::ChunkCoord c) const;
+  // The chunks whose samples pending batches changed (may repeat).
+  std::vector<world::ChunkCoord> pending_chunks() const;
   // Whether a pending batch changed samples that meshes of `chunks` read.
   bool near_pending_edits(const std::vector<world::ChunkCoord>& chunks) const;
   // Until no append is running (reads share the store's connection with them).

@@ -152,6 +152,7 @@ std::vector<LodKey> LodStage::set_wants(LoadOwner owner, std::vector<LodKey> key
     it->second = Owner{std::move(keys), 0, it->second.first_view};  // still first, or not
   } else if (!keys.empty()) {
     owners_.emplace(owner, Owner{std::move(keys), 0});
+    first_views_wait_ = true;
   }
   missing_ = true;
   return late;
@@ -240,6 +241,8 @@ void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
     serve_settled();
   }
   if (out.size() < max) missing_ = false;  // every owner's keys are published or taken
+  first_views_wait_ = std::any_of(first.begin(), first.end(),
+                                  [this](LoadOwner id) { return owners_.at(id).first_view; });
 }
 
 LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point now,
@@ -281,7 +284,8 @@ LodStage::Resident LodStage::make_resident(const LodChunk& c, Clock::time_point 
   return all ? Resident::kReady : Resident::kLater;
 }
 
-std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
+LodStage::RunResult LodStage::run(Clock::time_point now, size_t max_chunks,
+                                  const std::vector<ChunkCoord>& unsettled) {
   if (now < store_retry_at()) return {};
   // Chunks the re-mesh queue dropped: their meshes are stale, mesh them afresh.
   for (const LodChunk& c : remesh_.take_dropped()) {
@@ -295,7 +299,9 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
   chunks.erase(std::unique(chunks.begin(), chunks.end()), chunks.end());
   // Re-meshes and missing meshes share the pass (lod_pass_quota.hpp).
   const bool missing = missing_ && !owners_.empty();
-  if (const size_t due = lod_remesh_quota(max_chunks, chunks.size(), missing); due > 0) {
+  const bool remesh_turn = lod_remesh_turn(missing && first_views_wait_, ++passes_);
+  if (const size_t due = lod_remesh_quota(max_chunks, chunks.size(), missing);
+      due > 0 && remesh_turn) {
     for (const LodChunk& c : remesh_.take_due(now, due)) chunks.push_back(c);
   }
   std::vector<LodKey> keys;
@@ -309,8 +315,21 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
   size_t reads_left = kStoreReadsPerPass;
   std::vector<LodKey> ready;
   std::array<uint64_t, kCountedLevels> remeshed{};
+  size_t deferred = 0;
   for (size_t i = 0; i < keys.size(); ++i) {
     const LodKey& k = keys[i];
+    if (!unsettled.empty()) {
+      const auto [lo, hi] = footprint(k.chunk);
+      if (std::any_of(unsettled.begin(), unsettled.end(),
+                      [&](ChunkCoord c) { return within(c, lo, hi); })) {
+        // A re-mesh (all its variants) comes back first next pass; a missing mesh is
+        // taken again, the owner's cursor not having passed it.
+        if (i < remesh_keys) retry_.push_back(k.chunk);
+        missing_ = missing_ || i >= remesh_keys;
+        ++deferred;
+        continue;
+      }
+    }
     const Resident r = make_resident(k.chunk, now, reads_left);
     if (r == Resident::kReady) {
       ready.push_back(k);
@@ -319,12 +338,12 @@ std::vector<LodKey> LodStage::run(Clock::time_point now, size_t max_chunks) {
     }
     retry_.push_back(k.chunk);  // whether a re-mesh or a missing mesh: all its variants
   }
-  if (ready.empty()) return {};
+  if (ready.empty()) return {{}, deferred};
   std::vector<LodKey> published = mesh_and_publish(std::move(ready));
   // Counted after meshed_ (mesh_and_publish): a reader never sees more re-meshes than meshes.
   for (int level = 0; level < kCountedLevels; ++level)
     if (remeshed[level] > 0) remeshed_[level].fetch_add(remeshed[level], std::memory_order_relaxed);
-  return published;
+  return {std::move(published), deferred};
 }
 
 std::vector<LodKey> LodStage::mesh_and_publish(std::vector<LodKey> keys) {

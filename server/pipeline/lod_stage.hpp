@@ -72,14 +72,21 @@ class LodStage {
   bool has_work(Clock::time_point now) const;
   std::optional<Clock::time_point> next_due() const;
   // Meshes up to `max_chunks` meshes (those the store put off, then re-meshes due, then
-  // missing ones, the owners round robin) in parallel; publishes those that changed;
-  // returns their keys. Reads at most 32 evicted chunks back from the store per pass;
-  // after a failed read, does nothing for a second.
-  std::vector<LodKey> run(Clock::time_point now, size_t max_chunks);
+  // missing ones: take_missing) in parallel; publishes those that changed; returns their
+  // keys. Reads at most 32 evicted chunks back from the store per pass; after a failed
+  // read, does nothing for a second. `unsettled`: level-0 chunks holding edits that are
+  // not durable yet; a mesh reading any of them is put off (to the next pass: `deferred`
+  // counts them), since a LOD mesh never shows an edit that is not durable.
+  struct RunResult {
+    std::vector<LodKey> published;
+    size_t deferred = 0;
+  };
+  RunResult run(Clock::time_point now, size_t max_chunks,
+                const std::vector<world::ChunkCoord>& unsettled = {});
 
-  // The pipeline held a pass back (a batch waits for the store, and a LOD mesh must not
-  // show an edit that is not durable): true once that has lasted kStarvation, when the
-  // pass is to wait for the store instead. ran(): a pass ran, or there was nothing to do.
+  // A pass put meshes off (they read edits not durable yet): true once that has lasted
+  // kStarvation, when the pass is to wait for the store instead. ran(): a pass ran
+  // without putting any off, or there was nothing to do.
   static constexpr auto kStarvation = std::chrono::milliseconds(250);
   bool held_back(Clock::time_point now) {
     if (!held_back_since_) held_back_since_ = now;
@@ -150,6 +157,10 @@ class LodStage {
   world::GridCache grids_;
   size_t next_owner_ = 0;       // round robin
   uint64_t missing_calls_ = 0;  // take_missing calls (every kSettledTurn-th: settled first)
+  // Some owner's first view was not all published when take_missing last looked (or an
+  // owner came since): re-meshes wait their turn (lod_remesh_turn).
+  bool first_views_wait_ = false;
+  uint64_t passes_ = 0;  // run() calls
   StoredChunkReader* const reader_;
   // After a failed read of the store: not before this (else a time long past).
   Clock::time_point store_retry_at() const;

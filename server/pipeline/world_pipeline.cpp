@@ -203,8 +203,10 @@ bool WorldPipeline::batch_ready(Inbox::State& in) {
   const bool retry_reads = loads_->waiting_for_store() && !reader_->backing_off(now);
   // While a batch waits for the store, the chunk map may show edits that are not durable:
   // no LOD mesh is made from it then (the append's landing wakes us).
+  // (A pass that put off every mesh it took, for edits not durable yet: not again before
+  // an append lands.)
   const bool in_flight = commit_ && !commit_->empty();
-  const bool lod = !in_flight && (!in.lod_updates.empty() || lod_->has_work(now));
+  const bool lod = !(in_flight && lod_blocked_) && (!in.lod_updates.empty() || lod_->has_work(now));
   return in.scheduler.has_ordered() || in.generated_ready || retry_reads ||
          (in.scheduler.has_loads() && !memory_.loads_blocked() &&
           in.scheduler.has_ready_loads(now) && load_work_allowed(false) > 0) ||
@@ -221,9 +223,9 @@ std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const
   // A chunk the store could not give back, or a region table in doubt: try again then.
   if (loads_->waiting_for_store() || regions_.doubtful())
     wait = std::min(wait, std::chrono::duration_cast<milliseconds>(config_.store_retry));
-  // A coarse chunk's re-mesh falls due (while a batch waits for the store, its landing
-  // wakes us: the stage does not run before).
-  if (const auto due = lod_->next_due(); due && !(commit_ && !commit_->empty()))
+  // A coarse chunk's re-mesh falls due (while a pass put everything off for edits not
+  // durable yet, an append's landing wakes us).
+  if (const auto due = lod_->next_due(); due && !(commit_ && !commit_->empty() && lod_blocked_))
     wait = std::min(wait, std::chrono::ceil<milliseconds>(
                               std::max(Clock::duration::zero(), *due - Clock::now())));
   return wait;
@@ -481,18 +483,23 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
                                  std::make_shared<const std::vector<LodKey>>(std::move(published)));
   }
   if (!late.by_owner.empty()) subscribers_.notify_lod(late);
+  lod_blocked_ = false;
   if (!lod_->has_work(now)) return lod_->ran();
-  if (commit_ && !commit_->empty()) {
-    if (!lod_->held_back(now)) return;
-    drain_commits();
-    if (!commit_->empty()) return;
-  }
-  lod_->ran();
+  // Meshes reading edits not durable yet are put off; put off for too long, the pass
+  // waits for the store.
+  if (commit_ && !commit_->empty() && lod_->held_back(now)) drain_commits();
   const Clock::time_point start = Clock::now();
   for (;;) {
-    const std::vector<LodKey> published = lod_->run(Clock::now(), config_.lod_group_chunks);
-    if (!published.empty())
-      subscribers_.notify_lod(LodPublication{published, lod_->route(published)});
+    const std::vector<world::ChunkCoord> unsettled =
+        commit_ ? commit_->pending_chunks() : std::vector<world::ChunkCoord>{};
+    LodStage::RunResult r = lod_->run(Clock::now(), config_.lod_group_chunks, unsettled);
+    if (r.deferred == 0) lod_->ran();
+    if (!r.published.empty())
+      subscribers_.notify_lod(LodPublication{r.published, lod_->route(r.published)});
+    if (r.published.empty() && r.deferred > 0) {
+      lod_blocked_ = true;  // until an append lands (batch_ready)
+      return;
+    }
     if (edits_waiting || Clock::now() - start >= config_.lod_pass_time ||
         !lod_->has_work(Clock::now()))
       return;

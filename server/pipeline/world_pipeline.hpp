@@ -138,7 +138,10 @@ class WorldPipeline {
   std::unique_ptr<WorldState> state_;
   std::unique_ptr<StoredChunkReader> reader_;  // with a store
   std::unique_ptr<LodStage> lod_;              // lod_meshes(): any thread
-  ProtectedRegions regions_;                   // regions(): any thread
+  // The last LOD pass put off every mesh it took, for edits not durable yet: no pass
+  // before an append lands (batch_ready).
+  bool lod_blocked_ = false;
+  ProtectedRegions regions_;  // regions(): any thread
   // With a store; reset by stop() once thread_ has ended (their threads wake the pipeline).
   std::unique_ptr<Checkpoints> checkpoints_;
   std::unique_ptr<DurableCommit> commit_;
