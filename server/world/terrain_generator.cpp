@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <array>
+#include <climits>
 #include <cmath>
+#include <cstdint>
 
 namespace vox::world {
 namespace {
@@ -154,6 +156,15 @@ void TerrainGenerator::sample_grid(const std::array<int32_t, 3>& origin, int32_t
       const float fx = static_cast<float>(floor_mod(x, kCaveStep)) * frac,
                   fz = static_cast<float>(floor_mod(z, kCaveStep)) * frac;
       Sample* column = out + i + layer * k;
+      // The column's cave noise on lattice levels lj and lj + 1 (as sample_with_caves makes
+      // it), kept while the samples going up stay between them: the same values, each
+      // level's four lattice reads once per column instead of once per sample.
+      const auto level_at = [&](int32_t lj) {
+        return cave_level(at(li, lj, lk), at(li + 1, lj, lk), at(li, lj, lk + 1),
+                          at(li + 1, lj, lk + 1), fx, fz);
+      };
+      int32_t held = INT32_MIN;  // the lattice level of level[0] (none yet)
+      float level[2] = {0, 0};
       for (int j = 0; j < n[1]; ++j) {
         const int32_t y = origin[1] + step * j;
         const float depth = height - static_cast<float>(y);
@@ -161,14 +172,16 @@ void TerrainGenerator::sample_grid(const std::array<int32_t, 3>& origin, int32_t
           column[row * j] = make_sample(height, y, nullptr);
           continue;
         }
-        // As sample_with_caves, from the cached lattice.
         const int32_t lj = floor_div(y, kCaveStep);
         const float fy = static_cast<float>(floor_mod(y, kCaveStep)) * frac;
-        float level[2];
-        for (int l = 0; l < 2; ++l) {
-          level[l] = cave_level(at(li, lj + l, lk), at(li + 1, lj + l, lk), at(li, lj + l, lk + 1),
-                                at(li + 1, lj + l, lk + 1), fx, fz);
+        if (lj == held + 1) {
+          level[0] = level[1];
+          level[1] = level_at(lj + 1);
+        } else if (lj != held) {
+          level[0] = level_at(lj);
+          level[1] = level_at(lj + 1);
         }
+        held = lj;
         const float cave = cave_between(level[0], level[1], fy);
         column[row * j] = make_sample(height, y, &cave);
       }
