@@ -92,9 +92,13 @@ def main():
                             text=True).stdout.strip()
     date = datetime.date.today().isoformat()
     steal_s = steal_ticks / os.sysconf("SC_CLK_TCK")
-    md = [f"## Current figures ({date}, commit {commit})", "",
+    slow = os.environ.get("SLOW", "")
+    heading = "## Current figures, slowed host" if slow else "## Current figures"
+    slowed = (f" A slower host made of this one: `stress-ng --cpu 2 --cpu-load {slow}` ran beside "
+              f"the whole table (`SLOW={slow} bench/scripts/load_table.sh`)." if slow else "")
+    md = [f"{heading} ({date}, commit {commit})", "",
           f"`bench/scripts/load_table.sh` on {model}, {os.cpu_count()} cores; steal over the "
-          f"whole run {steal_s:.1f} s of CPU. Load tester on the same machine "
+          f"whole run {steal_s:.1f} s of CPU.{slowed} Load tester on the same machine "
           "(`--spread-addresses`, 0.5 edits/s per player); voxeld's CPU is the mean of its "
           "per-second samples while the players play, with each thread's share. A goal met "
           "on one host is met only once it also holds on a slower one (the issue's 2-core AMD "
@@ -114,13 +118,17 @@ def main():
         path = os.path.join(root, "docs", "PERFORMANCE.md")
         with open(path) as f:
             doc = f.read()
-        start = doc.find("## Current figures")
+        # This table's own section (the fast and the slowed host's are kept apart): the
+        # heading followed by " (": "## Current figures (" is not "## Current figures, ...".
+        start = doc.find(heading + " (")
         first = doc.find("\n## ")
         if start >= 0:
             end = doc.find("\n## ", start + 1)
             doc = doc[:start] + text + doc[end + 1:]
-        else:
-            doc = doc[:first + 1] + text + "\n" + doc[first + 1:]
+        else:  # after the other table, if there is one, else first
+            other = doc.find("## Current figures")
+            at = doc.find("\n## ", other + 1) if other >= 0 else first
+            doc = doc[:at + 1] + text + "\n" + doc[at + 1:]
         with open(path, "w") as f:
             f.write(doc)
     return 0

@@ -13,6 +13,9 @@
 #   bench/scripts/load_table.sh [--update-doc]
 # --update-doc replaces the "Current figures" section at the top of docs/PERFORMANCE.md.
 # ONLY=lod200,p500,... runs some of them (names: lod200 p500 p1000 attack storm).
+# SLOW=N makes a slower host of this one: `stress-ng --cpu 2 --cpu-load N` runs beside the
+# whole table (N: percent of each core it takes), and the table is its own section,
+# "Current figures, slowed host".
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${VOXEL_BIN:-$root/build/bin}"
@@ -21,6 +24,12 @@ run="$root/bench/scripts/attack_run.sh"
 only="${ONLY:-lod200,p500,p1000,attack,storm}"
 wants() { [[ ",$only," == *",$1,"* ]]; }
 steal_before=$(awk '/^cpu /{print $9}' /proc/stat)
+if [ -n "${SLOW:-}" ]; then
+  command -v stress-ng > /dev/null || { echo "SLOW needs stress-ng (apt-get install stress-ng)" >&2; exit 2; }
+  stress-ng --cpu 2 --cpu-load "$SLOW" --timeout 3600s > /dev/null 2>&1 &
+  stress=$!
+  trap 'kill $stress 2>/dev/null || true' EXIT
+fi
 
 if wants lod200; then
   VOXELD_ARGS="--io-threads 2" "$run" lt_lod200 200 90 -- --lod-level 6 || true
@@ -40,7 +49,7 @@ if wants storm; then
     --metrics-port 0 --metrics-port-file "$out/$name.mport" --max-memory 1G \
     --max-clients 4000 --stats-interval 10 > "$out/$name.log" 2>&1 &
   server=$!
-  trap 'kill $server 2>/dev/null || true' EXIT
+  trap 'kill $server ${stress:-} 2>/dev/null || true' EXIT
   for _ in $(seq 100); do [ -s "$out/$name.mport" ] && break; sleep 0.1; done
   common=(--server "127.0.0.1:$(cat "$out/$name.port")" --edit-rate 0.5 --view-radius 4
           --server-pid "$server" --spread-addresses)
@@ -57,6 +66,7 @@ if wants storm; then
   kill -TERM $server; wait $server || true
   trap - EXIT
 fi
+[ -n "${SLOW:-}" ] && { kill "$stress" 2>/dev/null || true; wait "$stress" 2>/dev/null || true; }
 
 steal_after=$(awk '/^cpu /{print $9}' /proc/stat)
 /usr/bin/python3 "$root/bench/scripts/load_table.py" "$out" "$root" \
