@@ -5,6 +5,7 @@
 // stats book (stats_book.hpp).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <vector>
@@ -319,6 +320,58 @@ TEST(LodStage, HeldBackForItsStarvationTimeItAsksForTheStoreAndARunStartsTheCloc
   EXPECT_TRUE(lod.held_back(t0 + LodStage::kStarvation));
   lod.ran();
   EXPECT_FALSE(lod.held_back(t0 + LodStage::kStarvation * 2));
+}
+
+// Level-1 keys without seams: `count` chunks in a row along x from chunk `x0`, through
+// the surface.
+std::vector<LodKey> row_of_keys(int x0, int count) {
+  std::vector<LodKey> keys;
+  for (int x = x0; x < x0 + count; ++x) keys.push_back({{1, {x, -1, 0}}, {}});
+  return keys;
+}
+
+// The order a stage publishes the keys it is asked for, two at a time.
+std::vector<LodKey> publication_order(LodStage& lod, Clock::time_point now, size_t expected) {
+  std::vector<LodKey> order;
+  for (int pass = 0; pass < 100 && order.size() < expected; ++pass) {
+    const LodStage::RunResult r = lod.run(now, 2);
+    order.insert(order.end(), r.published.begin(), r.published.end());
+  }
+  return order;
+}
+
+size_t position(const std::vector<LodKey>& order, const LodKey& k) {
+  return static_cast<size_t>(std::find(order.begin(), order.end(), k) - order.begin());
+}
+
+// 200 joining players each waited for the whole crowd's backlog: the stage took four keys
+// from every owner in turn, so every layout was finished near the end. The owner that
+// came first is served first while their first views wait.
+TEST(LodStage, TheFirstViewOfThePlayerWhoCameFirstIsMeshedFirst) {
+  world::TerrainGenerator generator(3);
+  WorldState state(2);
+  LodStage lod(generator, state, {});
+  const std::vector<LodKey> early = row_of_keys(0, 8), late = row_of_keys(20, 8);
+  lod.set_wants(7, early);
+  lod.set_wants(9, late);
+  const std::vector<LodKey> order = publication_order(lod, Clock::now(), 16);
+  ASSERT_EQ(order.size(), 16u);
+  for (const LodKey& k : early) EXPECT_LT(position(order, k), 8u) << "an early key came late";
+}
+
+// ...but not for ever: a client that keeps its first view from completing (changing its
+// layout, say) loses its place after kFirstViewPriority, and the owners share in turn.
+TEST(LodStage, AFirstViewKeepsItsPlaceForTenSecondsAtMost) {
+  world::TerrainGenerator generator(3);
+  WorldState state(2);
+  LodStage lod(generator, state, {});
+  const std::vector<LodKey> early = row_of_keys(0, 8), late = row_of_keys(20, 8);
+  lod.set_wants(7, early);
+  lod.set_wants(9, late);
+  const std::vector<LodKey> order =
+      publication_order(lod, Clock::now() + LodStage::kFirstViewPriority, 16);
+  ASSERT_EQ(order.size(), 16u);
+  EXPECT_LT(position(order, late.front()), 8u) << "the later owner waited for the first";
 }
 
 TEST(StatsBook, CountsAddToTheTotalsAndToTheBatchInHandOnly) {

@@ -149,9 +149,9 @@ std::vector<LodKey> LodStage::set_wants(LoadOwner owner, std::vector<LodKey> key
       owners_.erase(it);
       return late;
     }
-    it->second = Owner{std::move(keys), 0, it->second.first_view};  // still first, or not
+    it->second = Owner{std::move(keys), 0, it->second.first_view, it->second.arrived};
   } else if (!keys.empty()) {
-    owners_.emplace(owner, Owner{std::move(keys), 0});
+    owners_.emplace(owner, Owner{std::move(keys), 0, true, Clock::now()});
     first_views_wait_ = true;
   }
   missing_ = true;
@@ -205,14 +205,17 @@ size_t LodStage::take_keys(Owner& o, size_t turn, size_t max, std::vector<LodKey
   return took;
 }
 
-void LodStage::take_missing(size_t max, std::vector<LodKey>& out) {
+void LodStage::take_missing(Clock::time_point now, size_t max, std::vector<LodKey>& out) {
   // First views before the rest: a joining player sees nothing until its whole layout has
   // come, while a walking one only misses a few far chunks for a moment. And first come,
   // first served between first views: shared round robin, every joining player would wait
   // for the whole crowd's backlog, while the oldest first gets most of them done early
   // (and their chunks are most of what the later ones want).
   std::vector<LoadOwner> first, settled;
-  for (const auto& [id, o] : owners_) (o.first_view ? first : settled).push_back(id);
+  for (auto& [id, o] : owners_) {
+    if (o.first_view && now - o.arrived >= kFirstViewPriority) o.first_view = false;
+    (o.first_view ? first : settled).push_back(id);
+  }
   std::sort(first.begin(), first.end());
   std::sort(settled.begin(), settled.end());
   std::unordered_set<LodKey, LodKeyHash> taken(out.begin(), out.end());
@@ -311,7 +314,8 @@ LodStage::RunResult LodStage::run(Clock::time_point now, size_t max_chunks,
     for (const world::LodSeams s : v->second) keys.push_back({c, s});
   }
   const size_t remesh_keys = keys.size();  // re-meshes (and meshes the store put off)
-  if (missing) take_missing(keys.size() + lod_missing_quota(max_chunks, chunks.size(), true), keys);
+  if (missing)
+    take_missing(now, keys.size() + lod_missing_quota(max_chunks, chunks.size(), true), keys);
   size_t reads_left = kStoreReadsPerPass;
   std::vector<LodKey> ready;
   std::array<uint64_t, kCountedLevels> remeshed{};

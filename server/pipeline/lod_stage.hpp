@@ -88,6 +88,10 @@ class LodStage {
   // kStarvation, when the pass is to wait for the store instead. ran(): a pass ran
   // without putting any off, or there was nothing to do.
   static constexpr auto kStarvation = std::chrono::milliseconds(250);
+  // How long a first view goes before the others at most: a client that keeps changing
+  // its layout before it has come cannot keep the front of the queue.
+  static constexpr auto kFirstViewPriority = std::chrono::seconds(10);
+
   bool held_back(Clock::time_point now) {
     if (!held_back_since_) held_back_since_ = now;
     return now - *held_back_since_ >= kStarvation;
@@ -117,14 +121,15 @@ class LodStage {
     // Until every key of its first layout was published once: a player who sees nothing
     // until then (see take_missing).
     bool first_view = true;
+    Clock::time_point arrived{};  // its first set_wants
   };
   void want(LoadOwner owner, const LodKey& k);
   void unwant(LoadOwner owner, const LodKey& k);
   // Up to `max` keys not published yet: the owners still waiting for their first view
-  // first, the oldest (lowest id) first; then the others, round robin, kOwnerTurn keys
-  // each. Every kSettledTurn-th call the others go first, so that a stream of arrivals
-  // cannot starve a walking player's new chunks.
-  void take_missing(size_t max, std::vector<LodKey>& out);
+  // (for up to kFirstViewPriority) first, the oldest (lowest id) first; then the others,
+  // round robin, kOwnerTurn keys each. Every kSettledTurn-th call the others go first, so
+  // that a stream of arrivals cannot starve a walking player's new chunks.
+  void take_missing(Clock::time_point now, size_t max, std::vector<LodKey>& out);
   // Takes owner `o`'s missing keys, at most `turn` of them, into `out` (up to `max`);
   // advances its cursor past the published ones; returns how many it took.
   size_t take_keys(Owner& o, size_t turn, size_t max, std::vector<LodKey>& out,
