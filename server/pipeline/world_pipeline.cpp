@@ -202,9 +202,8 @@ bool WorldPipeline::batch_ready(Inbox::State& in) {
   // After a failed read of a stored chunk, a pass now and then tries it again.
   const bool retry_reads = loads_->waiting_for_store() && !reader_->backing_off(now);
   // While a batch waits for the store, the chunk map may show edits that are not durable:
-  // no LOD mesh is made from it then (the append's landing wakes us).
-  // (A pass that put off every mesh it took, for edits not durable yet: not again before
-  // an append lands.)
+  // the LOD stage puts off the meshes that read them (lod_pass), and after a pass that put
+  // off every mesh it took, it waits for an append to land (which wakes us).
   const bool in_flight = commit_ && !commit_->empty();
   const bool lod = !(in_flight && lod_blocked_) && (!in.lod_updates.empty() || lod_->has_work(now));
   return in.scheduler.has_ordered() || in.generated_ready || retry_reads ||
