@@ -18,6 +18,7 @@
 #include "server/pipeline/world_pipeline.hpp"
 #include "server/world/overlay_sampler.hpp"
 #include "server/world/terrain_sampler.hpp"
+#include "tests/lod_test_util.hpp"
 
 namespace vox::pipeline {
 namespace {
@@ -59,17 +60,7 @@ std::vector<LodKey> layout_keys(const std::array<double, 3>& eye) {
   return keys;
 }
 
-proto::Bytes direct_encoding(const world::PointSampler& sampler, const LodKey& k) {
-  mesh::LodBlock block;
-  mesh::LodScratch scratch;
-  mesh::ChunkMesh mesh;
-  proto::CodecScratch codec;
-  proto::Bytes out;
-  mesh::gather_lod_block(sampler, k.chunk, k.seams, block);
-  mesh::mesh_lod_chunk(block, scratch, mesh);
-  proto::encode_lod_mesh(mesh, scratch, codec, out);
-  return out;
-}
+using test::direct_lod_encoding;
 
 TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
   Publications pub;  // declared first: it outlives the pipeline, which publishes until it stops
@@ -85,7 +76,7 @@ TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
   for (const LodKey& k : keys) {
     const MeshVersionPtr v = p.lod_meshes().get(k);
     ASSERT_TRUE(v);
-    EXPECT_EQ(v->encoding, direct_encoding(sampler, k)) << "level " << k.chunk.level;
+    EXPECT_EQ(v->encoding, direct_lod_encoding(sampler, k)) << "level " << k.chunk.level;
     with_surface += v->triangles > 0;
     EXPECT_TRUE(v->mesh.empty()) << "a level-of-detail version keeps only its encodings";
   }
@@ -202,9 +193,9 @@ TEST(LodPipeline, AnEditReachesTheCoarseChunksOverItAsAFreshMeshOfTheEditedWorld
         [&](world::ChunkCoord c) -> const world::Chunk& { return *map.find(c); });
     size_t changed = 0;
     for (const LodKey& k : over) {
-      const auto fresh = direct_encoding(sampler, k);
+      const auto fresh = direct_lod_encoding(sampler, k);
       EXPECT_EQ(p.lod_meshes().get(k)->encoding, fresh) << "level " << k.chunk.level;
-      changed += fresh != direct_encoding(world::TerrainSampler(generator), k);
+      changed += fresh != direct_lod_encoding(world::TerrainSampler(generator), k);
     }
     EXPECT_GT(changed, 0u) << "the edit shows at a coarse level";
   });

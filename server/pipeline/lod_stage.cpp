@@ -323,9 +323,9 @@ LodStage::RunResult LodStage::run(Clock::time_point now, size_t max_chunks,
   for (size_t i = 0; i < keys.size(); ++i) {
     const LodKey& k = keys[i];
     if (!unsettled.empty()) {
-      const auto [lo, hi] = footprint(k.chunk);
+      const std::pair<ChunkCoord, ChunkCoord> box = footprint(k.chunk);
       if (std::any_of(unsettled.begin(), unsettled.end(),
-                      [&](ChunkCoord c) { return within(c, lo, hi); })) {
+                      [&](ChunkCoord c) { return within(c, box.first, box.second); })) {
         // A re-mesh (all its variants) comes back first next pass; a missing mesh is
         // taken again, the owner's cursor not having passed it.
         if (i < remesh_keys) retry_.push_back(k.chunk);

@@ -464,9 +464,8 @@ size_t WorldPipeline::load_pass(Clock::time_point now) {
 
 // A level-of-detail pass: the layouts set since are taken (keys an owner now wants that
 // were published before it did are routed to it), then the stage meshes within its time
-// slice. It runs only while no batch waits for the store (a LOD mesh never shows an edit
-// that is not durable); held back too long, it waits for the appends. An edit arriving
-// ends it: edits go first.
+// slice, putting off the meshes that read edits not durable yet; putting off too long, it
+// waits for the appends. An edit arriving ends it: edits go first.
 void WorldPipeline::lod_pass(Clock::time_point now) {
   std::unordered_map<LoadOwner, std::vector<LodKey>> updates;
   bool edits_waiting = false;
@@ -484,8 +483,6 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
   if (!late.by_owner.empty()) subscribers_.notify_lod(late);
   lod_blocked_ = false;
   if (!lod_->has_work(now)) return lod_->ran();
-  // Meshes reading edits not durable yet are put off; put off for too long, the pass
-  // waits for the store.
   if (commit_ && !commit_->empty() && lod_->held_back(now)) drain_commits();
   const Clock::time_point start = Clock::now();
   for (;;) {
