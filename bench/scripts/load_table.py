@@ -133,7 +133,7 @@ def main():
         else:  # after the other table, if there is one, else first
             other = doc.find("## Current figures")
             at = doc.find("\n## ", other + 1) if other >= 0 else first
-            doc = doc[:at + 1] + text + "\n" + doc[at + 1:]
+            doc = doc[:at + 1].rstrip("\n") + "\n\n" + text + "\n" + doc[at + 1:]
         with open(path, "w") as f:
             f.write(doc)
     return 0
