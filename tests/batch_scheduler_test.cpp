@@ -100,27 +100,43 @@ TEST(BatchScheduler, ADroppedOwnerLeavesNoQueuedWork) {
   EXPECT_TRUE(next(s, 1000, unit_cost).loads.empty());
 }
 
-TEST(BatchScheduler, OwnersAreServedRoundRobinSoABigViewDoesNotDelayAnothersFirstChunks) {
+// A new player's small view is not delayed by a huge one queued before it: fewest chunks
+// left first; and the huge one still moves (the round robin's part of the pass).
+TEST(BatchScheduler, ASmallViewGoesBeforeAHugeOneWhichStillMoves) {
   BatchScheduler s(32);
   s.request(1, row(1, 7153));  // a huge view queued first
   s.request(2, row(2, 40));    // a new player's small view behind it
   const Taken b = next(s, 64, unit_cost);
-  ASSERT_EQ(b.loads.size(), 2u);
-  EXPECT_EQ(b.loads[0].owner, 1u);
-  EXPECT_EQ(b.loads[0].chunks.size(), 32u);
-  EXPECT_EQ(b.loads[1].owner, 2u);
-  EXPECT_EQ(b.loads[1].chunks.size(), 32u);
-  EXPECT_EQ(b.loads[1].chunks.front(), (ChunkCoord{2, 0, 0})) << "its nearest chunk first";
-  // Next batch: owner 1 again (the rotation goes on), owner 2 finishes, owner 1 takes
-  // what is left of the budget.
-  const Taken b2 = next(s, 64, unit_cost);
-  ASSERT_EQ(b2.loads.size(), 3u);
-  EXPECT_EQ(b2.loads[0].owner, 1u);
-  EXPECT_EQ(b2.loads[1].owner, 2u);
-  EXPECT_EQ(b2.loads[1].chunks.size(), 8u);
-  EXPECT_EQ(b2.loads[2].owner, 1u);
-  EXPECT_EQ(b2.loads[2].chunks.size(), 24u);
+  ASSERT_EQ(b.loads.size(), 2u) << "one slice per owner";
+  EXPECT_EQ(b.loads[0].owner, 2u);
+  EXPECT_EQ(b.loads[0].chunks.size(), 40u) << "the small view whole, in the first batch";
+  EXPECT_EQ(b.loads[0].chunks.front(), (ChunkCoord{2, 0, 0})) << "its nearest chunk first";
+  EXPECT_EQ(b.loads[1].owner, 1u);
+  EXPECT_EQ(b.loads[1].chunks.size(), 24u) << "the rest of the budget";
+  EXPECT_EQ(b.loads[1].chunks.front(), (ChunkCoord{1, 0, 0}));
   EXPECT_EQ(s.load_owners(), 1u);
+}
+
+// 200 players joining within seconds each waited for all of them: round robin moved every
+// view a little each batch, so all finished together at the end. Of two alike views the
+// one served longer (fewer chunks left) now goes first and finishes first.
+TEST(BatchScheduler, OfTwoAlikeViewsTheOneServedLongerFinishesFirst) {
+  BatchScheduler s(8);
+  bool first_done = false, second_done = false;
+  size_t second_taken_when_first_done = 0, second_taken = 0;
+  s.request(1, row(1, 100), [&] { first_done = true; });
+  s.request(2, row(2, 100), [&] { second_done = true; });
+  for (int batch = 0; batch < 20 && !second_done; ++batch) {
+    for (LoadSlice& slice : next(s, 40, unit_cost).loads) {
+      if (slice.owner == 2) second_taken += slice.chunks.size();
+      if (slice.done) slice.done();
+      if (first_done && second_taken_when_first_done == 0)
+        second_taken_when_first_done = second_taken;
+    }
+  }
+  ASSERT_TRUE(first_done && second_done);
+  EXPECT_LE(second_taken_when_first_done, 30u)
+      << "round robin would have had both about 90 % done when the first finished";
 }
 
 TEST(BatchScheduler, ChunksWithNothingToDoCostNoTurnAndNoBudget) {
@@ -205,7 +221,8 @@ TEST(BatchScheduler, ReconnectingFromTheSameAddressDoesNotRefillTheLoadBudget) {
   EXPECT_LE(taken, 96u + 32u) << "the address's burst (and at most one group of debt)";
   EXPECT_EQ(s.budget_groups(), 1u) << "an address in debt is remembered after its sessions left";
   s.request(9, row(9, 1000), {}, kOther);  // another address is not held back
-  EXPECT_EQ(s.take_loads(1000, unit_cost, SIZE_MAX, t0).at(0).chunks.size(), 32u);
+  EXPECT_EQ(s.take_loads(1000, unit_cost, SIZE_MAX, t0).at(0).chunks.size(), 64u)
+      << "its session's whole burst";
   s.drop(9, t0 + 10s);  // both refilled by then: nothing left to remember
   EXPECT_EQ(s.budget_groups(), 0u);
 }

@@ -101,12 +101,17 @@ class BatchScheduler {
 
   // A batch starts with every queued edit and inspection, in arrival order...
   std::vector<OrderedTask> take_ordered();
-  // ...then takes loads round robin, `group` chunks per turn, until `load_budget` is spent
-  // or `scan_limit` chunks were considered (chunks of zero cost are skipped and cost no
-  // turn, but count as considered). A budget of 0 takes no loads (e.g. memory is full).
-  // An owner whose budget is spent is skipped until it refills.
+  // ...then takes loads: first, for up to kShortestFirstShare of `load_budget`, from the
+  // owner with the fewest chunks left first (a new player's view before a huge one; of two
+  // alike, the one served longer, so views finish one after another instead of all
+  // together at the end); then round robin, `group` chunks per turn (so that a huge view
+  // still moves), until `load_budget` is spent or `scan_limit` chunks were considered
+  // (chunks of zero cost are skipped and cost no turn, but count as considered). A budget
+  // of 0 takes no loads (e.g. memory is full). An owner whose budget is spent is skipped
+  // until it refills.
   std::vector<LoadSlice> take_loads(size_t load_budget, const Cost& cost,
                                     size_t scan_limit = SIZE_MAX, Clock::time_point now = {});
+  static constexpr double kShortestFirstShare = 0.75;
   // Whether some owner with queued loads has budget left at `now`.
   bool has_ready_loads(Clock::time_point now);
 
@@ -141,6 +146,11 @@ class BatchScheduler {
   void charge(LoadOwner owner, double work, Clock::time_point now);
   // Forgets groups without owners whose budget has refilled (equal to a fresh one).
   void purge_groups(Clock::time_point now);
+  // Takes chunks of `owner`'s request into `loads` while `more()` and its budget allow,
+  // at most `max_chunks`; finishes the request when its last chunk is taken.
+  void take_from(LoadOwner owner, size_t max_chunks, const Cost& cost, Clock::time_point now,
+                 const std::function<bool()>& more, size_t& spent, size_t& scanned,
+                 std::vector<LoadSlice>& loads);
 
   const size_t group_;
   const double owner_rate_, owner_burst_, group_rate_, group_burst_;
