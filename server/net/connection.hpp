@@ -29,8 +29,8 @@ namespace vox::net {
 // sessions held 256 KiB each long after their views were sent.
 inline constexpr size_t kKeptWriteBytes = 32 * 1024;
 template <class Buffer>
-void clear_write_buffer(Buffer& buffer, size_t used) {
-  if (buffer.capacity() > kKeptWriteBytes && used * 4 < buffer.capacity()) {
+void clear_write_buffer(Buffer& buffer) {
+  if (buffer.capacity() > kKeptWriteBytes && buffer.size() * 4 < buffer.capacity()) {
     Buffer().swap(buffer);
     return;
   }

@@ -94,7 +94,7 @@ void TcpConnection::write(std::shared_ptr<Events> owner, std::chrono::millisecon
                                              boost::system::error_code ec, size_t n) {
                       writing_ = false;
                       write_timer_.cancel();
-                      clear_write_buffer(write_buffer_, write_buffer_.size());
+                      clear_write_buffer(write_buffer_);
                       if (ec) {
                         owner->on_closed();
                         return;

@@ -282,7 +282,7 @@ void WsConnection::write_next(std::shared_ptr<Events> owner, size_t index, size_
                      s.write_timer.cancel();
                      if (s.corked) cork(s.ws, false);
                      s.corked = false;
-                     clear_write_buffer(s.write_buffer, s.write_buffer.size());
+                     clear_write_buffer(s.write_buffer);
                      s.message_ends.clear();
                      if (ec) {
                        owner->on_closed();

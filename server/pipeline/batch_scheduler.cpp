@@ -89,17 +89,21 @@ bool BatchScheduler::has_ready_loads(Clock::time_point now) {
 
 void BatchScheduler::take_from(LoadOwner owner, size_t max_chunks, const Cost& cost,
                                Clock::time_point now, const std::function<bool()>& more,
-                               size_t& spent, size_t& scanned, std::vector<LoadSlice>& loads) {
+                               Pass& pass) {
   Request& r = requests_.at(owner);
-  LoadSlice slice{owner, {}, {}};
-  while (r.next < r.chunks.size() && slice.chunks.size() < max_chunks && more()) {
+  const auto [at, fresh] = pass.at.try_emplace(owner, pass.loads.size());
+  if (fresh) pass.loads.push_back(LoadSlice{owner, {}, {}});
+  LoadSlice& slice = pass.loads[at->second];  // the round robin goes on from the first part
+  size_t taken = 0;
+  while (r.next < r.chunks.size() && taken < max_chunks && more()) {
     const ChunkCoord c = r.chunks[r.next++];
     --queued_chunks_;
-    ++scanned;
+    ++pass.scanned;
     const size_t work = cost(c);
     if (work == 0) continue;  // nothing to do: costs no turn
     slice.chunks.push_back(c);
-    spent += work;
+    ++taken;
+    pass.spent += work;
     charge(owner, static_cast<double>(work), now);
     if (!ready(owner, now)) break;  // its budget is spent
   }
@@ -108,22 +112,11 @@ void BatchScheduler::take_from(LoadOwner owner, size_t max_chunks, const Cost& c
     requests_.erase(owner);
     rotation_.erase(std::find(rotation_.begin(), rotation_.end(), owner));
   }
-  if (slice.chunks.empty() && !slice.done) return;
-  // One slice per owner and pass: the round robin's part goes on from the first part's.
-  const auto same = std::find_if(loads.begin(), loads.end(),
-                                 [owner](const LoadSlice& l) { return l.owner == owner; });
-  if (same == loads.end()) {
-    loads.push_back(std::move(slice));
-  } else {
-    same->chunks.insert(same->chunks.end(), slice.chunks.begin(), slice.chunks.end());
-    if (slice.done) same->done = std::move(slice.done);
-  }
 }
 
 std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost& cost,
                                                   size_t scan_limit, Clock::time_point now) {
-  std::vector<LoadSlice> loads;
-  size_t spent = 0, scanned = 0;
+  Pass pass;
   // Fewest chunks left first, within the share (ties: the older owner, the lower id).
   const auto share = static_cast<size_t>(static_cast<double>(load_budget) * kShortestFirstShare);
   std::vector<std::pair<size_t, LoadOwner>> shortest;
@@ -133,17 +126,16 @@ std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost
     shortest.emplace_back(r.chunks.size() - r.next, owner);
   }
   std::sort(shortest.begin(), shortest.end());
+  const auto within_share = [&] { return pass.spent < share && pass.scanned < scan_limit; };
   for (const auto& [left, owner] : shortest) {
-    if (spent >= share || scanned >= scan_limit) break;
-    if (!ready(owner, now)) continue;
-    take_from(
-        owner, SIZE_MAX, cost, now, [&] { return spent < share && scanned < scan_limit; }, spent,
-        scanned, loads);
+    if (!within_share()) break;
+    if (ready(owner, now)) take_from(owner, SIZE_MAX, cost, now, within_share, pass);
   }
   // Then round robin. Owners out of budget are passed over (they keep their place); the
   // pass ends when a whole round finds no owner with budget.
+  const auto within_budget = [&] { return pass.spent < load_budget && pass.scanned < scan_limit; };
   size_t passed_over = 0;
-  while (spent < load_budget && scanned < scan_limit && passed_over < rotation_.size()) {
+  while (within_budget() && passed_over < rotation_.size()) {
     const LoadOwner owner = rotation_.front();
     rotation_.pop_front();
     rotation_.push_back(owner);  // take_from takes it out again if its request finishes
@@ -152,11 +144,11 @@ std::vector<LoadSlice> BatchScheduler::take_loads(size_t load_budget, const Cost
       continue;
     }
     passed_over = 0;
-    take_from(
-        owner, group_, cost, now, [&] { return spent < load_budget && scanned < scan_limit; },
-        spent, scanned, loads);
+    take_from(owner, group_, cost, now, within_budget, pass);
   }
-  return loads;
+  // Owners looked at whose chunks all cost nothing and whose request goes on: no slice.
+  std::erase_if(pass.loads, [](const LoadSlice& l) { return l.chunks.empty() && !l.done; });
+  return std::move(pass.loads);
 }
 
 std::vector<std::function<void()>> BatchScheduler::take_all_load_callbacks() {

@@ -146,11 +146,17 @@ class BatchScheduler {
   void charge(LoadOwner owner, double work, Clock::time_point now);
   // Forgets groups without owners whose budget has refilled (equal to a fresh one).
   void purge_groups(Clock::time_point now);
-  // Takes chunks of `owner`'s request into `loads` while `more()` and its budget allow,
-  // at most `max_chunks`; finishes the request when its last chunk is taken.
+  // A load pass's slices, one per owner (`at`: each owner's index in `loads`), and what it
+  // spent and considered.
+  struct Pass {
+    std::vector<LoadSlice> loads;
+    std::unordered_map<LoadOwner, size_t> at;
+    size_t spent = 0, scanned = 0;
+  };
+  // Takes chunks of `owner`'s request into its slice of `pass` while `more()` and its
+  // budget allow, at most `max_chunks`; finishes the request when its last chunk is taken.
   void take_from(LoadOwner owner, size_t max_chunks, const Cost& cost, Clock::time_point now,
-                 const std::function<bool()>& more, size_t& spent, size_t& scanned,
-                 std::vector<LoadSlice>& loads);
+                 const std::function<bool()>& more, Pass& pass);
 
   const size_t group_;
   const double owner_rate_, owner_burst_, group_rate_, group_burst_;
