@@ -78,7 +78,6 @@ TEST(LodPipeline, ALayoutsMeshesArePublishedAsADirectMeshOfTheTerrain) {
     ASSERT_TRUE(v);
     EXPECT_EQ(v->encoding, direct_lod_encoding(sampler, k)) << "level " << k.chunk.level;
     with_surface += v->triangles > 0;
-    EXPECT_TRUE(v->mesh.empty()) << "a level-of-detail version keeps only its encodings";
   }
   EXPECT_GT(with_surface, 4u);
 }

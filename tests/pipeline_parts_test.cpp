@@ -381,9 +381,35 @@ TEST(MemoryKeeper, EditsGetOneEvictionPerBatchAndLoadsWaitAtTheBudget) {
   EXPECT_FALSE(keeper.update_blocked(99 * kMiB));  // unchanged: loads go on
   EXPECT_TRUE(keeper.update_blocked(100 * kMiB));
   EXPECT_TRUE(keeper.loads_blocked());
+
   EXPECT_EQ(keeper.next_look(true), MemoryKeeper::kPressureRetry);
   EXPECT_TRUE(keeper.update_blocked(50 * kMiB));
   EXPECT_FALSE(keeper.loads_blocked());
+}
+
+// The attack mix held the accounted bytes under 90 % of a 1 GiB budget while the resident
+// set reached 1,105 MiB: the allocator's heap beyond the parts (structures no part counts,
+// what size classes waste) was never counted.
+TEST(MemoryKeeper, TheResidentSetWentPastTheBudgetWhileTheHeapBeyondThePartsWasNotCounted) {
+  const auto t0 = MemoryKeeper::Clock::now();
+  MemoryKeeper keeper(MemoryBudget(100 * kMiB), seconds(120), seconds(1), t0);
+  keeper.set_session_bytes(2 * kMiB);
+  EXPECT_TRUE(keeper.heap_due(t0));
+  keeper.heap_measured(t0, 97 * kMiB, 85 * kMiB);  // the allocator holds 12 MiB more
+  EXPECT_EQ(keeper.unaccounted_bytes(), 12 * kMiB);
+  EXPECT_EQ(keeper.other_bytes(), 14 * kMiB);
+  EXPECT_FALSE(keeper.heap_due(t0 + milliseconds(999)));  // looked at once a second
+  EXPECT_TRUE(keeper.heap_due(t0 + MemoryKeeper::kHeapLook));
+  // Parts of 80 MiB with the rest (14) are over 90 %: a pass, down to 80 % of it all.
+  const size_t other = keeper.other_bytes();
+  const auto pass = keeper.due(t0 + seconds(1), 80 * kMiB + other, other);
+  ASSERT_TRUE(pass.has_value());
+  EXPECT_EQ(pass->target_bytes, MemoryBudget(100 * kMiB).evict_target(14 * kMiB));
+  EXPECT_FALSE(keeper.update_blocked(80 * kMiB + other));  // loads go on below the budget
+  EXPECT_TRUE(keeper.update_blocked(87 * kMiB + other));   // and wait past it
+  // Parts accounting more than the allocator holds leave nothing unaccounted.
+  keeper.heap_measured(t0 + seconds(1), 50 * kMiB, 60 * kMiB);
+  EXPECT_EQ(keeper.unaccounted_bytes(), 0u);
 }
 
 TEST(Inbox, AfterStopNothingIsQueuedAndTheTaskIsLeftToTheCaller) {

@@ -55,13 +55,7 @@ struct Fixture {
     auto v = std::make_shared<MeshVersion>();
     v->coord = c;
     v->version = next_version++;
-    if (surface) {
-      v->mesh.positions.resize(3);
-      v->mesh.normals.resize(3);
-      v->mesh.materials.resize(3);
-      v->mesh.indices = {0, 1, 2};
-      v->triangles = 1;
-    }
+    if (surface) v->triangles = 1;
     v->encoding.assign(bytes, static_cast<uint8_t>(v->version));
     v->full_frame.assign(bytes, static_cast<uint8_t>(v->version));
     return v;

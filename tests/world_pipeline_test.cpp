@@ -9,6 +9,7 @@
 #include <random>
 #include <thread>
 
+#include "proto/mesh_codec.hpp"
 #include "tests/mesh_test_util.hpp"
 
 namespace vox::pipeline {
@@ -95,7 +96,7 @@ std::vector<mesh::ChunkMesh> published_meshes(const WorldPipeline& p, const mesh
   for (size_t i = 0; i < box.count(); ++i) {
     const MeshVersionPtr m = p.meshes().get(box.at(i));
     EXPECT_TRUE(m) << "no mesh for chunk " << i;
-    out.push_back(m ? m->mesh : mesh::ChunkMesh{});
+    out.push_back(m ? *proto::decode_mesh(m->encoding) : mesh::ChunkMesh{});  // as a client sees it
   }
   return out;
 }
@@ -220,7 +221,7 @@ TEST(WorldPipeline, EditThatChangesNoMeshPublishesNothing) {
   EXPECT_TRUE(r.accepted);
   EXPECT_TRUE(r.changed_chunks.empty());
   EXPECT_EQ(p.meshes().get({0, -8, 0})->version, before);
-  EXPECT_TRUE(p.meshes().get({0, -8, 0})->mesh.empty());
+  EXPECT_EQ(p.meshes().get({0, -8, 0})->triangles, 0u);
 }
 
 TEST(WorldPipeline, LoadsOnDemandAndReportsMemory) {
@@ -269,7 +270,9 @@ TEST(WorldPipeline, ConcurrentWritersAndReadersSeeConsistentVersions) {
         ASSERT_TRUE(m);
         EXPECT_GE(m->version, seen[i]) << "a reader saw a version go back";
         seen[i] = m->version;
-        for (uint32_t index : m->mesh.indices) ASSERT_LT(index, m->mesh.vertex_count());
+        const auto decoded = proto::decode_mesh(m->encoding);
+        ASSERT_TRUE(decoded.ok());
+        EXPECT_EQ(decoded->triangle_count(), m->triangles);
         ++reads;
       }
     }
@@ -323,7 +326,8 @@ TEST(WorldPipeline, AnEditWhereNothingIsMeshedGeneratesOnlyWhatItTouches) {
           if (const world::Chunk* chunk = map.find(n)) reference.insert(n, *chunk);
         }
   });
-  EXPECT_EQ(mesh->mesh.indices, mesh::mesh_chunks(reference, {c, c})[0].indices);
+  EXPECT_EQ(proto::decode_mesh(mesh->encoding)->indices,
+            mesh::mesh_chunks(reference, {c, c})[0].indices);
   // An edit next to meshed chunks re-meshes them (and loads what that needs).
   const EditResult near = p.submit(world::Explosion{{x + 40, y, 40}, 4, 2}).get();  // in the box
   EXPECT_FALSE(near.changed_chunks.empty());
@@ -550,14 +554,14 @@ TEST(WorldPipeline, StaysWithinItsMemoryBudgetWhileAViewMovesFar) {
 TEST(WorldPipeline, LoadsWaitAndEditsInNewAreasAreRefusedWhileTheBudgetIsFull) {
   const size_t budget = 64u << 20;
   WorldPipeline p(PipelineConfig{.seed = kSeed, .threads = 2, .max_memory = budget});
-  p.set_other_bytes(budget);
+  p.set_session_bytes(budget);
   auto loaded = p.load({{5000, 0, 5000}, {5001, 1, 5001}});
   EXPECT_EQ(loaded.wait_for(std::chrono::milliseconds(600)), std::future_status::timeout)
       << "a load waits while memory is full";
   EXPECT_TRUE(p.stats().loads_blocked);
   const EditResult r = p.submit(world::Brush{{-90000, 10, 90000}, 3, 1}).get();
   EXPECT_EQ(r.reason, world::RefusalReason::kServerBusy);
-  p.set_other_bytes(0);
+  p.set_session_bytes(0);
   EXPECT_EQ(loaded.wait_for(std::chrono::seconds(10 * kSlow)), std::future_status::ready);
   p.inspect([](const world::ChunkMap&) {});  // a batch boundary: the budget was re-checked
   EXPECT_FALSE(p.stats().loads_blocked);

@@ -3,10 +3,8 @@
 #include <prometheus/collectable.h>
 #include <prometheus/exposer.h>
 #include <prometheus/metric_family.h>
-#include <unistd.h>
 
-#include <fstream>
-
+#include "server/pipeline/heap_stats.hpp"
 #include "voxel.pb.h"
 
 namespace vox::metrics {
@@ -70,13 +68,6 @@ std::string lower(std::string s) {
 }
 
 }  // namespace
-
-size_t resident_bytes() {
-  std::ifstream statm("/proc/self/statm");
-  size_t pages_total = 0, pages_resident = 0;
-  if (!(statm >> pages_total >> pages_resident)) return 0;
-  return pages_resident * static_cast<size_t>(::sysconf(_SC_PAGE_SIZE));
-}
 
 class MetricsEndpoint::Collector : public prometheus::Collectable {
  public:
@@ -252,17 +243,28 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     }
     out.push_back(std::move(meshed));
     out.push_back(std::move(published));
-    auto accounted =
-        family("voxeld_memory_accounted_bytes", "Accounted memory by part", MetricType::Gauge);
+    auto accounted = family("voxeld_memory_accounted_bytes",
+                            "Memory the budget counts, by part (unaccounted: the allocator's heap "
+                            "beyond the other parts)",
+                            MetricType::Gauge);
     add(accounted, double(s.chunk_bytes), {{"part", "chunks"}});
     add(accounted, double(s.mesh_bytes), {{"part", "meshes"}});
     add(accounted, double(s.lod_mesh_bytes), {{"part", "lod_meshes"}});
-    add(accounted, double(s.other_bytes), {{"part", "sessions"}});
+    add(accounted, double(s.session_bytes), {{"part", "sessions"}});
+    add(accounted, double(s.unaccounted_bytes), {{"part", "unaccounted"}});
     out.push_back(std::move(accounted));
     gauge(out, "voxeld_memory_budget_bytes", "--max-memory", double(pipeline_.config().max_memory));
     gauge(out, "voxeld_loads_blocked", "1 while loads wait for memory", s.loads_blocked ? 1 : 0);
     gauge(out, "voxeld_resident_memory_bytes", "The process's resident set size",
-          double(resident_bytes()));
+          double(pipeline::process_resident_bytes()));
+    if (const auto heap = pipeline::read_heap_stats()) {
+      auto h =
+          family("voxeld_heap_bytes", "The allocator's counters (jemalloc)", MetricType::Gauge);
+      add(h, double(heap->allocated), {{"kind", "allocated"}});
+      add(h, double(heap->active), {{"kind", "active"}});
+      add(h, double(heap->resident), {{"kind", "resident"}});
+      out.push_back(std::move(h));
+    }
     counter(out, "voxeld_batches_total", "World pipeline batches", double(s.batches));
     counter(out, "voxeld_chunks_generated_total", "Chunks generated from the seed",
             double(s.chunks_generated));

@@ -32,7 +32,4 @@ class MetricsEndpoint {
   uint16_t port_ = 0;
 };
 
-// The process's resident set size in bytes (/proc/self/statm), 0 when unknown.
-size_t resident_bytes();
-
 }  // namespace vox::metrics

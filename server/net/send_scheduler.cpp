@@ -145,7 +145,7 @@ std::optional<SendScheduler::Send> SendScheduler::take(std::vector<Entry>& heap,
       continue;
     }
     if (!held.version) --unresolved_;
-    if (!held.version && current->mesh.empty() && !held.resync) {
+    if (!held.version && current->triangles == 0 && !held.resync) {
       held.version = std::move(current);  // nothing to draw; sent only once it changes
       continue;
     }

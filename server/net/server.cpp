@@ -217,7 +217,7 @@ std::string Server::refusal(AdmissionControl::Verdict why) {
 }
 
 void Server::housekeeping() {
-  pipeline_.set_other_bytes(counters_.session_bytes.load(std::memory_order_relaxed));
+  pipeline_.set_session_bytes(counters_.session_bytes.load(std::memory_order_relaxed));
   housekeeping_timer_.expires_after(std::chrono::seconds(1));
   housekeeping_timer_.async_wait([this](boost::system::error_code ec) {
     if (!ec) housekeeping();

@@ -33,8 +33,8 @@ struct EditWorld {
   const world::TerrainGenerator& generator;
   MemoryKeeper& memory;
   MeshStore& meshes;
-  Checkpoints* checkpoints;                // null without a store
-  size_t other_bytes;                      // sessions' state, in the memory budget
+  Checkpoints* checkpoints;  // null without a store
+  size_t other_bytes;        // sessions' state and the unaccounted heap, in the memory budget
   std::function<size_t()> resident_bytes;  // what the budget counts now
 };
 

@@ -57,10 +57,27 @@ class MemoryKeeper {
   // its way has landed); true when that changed.
   bool update_blocked(size_t total);
   bool loads_blocked() const { return blocked_.load(std::memory_order_relaxed); }  // any thread
-  // Bytes held outside the pipeline (sessions' state), counted in the budget; never
-  // evicted. Any thread.
-  void set_other_bytes(size_t bytes) { other_bytes_.store(bytes, std::memory_order_relaxed); }
-  size_t other_bytes() const { return other_bytes_.load(std::memory_order_relaxed); }
+  // Bytes counted in the budget that eviction cannot free (any thread): sessions' state,
+  // and the heap the allocator holds beyond every part's account (structures no part
+  // counts, what its size classes waste). Without the second, the accounted bytes stayed
+  // under the budget while the process's resident set went 8 % past it.
+  void set_session_bytes(size_t bytes) { session_bytes_.store(bytes, std::memory_order_relaxed); }
+  void set_unaccounted_bytes(size_t bytes) {
+    unaccounted_bytes_.store(bytes, std::memory_order_relaxed);
+  }
+  size_t session_bytes() const { return session_bytes_.load(std::memory_order_relaxed); }
+  size_t unaccounted_bytes() const { return unaccounted_bytes_.load(std::memory_order_relaxed); }
+  size_t other_bytes() const { return session_bytes() + unaccounted_bytes(); }
+  // The allocator's heap is looked at this often (pipeline thread): heap_due() says when,
+  // and heap_measured() takes `active` (the allocator's pages in use) against `parts` (what
+  // the parts account, sessions and terrain on its way included), setting the unaccounted
+  // bytes to the difference (none when the parts account more).
+  static constexpr auto kHeapLook = std::chrono::seconds(1);
+  bool heap_due(Clock::time_point now) const { return now - heap_looked_ >= kHeapLook; }
+  void heap_measured(Clock::time_point now, size_t active, size_t parts) {
+    heap_looked_ = now;
+    set_unaccounted_bytes(active > parts ? active - parts : 0);
+  }
 
   // How long the idle pipeline may sleep before it looks again: loads waiting for memory
   // retry eviction often (sessions release meshes), loads waiting for their owners'
@@ -73,9 +90,10 @@ class MemoryKeeper {
   Clock::time_point last_;   // the last pass
   bool last_freed_ = false;  // it dropped something
   size_t resident_after_ = 0;
+  Clock::time_point heap_looked_{};
   bool evicted_for_edits_ = false;
   std::atomic<bool> blocked_{false};
-  std::atomic<size_t> other_bytes_{0};
+  std::atomic<size_t> session_bytes_{0}, unaccounted_bytes_{0};
 };
 
 }  // namespace vox::pipeline

@@ -5,9 +5,7 @@
 namespace vox::pipeline {
 
 size_t MeshVersion::memory_bytes() const {
-  return sizeof(MeshVersion) + mesh.positions.capacity() * sizeof(mesh::Vec3f) +
-         mesh.normals.capacity() * sizeof(mesh::Vec3f) + mesh.materials.capacity() +
-         mesh.indices.capacity() * 4 + encoding.capacity() + full_frame.capacity();
+  return sizeof(MeshVersion) + encoding.capacity() + full_frame.capacity();
 }
 
 namespace {

@@ -13,16 +13,16 @@
 #include <unordered_map>
 #include <vector>
 
-#include "server/mesh/chunk_mesh.hpp"
 #include "server/world/chunk_coord.hpp"
 
 namespace vox::pipeline {
 
 struct MeshVersion {
   world::ChunkCoord coord;
-  uint64_t version = 0;           // increases with every publication (so also per chunk)
-  mesh::ChunkMesh mesh;           // chunk-local positions (level of detail: not kept)
-  uint32_t triangles = 0;         // of the mesh (a level-of-detail version has only this)
+  uint64_t version = 0;  // increases with every publication (so also per chunk)
+  // The mesh's triangles; the mesh itself is not kept (its encoding is: 1,000 players' level-0
+  // meshes kept as floats and indices were 180 MiB besides their encodings).
+  uint32_t triangles = 0;
   std::vector<uint8_t> encoding;  // the wire encoding (docs/PROTOCOL.md section 2)
   // zstd frame of `encoding` (a full ChunkMesh payload), made at publication when the chunk
   // had no version before; else left empty for full() to make on first request.

@@ -86,14 +86,15 @@ struct PipelineStats {
   size_t chunks_generating = 0;  // terrain queued or ready in the background
   size_t meshes_waiting = 0;     // loaded chunks waiting for their neighbours' terrain
   size_t cached_columns =
-      0;                   // column heights left by earlier batches at the last batch's start (0)
-  size_t other_bytes = 0;  // reported by set_other_bytes (sessions)
+      0;                     // column heights left by earlier batches at the last batch's start (0)
+  size_t session_bytes = 0;  // reported by set_session_bytes
+  size_t unaccounted_bytes = 0;  // the allocator's heap beyond every part (MemoryKeeper)
   // Level-of-detail meshes (levels >= 1); their bytes include the generator grids kept.
   size_t lod_mesh_count = 0, lod_mesh_bytes = 0;
   // Per level (index 1 ..): LOD meshes made, of those re-meshed after edits, and those
   // published (they had changed).
   std::vector<uint64_t> lod_meshed, lod_remeshed, lod_published;
-  size_t accounted_bytes = 0;  // chunks + meshes + other
+  size_t accounted_bytes = 0;  // chunks + meshes + sessions + unaccounted: what the budget counts
   bool loads_blocked = false;  // over the memory budget with nothing left to evict
   // The durable world: chunks the store has a checkpoint of, resident chunks changed since
   // (not evictable), checkpoints written, and the newest one's sequence number.

@@ -10,31 +10,21 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 
-namespace {
-
-bool same_mesh(const mesh::ChunkMesh& a, const mesh::ChunkMesh& b) {
-  return a.indices == b.indices && a.positions == b.positions && a.normals == b.normals &&
-         a.materials == b.materials;
-}
-
-}  // namespace
-
 std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& chunks,
                                           ChunkCoord c, const MeshVersion* previous) {
   mesh::gather_padded_block(chunks, c, w.block);
   mesh::mesh_chunk(w.block, w.scratch, w.mesh);
-  if (previous && same_mesh(previous->mesh, w.mesh)) return nullptr;
-  // A new version: the only allocations, each of its final size (the worker's warm
-  // buffers took the mesher's writes).
+  // Encoded once here, while the mesher's topology is at hand; every client shares it. Two
+  // meshes with one encoding look the same to every client: no new version.
+  proto::encode_mesh(w.mesh, w.scratch, w.block.cells, w.codec, w.encoding);
+  if (previous && std::equal(previous->encoding.begin(), previous->encoding.end(),
+                             w.encoding.begin(), w.encoding.end()))
+    return nullptr;
+  // A new version: the only allocations, each of its final size.
   auto version = std::make_shared<MeshVersion>();
   version->coord = c;
-  version->mesh.positions.assign(w.mesh.positions.begin(), w.mesh.positions.end());
-  version->mesh.normals.assign(w.mesh.normals.begin(), w.mesh.normals.end());
-  version->mesh.materials.assign(w.mesh.materials.begin(), w.mesh.materials.end());
-  version->mesh.indices.assign(w.mesh.indices.begin(), w.mesh.indices.end());
   version->triangles = static_cast<uint32_t>(w.mesh.triangle_count());
-  // Encoded once here, while the mesher's topology is at hand; every client shares it.
-  proto::encode_mesh(version->mesh, w.scratch, w.block.cells, w.codec, version->encoding);
+  version->encoding.assign(w.encoding.begin(), w.encoding.end());
   // A re-mesh's clients take deltas: its full frame is made when someone asks for it.
   if (!previous) w.zstd.compress(version->encoding, {}, version->full_frame);
   return version;

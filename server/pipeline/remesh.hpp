@@ -18,10 +18,11 @@ struct WorldState;
 struct MeshWorker;
 class DurableCommit;
 
-// Meshes chunk c into the worker's buffers; when the mesh differs from `previous` (or
-// there is none), a new version of it (coordinate, mesh, encoding, zstd frame; version
-// number and edit time not set). Null when the mesh did not change: then, once the
-// worker's buffers are warm, nothing is allocated. Any one thread per worker.
+// Meshes and encodes chunk c into the worker's buffers; when the encoding differs from
+// `previous`'s (or there is none), a new version of it (coordinate, triangle count,
+// encoding, zstd frame; version number and edit time not set). Null when it did not
+// change: then, once the worker's buffers are warm, nothing is allocated. Any one thread
+// per worker.
 std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& chunks,
                                           world::ChunkCoord c, const MeshVersion* previous);
 

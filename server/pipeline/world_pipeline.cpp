@@ -6,6 +6,7 @@
 #include <unordered_set>
 
 #include "server/pipeline/edit_pass.hpp"
+#include "server/pipeline/heap_stats.hpp"
 #include "server/pipeline/remesh.hpp"
 #include "server/pipeline/world_restore.hpp"
 #include "server/pipeline/world_state.hpp"
@@ -175,8 +176,9 @@ PipelineStats WorldPipeline::stats() const {
     s.lod_remeshed.push_back(lod_->remeshed(level));
     s.lod_published.push_back(lod_->published(level));
   }
-  s.other_bytes = memory_.other_bytes();
-  s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + s.other_bytes;
+  s.session_bytes = memory_.session_bytes();
+  s.unaccounted_bytes = memory_.unaccounted_bytes();
+  s.accounted_bytes = s.chunk_bytes + s.mesh_bytes + s.lod_mesh_bytes + memory_.other_bytes();
   s.loads_blocked = memory_.loads_blocked();
   const Inbox::Counts queued = inbox_.counts();
   s.queued_edits = queued.edits;
@@ -509,6 +511,13 @@ void WorldPipeline::lod_pass(Clock::time_point now) {
 // (MemoryKeeper says when); decides whether loads must wait.
 void WorldPipeline::keep_memory(Clock::time_point now) {
   WorldState& st = *state_;
+  if (memory_.heap_due(now)) {
+    if (const auto heap = read_heap_stats()) {
+      const size_t parts = st.chunks.memory_bytes() + meshes_.memory_bytes() +
+                           lod_->memory_bytes() + memory_.session_bytes() + on_its_way_bytes();
+      memory_.heap_measured(now, heap->active, parts);
+    }
+  }
   if (const auto pass = memory_.due(now, resident_bytes(), memory_.other_bytes())) {
     drain_commits();  // chunks whose meshes wait for the store stay: answered first
     const size_t dropped =
@@ -567,14 +576,17 @@ size_t WorldPipeline::resident_bytes() const {
          memory_.other_bytes();
 }
 
+// Terrain generated for loads and not landed yet, and chunks a checkpoint holds copies of.
+size_t WorldPipeline::on_its_way_bytes() const {
+  return loads_->memory_bytes() + (checkpoints_ ? checkpoints_->memory_bytes() : 0);
+}
+
 // Load work within the memory budget, counting the terrain and meshes on their way at their
 // worst case, so that passes taken while earlier ones wait for terrain do not overrun it.
 size_t WorldPipeline::load_work_allowed(bool edits_waiting) const {
   const size_t full =
       edits_waiting ? config_.load_pass_work_while_edits_wait : config_.load_pass_work;
-  const size_t on_its_way =
-      loads_->memory_bytes() + (checkpoints_ ? checkpoints_->memory_bytes() : 0);
-  return memory_.budget().load_work(resident_bytes() + on_its_way, full);
+  return memory_.budget().load_work(resident_bytes() + on_its_way_bytes(), full);
 }
 
 void WorldPipeline::drain_after_stop() {

@@ -88,7 +88,7 @@ class WorldPipeline {
   void unsubscribe(uint64_t id) { subscribers_.unsubscribe(id); }
   PipelineStats stats() const;  // any thread
   // Any thread: bytes held outside the pipeline (sessions' state), in the memory budget.
-  void set_other_bytes(size_t bytes) { memory_.set_other_bytes(bytes); }
+  void set_session_bytes(size_t bytes) { memory_.set_session_bytes(bytes); }
   const PipelineConfig& config() const { return config_; }
   // Finishes the batch in flight, refuses queued edits (kShuttingDown), runs queued load
   // callbacks, checkpoints every unsaved chunk (with a store), joins the thread. Idempotent.
@@ -120,7 +120,8 @@ class WorldPipeline {
   void checkpoints_turn(Clock::time_point now);
   void record(const CheckpointResult& r);
   void count(const BatchCounts& delta);
-  size_t resident_bytes() const;  // chunks, meshes, LOD meshes, sessions
+  size_t resident_bytes() const;  // chunks, meshes, LOD meshes, sessions, the unaccounted heap
+  size_t on_its_way_bytes() const;
   size_t load_work_allowed(bool edits_waiting) const;
   EditWorld edit_world();  // what apply_edit_step reads and writes
   void drain_after_stop();

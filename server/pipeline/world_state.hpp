@@ -34,7 +34,8 @@ inline double seconds_since(Clock::time_point t) {
 struct MeshWorker {
   mesh::PaddedBlock block;
   mesh::MeshScratch scratch;
-  mesh::ChunkMesh mesh;  // meshed into first: a mesh that did not change allocates nothing
+  mesh::ChunkMesh mesh;   // meshed and encoded into first: a mesh that did not change
+  proto::Bytes encoding;  // allocates nothing
   proto::CodecScratch codec;
   proto::ZstdCodec zstd;
 };
