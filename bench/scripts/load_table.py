@@ -37,6 +37,23 @@ def ok(value, goal):
     return "**met**" if value <= goal else "**missed**"
 
 
+def replace_section(doc, heading, text):
+    """`doc` with the section `heading` (its title followed by " (") replaced by `text`, or,
+    when it has none, `text` inserted after the other current-figures section (else before
+    the first section); a blank line between sections either way."""
+    # The fast and the slowed host's tables are kept apart: "## Current figures (" is not
+    # "## Current figures, ...".
+    start = doc.find(heading + " (")
+    if start >= 0:
+        end = doc.find("\n## ", start + 1)
+        if end < 0:
+            return doc[:start] + text
+        return doc[:start] + text.rstrip("\n") + "\n\n" + doc[end + 1:]
+    other = doc.find("## Current figures")
+    at = doc.find("\n## ", other + 1) if other >= 0 else doc.find("\n## ")
+    return doc[:at + 1].rstrip("\n") + "\n\n" + text.rstrip("\n") + "\n\n" + doc[at + 1:]
+
+
 def main():
     out, root, steal_ticks = sys.argv[1], sys.argv[2], int(sys.argv[3])
     update = "--update-doc" in sys.argv[4:]
@@ -123,19 +140,8 @@ def main():
         path = os.path.join(root, "docs", "PERFORMANCE.md")
         with open(path) as f:
             doc = f.read()
-        # This table's own section (the fast and the slowed host's are kept apart): the
-        # heading followed by " (": "## Current figures (" is not "## Current figures, ...".
-        start = doc.find(heading + " (")
-        first = doc.find("\n## ")
-        if start >= 0:
-            end = doc.find("\n## ", start + 1)
-            doc = doc[:start] + text + doc[end + 1:]
-        else:  # after the other table, if there is one, else first
-            other = doc.find("## Current figures")
-            at = doc.find("\n## ", other + 1) if other >= 0 else first
-            doc = doc[:at + 1].rstrip("\n") + "\n\n" + text + "\n" + doc[at + 1:]
         with open(path, "w") as f:
-            f.write(doc)
+            f.write(replace_section(doc, heading, text))
     return 0
 
 
