@@ -347,6 +347,15 @@ TEST(PostgresStore, RedactsThePasswordInMessages) {
   EXPECT_EQ(redact_uri("postgresql:///world?host=/tmp"), "postgresql:///world?host=/tmp");
 }
 
+// A password given as a query parameter went into error messages and logs as it was.
+TEST(PostgresStore, APasswordInTheQueryWasShownInMessages) {
+  EXPECT_EQ(redact_uri("postgresql:///w?host=/tmp&password=secret&user=x"),
+            "postgresql:///w?host=/tmp&password=***&user=x");
+  EXPECT_EQ(redact_uri("postgresql://h/w?password=secret"), "postgresql://h/w?password=***");
+  EXPECT_EQ(redact_uri("postgresql://u:pw@h/w?sslpassword=k&password=s"),
+            "postgresql://u:***@h/w?sslpassword=k&password=***");
+}
+
 // --- SQLite files as an operator may find them ---
 
 std::string file_bytes(const fs::path& p) {

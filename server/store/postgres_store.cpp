@@ -1,5 +1,6 @@
 #include "server/store/postgres_store.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <pqxx/pqxx>
 #include <thread>
@@ -322,8 +323,6 @@ class PostgresStore final : public WorldStore {
     if (options_.read_only) throw StoreError(name_ + ": opened read-only");
   }
 
-  static std::string first_line(const std::string& s) { return s.substr(0, s.find('\n')); }
-
   std::string uri_;
   std::string name_;
   OpenOptions options_;
@@ -333,12 +332,24 @@ class PostgresStore final : public WorldStore {
 }  // namespace
 
 std::string redact_uri(const std::string& uri) {
-  const auto scheme = uri.find("://");
-  const auto at = uri.find('@');
-  if (scheme == std::string::npos || at == std::string::npos || at < scheme) return uri;
-  const auto colon = uri.find(':', scheme + 3);
-  if (colon == std::string::npos || colon > at) return uri;
-  return uri.substr(0, colon) + ":***" + uri.substr(at);
+  std::string out = uri;
+  // user:password@host
+  const auto scheme = out.find("://");
+  const auto at = out.find('@');
+  if (scheme != std::string::npos && at != std::string::npos && at > scheme) {
+    const auto colon = out.find(':', scheme + 3);
+    if (colon != std::string::npos && colon < at)
+      out = out.substr(0, colon) + ":***" + out.substr(at);
+  }
+  // ?password=… or &password=… in the query
+  const auto query = out.find('?');
+  for (auto p = query; p != std::string::npos && p < out.size(); p = out.find('&', p + 1)) {
+    if (out.compare(p + 1, 9, "password=") != 0) continue;
+    const auto value = p + 10;
+    const auto end = std::min(out.find('&', value), out.size());
+    out.replace(value, end - value, "***");
+  }
+  return out;
 }
 
 std::unique_ptr<WorldStore> open_postgres_store(const std::string& uri,

@@ -14,5 +14,7 @@ namespace vox::store {
 std::unique_ptr<WorldStore> open_postgres_store(const std::string& uri, const OpenOptions& options);
 // The URI without its password, for messages.
 std::string redact_uri(const std::string& uri);
+// The first line of a (libpqxx) error message, for one-line errors.
+inline std::string first_line(const std::string& s) { return s.substr(0, s.find('\n')); }
 
 }  // namespace vox::store

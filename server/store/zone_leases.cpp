@@ -1,0 +1,212 @@
+#include "server/store/zone_leases.hpp"
+
+#include <pqxx/pqxx>
+#include <string>
+
+#include "server/store/postgres_store.hpp"
+
+namespace vox::store {
+namespace {
+
+constexpr const char* kCreateTables = R"sql(
+CREATE TABLE IF NOT EXISTS zones (zone BIGINT PRIMARY KEY, epoch BIGINT NOT NULL,
+                                  owner TEXT, lease_until TIMESTAMPTZ NOT NULL,
+                                  last_seq BIGINT NOT NULL DEFAULT 0);
+CREATE TABLE IF NOT EXISTS zone_log (zone BIGINT NOT NULL, seq BIGINT NOT NULL,
+                                     epoch BIGINT NOT NULL, at_ms BIGINT NOT NULL,
+                                     record BYTEA NOT NULL, PRIMARY KEY (zone, seq));
+CREATE TABLE IF NOT EXISTS nodes (node TEXT PRIMARY KEY, address TEXT NOT NULL,
+                                  alive_until TIMESTAMPTZ NOT NULL);
+)sql";
+
+// Rows key zones by ZoneId::key()'s bits as a signed BIGINT.
+int64_t row_key(world::ZoneId z) { return static_cast<int64_t>(z.key()); }
+
+std::string describe(world::ZoneId z) {
+  return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
+}
+
+}  // namespace
+
+struct ZoneLeases::Connection {
+  explicit Connection(const std::string& uri) : c(uri) {}
+  pqxx::connection c;
+};
+
+template <typename Fn>
+auto ZoneLeases::run(Fn&& fn) {
+  try {
+    if (!conn_ || !conn_->c.is_open()) conn_ = std::make_unique<Connection>(uri_);
+    return fn(conn_->c);
+  } catch (const StoreError&) {
+    throw;
+  } catch (const pqxx::broken_connection& e) {
+    conn_.reset();
+    throw StoreError(name_ + ": connection lost: " + first_line(e.what()));
+  } catch (const std::exception& e) {
+    conn_.reset();
+    throw StoreError(name_ + ": " + first_line(e.what()));
+  }
+}
+
+ZoneLeases::ZoneLeases(std::string uri, std::string node, std::chrono::milliseconds lease)
+    : uri_(std::move(uri)),
+      name_("PostgreSQL " + redact_uri(uri_)),
+      node_(std::move(node)),
+      lease_(lease) {
+  if (node_.empty() || node_.size() > 200)
+    throw StoreError(name_ + ": a node id must have 1 to 200 bytes");
+  if (lease_ < std::chrono::milliseconds(100))
+    throw StoreError(name_ + ": a lease must last at least 100 ms");
+  run([](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec("SELECT pg_advisory_xact_lock(7008)");  // one creator at a time
+    t.exec(kCreateTables);
+    t.commit();
+  });
+}
+
+ZoneLeases::~ZoneLeases() = default;
+
+std::optional<uint64_t> ZoneLeases::acquire(world::ZoneId zone) {
+  return run([&](pqxx::connection& c) -> std::optional<uint64_t> {
+    pqxx::work t(c);
+    t.exec_params(
+        "INSERT INTO zones (zone, epoch, owner, lease_until) VALUES ($1, 0, NULL, now()) "
+        "ON CONFLICT (zone) DO NOTHING",
+        row_key(zone));
+    const pqxx::row row = t.exec_params1(
+        "SELECT epoch, owner IS NOT NULL AND owner <> $2 AND lease_until > now() "
+        "FROM zones WHERE zone = $1 FOR UPDATE",
+        row_key(zone), node_);
+    if (row[1].as<bool>()) return std::nullopt;  // another node's lease runs
+    // Taken anew even when the row names this node: a restarted process with the same id
+    // must fence its earlier run, which may still be paused somewhere.
+    const auto epoch = row[0].as<int64_t>() + 1;
+    t.exec_params(
+        "UPDATE zones SET epoch = $2, owner = $3, "
+        "lease_until = now() + $4 * interval '1 millisecond' WHERE zone = $1",
+        row_key(zone), epoch, node_, static_cast<int64_t>(lease_.count()));
+    t.commit();
+    return static_cast<uint64_t>(epoch);
+  });
+}
+
+bool ZoneLeases::renew(world::ZoneId zone, uint64_t epoch) {
+  return run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    const pqxx::result r = t.exec_params(
+        "UPDATE zones SET lease_until = now() + $4 * interval '1 millisecond' "
+        "WHERE zone = $1 AND epoch = $2 AND owner = $3",
+        row_key(zone), static_cast<int64_t>(epoch), node_, static_cast<int64_t>(lease_.count()));
+    t.commit();
+    return r.affected_rows() == 1;
+  });
+}
+
+void ZoneLeases::release(world::ZoneId zone, uint64_t epoch) {
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec_params(
+        "UPDATE zones SET owner = NULL, lease_until = now() "
+        "WHERE zone = $1 AND epoch = $2 AND owner = $3",
+        row_key(zone), static_cast<int64_t>(epoch), node_);
+    t.commit();
+  });
+}
+
+void ZoneLeases::append(world::ZoneId zone, uint64_t epoch, std::span<const ZoneRecord> records) {
+  if (records.empty()) return;
+  for (size_t i = 1; i < records.size(); ++i) {
+    if (records[i].seq != records[i - 1].seq + 1)
+      throw StoreError(name_ + ": " + describe(zone) + ": records " +
+                       std::to_string(records[i - 1].seq) + " and " +
+                       std::to_string(records[i].seq) + " leave a gap");
+  }
+  try {
+    run([&](pqxx::connection& c) {
+      pqxx::work t(c);
+      // The fence: the zone row locked for the rest of the transaction, so no successor's
+      // take can slip between this check and the commit.
+      const pqxx::result r = t.exec_params(
+          "SELECT epoch, last_seq FROM zones WHERE zone = $1 FOR UPDATE", row_key(zone));
+      const uint64_t current = r.empty() ? 0 : r[0][0].as<uint64_t>();
+      if (current != epoch) {
+        throw FencedError(name_ + ": " + describe(zone) + " is at epoch " +
+                          std::to_string(current) + ", this write's is " + std::to_string(epoch) +
+                          ": another node took it; write refused");
+      }
+      const auto last = r[0][1].as<uint64_t>();
+      if (records.front().seq != last + 1)
+        throw StoreError(name_ + ": " + describe(zone) + " ends at record " + std::to_string(last) +
+                         "; an append starting at " + std::to_string(records.front().seq) +
+                         " refused");
+      for (const ZoneRecord& rec : records) {
+        t.exec_params(
+            "INSERT INTO zone_log (zone, seq, epoch, at_ms, record) VALUES ($1, $2, $3, $4, $5)",
+            row_key(zone), static_cast<int64_t>(rec.seq), static_cast<int64_t>(epoch), rec.unix_ms,
+            pqxx::binarystring(rec.payload.data(), rec.payload.size()));
+      }
+      t.exec_params("UPDATE zones SET last_seq = $2 WHERE zone = $1", row_key(zone),
+                    static_cast<int64_t>(records.back().seq));
+      t.commit();
+    });
+  } catch (const FencedError&) {
+    ++fenced_;
+    throw;
+  }
+}
+
+std::vector<ZoneRecord> ZoneLeases::read_log(world::ZoneId zone, uint64_t after_seq, size_t max) {
+  return run([&](pqxx::connection& c) {
+    pqxx::read_transaction t(c);
+    std::vector<ZoneRecord> out;
+    for (const auto& row :
+         t.exec_params("SELECT seq, at_ms, record FROM zone_log WHERE zone = $1 AND seq > $2 "
+                       "ORDER BY seq LIMIT $3",
+                       row_key(zone), static_cast<int64_t>(after_seq), static_cast<int64_t>(max))) {
+      const pqxx::binarystring bytes(row[2]);
+      out.push_back({row[0].as<uint64_t>(), row[1].as<int64_t>(),
+                     std::vector<uint8_t>(bytes.begin(), bytes.end())});
+    }
+    return out;
+  });
+}
+
+std::optional<ZoneRow> ZoneLeases::read(world::ZoneId zone) {
+  return run([&](pqxx::connection& c) -> std::optional<ZoneRow> {
+    pqxx::read_transaction t(c);
+    const pqxx::result r = t.exec_params(
+        "SELECT epoch, COALESCE(owner, ''), "
+        "CAST(EXTRACT(EPOCH FROM (lease_until - now())) * 1000 AS BIGINT), last_seq "
+        "FROM zones WHERE zone = $1",
+        row_key(zone));
+    if (r.empty()) return std::nullopt;
+    return ZoneRow{r[0][0].as<uint64_t>(), r[0][1].as<std::string>(), r[0][2].as<int64_t>(),
+                   r[0][3].as<uint64_t>()};
+  });
+}
+
+void ZoneLeases::heartbeat(const std::string& address) {
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec_params(
+        "INSERT INTO nodes (node, address, alive_until) "
+        "VALUES ($1, $2, now() + $3 * interval '1 millisecond') ON CONFLICT (node) DO UPDATE "
+        "SET address = excluded.address, alive_until = excluded.alive_until",
+        node_, address, static_cast<int64_t>(lease_.count()));
+    t.commit();
+  });
+}
+
+std::vector<std::string> ZoneLeases::live_nodes() {
+  return run([&](pqxx::connection& c) {
+    pqxx::read_transaction t(c);
+    std::vector<std::string> out;
+    for (const auto& row : t.exec("SELECT node FROM nodes WHERE alive_until > now() ORDER BY node"))
+      out.push_back(row[0].as<std::string>());
+    return out;
+  });
+}
+
+}  // namespace vox::store

@@ -1,0 +1,103 @@
+// Who owns each zone of a cluster world (server/world/zone.hpp), and the zones' logs, in
+// PostgreSQL: liveness by leases whose expiry the database's clock judges, safety by
+// fencing (Kleppmann, "How to do distributed locking").
+//
+// - A zone row holds its epoch, owner, lease end and last sequence number. Taking a zone
+//   (never owned, released, or its lease past by the database's now()) bumps its epoch;
+//   renewing keeps it. The owner renews about every lease / 3.
+// - Every durable write of a zone checks, in its own transaction and under the zone row's
+//   lock, that the writer's epoch is still the zone's: an owner paused past its lease
+//   (GC, VM stall, SIGSTOP) whose zone was taken meanwhile can never write after its
+//   successor, whatever its own clock says. Such a write throws FencedError and is
+//   counted.
+// - A zone's log numbers its records 1, 2, … without a gap: an append must continue the
+//   zone's last sequence number (else StoreError), so sequences only increase, across
+//   owners too.
+// - Nodes announce themselves with a heartbeat row (alive until the database's now() +
+//   lease); placement ranks the live ones (first_ranked).
+//
+// One ZoneLeases is one connection: one thread at a time; open one per thread. Failures
+// (database gone, constraint broken) throw StoreError with a one-line message; the next
+// call reconnects.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "server/store/world_store.hpp"
+#include "server/world/zone.hpp"
+
+namespace vox::store {
+
+// A write refused because the zone's epoch moved on: another node took it.
+struct FencedError : StoreError {
+  using StoreError::StoreError;
+};
+
+struct ZoneRecord {
+  uint64_t seq = 0;
+  int64_t unix_ms = 0;
+  std::vector<uint8_t> payload;  // an encoded edit (opaque here)
+};
+
+struct ZoneRow {
+  uint64_t epoch = 0;
+  std::string owner;          // empty: released
+  int64_t lease_left_ms = 0;  // by the database's clock; <= 0: expired
+  uint64_t last_seq = 0;
+};
+
+class ZoneLeases {
+ public:
+  // `node`: this node's id (non-empty, at most 200 bytes); `lease`: how long a lease and a
+  // heartbeat last (at least 100 ms). Creates the tables when missing.
+  ZoneLeases(std::string uri, std::string node, std::chrono::milliseconds lease);
+  ~ZoneLeases();
+  ZoneLeases(const ZoneLeases&) = delete;
+  ZoneLeases& operator=(const ZoneLeases&) = delete;
+
+  const std::string& node() const { return node_; }
+
+  // Takes `zone` when it is free (never owned, released, or its lease past) or named as
+  // this node's: a new epoch, the lease running from now; nullopt while another node's
+  // lease runs. A zone named as this node's gets a new epoch too (a restarted process
+  // with the same id fences its earlier run): to keep a zone, renew it.
+  std::optional<uint64_t> acquire(world::ZoneId zone);
+  // Renews this node's lease of `zone` at `epoch`: false once the zone is another's or
+  // was released (a lease that ran out with nobody taking the zone is renewed: no
+  // successor wrote).
+  bool renew(world::ZoneId zone, uint64_t epoch);
+  // Lets the zone go at once (a graceful hand-off); nothing when `epoch` is not current.
+  void release(world::ZoneId zone, uint64_t epoch);
+
+  // Appends `records` to the zone's log in one transaction, fenced by `epoch`; the first
+  // record's seq must be the zone's last + 1 and the others follow without a gap.
+  void append(world::ZoneId zone, uint64_t epoch, std::span<const ZoneRecord> records);
+  // The zone's records after `after_seq`, in order (at most `max`).
+  std::vector<ZoneRecord> read_log(world::ZoneId zone, uint64_t after_seq, size_t max = 10000);
+  std::optional<ZoneRow> read(world::ZoneId zone);
+
+  // This node is alive for another lease; the nodes alive now (by id).
+  void heartbeat(const std::string& address);
+  std::vector<std::string> live_nodes();
+
+  // Writes this object refused by the fence so far.
+  uint64_t fenced() const { return fenced_; }
+
+ private:
+  template <typename Fn>
+  auto run(Fn&& fn);
+  struct Connection;  // the libpqxx connection, opened on first use and after a loss
+
+  std::string uri_, name_, node_;
+  std::chrono::milliseconds lease_;
+  std::unique_ptr<Connection> conn_;
+  uint64_t fenced_ = 0;
+};
+
+}  // namespace vox::store

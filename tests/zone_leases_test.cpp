@@ -1,0 +1,204 @@
+// Zones (server/world/zone.hpp) and their leases, fences and logs in a real PostgreSQL
+// (server/store/zone_leases.hpp).
+#include "server/store/zone_leases.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <map>
+#include <set>
+#include <thread>
+
+#include "tests/postgres_server.hpp"
+
+namespace vox::store {
+namespace {
+
+using std::chrono::milliseconds;
+using world::ZoneId;
+
+TEST(Zone, ChunksMapToColumnsOfSizeChunksRoundedDown) {
+  EXPECT_EQ(world::zone_of({0, 0, 0}, 16), (ZoneId{0, 0}));
+  EXPECT_EQ(world::zone_of({15, -900, 15}, 16), (ZoneId{0, 0}));  // all heights
+  EXPECT_EQ(world::zone_of({16, 0, -1}, 16), (ZoneId{1, -1}));
+  EXPECT_EQ(world::zone_of({-16, 0, -17}, 16), (ZoneId{-1, -2}));
+  for (const ZoneId z : {ZoneId{0, 0}, ZoneId{-1, 5}, ZoneId{INT32_MIN, INT32_MAX}})
+    EXPECT_EQ(ZoneId::from_key(z.key()), z);
+  EXPECT_THROW(world::zone_of({0, 0, 0}, 0), std::invalid_argument);
+}
+
+TEST(Zone, ABoxAcrossACornerTouchesTheFourZonesAround) {
+  // Zones of 2 chunks = 64 voxels: a box around the corner (64, y, 64).
+  const auto zones = world::zones_of({{60, -5, 60}, {70, 5, 70}}, 2);
+  EXPECT_EQ(zones, (std::vector<ZoneId>{{0, 0}, {0, 1}, {1, 0}, {1, 1}}));
+  EXPECT_EQ(world::zones_of({{1, 1, 1}, {2, 2, 2}}, 16), (std::vector<ZoneId>{{0, 0}}));
+}
+
+TEST(Zone, RendezvousMovesOnlyTheZonesOfANodeThatLeaves) {
+  const std::vector<std::string> three{"node-a", "node-b", "node-c"};
+  const std::vector<std::string> two{"node-a", "node-c"};
+  std::map<std::string, int> owned;
+  int moved = 0;
+  for (int x = -20; x < 20; ++x)
+    for (int z = -20; z < 20; ++z) {
+      const ZoneId zone{x, z};
+      const std::string before = three[*world::first_ranked(zone, three)];
+      const std::string after = two[*world::first_ranked(zone, two)];
+      ++owned[before];
+      if (before != after) {
+        EXPECT_EQ(before, "node-b") << "a zone of a node that stayed moved";
+        ++moved;
+      }
+    }
+  EXPECT_EQ(moved, owned["node-b"]);
+  for (const auto& [node, count] : owned) EXPECT_GT(count, 1600 / 3 - 120) << node;  // spread
+  // The same weights everywhere: a fixed hash, not the library's.
+  EXPECT_EQ(world::rendezvous_weight({1, 2}, "node-a"), world::rendezvous_weight({1, 2}, "node-a"));
+  EXPECT_NE(world::rendezvous_weight({1, 2}, "node-a"), world::rendezvous_weight({2, 1}, "node-a"));
+  EXPECT_FALSE(world::first_ranked({0, 0}, {}).has_value());
+}
+
+// One PostgreSQL server for the suite, a fresh database per test.
+class ZoneLeasesTest : public ::testing::Test {
+ protected:
+  static void TearDownTestSuite() { postgres_.reset(); }
+  std::string fresh_database() {
+    static int n = 0;
+    if (!postgres_) postgres_ = std::make_unique<test::PostgresServer>();
+    return postgres_->create_database("zones" + std::to_string(n++));
+  }
+  static std::vector<ZoneRecord> records(uint64_t first, int count) {
+    std::vector<ZoneRecord> out;
+    for (int i = 0; i < count; ++i)
+      out.push_back({first + i, 1000 + i, {static_cast<uint8_t>(first + i), 7}});
+    return out;
+  }
+  static std::unique_ptr<test::PostgresServer> postgres_;
+};
+std::unique_ptr<test::PostgresServer> ZoneLeasesTest::postgres_;
+
+TEST_F(ZoneLeasesTest, ASecondNodeCannotTakeAZoneWhileTheFirstHoldsItsLease) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000)), b(db, "b", milliseconds(30000));
+  const auto epoch = a.acquire({3, 4});
+  ASSERT_EQ(epoch, 1u);
+  EXPECT_FALSE(b.acquire({3, 4}).has_value());
+  EXPECT_TRUE(a.renew({3, 4}, *epoch));
+  EXPECT_FALSE(b.renew({3, 4}, *epoch));  // not b's
+  const auto row = b.read({3, 4});
+  ASSERT_TRUE(row);
+  EXPECT_EQ(row->owner, "a");
+  EXPECT_GT(row->lease_left_ms, 20000);
+  EXPECT_EQ(b.acquire({3, 5}), 1u);  // another zone is free
+}
+
+// The safety rule: an owner paused past its lease (SIGSTOP, a VM stall) whose zone
+// another node took can never write after its successor.
+TEST_F(ZoneLeasesTest, AnOwnerPausedPastItsLeaseIsFencedOnceTheZoneIsTaken) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(300));
+  const ZoneId zone{0, 0};
+  const uint64_t first = *a.acquire(zone);
+  a.append(zone, first, records(1, 3));
+  std::this_thread::sleep_for(milliseconds(400));  // a is "paused" past its lease
+  const auto second = b.acquire(zone);
+  ASSERT_TRUE(second.has_value());
+  EXPECT_EQ(*second, first + 1);
+  // b reads what a committed, then writes after it.
+  EXPECT_EQ(b.read_log(zone, 0).size(), 3u);
+  b.append(zone, *second, records(4, 1));
+  // a wakes up: its renewal and its writes are refused, and counted.
+  EXPECT_FALSE(a.renew(zone, first));
+  EXPECT_THROW(a.append(zone, first, records(5, 1)), FencedError);
+  EXPECT_EQ(a.fenced(), 1u);
+  EXPECT_EQ(b.fenced(), 0u);
+  const auto log = b.read_log(zone, 0);
+  ASSERT_EQ(log.size(), 4u);
+  for (size_t i = 0; i < log.size(); ++i) EXPECT_EQ(log[i].seq, i + 1);
+  EXPECT_EQ(log[3].payload, records(4, 1)[0].payload);  // b's, not a's
+}
+
+TEST_F(ZoneLeasesTest, AnAppendMustContinueTheZonesSequenceWithoutAGap) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000));
+  const ZoneId zone{-2, 9};
+  const uint64_t epoch = *a.acquire(zone);
+  a.append(zone, epoch, records(1, 2));
+  EXPECT_THROW(a.append(zone, epoch, records(2, 1)), StoreError);  // a record again
+  EXPECT_THROW(a.append(zone, epoch, records(4, 1)), StoreError);  // a gap
+  std::vector<ZoneRecord> holed = records(3, 3);
+  holed.erase(holed.begin() + 1);
+  EXPECT_THROW(a.append(zone, epoch, holed), StoreError);
+  a.append(zone, epoch, records(3, 2));
+  EXPECT_EQ(a.read({-2, 9})->last_seq, 4u);
+  EXPECT_EQ(a.read_log(zone, 2).size(), 2u);
+  EXPECT_EQ(a.fenced(), 0u);  // refused for the sequence, not the fence
+}
+
+TEST_F(ZoneLeasesTest, AReleasedZoneIsTakenAtOnceAndARestartedNodeFencesItsEarlierRun) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000)), b(db, "b", milliseconds(30000));
+  const ZoneId zone{1, 1};
+  const uint64_t first = *a.acquire(zone);
+  a.release(zone, first);
+  EXPECT_FALSE(a.renew(zone, first));
+  const auto taken = b.acquire(zone);
+  ASSERT_TRUE(taken);
+  EXPECT_EQ(*taken, first + 1);
+  // b restarts under the same id and takes the zone again: a new epoch, so its earlier
+  // run (perhaps only paused) is fenced.
+  ZoneLeases b_again(db, "b", milliseconds(30000));
+  const auto again = b_again.acquire(zone);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(*again, *taken + 1);
+  EXPECT_THROW(b.append(zone, *taken, records(1, 1)), FencedError);
+  b_again.append(zone, *again, records(1, 1));
+}
+
+TEST_F(ZoneLeasesTest, OfNodesRacingForAFreeZoneExactlyOneTakesIt) {
+  const std::string db = fresh_database();
+  constexpr int kNodes = 6;
+  std::vector<std::unique_ptr<ZoneLeases>> nodes;
+  for (int i = 0; i < kNodes; ++i)
+    nodes.push_back(std::make_unique<ZoneLeases>(db, "n" + std::to_string(i), milliseconds(30000)));
+  std::atomic<int> takers{0};
+  std::vector<std::thread> threads;
+  for (int i = 0; i < kNodes; ++i) {
+    threads.emplace_back([&, i] {
+      if (nodes[i]->acquire({7, 7})) takers.fetch_add(1);
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(takers.load(), 1);
+  EXPECT_EQ(nodes[0]->read({7, 7})->epoch, 1u);
+}
+
+TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));
+  a.heartbeat("127.0.0.1:7777");
+  b.heartbeat("127.0.0.1:7778");
+  EXPECT_EQ(b.live_nodes(), (std::vector<std::string>{"a", "b"}));
+  std::this_thread::sleep_for(milliseconds(400));
+  EXPECT_EQ(b.live_nodes(), (std::vector<std::string>{"b"}));
+  a.heartbeat("127.0.0.1:7777");
+  EXPECT_EQ(b.live_nodes(), (std::vector<std::string>{"a", "b"}));
+}
+
+TEST_F(ZoneLeasesTest, BadSettingsAndAnUnreachableDatabaseAreOneLineErrors) {
+  const std::string db = fresh_database();
+  EXPECT_THROW(ZoneLeases(db, "", milliseconds(1000)), StoreError);
+  EXPECT_THROW(ZoneLeases(db, "a", milliseconds(10)), StoreError);
+  try {
+    ZoneLeases gone("postgresql:///nowhere?host=/nonexistent&user=x&password=secret", "a",
+                    milliseconds(1000));
+    FAIL() << "no error";
+  } catch (const StoreError& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_EQ(what.find("secret"), std::string::npos) << what;
+  }
+}
+
+}  // namespace
+}  // namespace vox::store
