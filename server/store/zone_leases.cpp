@@ -199,6 +199,14 @@ void ZoneLeases::heartbeat(const std::string& address) {
   });
 }
 
+void ZoneLeases::leave() {
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec_params("DELETE FROM nodes WHERE node = $1", node_);
+    t.commit();
+  });
+}
+
 std::vector<std::string> ZoneLeases::live_nodes() {
   return run([&](pqxx::connection& c) {
     pqxx::read_transaction t(c);

@@ -82,8 +82,10 @@ class ZoneLeases {
   std::vector<ZoneRecord> read_log(world::ZoneId zone, uint64_t after_seq, size_t max = 10000);
   std::optional<ZoneRow> read(world::ZoneId zone);
 
-  // This node is alive for another lease; the nodes alive now (by id).
+  // This node is alive for another lease; it leaves the live list at once (a graceful
+  // stop); the nodes alive now (by id).
   void heartbeat(const std::string& address);
+  void leave();
   std::vector<std::string> live_nodes();
 
   // Writes this object refused by the fence so far.

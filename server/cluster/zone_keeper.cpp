@@ -1,0 +1,155 @@
+#include "server/cluster/zone_keeper.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <vector>
+
+#include "server/cluster/zone_plan.hpp"
+#include "server/store/zone_leases.hpp"
+#include "server/world/thread_name.hpp"
+
+namespace vox::cluster {
+
+struct ZoneKeeper::Leases {
+  store::ZoneLeases db;
+};
+
+ZoneKeeper::ZoneKeeper(Config config, Events events)
+    : config_(std::move(config)),
+      events_(std::move(events)),
+      leases_(new Leases{store::ZoneLeases(config_.uri, config_.node, config_.lease)}) {
+  thread_ = named_thread("vox-zones", [this] { run(); });
+}
+
+ZoneKeeper::~ZoneKeeper() { stop(false); }
+
+void ZoneKeeper::want(world::ZoneId zone) {
+  std::lock_guard lock(mutex_);
+  if (!interest_.insert(zone).second) return;
+  asked_ = true;
+  wake_.notify_one();
+}
+
+std::optional<uint64_t> ZoneKeeper::epoch_of(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = held_.find(zone);
+  return it == held_.end() ? std::nullopt : std::optional<uint64_t>(it->second.epoch);
+}
+
+size_t ZoneKeeper::held_count() const {
+  std::lock_guard lock(mutex_);
+  return held_.size();
+}
+
+uint64_t ZoneKeeper::rounds() const {
+  std::lock_guard lock(mutex_);
+  return rounds_;
+}
+
+void ZoneKeeper::stop(bool release) {
+  {
+    std::lock_guard lock(mutex_);
+    if (stopping_) return;
+    stopping_ = true;
+    release_ = release;
+  }
+  wake_.notify_one();
+  if (thread_.joinable()) thread_.join();
+}
+
+void ZoneKeeper::run() {
+  const auto period = config_.lease / 3;
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    lock.unlock();
+    round();
+    lock.lock();
+    ++rounds_;
+    // Woken early by a stop or a zone asked for.
+    wake_.wait_for(lock, period, [&] { return stopping_ || asked_; });
+    asked_ = false;
+  }
+  if (!release_) return;
+  const std::map<world::ZoneId, Held> held = std::move(held_);
+  held_.clear();
+  lock.unlock();
+  try {
+    leases_->db.leave();  // out of the live list first: nobody hands a zone back to it
+  } catch (const store::StoreError& e) {
+    spdlog::warn("zones: node {} could not leave the live list: {}", config_.node, e.what());
+  }
+  for (const auto& [zone, h] : held) {
+    if (events_.lost) events_.lost(zone, h.epoch);
+    try {
+      leases_->db.release(zone, h.epoch);
+    } catch (const store::StoreError& e) {
+      spdlog::warn("zones: could not release zone ({}, {}): {}", zone.x, zone.z, e.what());
+    }
+  }
+}
+
+// One ownership round (the keeper thread). The database is called without the lock.
+void ZoneKeeper::round() {
+  std::set<world::ZoneId> held_zones, interest;
+  std::map<world::ZoneId, Held> held;
+  {
+    std::lock_guard lock(mutex_);
+    held = held_;
+    interest = interest_;
+  }
+  for (const auto& [zone, h] : held) held_zones.insert(zone);
+  const auto lose = [&](world::ZoneId zone, uint64_t epoch, const char* why) {
+    {
+      std::lock_guard lock(mutex_);
+      held_.erase(zone);
+    }
+    spdlog::info("zones: node {} lost zone ({}, {}) at epoch {}: {}", config_.node, zone.x, zone.z,
+                 epoch, why);
+    if (events_.lost) events_.lost(zone, epoch);
+  };
+  const Clock::time_point start = Clock::now();
+  try {
+    store::ZoneLeases& db = leases_->db;
+    db.heartbeat(config_.address);
+    const ZonePlan plan = plan_zones(held_zones, interest, db.live_nodes(), config_.node);
+    for (const world::ZoneId zone : plan.renew) {
+      const uint64_t epoch = held.at(zone).epoch;
+      if (db.renew(zone, epoch)) {
+        std::lock_guard lock(mutex_);
+        if (auto it = held_.find(zone); it != held_.end()) it->second.renewed = start;
+      } else {
+        lose(zone, epoch, "another node took it");
+      }
+    }
+    for (const world::ZoneId zone : plan.hand_off) {
+      const uint64_t epoch = held.at(zone).epoch;
+      lose(zone, epoch, "handed off to the node that now ranks first");
+      db.release(zone, epoch);
+    }
+    for (const world::ZoneId zone : plan.take) {
+      if (const auto epoch = db.acquire(zone)) {
+        {
+          std::lock_guard lock(mutex_);
+          held_[zone] = Held{*epoch, start};
+        }
+        spdlog::info("zones: node {} took zone ({}, {}) at epoch {}", config_.node, zone.x, zone.z,
+                     *epoch);
+        if (events_.taken) events_.taken(zone, *epoch);
+      }
+    }
+  } catch (const store::StoreError& e) {
+    spdlog::warn("zones: node {}: {}", config_.node, e.what());
+  }
+  // Not renewed for a whole lease (the database out of reach): no longer provably ours.
+  const Clock::time_point now = Clock::now();
+  std::vector<std::pair<world::ZoneId, uint64_t>> expired;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [zone, h] : held_) {
+      if (now - h.renewed >= config_.lease) expired.emplace_back(zone, h.epoch);
+    }
+  }
+  for (const auto& [zone, epoch] : expired) lose(zone, epoch, "its lease ran out unrenewed");
+}
+
+}  // namespace vox::cluster

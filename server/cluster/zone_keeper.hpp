@@ -1,0 +1,84 @@
+// A node's zones over time (docs/CLUSTER.md): a thread that every lease / 3 renews the
+// node's heartbeat, reads the live nodes and runs plan_zones: it renews the zones it
+// keeps, hands off those another node now ranks first for, and takes those it was asked
+// for and ranks first for.
+//
+// Callbacks run on the keeper's thread and must not block long: `taken(zone, epoch)` once
+// a zone is this node's; `lost(zone, epoch)` when it stops being: a renewal refused
+// (another node took it after this one's lease ran out), a hand-off (before the
+// release), or no renewal for a whole lease by this node's clock (the database out of
+// reach: this node can no longer tell whether it still owns it). The caller stops
+// serving a lost zone at once; its late writes would be fenced anyway.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <thread>
+
+#include "server/world/zone.hpp"
+
+namespace vox::cluster {
+
+class ZoneKeeper {
+ public:
+  using Clock = std::chrono::steady_clock;
+  struct Config {
+    std::string uri;      // the cluster's PostgreSQL
+    std::string node;     // this node's id (unique per process run is safest)
+    std::string address;  // where players reach it, for the heartbeat row
+    std::chrono::milliseconds lease{3000};
+  };
+  struct Events {
+    std::function<void(world::ZoneId, uint64_t epoch)> taken, lost;
+  };
+
+  // Opens its connection (throws store::StoreError when the database cannot be reached)
+  // and starts the thread.
+  ZoneKeeper(Config config, Events events);
+  ~ZoneKeeper();  // stop(false)
+  ZoneKeeper(const ZoneKeeper&) = delete;
+  ZoneKeeper& operator=(const ZoneKeeper&) = delete;
+
+  // Any thread: this node should own `zone` if it ranks first; a zone not asked for before
+  // starts a round at once (taken then when free).
+  void want(world::ZoneId zone);
+  // Any thread: the epoch this node holds `zone` at; nullopt when it does not.
+  std::optional<uint64_t> epoch_of(world::ZoneId zone) const;
+  size_t held_count() const;  // any thread
+  uint64_t rounds() const;    // ownership rounds finished so far; any thread
+  // Stops the thread: `release` lets every held zone go and takes this node out of the
+  // live list first (a graceful shutdown: the next owners take its zones in their next
+  // round), else they expire with their leases (what a crash does). Any thread but a
+  // callback; idempotent.
+  void stop(bool release);
+
+ private:
+  struct Held {
+    uint64_t epoch = 0;
+    Clock::time_point renewed;  // when the last successful renewal (or the take) started
+  };
+  void run();
+  void round();
+
+  const Config config_;
+  const Events events_;
+  struct Leases;  // the keeper thread's connection
+  std::unique_ptr<Leases> leases_;
+  mutable std::mutex mutex_;  // guards what follows; never held across the database
+  std::condition_variable wake_;
+  std::map<world::ZoneId, Held> held_;
+  std::set<world::ZoneId> interest_;
+  uint64_t rounds_ = 0;
+  bool stopping_ = false, release_ = false, asked_ = false;
+  std::thread thread_;
+};
+
+}  // namespace vox::cluster

@@ -1,0 +1,191 @@
+// A node's zone ownership rounds (server/cluster/zone_plan.hpp, zone_keeper.hpp) against a
+// real PostgreSQL: every zone asked for gets exactly one owner, the node that ranks first;
+// a crashed node's zones move within a lease, a stopped node's at once, and a node that
+// joins takes over the zones it now ranks first for.
+#include "server/cluster/zone_keeper.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "server/cluster/zone_plan.hpp"
+#include "server/store/zone_leases.hpp"
+#include "tests/postgres_server.hpp"
+
+namespace vox::cluster {
+namespace {
+
+using std::chrono::milliseconds;
+using world::ZoneId;
+
+TEST(ZonePlan, RenewWhatItRanksFirstForHandOffTheRestTakeWhatItWasAskedFor) {
+  const std::vector<std::string> live{"a", "b"};
+  std::set<ZoneId> mine, theirs;
+  for (int x = 0; x < 40; ++x) {
+    const ZoneId z{x, 0};
+    (live[*world::first_ranked(z, live)] == "a" ? mine : theirs).insert(z);
+  }
+  ASSERT_FALSE(mine.empty());
+  ASSERT_FALSE(theirs.empty());
+  // a alone held everything; b joined.
+  std::set<ZoneId> all = mine;
+  all.insert(theirs.begin(), theirs.end());
+  const ZonePlan plan = plan_zones(all, {}, live, "a");
+  EXPECT_EQ(std::set<ZoneId>(plan.renew.begin(), plan.renew.end()), mine);
+  EXPECT_EQ(std::set<ZoneId>(plan.hand_off.begin(), plan.hand_off.end()), theirs);
+  EXPECT_TRUE(plan.take.empty());
+  // b is asked for everything and holds nothing: it takes its own.
+  const ZonePlan b = plan_zones({}, all, live, "b");
+  EXPECT_EQ(std::set<ZoneId>(b.take.begin(), b.take.end()), theirs);
+  // A node missing from the live list (its heartbeat not in yet) still counts itself.
+  EXPECT_EQ(plan_zones({}, all, {"b"}, "a").take.size(), mine.size());
+}
+
+class ZoneKeeperTest : public ::testing::Test {
+ protected:
+  static void TearDownTestSuite() { postgres_.reset(); }
+  std::string fresh_database() {
+    static int n = 0;
+    if (!postgres_) postgres_ = std::make_unique<test::PostgresServer>();
+    return postgres_->create_database("keeper" + std::to_string(n++));
+  }
+  static std::unique_ptr<test::PostgresServer> postgres_;
+
+  // What the callbacks saw, per node.
+  struct Seen {
+    std::mutex mutex;
+    std::map<std::string, std::map<ZoneId, uint64_t>> taken, lost;
+    ZoneKeeper::Events events(const std::string& node) {
+      return {.taken =
+                  [this, node](ZoneId z, uint64_t e) {
+                    std::lock_guard lock(mutex);
+                    taken[node][z] = e;
+                  },
+              .lost =
+                  [this, node](ZoneId z, uint64_t e) {
+                    std::lock_guard lock(mutex);
+                    lost[node][z] = e;
+                  }};
+    }
+  };
+  std::unique_ptr<ZoneKeeper> keeper(const std::string& db, const std::string& node, Seen& seen,
+                                     milliseconds lease = milliseconds(600)) {
+    return std::make_unique<ZoneKeeper>(
+        ZoneKeeper::Config{.uri = db, .node = node, .address = node + ":7777", .lease = lease},
+        seen.events(node));
+  }
+  static bool eventually(const std::function<bool()>& done,
+                         milliseconds limit = milliseconds(8000)) {
+    const auto end = std::chrono::steady_clock::now() + limit;
+    while (std::chrono::steady_clock::now() < end) {
+      if (done()) return true;
+      std::this_thread::sleep_for(milliseconds(20));
+    }
+    return done();
+  }
+  static std::vector<ZoneId> zones() {
+    std::vector<ZoneId> out;
+    for (int x = 0; x < 8; ++x) out.push_back({x, -x});
+    return out;
+  }
+};
+std::unique_ptr<test::PostgresServer> ZoneKeeperTest::postgres_;
+
+TEST_F(ZoneKeeperTest, EveryZoneAskedForGetsOneOwnerTheNodeThatRanksFirst) {
+  const std::string db = fresh_database();
+  Seen seen;
+  auto a = keeper(db, "a", seen), b = keeper(db, "b", seen);
+  for (const ZoneId z : zones()) {
+    a->want(z);
+    b->want(z);
+  }
+  const std::vector<std::string> live{"a", "b"};
+  ASSERT_TRUE(eventually([&] { return a->held_count() + b->held_count() == zones().size(); }));
+  // Both heartbeats are in after the first rounds: each zone ends with its first-ranked node.
+  ASSERT_TRUE(eventually([&] {
+    for (const ZoneId z : zones()) {
+      const bool a_first = live[*world::first_ranked(z, live)] == "a";
+      if (a->epoch_of(z).has_value() != a_first || b->epoch_of(z).has_value() == a_first)
+        return false;
+    }
+    return true;
+  }));
+}
+
+// kill -9 of a node: its leases run out and the other node takes its zones, with new
+// epochs that fence anything the dead one might still try.
+TEST_F(ZoneKeeperTest, ACrashedNodesZonesAreTakenByTheOtherWithinALease) {
+  const std::string db = fresh_database();
+  Seen seen;
+  auto a = keeper(db, "a", seen), b = keeper(db, "b", seen);
+  for (const ZoneId z : zones()) {
+    a->want(z);
+    b->want(z);
+  }
+  ASSERT_TRUE(eventually([&] { return a->held_count() + b->held_count() == zones().size(); }));
+  ASSERT_TRUE(eventually([&] { return a->held_count() > 0 && b->held_count() > 0; }));
+  std::map<ZoneId, uint64_t> a_held;
+  for (const ZoneId z : zones())
+    if (auto e = a->epoch_of(z)) a_held[z] = *e;
+  const auto crashed = std::chrono::steady_clock::now();
+  a->stop(false);  // no release: as if killed
+  ASSERT_TRUE(eventually([&] { return b->held_count() == zones().size(); }));
+  const auto moved = std::chrono::steady_clock::now() - crashed;
+  // A lease (600 ms) and a round or two; generous for sanitizer builds on a busy machine.
+  EXPECT_LT(moved, milliseconds(4000));
+  store::ZoneLeases old_a(db, "a-probe", milliseconds(600));
+  for (const auto& [z, epoch] : a_held) {
+    EXPECT_GT(*b->epoch_of(z), epoch);
+    EXPECT_THROW(old_a.append(z, epoch, std::vector<store::ZoneRecord>{{1, 0, {1}}}),
+                 store::FencedError);
+  }
+}
+
+TEST_F(ZoneKeeperTest, AStoppedNodeReleasesItsZonesAndTheOtherTakesThemInItsNextRound) {
+  const std::string db = fresh_database();
+  Seen seen;
+  const milliseconds lease(6000);  // rounds every 2 s
+  auto a = keeper(db, "a", seen, lease), b = keeper(db, "b", seen, lease);
+  for (const ZoneId z : zones()) {
+    a->want(z);
+    b->want(z);
+  }
+  ASSERT_TRUE(eventually([&] { return a->held_count() + b->held_count() == zones().size(); }));
+  ASSERT_TRUE(eventually([&] { return a->held_count() > 0; }));
+  const size_t a_count = a->held_count();
+  const auto stopped = std::chrono::steady_clock::now();
+  a->stop(true);
+  {
+    std::lock_guard lock(seen.mutex);
+    EXPECT_EQ(seen.lost["a"].size(), a_count);  // told before each release
+  }
+  // Released and out of the live list: b takes them in its next round, before a's lease
+  // (6 s) or heartbeat would have run out.
+  ASSERT_TRUE(eventually([&] { return b->held_count() == zones().size(); }, milliseconds(5000)));
+  EXPECT_LT(std::chrono::steady_clock::now() - stopped, lease);
+}
+
+TEST_F(ZoneKeeperTest, ANodeThatJoinsTakesOverTheZonesItNowRanksFirstFor) {
+  const std::string db = fresh_database();
+  Seen seen;
+  auto a = keeper(db, "a", seen);
+  for (const ZoneId z : zones()) a->want(z);
+  ASSERT_TRUE(eventually([&] { return a->held_count() == zones().size(); }));
+  auto b = keeper(db, "b", seen);
+  for (const ZoneId z : zones()) b->want(z);
+  const std::vector<std::string> live{"a", "b"};
+  size_t for_b = 0;
+  for (const ZoneId z : zones()) for_b += live[*world::first_ranked(z, live)] == "b";
+  ASSERT_GT(for_b, 0u);
+  ASSERT_TRUE(eventually([&] { return b->held_count() == for_b; }));
+  EXPECT_EQ(a->held_count(), zones().size() - for_b);
+  std::lock_guard lock(seen.mutex);
+  EXPECT_EQ(seen.lost["a"].size(), for_b);  // handed off, each told
+}
+
+}  // namespace
+}  // namespace vox::cluster
