@@ -19,6 +19,7 @@ packages=(
   python3-protobuf python3-zstandard
   clang-format clang libclang-rt-14-dev
   libpqxx-dev postgresql
+  nats-server libnats-dev
 )
 
 # The web client and viewer (clients/web): node and npm, Debian's unless the machine has
