@@ -1,0 +1,111 @@
+#include "server/cluster/zone_follower.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <vector>
+
+#include "server/cluster/zone_wire.hpp"
+#include "server/world/thread_name.hpp"
+
+namespace vox::cluster {
+namespace {
+
+constexpr size_t kMaxAhead = 10000;  // records held for their turn; more are read from the log
+constexpr size_t kLogPage = 1000;    // records per log read
+
+}  // namespace
+
+ZoneFollower::ZoneFollower(NatsLink& nats, Config config, Apply apply)
+    : nats_(nats),
+      config_(std::move(config)),
+      apply_(std::move(apply)),
+      log_(config_.uri, config_.node, std::chrono::milliseconds(3000)) {
+  if (!valid_world_name(config_.world))
+    throw ClusterError("a world name for subjects: letters, digits, '-' and '_' (1 to 64)");
+  applied_.store(config_.applied, std::memory_order_release);
+  // Subscribed before the log is read: whatever commits meanwhile is either in the log
+  // read or arrives here.
+  const auto handler = [this](const NatsMessage& m) { on_message(m); };
+  records_sub_ = nats_.subscribe(zone_subject(config_.world, config_.zone, "rec"), handler);
+  heartbeat_sub_ = nats_.subscribe(zone_subject(config_.world, config_.zone, "hb"), handler);
+  nats_.flush(std::chrono::milliseconds(2000));
+  thread_ = named_thread("vox-follow", [this] { run(); });
+}
+
+ZoneFollower::~ZoneFollower() {
+  nats_.unsubscribe(records_sub_);  // waits for a handler in progress
+  nats_.unsubscribe(heartbeat_sub_);
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_one();
+  if (thread_.joinable()) thread_.join();
+}
+
+void ZoneFollower::on_message(const NatsMessage& m) {
+  auto message = decode_zone_message(m.data);
+  if (!message || message->zone != config_.zone) {
+    dropped_.fetch_add(1, std::memory_order_relaxed);
+    return;
+  }
+  std::lock_guard lock(mutex_);
+  newest_ = std::max(newest_, message->record.seq);
+  if (!message->heartbeat && message->record.seq > applied() && ahead_.size() < kMaxAhead)
+    ahead_.emplace(message->record.seq, std::move(message->record));
+  wake_.notify_one();
+}
+
+// Applies the log's records after applied_ (all of them when `through` is past the end).
+void ZoneFollower::fill(uint64_t through) {
+  while (applied() < through) {
+    std::vector<store::ZoneRecord> page;
+    try {
+      page = log_.read_log(config_.zone, applied(), kLogPage);
+    } catch (const store::StoreError& e) {
+      spdlog::warn("zone ({}, {}): reading its log: {}", config_.zone.x, config_.zone.z, e.what());
+      std::unique_lock lock(mutex_);  // retried on the next turn, not in a tight loop
+      wake_.wait_for(lock, std::chrono::milliseconds(200), [&] { return stopping_; });
+      return;
+    }
+    for (const store::ZoneRecord& r : page) {
+      if (r.seq != applied() + 1) break;  // the log has no gaps; guard anyway
+      apply_(r);
+      applied_.store(r.seq, std::memory_order_release);
+      filled_.fetch_add(1, std::memory_order_relaxed);
+    }
+    if (page.size() < kLogPage) return;  // the log's end
+  }
+}
+
+void ZoneFollower::run() {
+  fill(UINT64_MAX);  // what the replica lacks, up to the log's end
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    // Records in turn, applied outside the lock.
+    while (!ahead_.empty() && ahead_.begin()->first <= applied() + 1) {
+      auto node = ahead_.extract(ahead_.begin());
+      if (node.key() != applied() + 1) continue;  // already applied (from the log)
+      lock.unlock();
+      apply_(node.mapped());
+      applied_.store(node.key(), std::memory_order_release);
+      lock.lock();
+    }
+    if (stopping_) break;
+    if (newest_ > applied()) {
+      // A gap: give NATS a moment to deliver the missing record, then read the log.
+      const bool came = wake_.wait_for(lock, config_.gap_wait, [&] {
+        return stopping_ || (!ahead_.empty() && ahead_.begin()->first == applied() + 1);
+      });
+      if (came || stopping_) continue;
+      const uint64_t through = newest_;
+      lock.unlock();
+      fill(through);
+      lock.lock();
+      continue;
+    }
+    wake_.wait(lock, [&] { return stopping_ || newest_ > applied(); });
+  }
+}
+
+}  // namespace vox::cluster

@@ -1,0 +1,176 @@
+// Following a zone's committed records (server/cluster/zone_follower.hpp) against a real
+// PostgreSQL and nats-server: a replica fed by an owner whose messages get lost still
+// equals a replay of the zone's log, byte for byte.
+#include "server/cluster/zone_follower.hpp"
+
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <random>
+#include <thread>
+
+#include "server/cluster/zone_wire.hpp"
+#include "server/store/edit_codec.hpp"
+#include "server/world/edit_replay.hpp"
+#include "tests/nats_server.hpp"
+#include "tests/postgres_server.hpp"
+
+namespace vox::cluster {
+namespace {
+
+using std::chrono::milliseconds;
+using world::ZoneId;
+
+constexpr uint64_t kSeed = 1234;
+constexpr int kZoneChunks = 2;  // zones of 64 × 64 voxels
+
+TEST(ZoneWire, RecordsAndHeartbeatsGoThereAndBackAndAnythingElseIsRefused) {
+  const ZoneId zone{-3, 7};
+  const store::ZoneRecord r{42, 1700000000123, {1, 2, 3}};
+  const auto m = decode_zone_message(encode_zone_record(zone, r));
+  ASSERT_TRUE(m);
+  EXPECT_FALSE(m->heartbeat);
+  EXPECT_EQ(m->zone, zone);
+  EXPECT_EQ(m->record.seq, 42u);
+  EXPECT_EQ(m->record.unix_ms, 1700000000123);
+  EXPECT_EQ(m->record.payload, r.payload);
+  const auto hb = decode_zone_message(encode_zone_heartbeat(zone, 99));
+  ASSERT_TRUE(hb);
+  EXPECT_TRUE(hb->heartbeat);
+  EXPECT_EQ(hb->record.seq, 99u);
+  std::vector<uint8_t> bad = encode_zone_heartbeat(zone, 1);
+  bad.push_back(0);  // a heartbeat has an exact size
+  EXPECT_FALSE(decode_zone_message(bad));
+  EXPECT_FALSE(decode_zone_message(std::vector<uint8_t>{2, 1}));            // another version
+  EXPECT_FALSE(decode_zone_message(std::vector<uint8_t>{1, 1, 0}));         // short
+  EXPECT_FALSE(decode_zone_message(encode_zone_record(zone, {0, 0, {}})));  // seq 0
+  EXPECT_EQ(zone_subject("w1", {0, 1}, "rec"), "vox.w1.zone.1.rec");
+  EXPECT_FALSE(valid_world_name("a.b"));  // would split the subject
+  EXPECT_FALSE(valid_world_name("*"));
+  EXPECT_TRUE(valid_world_name("main_world-2"));
+}
+
+bool eventually(const std::function<bool()>& done, milliseconds limit = milliseconds(15000)) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < end) {
+    if (done()) return true;
+    std::this_thread::sleep_for(milliseconds(10));
+  }
+  return done();
+}
+
+// The owner's side in miniature: edits replayed into its samples, appended to the zone's
+// log under its epoch, and published (or not: `lose` says which are lost on the way).
+struct Owner {
+  Owner(const std::string& db, NatsLink& nats, ZoneId zone)
+      : leases(db, "owner", milliseconds(30000)), nats(nats), zone(zone) {
+    epoch = *leases.acquire(zone);
+  }
+  world::Edit random_edit(std::mt19937& rng) {
+    std::uniform_real_distribution<float> xz(4.0f, kZoneChunks * 32 - 4.0f), y(-24.0f, 24.0f);
+    const world::Vec3 c{zone.x * kZoneChunks * 32 + xz(rng), y(rng),
+                        zone.z * kZoneChunks * 32 + xz(rng)};
+    if (rng() % 2) return world::Explosion{c, 3.0f, 1.0f};
+    return world::Brush{c, 3.0f, 0.8f};
+  }
+  void edit(const world::Edit& e, bool lose) {
+    world::replay_edit(truth, generator, e);
+    const store::ZoneRecord r{++seq, 1000 + static_cast<int64_t>(seq), store::encode_edit(e)};
+    leases.append(zone, epoch, std::vector<store::ZoneRecord>{r});
+    if (!lose) nats.publish(zone_subject("w", zone, "rec"), encode_zone_record(zone, r));
+  }
+  void heartbeat() {
+    nats.publish(zone_subject("w", zone, "hb"), encode_zone_heartbeat(zone, seq));
+  }
+
+  store::ZoneLeases leases;
+  NatsLink& nats;
+  ZoneId zone;
+  uint64_t epoch = 0, seq = 0;
+  world::TerrainGenerator generator{kSeed};
+  world::ChunkMap truth;
+};
+
+// The replica's side: records decoded and replayed with the same code.
+struct Replica {
+  void apply(const store::ZoneRecord& r) {
+    const auto record = store::decode_edit_record(r.payload);
+    ASSERT_TRUE(record);
+    world::replay_edit(map, generator, record->edit, record->keep);
+    seqs.push_back(r.seq);
+  }
+  world::TerrainGenerator generator{kSeed};
+  world::ChunkMap map;
+  std::vector<uint64_t> seqs;  // follower thread only, read after applied() says so
+};
+
+void expect_same_samples(const world::ChunkMap& truth, const world::ChunkMap& replica) {
+  size_t compared = 0;
+  for (const auto& [c, chunk] : truth) {
+    const world::Chunk* other = replica.find(c);
+    ASSERT_TRUE(other) << "chunk " << c.x << "," << c.y << "," << c.z << " missing";
+    EXPECT_TRUE(*other == chunk) << "chunk " << c.x << "," << c.y << "," << c.z << " differs";
+    ++compared;
+  }
+  EXPECT_GT(compared, 4u);
+}
+
+class ZoneFollowerTest : public ::testing::Test {
+ protected:
+  test::PostgresServer postgres;
+  test::NatsServer nats_server;
+  NatsConfig nats_config(const std::string& name) {
+    return {.url = nats_server.url(),
+            .user = test::NatsServer::kUser,
+            .password = test::NatsServer::kPassword,
+            .name = name};
+  }
+};
+
+TEST_F(ZoneFollowerTest, AReplicaFollowingAnOwnerWhoseMessagesGetLostEqualsAReplayOfTheLog) {
+  const std::string db = postgres.create_database("follow1");
+  NatsLink owner_link(nats_config("owner")), replica_link(nats_config("replica"));
+  const ZoneId zone{1, -1};
+  Owner owner(db, owner_link, zone);
+  Replica replica;
+  ZoneFollower follower(replica_link, {.world = "w", .zone = zone, .uri = db, .node = "replica"},
+                        [&](const store::ZoneRecord& r) { replica.apply(r); });
+  std::mt19937 rng(7);
+  for (int i = 1; i <= 120; ++i) {
+    owner.edit(owner.random_edit(rng), /*lose=*/i % 7 == 3 || i > 116);
+    if (i % 20 == 0) owner.heartbeat();
+  }
+  owner.heartbeat();  // the last records were lost: the heartbeat tells there are more
+  // Garbage and another zone's record on this zone's subject: dropped, counted.
+  owner_link.publish(zone_subject("w", zone, "rec"), std::vector<uint8_t>{9, 9, 9});
+  owner_link.publish(zone_subject("w", zone, "rec"),
+                     encode_zone_record({5, 5}, {121, 0, store::encode_edit(world::Brush{})}));
+  ASSERT_TRUE(eventually([&] { return follower.applied() == 120 && follower.dropped() == 2; }))
+      << "applied " << follower.applied() << ", dropped " << follower.dropped();
+  EXPECT_GT(follower.filled(), 0u) << "the lost records came from the log";
+  ASSERT_EQ(replica.seqs.size(), 120u);
+  for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
+  expect_same_samples(owner.truth, replica.map);
+}
+
+TEST_F(ZoneFollowerTest, AFollowerThatStartsLateReadsTheLogThenFollowsTheSubject) {
+  const std::string db = postgres.create_database("follow2");
+  NatsLink owner_link(nats_config("owner")), replica_link(nats_config("replica"));
+  const ZoneId zone{0, 0};
+  Owner owner(db, owner_link, zone);
+  std::mt19937 rng(11);
+  for (int i = 0; i < 40; ++i) owner.edit(owner.random_edit(rng), false);  // nobody listens yet
+  Replica replica;
+  ZoneFollower follower(replica_link, {.world = "w", .zone = zone, .uri = db, .node = "replica"},
+                        [&](const store::ZoneRecord& r) { replica.apply(r); });
+  ASSERT_TRUE(eventually([&] { return follower.applied() == 40; }));
+  EXPECT_EQ(follower.filled(), 40u);
+  for (int i = 0; i < 40; ++i) owner.edit(owner.random_edit(rng), false);
+  ASSERT_TRUE(eventually([&] { return follower.applied() == 80; }));
+  EXPECT_LT(follower.filled(), 80u) << "the later ones came over NATS";
+  for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
+  expect_same_samples(owner.truth, replica.map);
+}
+
+}  // namespace
+}  // namespace vox::cluster
