@@ -11,12 +11,14 @@
 #include <thread>
 #include <vector>
 
+#include "tests/eventually.hpp"
 #include "tests/nats_server.hpp"
 
 namespace vox::cluster {
 namespace {
 
 using std::chrono::milliseconds;
+using test::eventually;
 
 NatsConfig config_for(const test::NatsServer& server, const std::string& name = "test") {
   return {.url = server.url(),
@@ -26,15 +28,6 @@ NatsConfig config_for(const test::NatsServer& server, const std::string& name = 
 }
 
 std::vector<uint8_t> bytes(const std::string& s) { return {s.begin(), s.end()}; }
-
-bool eventually(const std::function<bool()>& done, milliseconds limit = milliseconds(10000)) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(milliseconds(10));
-  }
-  return done();
-}
 
 // Messages a subscription received, in order.
 struct Inbox {

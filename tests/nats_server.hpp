@@ -1,13 +1,11 @@
 // A real nats-server (Debian's) for the cluster tests: on 127.0.0.1, a port the server
 // picks (read from its ports file), a user and password from a configuration file in a
 // temporary directory (never on the command line). The child dies with the test process
-// (PR_SET_PDEATHSIG); stop() and the destructor end it. restart() starts it again on the
+// (tests/child_process.hpp); stop() and the destructor end it. restart() starts it again on the
 // same port, as a NATS restart in production would.
 #pragma once
 
-#include <fcntl.h>
 #include <signal.h>
-#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -20,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "tests/child_process.hpp"
 #include "tests/temp_dir.hpp"
 
 namespace vox::test {
@@ -68,25 +67,8 @@ class NatsServer {
     std::filesystem::create_directories(ports);
     std::vector<std::string> args{binary(), "-c", conf.string(), "--ports_file_dir",
                                   ports.string()};
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
     const std::string log = (dir_ / "nats.log").string();
-    const pid_t parent = ::getpid();
-    pid_ = ::fork();
-    if (pid_ < 0) throw std::runtime_error("fork failed");
-    if (pid_ == 0) {  // child: only async-signal-safe calls until exec
-      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-      if (::getppid() != parent) ::_exit(127);
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      if (fd >= 0) {
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-        ::close(fd);
-      }
-      ::execv(argv[0], argv.data());
-      ::_exit(127);
-    }
+    pid_ = spawn_logged(std::move(args), log, /*append=*/true);
     // The ports file: {"nats":["nats://127.0.0.1:PORT"], ...} ("client" in other versions)
     const std::regex client(R"re("(?:nats|client)":\["nats://[^"]*:(\d+)")re");
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);

@@ -1,5 +1,6 @@
 // What the pipeline's store tests share: the samples of a cube around a point, read by an
-// inspection (so they include every edit queued before it), and polling for a condition.
+// inspection (so they include every edit queued before it), and polling for a condition
+// (tests/eventually.hpp).
 #pragma once
 
 #include <chrono>
@@ -7,6 +8,7 @@
 #include <vector>
 
 #include "server/pipeline/world_pipeline.hpp"
+#include "tests/eventually.hpp"
 
 namespace vox::test {
 
@@ -19,16 +21,6 @@ inline std::vector<world::Sample> samples_around(pipeline::WorldPipeline& p, int
         for (int x = x0 - r; x <= x0 + r; ++x) out.push_back(map.sample_at(x, y, z));
   });
   return out;
-}
-
-// Polls `done` every 10 ms for up to `limit`.
-template <typename F>
-bool eventually(F done, std::chrono::milliseconds limit = std::chrono::seconds(10)) {
-  for (auto end = std::chrono::steady_clock::now() + limit; std::chrono::steady_clock::now() < end;
-       std::this_thread::sleep_for(std::chrono::milliseconds(10))) {
-    if (done()) return true;
-  }
-  return done();
 }
 
 }  // namespace vox::test

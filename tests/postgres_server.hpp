@@ -92,4 +92,12 @@ class PostgresServer {
   bool running_ = false;
 };
 
+// One server for the whole test program, started on first use and stopped at its exit;
+// each call makes a fresh database named `prefix` and a number. Main thread.
+inline std::string fresh_shared_database(const std::string& prefix) {
+  static PostgresServer server;
+  static int n = 0;
+  return server.create_database(prefix + std::to_string(n++));
+}
+
 }  // namespace vox::test

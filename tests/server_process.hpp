@@ -4,9 +4,7 @@
 // leaves a server running or holding the test runner's output pipe.
 #pragma once
 
-#include <fcntl.h>
 #include <signal.h>
-#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -20,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
+#include "tests/child_process.hpp"
 
 namespace vox::test {
 
@@ -59,25 +57,7 @@ class ServerProcess {
       args.push_back("--metrics-port-file");
       args.push_back((dir_ / "metrics_port").string());
     }
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    const std::string log = (dir_ / "voxeld.log").string();
-    const pid_t parent = ::getpid();
-    pid_ = ::fork();
-    if (pid_ < 0) throw std::runtime_error("fork failed");
-    if (pid_ == 0) {  // child: only async-signal-safe calls until exec
-      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-      if (::getppid() != parent) ::_exit(127);
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      if (fd >= 0) {
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-        ::close(fd);
-      }
-      ::execve(argv[0], argv.data(), environ);
-      ::_exit(127);
-    }
+    pid_ = spawn_logged(std::move(args), (dir_ / "voxeld.log").string());
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     while (std::chrono::steady_clock::now() < deadline) {
       std::ifstream in(port_file);

@@ -12,6 +12,7 @@
 #include "server/cluster/zone_wire.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/world/edit_replay.hpp"
+#include "tests/eventually.hpp"
 #include "tests/nats_server.hpp"
 #include "tests/postgres_server.hpp"
 
@@ -19,6 +20,7 @@ namespace vox::cluster {
 namespace {
 
 using std::chrono::milliseconds;
+using test::eventually;
 using world::ZoneId;
 
 constexpr uint64_t kSeed = 1234;
@@ -48,15 +50,6 @@ TEST(ZoneWire, RecordsAndHeartbeatsGoThereAndBackAndAnythingElseIsRefused) {
   EXPECT_FALSE(valid_world_name("a.b"));  // would split the subject
   EXPECT_FALSE(valid_world_name("*"));
   EXPECT_TRUE(valid_world_name("main_world-2"));
-}
-
-bool eventually(const std::function<bool()>& done, milliseconds limit = milliseconds(15000)) {
-  const auto end = std::chrono::steady_clock::now() + limit;
-  while (std::chrono::steady_clock::now() < end) {
-    if (done()) return true;
-    std::this_thread::sleep_for(milliseconds(10));
-  }
-  return done();
 }
 
 // The owner's side in miniature: edits replayed into its samples, appended to the zone's
@@ -145,7 +138,8 @@ TEST_F(ZoneFollowerTest, AReplicaFollowingAnOwnerWhoseMessagesGetLostEqualsARepl
   owner_link.publish(zone_subject("w", zone, "rec"), std::vector<uint8_t>{9, 9, 9});
   owner_link.publish(zone_subject("w", zone, "rec"),
                      encode_zone_record({5, 5}, {121, 0, store::encode_edit(world::Brush{})}));
-  ASSERT_TRUE(eventually([&] { return follower.applied() == 120 && follower.dropped() == 2; }))
+  ASSERT_TRUE(eventually([&] { return follower.applied() == 120 && follower.dropped() == 2; },
+                         milliseconds(15000)))
       << "applied " << follower.applied() << ", dropped " << follower.dropped();
   EXPECT_GT(follower.filled(), 0u) << "the lost records came from the log";
   ASSERT_EQ(replica.seqs.size(), 120u);

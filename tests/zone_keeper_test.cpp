@@ -14,12 +14,14 @@
 
 #include "server/cluster/zone_plan.hpp"
 #include "server/store/zone_leases.hpp"
+#include "tests/eventually.hpp"
 #include "tests/postgres_server.hpp"
 
 namespace vox::cluster {
 namespace {
 
 using std::chrono::milliseconds;
+using test::eventually;
 using world::ZoneId;
 
 TEST(ZonePlan, RenewWhatItRanksFirstForHandOffTheRestTakeWhatItWasAskedFor) {
@@ -47,13 +49,7 @@ TEST(ZonePlan, RenewWhatItRanksFirstForHandOffTheRestTakeWhatItWasAskedFor) {
 
 class ZoneKeeperTest : public ::testing::Test {
  protected:
-  static void TearDownTestSuite() { postgres_.reset(); }
-  std::string fresh_database() {
-    static int n = 0;
-    if (!postgres_) postgres_ = std::make_unique<test::PostgresServer>();
-    return postgres_->create_database("keeper" + std::to_string(n++));
-  }
-  static std::unique_ptr<test::PostgresServer> postgres_;
+  static std::string fresh_database() { return test::fresh_shared_database("keeper"); }
 
   // What the callbacks saw, per node.
   struct Seen {
@@ -78,14 +74,13 @@ class ZoneKeeperTest : public ::testing::Test {
         ZoneKeeper::Config{.uri = db, .node = node, .address = node + ":7777", .lease = lease},
         seen.events(node));
   }
-  static bool eventually(const std::function<bool()>& done,
-                         milliseconds limit = milliseconds(8000)) {
-    const auto end = std::chrono::steady_clock::now() + limit;
-    while (std::chrono::steady_clock::now() < end) {
-      if (done()) return true;
-      std::this_thread::sleep_for(milliseconds(20));
+  // Both asked for every zone; returns once they hold all of them between them.
+  static void ask_both(ZoneKeeper& a, ZoneKeeper& b) {
+    for (const ZoneId z : zones()) {
+      a.want(z);
+      b.want(z);
     }
-    return done();
+    ASSERT_TRUE(eventually([&] { return a.held_count() + b.held_count() == zones().size(); }));
   }
   static std::vector<ZoneId> zones() {
     std::vector<ZoneId> out;
@@ -93,18 +88,13 @@ class ZoneKeeperTest : public ::testing::Test {
     return out;
   }
 };
-std::unique_ptr<test::PostgresServer> ZoneKeeperTest::postgres_;
 
 TEST_F(ZoneKeeperTest, EveryZoneAskedForGetsOneOwnerTheNodeThatRanksFirst) {
   const std::string db = fresh_database();
   Seen seen;
   auto a = keeper(db, "a", seen), b = keeper(db, "b", seen);
-  for (const ZoneId z : zones()) {
-    a->want(z);
-    b->want(z);
-  }
+  ask_both(*a, *b);
   const std::vector<std::string> live{"a", "b"};
-  ASSERT_TRUE(eventually([&] { return a->held_count() + b->held_count() == zones().size(); }));
   // Both heartbeats are in after the first rounds: each zone ends with its first-ranked node.
   ASSERT_TRUE(eventually([&] {
     for (const ZoneId z : zones()) {
@@ -118,15 +108,11 @@ TEST_F(ZoneKeeperTest, EveryZoneAskedForGetsOneOwnerTheNodeThatRanksFirst) {
 
 // kill -9 of a node: its leases run out and the other node takes its zones, with new
 // epochs that fence anything the dead one might still try.
-TEST_F(ZoneKeeperTest, ACrashedNodesZonesAreTakenByTheOtherWithinALease) {
+TEST_F(ZoneKeeperTest, ACrashedNodesZonesAreTakenByTheOtherOnceItsLeasesRunOut) {
   const std::string db = fresh_database();
   Seen seen;
   auto a = keeper(db, "a", seen), b = keeper(db, "b", seen);
-  for (const ZoneId z : zones()) {
-    a->want(z);
-    b->want(z);
-  }
-  ASSERT_TRUE(eventually([&] { return a->held_count() + b->held_count() == zones().size(); }));
+  ask_both(*a, *b);
   ASSERT_TRUE(eventually([&] { return a->held_count() > 0 && b->held_count() > 0; }));
   std::map<ZoneId, uint64_t> a_held;
   for (const ZoneId z : zones())
@@ -150,11 +136,7 @@ TEST_F(ZoneKeeperTest, AStoppedNodeReleasesItsZonesAndTheOtherTakesThemInItsNext
   Seen seen;
   const milliseconds lease(6000);  // rounds every 2 s
   auto a = keeper(db, "a", seen, lease), b = keeper(db, "b", seen, lease);
-  for (const ZoneId z : zones()) {
-    a->want(z);
-    b->want(z);
-  }
-  ASSERT_TRUE(eventually([&] { return a->held_count() + b->held_count() == zones().size(); }));
+  ask_both(*a, *b);
   ASSERT_TRUE(eventually([&] { return a->held_count() > 0; }));
   const size_t a_count = a->held_count();
   const auto stopped = std::chrono::steady_clock::now();

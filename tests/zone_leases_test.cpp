@@ -58,24 +58,17 @@ TEST(Zone, RendezvousMovesOnlyTheZonesOfANodeThatLeaves) {
   EXPECT_FALSE(world::first_ranked({0, 0}, {}).has_value());
 }
 
-// One PostgreSQL server for the suite, a fresh database per test.
+// A fresh database per test on one PostgreSQL server for the program.
 class ZoneLeasesTest : public ::testing::Test {
  protected:
-  static void TearDownTestSuite() { postgres_.reset(); }
-  std::string fresh_database() {
-    static int n = 0;
-    if (!postgres_) postgres_ = std::make_unique<test::PostgresServer>();
-    return postgres_->create_database("zones" + std::to_string(n++));
-  }
+  static std::string fresh_database() { return test::fresh_shared_database("zones"); }
   static std::vector<ZoneRecord> records(uint64_t first, int count) {
     std::vector<ZoneRecord> out;
     for (int i = 0; i < count; ++i)
       out.push_back({first + i, 1000 + i, {static_cast<uint8_t>(first + i), 7}});
     return out;
   }
-  static std::unique_ptr<test::PostgresServer> postgres_;
 };
-std::unique_ptr<test::PostgresServer> ZoneLeasesTest::postgres_;
 
 TEST_F(ZoneLeasesTest, ASecondNodeCannotTakeAZoneWhileTheFirstHoldsItsLease) {
   const std::string db = fresh_database();

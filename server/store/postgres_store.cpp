@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "server/store/edit_codec.hpp"
+#include "server/store/pq_errors.hpp"
 #include "server/store/store_schema.hpp"
 #include "server/store/world_store_checks.hpp"
 
@@ -282,21 +283,15 @@ class PostgresStore final : public WorldStore {
   // failure becomes a StoreError naming the store, and drops the connection.
   template <class Fn>
   void run(Fn&& fn) {
-    try {
-      if (!conn_ || !conn_->is_open()) {
-        conn_ = std::make_unique<pqxx::connection>(uri_);
-        if (!options_.read_only && options_.record_start) lock_world(*conn_);
-      }
-      fn(*conn_);
-    } catch (const StoreError&) {
-      throw;
-    } catch (const pqxx::broken_connection& e) {
-      conn_.reset();
-      throw StoreError(name_ + ": connection lost: " + first_line(e.what()));
-    } catch (const std::exception& e) {
-      conn_.reset();
-      throw StoreError(name_ + ": " + first_line(e.what()));
-    }
+    translate_pq_errors(
+        name_, [&] { conn_.reset(); },
+        [&] {
+          if (!conn_ || !conn_->is_open()) {
+            conn_ = std::make_unique<pqxx::connection>(uri_);
+            if (!options_.read_only && options_.record_start) lock_world(*conn_);
+          }
+          fn(*conn_);
+        });
   }
 
   // One writing process per world: a session advisory lock in this database, held by the

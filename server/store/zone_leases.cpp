@@ -3,7 +3,7 @@
 #include <pqxx/pqxx>
 #include <string>
 
-#include "server/store/postgres_store.hpp"
+#include "server/store/pq_errors.hpp"
 
 namespace vox::store {
 namespace {
@@ -35,18 +35,12 @@ struct ZoneLeases::Connection {
 
 template <typename Fn>
 auto ZoneLeases::run(Fn&& fn) {
-  try {
-    if (!conn_ || !conn_->c.is_open()) conn_ = std::make_unique<Connection>(uri_);
-    return fn(conn_->c);
-  } catch (const StoreError&) {
-    throw;
-  } catch (const pqxx::broken_connection& e) {
-    conn_.reset();
-    throw StoreError(name_ + ": connection lost: " + first_line(e.what()));
-  } catch (const std::exception& e) {
-    conn_.reset();
-    throw StoreError(name_ + ": " + first_line(e.what()));
-  }
+  return translate_pq_errors(
+      name_, [&] { conn_.reset(); },
+      [&] {
+        if (!conn_ || !conn_->c.is_open()) conn_ = std::make_unique<Connection>(uri_);
+        return fn(conn_->c);
+      });
 }
 
 ZoneLeases::ZoneLeases(std::string uri, std::string node, std::chrono::milliseconds lease)
