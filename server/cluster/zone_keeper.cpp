@@ -41,11 +41,6 @@ size_t ZoneKeeper::held_count() const {
   return held_.size();
 }
 
-uint64_t ZoneKeeper::rounds() const {
-  std::lock_guard lock(mutex_);
-  return rounds_;
-}
-
 void ZoneKeeper::stop(bool release) {
   {
     std::lock_guard lock(mutex_);
@@ -64,7 +59,6 @@ void ZoneKeeper::run() {
     lock.unlock();
     round();
     lock.lock();
-    ++rounds_;
     // Woken early by a stop or a zone asked for.
     wake_.wait_for(lock, period, [&] { return stopping_ || asked_; });
     asked_ = false;

@@ -53,7 +53,6 @@ class ZoneKeeper {
   // Any thread: the epoch this node holds `zone` at; nullopt when it does not.
   std::optional<uint64_t> epoch_of(world::ZoneId zone) const;
   size_t held_count() const;  // any thread
-  uint64_t rounds() const;    // ownership rounds finished so far; any thread
   // Stops the thread: `release` lets every held zone go and takes this node out of the
   // live list first (a graceful shutdown: the next owners take its zones in their next
   // round), else they expire with their leases (what a crash does). Any thread but a
@@ -76,7 +75,6 @@ class ZoneKeeper {
   std::condition_variable wake_;
   std::map<world::ZoneId, Held> held_;
   std::set<world::ZoneId> interest_;
-  uint64_t rounds_ = 0;
   bool stopping_ = false, release_ = false, asked_ = false;
   std::thread thread_;
 };
