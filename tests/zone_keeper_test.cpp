@@ -169,5 +169,19 @@ TEST_F(ZoneKeeperTest, ANodeThatJoinsTakesOverTheZonesItNowRanksFirstFor) {
   EXPECT_EQ(seen.lost["a"].size(), for_b);  // handed off, each told
 }
 
+TEST_F(ZoneKeeperTest, ZonesAskedForPastItsBoundAreRefused) {
+  const std::string db = fresh_database();
+  Seen seen;
+  ZoneKeeper k(ZoneKeeper::Config{.uri = db, .node = "a", .address = "a:1", .max_zones = 3},
+               seen.events("a"));
+  EXPECT_TRUE(k.want({0, 0}));
+  EXPECT_TRUE(k.want({0, 1}));
+  EXPECT_TRUE(k.want({0, 2}));
+  EXPECT_TRUE(k.want({0, 1}));   // already remembered
+  EXPECT_FALSE(k.want({0, 3}));  // one too many
+  ASSERT_TRUE(eventually([&] { return k.held_count() == 3; }));
+  EXPECT_FALSE(k.epoch_of({0, 3}).has_value());
+}
+
 }  // namespace
 }  // namespace vox::cluster

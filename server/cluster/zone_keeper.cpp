@@ -23,11 +23,14 @@ ZoneKeeper::ZoneKeeper(Config config, Events events)
 
 ZoneKeeper::~ZoneKeeper() { stop(false); }
 
-void ZoneKeeper::want(world::ZoneId zone) {
+bool ZoneKeeper::want(world::ZoneId zone) {
   std::lock_guard lock(mutex_);
-  if (!interest_.insert(zone).second) return;
+  if (interest_.contains(zone)) return true;
+  if (interest_.size() >= config_.max_zones) return false;
+  interest_.insert(zone);
   asked_ = true;
   wake_.notify_one();
+  return true;
 }
 
 std::optional<uint64_t> ZoneKeeper::epoch_of(world::ZoneId zone) const {

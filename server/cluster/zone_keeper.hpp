@@ -35,6 +35,7 @@ class ZoneKeeper {
     std::string node;     // this node's id (unique per process run is safest)
     std::string address;  // where players reach it, for the heartbeat row
     std::chrono::milliseconds lease{3000};
+    size_t max_zones = size_t{1} << 16;  // zones asked for, remembered at once
   };
   struct Events {
     std::function<void(world::ZoneId, uint64_t epoch)> taken, lost;
@@ -48,8 +49,9 @@ class ZoneKeeper {
   ZoneKeeper& operator=(const ZoneKeeper&) = delete;
 
   // Any thread: this node should own `zone` if it ranks first; a zone not asked for before
-  // starts a round at once (taken then when free).
-  void want(world::ZoneId zone);
+  // starts a round at once (taken then when free). At most Config::max_zones are
+  // remembered; asked for more, it refuses them (false).
+  bool want(world::ZoneId zone);
   // Any thread: the epoch this node holds `zone` at; nullopt when it does not.
   std::optional<uint64_t> epoch_of(world::ZoneId zone) const;
   size_t held_count() const;  // any thread
