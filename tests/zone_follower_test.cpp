@@ -9,6 +9,7 @@
 #include <random>
 #include <thread>
 
+#include "server/cluster/zone_publisher.hpp"
 #include "server/cluster/zone_wire.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/world/edit_replay.hpp"
@@ -164,6 +165,53 @@ TEST_F(ZoneFollowerTest, AFollowerThatStartsLateReadsTheLogThenFollowsTheSubject
   EXPECT_LT(follower.filled(), 80u) << "the later ones came over NATS";
   for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
   expect_same_samples(owner.truth, replica.map);
+}
+
+// The owner's side as voxeld will run it (ZonePublisher): commits reach a follower across
+// a NATS outage, and an owner whose zone was taken meanwhile publishes nothing.
+TEST_F(ZoneFollowerTest, AnOwnersCommitsReachAFollowerAcrossANatsRestartAndAFencedOneSendsNothing) {
+  const std::string db = postgres.create_database("follow3");
+  NatsLink owner_link(nats_config("owner")), replica_link(nats_config("replica"));
+  const ZoneId zone{2, 3};
+  Owner owner(db, owner_link, zone);  // its leases and samples; commits go through the publisher
+  ZonePublisher publisher(owner_link, owner.leases, "w");
+  publisher.adopt(zone, owner.leases.read(zone)->last_seq);
+  Replica replica;
+  ZoneFollower follower(replica_link, {.world = "w", .zone = zone, .uri = db, .node = "replica"},
+                        [&](const store::ZoneRecord& r) { replica.apply(r); });
+  std::mt19937 rng(5);
+  const auto commit = [&](int edits) {
+    std::vector<std::vector<uint8_t>> payloads;
+    for (int i = 0; i < edits; ++i) {
+      const world::Edit e = owner.random_edit(rng);
+      world::replay_edit(owner.truth, owner.generator, e);
+      payloads.push_back(store::encode_edit(e));
+    }
+    return publisher.commit(zone, owner.epoch, payloads, 1000);
+  };
+  EXPECT_EQ(commit(3), (std::pair<uint64_t, uint64_t>{1, 3}));
+  for (int i = 0; i < 7; ++i) commit(1);
+  ASSERT_TRUE(eventually([&] { return follower.applied() == 10; }));
+  nats_server.stop();
+  for (int i = 0; i < 5; ++i) commit(2);  // durable in the log; NATS is down
+  nats_server.restart();
+  ASSERT_TRUE(eventually([&] { return owner_link.connected() && replica_link.connected(); }));
+  commit(1);
+  ASSERT_TRUE(eventually([&] {
+    publisher.heartbeat();  // until the follower's interest is back on the server
+    return follower.applied() == 21;
+  }));
+  ASSERT_EQ(replica.seqs.size(), 21u);
+  for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
+  expect_same_samples(owner.truth, replica.map);
+  // Another node takes the zone (released here rather than waiting out the owner's 30 s
+  // lease); the old owner still commits at its old epoch.
+  owner.leases.release(zone, owner.epoch);
+  store::ZoneLeases taker(db, "taker", milliseconds(30000));
+  ASSERT_TRUE(taker.acquire(zone).has_value());
+  EXPECT_THROW(commit(1), store::FencedError);
+  std::this_thread::sleep_for(milliseconds(200));
+  EXPECT_EQ(follower.applied(), 21u) << "a fenced commit reached a follower";
 }
 
 }  // namespace

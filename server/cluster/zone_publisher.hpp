@@ -1,0 +1,53 @@
+// The owner's side of its zones' records (docs/CLUSTER.md): each batch is appended to the
+// zone's log under the owner's epoch (ZoneLeases::append: FencedError once another node
+// took the zone, and then nothing is published), then each record goes out on the zone's
+// record subject — facts after commit only. heartbeat() publishes every held zone's last
+// sequence number, so followers notice records lost on the way and read them from the
+// log. A publish that fails (NATS down) is counted, never thrown: the log has the record.
+//
+// One thread (the owner's pipeline thread); it keeps the zones it was told of (adopt).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "server/cluster/nats_link.hpp"
+#include "server/store/zone_leases.hpp"
+#include "server/world/zone.hpp"
+
+namespace vox::cluster {
+
+class ZonePublisher {
+ public:
+  ZonePublisher(NatsLink& nats, store::ZoneLeases& log, std::string world);
+
+  // A zone just taken: its records continue from the log's last (ZoneRow::last_seq).
+  void adopt(world::ZoneId zone, uint64_t last_seq) { last_[zone] = last_seq; }
+  void forget(world::ZoneId zone) { last_.erase(zone); }  // lost or handed off
+
+  // Appends `payloads` as the zone's next records at `epoch` (the zone must be adopted),
+  // durable when it returns, then publishes them; returns the first and last seq. Throws
+  // store::FencedError or store::StoreError, having published nothing.
+  std::pair<uint64_t, uint64_t> commit(world::ZoneId zone, uint64_t epoch,
+                                       std::span<const std::vector<uint8_t>> payloads,
+                                       int64_t unix_ms);
+  // Each adopted zone's last sequence number on its heartbeat subject.
+  void heartbeat();
+
+  uint64_t publish_failures() const { return publish_failures_; }
+
+ private:
+  void publish(const std::string& subject, std::span<const uint8_t> bytes);
+
+  NatsLink& nats_;
+  store::ZoneLeases& log_;
+  const std::string world_;
+  std::map<world::ZoneId, uint64_t> last_;  // adopted zones' last seq (bounded by the zones held)
+  uint64_t publish_failures_ = 0;
+};
+
+}  // namespace vox::cluster
