@@ -109,6 +109,13 @@ void expect_same_samples(const world::ChunkMap& truth, const world::ChunkMap& re
   EXPECT_GT(compared, 4u);
 }
 
+// The replica applied records 1 .. n, in order, and holds the owner's samples.
+void expect_replica_matches(const Owner& owner, const Replica& replica, size_t n) {
+  ASSERT_EQ(replica.seqs.size(), n);
+  for (size_t i = 0; i < n; ++i) EXPECT_EQ(replica.seqs[i], i + 1);
+  expect_same_samples(owner.truth, replica.map);
+}
+
 class ZoneFollowerTest : public ::testing::Test {
  protected:
   test::PostgresServer postgres;
@@ -143,9 +150,7 @@ TEST_F(ZoneFollowerTest, AReplicaFollowingAnOwnerWhoseMessagesGetLostEqualsARepl
                          milliseconds(15000)))
       << "applied " << follower.applied() << ", dropped " << follower.dropped();
   EXPECT_GT(follower.filled(), 0u) << "the lost records came from the log";
-  ASSERT_EQ(replica.seqs.size(), 120u);
-  for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
-  expect_same_samples(owner.truth, replica.map);
+  expect_replica_matches(owner, replica, 120);
 }
 
 TEST_F(ZoneFollowerTest, AFollowerThatStartsLateReadsTheLogThenFollowsTheSubject) {
@@ -163,8 +168,7 @@ TEST_F(ZoneFollowerTest, AFollowerThatStartsLateReadsTheLogThenFollowsTheSubject
   for (int i = 0; i < 40; ++i) owner.edit(owner.random_edit(rng), false);
   ASSERT_TRUE(eventually([&] { return follower.applied() == 80; }));
   EXPECT_LT(follower.filled(), 80u) << "the later ones came over NATS";
-  for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
-  expect_same_samples(owner.truth, replica.map);
+  expect_replica_matches(owner, replica, 80);
 }
 
 // The owner's side as voxeld will run it (ZonePublisher): commits reach a follower across
@@ -201,9 +205,7 @@ TEST_F(ZoneFollowerTest, AnOwnersCommitsReachAFollowerAcrossANatsRestartAndAFenc
     publisher.heartbeat();  // until the follower's interest is back on the server
     return follower.applied() == 21;
   }));
-  ASSERT_EQ(replica.seqs.size(), 21u);
-  for (size_t i = 0; i < replica.seqs.size(); ++i) EXPECT_EQ(replica.seqs[i], i + 1);
-  expect_same_samples(owner.truth, replica.map);
+  expect_replica_matches(owner, replica, 21);
   // Another node takes the zone (released here rather than waiting out the owner's 30 s
   // lease); the old owner still commits at its old epoch.
   owner.leases.release(zone, owner.epoch);
