@@ -10,8 +10,10 @@
 namespace vox::cluster {
 namespace {
 
-constexpr size_t kMaxAhead = 10000;  // records held for their turn; more are read from the log
-constexpr size_t kLogPage = 1000;    // records per log read
+// Records held for their turn, by count and by payload bytes; more are read from the log.
+constexpr size_t kMaxAhead = 10000;
+constexpr size_t kMaxAheadBytes = size_t{16} << 20;
+constexpr size_t kLogPage = 1000;  // records per log read
 
 }  // namespace
 
@@ -27,7 +29,12 @@ ZoneFollower::ZoneFollower(NatsLink& nats, Config config, Apply apply)
   // read or arrives here.
   const auto handler = [this](const NatsMessage& m) { on_message(m); };
   records_sub_ = nats_.subscribe(zone_subject(config_.world, config_.zone, "rec"), handler);
-  heartbeat_sub_ = nats_.subscribe(zone_subject(config_.world, config_.zone, "hb"), handler);
+  try {
+    heartbeat_sub_ = nats_.subscribe(zone_subject(config_.world, config_.zone, "hb"), handler);
+  } catch (...) {
+    nats_.unsubscribe(records_sub_);  // its handler would outlive this object
+    throw;
+  }
   nats_.flush(std::chrono::milliseconds(2000));
   thread_ = named_thread("vox-follow", [this] { run(); });
 }
@@ -51,13 +58,16 @@ void ZoneFollower::on_message(const NatsMessage& m) {
   }
   std::lock_guard lock(mutex_);
   newest_ = std::max(newest_, message->record.seq);
-  if (!message->heartbeat && message->record.seq > applied() && ahead_.size() < kMaxAhead)
-    ahead_.emplace(message->record.seq, std::move(message->record));
+  const size_t bytes = message->record.payload.size();
+  if (!message->heartbeat && message->record.seq > applied() && ahead_.size() < kMaxAhead &&
+      ahead_bytes_ + bytes <= kMaxAheadBytes &&
+      ahead_.emplace(message->record.seq, std::move(message->record)).second)
+    ahead_bytes_ += bytes;
   wake_.notify_one();
 }
 
 // Applies the log's records after applied_ (all of them when `through` is past the end).
-void ZoneFollower::fill(uint64_t through) {
+ZoneFollower::Fill ZoneFollower::fill(uint64_t through) {
   while (applied() < through) {
     std::vector<store::ZoneRecord> page;
     try {
@@ -66,7 +76,7 @@ void ZoneFollower::fill(uint64_t through) {
       spdlog::warn("zone ({}, {}): reading its log: {}", config_.zone.x, config_.zone.z, e.what());
       std::unique_lock lock(mutex_);  // retried on the next turn, not in a tight loop
       wake_.wait_for(lock, std::chrono::milliseconds(200), [&] { return stopping_; });
-      return;
+      return Fill::kFailed;
     }
     for (const store::ZoneRecord& r : page) {
       if (r.seq != applied() + 1) break;  // the log has no gaps; guard anyway
@@ -74,8 +84,9 @@ void ZoneFollower::fill(uint64_t through) {
       applied_.store(r.seq, std::memory_order_release);
       filled_.fetch_add(1, std::memory_order_relaxed);
     }
-    if (page.size() < kLogPage) return;  // the log's end
+    if (page.size() < kLogPage) return applied() >= through ? Fill::kReached : Fill::kShort;
   }
+  return Fill::kReached;
 }
 
 void ZoneFollower::run() {
@@ -85,6 +96,7 @@ void ZoneFollower::run() {
     // Records in turn, applied outside the lock.
     while (!ahead_.empty() && ahead_.begin()->first <= applied() + 1) {
       auto node = ahead_.extract(ahead_.begin());
+      ahead_bytes_ -= node.mapped().payload.size();
       if (node.key() != applied() + 1) continue;  // already applied (from the log)
       lock.unlock();
       apply_(node.mapped());
@@ -100,8 +112,15 @@ void ZoneFollower::run() {
       if (came || stopping_) continue;
       const uint64_t through = newest_;
       lock.unlock();
-      fill(through);
+      const Fill filled = fill(through);
       lock.lock();
+      // The log is read and ends short of what a message claimed: records are published
+      // only after commit, so the claim was false. Forget it (counted), or the follower
+      // would read the log every gap_wait for ever.
+      if (filled == Fill::kShort && newest_ == through) {
+        newest_ = applied();
+        dropped_.fetch_add(1, std::memory_order_relaxed);
+      }
       continue;
     }
     wake_.wait(lock, [&] { return stopping_ || newest_ > applied(); });

@@ -4,7 +4,9 @@
 // order. A record that arrives ahead of its turn waits for the ones before it; a gap (a
 // record lost, or a heartbeat newer than what was applied) is filled from the log after
 // `gap_wait`, so a lost NATS message costs latency, never correctness. A message that
-// does not decode or names another zone is dropped and counted.
+// does not decode or names another zone is dropped and counted, and so is a claim of a
+// record the log does not have (records are published after commit). At most 10,000
+// records or 16 MiB wait for their turn; past that they are read from the log.
 //
 // Threads: NATS handlers only queue; the follower's own thread reads the log and calls
 // `apply`, one record at a time (apply must not call back into the follower). Any thread
@@ -53,15 +55,19 @@ class ZoneFollower {
  private:
   void on_message(const NatsMessage& m);  // NATS threads
   void run();                             // the follower's thread
-  void fill(uint64_t through);            // reads the log after applied_, through `through`
+  // Reads the log after applied_, through `through`: reached it, the log ended short of
+  // it, or the log could not be read (then it waited a little).
+  enum class Fill { kReached, kShort, kFailed };
+  Fill fill(uint64_t through);
 
   NatsLink& nats_;
   const Config config_;
   const Apply apply_;
   store::ZoneLeases log_;  // the thread's connection
-  std::mutex mutex_;       // guards ahead_, newest_, stopping_
+  std::mutex mutex_;       // guards ahead_, ahead_bytes_, newest_, stopping_
   std::condition_variable wake_;
   std::map<uint64_t, store::ZoneRecord> ahead_;  // received, not applied yet (bounded)
+  size_t ahead_bytes_ = 0;                       // their payloads
   uint64_t newest_ = 0;                          // the highest seq heard of
   bool stopping_ = false;
   std::atomic<uint64_t> applied_{0}, filled_{0}, dropped_{0};

@@ -1,6 +1,30 @@
 #include "server/pipeline/inbox.hpp"
 
+#include "server/pipeline/edit_batch.hpp"
+#include "server/pipeline/protected_regions.hpp"
+
 namespace vox::pipeline {
+namespace {
+
+constexpr const char* kStoppedMessage = "shutting down: the world pipeline has stopped";
+
+}  // namespace
+
+void refuse_stopped(OrderedTask& task, bool cancelled) {
+  if (auto* e = std::get_if<EditTask>(&task)) {
+    EditResult r;
+    r.reason = world::RefusalReason::kShuttingDown;
+    r.message = kStoppedMessage;
+    if (e->done) e->done(r);
+  } else if (auto* region = std::get_if<RegionTask>(&task)) {
+    RegionOutcome r;
+    r.status = RegionOutcome::Status::kShuttingDown;
+    r.message = kStoppedMessage;
+    if (region->done) region->done(r);
+  } else {
+    std::get<InspectTask>(task).run(cancelled);
+  }
+}
 
 bool Inbox::add(OrderedTask& task) {
   {

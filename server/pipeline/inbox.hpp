@@ -101,4 +101,8 @@ class Inbox {
   State state_;
 };
 
+// A task the stopped pipeline will not run, answered on the caller's thread: an edit or a
+// region change refused (shutting down), an inspection run with `cancelled`.
+void refuse_stopped(OrderedTask& task, bool cancelled);
+
 }  // namespace vox::pipeline

@@ -62,9 +62,6 @@ class MemoryKeeper {
   // counts, what its size classes waste). Without the second, the accounted bytes stayed
   // under the budget while the process's resident set went 8 % past it.
   void set_session_bytes(size_t bytes) { session_bytes_.store(bytes, std::memory_order_relaxed); }
-  void set_unaccounted_bytes(size_t bytes) {
-    unaccounted_bytes_.store(bytes, std::memory_order_relaxed);
-  }
   size_t session_bytes() const { return session_bytes_.load(std::memory_order_relaxed); }
   size_t unaccounted_bytes() const { return unaccounted_bytes_.load(std::memory_order_relaxed); }
   size_t other_bytes() const { return session_bytes() + unaccounted_bytes(); }
@@ -76,7 +73,7 @@ class MemoryKeeper {
   bool heap_due(Clock::time_point now) const { return now - heap_looked_ >= kHeapLook; }
   void heap_measured(Clock::time_point now, size_t active, size_t parts) {
     heap_looked_ = now;
-    set_unaccounted_bytes(active > parts ? active - parts : 0);
+    unaccounted_bytes_.store(active > parts ? active - parts : 0, std::memory_order_relaxed);
   }
 
   // How long the idle pipeline may sleep before it looks again: loads waiting for memory

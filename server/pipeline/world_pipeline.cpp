@@ -21,25 +21,6 @@ using world::ChunkCoordHash;
 
 namespace {
 
-constexpr const char* kStoppedMessage = "shutting down: the world pipeline has stopped";
-
-// A task the stopped pipeline will not run: refused (an inspection runs, `cancelled`).
-void refuse_shutting_down(OrderedTask& task, bool cancelled) {
-  if (auto* e = std::get_if<EditTask>(&task)) {
-    EditResult r;
-    r.reason = world::RefusalReason::kShuttingDown;
-    r.message = kStoppedMessage;
-    if (e->done) e->done(r);
-  } else if (auto* region = std::get_if<RegionTask>(&task)) {
-    RegionOutcome r;
-    r.status = RegionOutcome::Status::kShuttingDown;
-    r.message = kStoppedMessage;
-    if (region->done) region->done(r);
-  } else {
-    std::get<InspectTask>(task).run(cancelled);
-  }
-}
-
 using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
 
 // A batch slower than this is logged: every edit queued behind it waited.
@@ -110,7 +91,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
 WorldPipeline::~WorldPipeline() { stop(); }
 
 void WorldPipeline::enqueue(OrderedTask task) {
-  if (!inbox_.add(task)) refuse_shutting_down(task, true);  // answered on the caller's thread
+  if (!inbox_.add(task)) refuse_stopped(task, true);  // answered on the caller's thread
 }
 
 void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner, std::string author,
@@ -597,7 +578,7 @@ void WorldPipeline::drain_after_stop() {
     loads = in.scheduler.take_all_load_callbacks();
   });
   // An inspection runs (not cancelled): on the pipeline thread, state is still ours.
-  for (OrderedTask& t : ordered) refuse_shutting_down(t, false);
+  for (OrderedTask& t : ordered) refuse_stopped(t, false);
   for (auto& done : loads) done();
   loads_->run_all_callbacks();
 }
