@@ -53,6 +53,37 @@ TEST(ZoneWire, RecordsAndHeartbeatsGoThereAndBackAndAnythingElseIsRefused) {
   EXPECT_TRUE(valid_world_name("main_world-2"));
 }
 
+// An edit as a record's payload: there and back with its author and the samples it
+// keeps; anything else is refused with a reason, never trusted.
+TEST(ZoneWire, EditRecordsGoThereAndBackAndDamagedOnesAreRefused) {
+  store::LoggedEdit e;
+  e.author = "player-7";
+  e.edit = world::Explosion{{64.0f, 10.0f, 64.0f}, 6.0f, 1.5f};
+  e.keep = {world::VoxelBox{{1, 2, 3}, {4, 5, 6}}};
+  const store::ZoneRecord r{9, 123, encode_zone_edit(e)};
+  const auto back = decode_zone_edit(r);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->seq, 9u);
+  EXPECT_EQ(back->unix_ms, 123);
+  EXPECT_EQ(back->author, "player-7");
+  EXPECT_EQ(back->keep.size(), 1u);
+  EXPECT_EQ(store::encode_edit(back->edit, back->keep), store::encode_edit(e.edit, e.keep));
+  std::string why;
+  for (size_t cut = 0; cut < r.payload.size(); ++cut) {
+    store::ZoneRecord shorter = r;
+    shorter.payload.resize(cut);
+    EXPECT_FALSE(decode_zone_edit(shorter, &why)) << cut;
+    EXPECT_FALSE(why.empty());
+  }
+  store::ZoneRecord other = r;
+  other.payload[0] = 9;  // a version this build does not know
+  EXPECT_FALSE(decode_zone_edit(other, &why));
+  other = r;
+  other.payload[1] = 0xff;  // an author longer than the record
+  other.payload[2] = 0xff;
+  EXPECT_FALSE(decode_zone_edit(other, &why));
+}
+
 // The owner's side in miniature: edits replayed into its samples, appended to the zone's
 // log under its epoch, and published (or not: `lose` says which are lost on the way).
 struct Owner {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <climits>
 #include <map>
 #include <set>
 #include <thread>
@@ -32,6 +33,30 @@ TEST(Zone, ABoxAcrossACornerTouchesTheFourZonesAround) {
   const auto zones = world::zones_of({{60, -5, 60}, {70, 5, 70}}, 2);
   EXPECT_EQ(zones, (std::vector<ZoneId>{{0, 0}, {0, 1}, {1, 0}, {1, 1}}));
   EXPECT_EQ(world::zones_of({{1, 1, 1}, {2, 2, 2}}, 16), (std::vector<ZoneId>{{0, 0}}));
+}
+
+// A part of an edit logged in one zone keeps every sample outside it: the parts of a box
+// outside the zone, with the part inside, cover the box exactly once.
+TEST(Zone, ABoxOutsideItsZoneIsSplitIntoPartsThatCoverItExactlyOnce) {
+  const world::VoxelBox box{{58, -5, 60}, {70, 5, 66}};  // zones of 64 voxels: four of them
+  for (const ZoneId zone : world::zones_of(box, 2)) {
+    const std::vector<world::VoxelBox> outside = world::outside_zone(box, zone, 2);
+    for (int32_t x = box.lo[0]; x <= box.hi[0]; ++x) {
+      for (int32_t z = box.lo[2]; z <= box.hi[2]; ++z) {
+        int covered = 0;
+        for (const auto& b : outside)
+          covered += x >= b.lo[0] && x <= b.hi[0] && z >= b.lo[2] && z <= b.hi[2] &&
+                     b.lo[1] == box.lo[1] && b.hi[1] == box.hi[1];
+        const bool inside = world::zone_of(world::chunk_of_voxel(x, 0, z), 2) == zone;
+        EXPECT_EQ(covered, inside ? 0 : 1) << x << ", " << z;
+      }
+    }
+  }
+  EXPECT_TRUE(world::outside_zone({{1, 1, 1}, {9, 9, 9}}, {0, 0}, 2).empty());
+  // At the ends of the coordinates nothing overflows.
+  const world::VoxelBox far{{INT32_MAX - 10, 0, INT32_MIN}, {INT32_MAX, 0, INT32_MIN + 10}};
+  const ZoneId last = world::zones_of(far, 1).front();
+  EXPECT_TRUE(world::outside_zone(far, last, 1).empty());
 }
 
 TEST(Zone, RendezvousMovesOnlyTheZonesOfANodeThatLeaves) {
@@ -126,6 +151,40 @@ TEST_F(ZoneLeasesTest, AnAppendMustContinueTheZonesSequenceWithoutAGap) {
   EXPECT_EQ(a.read({-2, 9})->last_seq, 4u);
   EXPECT_EQ(a.read_log(zone, 2).size(), 2u);
   EXPECT_EQ(a.fenced(), 0u);  // refused for the sequence, not the fence
+}
+
+// A batch of edits across zones lands in every zone's log or in none: one zone fenced
+// refuses the whole append, and the other zone's sequence is left as it was.
+TEST_F(ZoneLeasesTest, AnAppendAcrossZonesLandsWholeOrNotAtAll) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));
+  const ZoneId one{0, 0}, two{0, 1};
+  const uint64_t e1 = *a.acquire(one), e2 = *a.acquire(two);
+  const auto r1 = records(1, 2), r2 = records(1, 3);
+  a.append(std::vector<ZoneAppend>{{two, e2, r2}, {one, e1, r1}});
+  EXPECT_EQ(a.read(one)->last_seq, 2u);
+  EXPECT_EQ(a.read(two)->last_seq, 3u);
+  std::this_thread::sleep_for(milliseconds(400));  // a's leases run out; b takes zone two
+  ASSERT_TRUE(b.acquire(two).has_value());
+  const auto more1 = records(3, 1), more2 = records(4, 1);
+  try {
+    a.append(std::vector<ZoneAppend>{{one, e1, more1}, {two, e2, more2}});
+    ADD_FAILURE() << "a fenced zone's append landed";
+  } catch (const FencedError& e) {
+    EXPECT_EQ(e.zone, two);
+  }
+  EXPECT_EQ(a.read(one)->last_seq, 2u);  // zone one's part did not land either
+  EXPECT_EQ(a.read_log(one, 0).size(), 2u);
+  EXPECT_THROW(a.append(std::vector<ZoneAppend>{{one, e1, more1}, {one, e1, more1}}),
+               StoreError);  // one zone twice
+}
+
+TEST_F(ZoneLeasesTest, TheFirstNodeSettlesTheWorldsSettingsAndTheOthersReadThem) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000)), b(db, "b", milliseconds(30000));
+  const WorldSettings first{"main", 7, 16};
+  EXPECT_EQ(a.settle_world(first), first);
+  EXPECT_EQ(b.settle_world({"other", 8, 4}), first);  // the caller refuses to start
 }
 
 TEST_F(ZoneLeasesTest, AReleasedZoneIsTakenAtOnceAndARestartedNodeFencesItsEarlierRun) {

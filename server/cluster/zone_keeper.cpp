@@ -61,6 +61,7 @@ void ZoneKeeper::run() {
   while (!stopping_) {
     lock.unlock();
     round();
+    if (events_.round) events_.round();
     lock.lock();
     // Woken early by a stop or a zone asked for.
     wake_.wait_for(lock, period, [&] { return stopping_ || asked_; });

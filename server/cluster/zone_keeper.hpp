@@ -39,6 +39,7 @@ class ZoneKeeper {
   };
   struct Events {
     std::function<void(world::ZoneId, uint64_t epoch)> taken, lost;
+    std::function<void()> round;  // after each round (about every lease / 3)
   };
 
   // Opens its connection (throws store::StoreError when the database cannot be reached)

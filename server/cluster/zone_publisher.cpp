@@ -12,26 +12,74 @@ ZonePublisher::ZonePublisher(NatsLink& nats, store::ZoneLeases& log, std::string
     throw ClusterError("a world name for subjects: letters, digits, '-' and '_' (1 to 64)");
 }
 
+void ZonePublisher::adopt(world::ZoneId zone, uint64_t last_seq) {
+  std::lock_guard lock(mutex_);
+  last_[zone] = last_seq;
+}
+
+void ZonePublisher::forget(world::ZoneId zone) {
+  std::lock_guard lock(mutex_);
+  last_.erase(zone);
+}
+
+std::optional<uint64_t> ZonePublisher::last_seq(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = last_.find(zone);
+  if (it == last_.end()) return std::nullopt;
+  return it->second;
+}
+
 std::pair<uint64_t, uint64_t> ZonePublisher::commit(world::ZoneId zone, uint64_t epoch,
                                                     std::span<const std::vector<uint8_t>> payloads,
                                                     int64_t unix_ms) {
-  const auto it = last_.find(zone);
-  if (it == last_.end())
-    throw store::StoreError("zone (" + std::to_string(zone.x) + ", " + std::to_string(zone.z) +
-                            ") is not this node's (never adopted)");
-  std::vector<store::ZoneRecord> records;
-  records.reserve(payloads.size());
-  for (const auto& p : payloads) records.push_back({it->second + records.size() + 1, unix_ms, p});
-  if (records.empty()) return {it->second + 1, it->second};
-  log_.append(zone, epoch, records);  // throws: nothing published
-  it->second = records.back().seq;
-  const std::string subject = zone_subject(world_, zone, "rec");
-  for (const store::ZoneRecord& r : records) publish(subject, encode_zone_record(zone, r));
-  return {records.front().seq, records.back().seq};
+  Part part{zone, epoch, {}};
+  for (const auto& p : payloads) part.records.push_back({0, unix_ms, p});
+  commit(std::span<Part>(&part, 1));
+  if (part.records.empty()) {
+    const uint64_t last = last_seq(zone).value_or(0);
+    return {last + 1, last};
+  }
+  return {part.records.front().seq, part.records.back().seq};
+}
+
+void ZonePublisher::commit(std::span<Part> parts) {
+  std::vector<store::ZoneAppend> appends;
+  {
+    std::lock_guard lock(mutex_);
+    for (Part& part : parts) {
+      const auto it = last_.find(part.zone);
+      if (it == last_.end())
+        throw store::StoreError("zone (" + std::to_string(part.zone.x) + ", " +
+                                std::to_string(part.zone.z) +
+                                ") is not this node's (never adopted)");
+      uint64_t seq = it->second;
+      for (store::ZoneRecord& r : part.records) r.seq = ++seq;
+    }
+  }
+  for (const Part& part : parts) appends.push_back({part.zone, part.epoch, part.records});
+  log_.append(appends);  // throws: nothing published
+  {
+    std::lock_guard lock(mutex_);
+    for (const Part& part : parts) {
+      // A zone forgotten meanwhile (lost) stays forgotten.
+      if (const auto it = last_.find(part.zone); it != last_.end() && !part.records.empty())
+        it->second = part.records.back().seq;
+    }
+  }
+  for (const Part& part : parts) {
+    const std::string subject = zone_subject(world_, part.zone, "rec");
+    for (const store::ZoneRecord& r : part.records)
+      publish(subject, encode_zone_record(part.zone, r));
+  }
 }
 
 void ZonePublisher::heartbeat() {
-  for (const auto& [zone, last] : last_)
+  std::vector<std::pair<world::ZoneId, uint64_t>> beats;
+  {
+    std::lock_guard lock(mutex_);
+    beats.assign(last_.begin(), last_.end());
+  }
+  for (const auto& [zone, last] : beats)
     publish(zone_subject(world_, zone, "hb"), encode_zone_heartbeat(zone, last));
 }
 
@@ -39,9 +87,10 @@ void ZonePublisher::publish(const std::string& subject, std::span<const uint8_t>
   try {
     nats_.publish(subject, bytes);
   } catch (const ClusterError& e) {
-    if (publish_failures_++ % 1000 == 0)  // one line per thousand failures
+    const uint64_t failures = ++publish_failures_;
+    if (failures % 1000 == 1)  // one line per thousand failures
       spdlog::warn("zones: {} (followers read the log) [{} failed publishes so far]", e.what(),
-                   publish_failures_);
+                   failures);
   }
 }
 

@@ -5,11 +5,15 @@
 // sequence number, so followers notice records lost on the way and read them from the
 // log. A publish that fails (NATS down) is counted, never thrown: the log has the record.
 //
-// One thread (the owner's pipeline thread); it keeps the zones it was told of (adopt).
+// Threads: commit from one thread at a time (the node's appender); adopt, forget,
+// last_seq and heartbeat from any (a leaf lock, never held across I/O).
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
@@ -26,8 +30,21 @@ class ZonePublisher {
   ZonePublisher(NatsLink& nats, store::ZoneLeases& log, std::string world);
 
   // A zone just taken: its records continue from the log's last (ZoneRow::last_seq).
-  void adopt(world::ZoneId zone, uint64_t last_seq) { last_[zone] = last_seq; }
-  void forget(world::ZoneId zone) { last_.erase(zone); }  // lost or handed off
+  void adopt(world::ZoneId zone, uint64_t last_seq);
+  void forget(world::ZoneId zone);  // lost or handed off
+  // The zone's last record as far as this publisher knows (nullopt: not adopted).
+  std::optional<uint64_t> last_seq(world::ZoneId zone) const;
+
+  // One zone's part of a commit: its records' seq are set by commit.
+  struct Part {
+    world::ZoneId zone;
+    uint64_t epoch = 0;
+    std::vector<store::ZoneRecord> records;
+  };
+  // Appends every part in one transaction (all zones adopted, each at its epoch), durable
+  // when it returns, then publishes them. Throws store::FencedError or store::StoreError,
+  // having published nothing.
+  void commit(std::span<Part> parts);
 
   // Appends `payloads` as the zone's next records at `epoch` (the zone must be adopted),
   // durable when it returns, then publishes them; returns the first and last seq. Throws
@@ -46,8 +63,9 @@ class ZonePublisher {
   NatsLink& nats_;
   store::ZoneLeases& log_;
   const std::string world_;
+  mutable std::mutex mutex_;                // guards last_
   std::map<world::ZoneId, uint64_t> last_;  // adopted zones' last seq (bounded by the zones held)
-  uint64_t publish_failures_ = 0;
+  std::atomic<uint64_t> publish_failures_{0};
 };
 
 }  // namespace vox::cluster

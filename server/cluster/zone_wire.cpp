@@ -1,5 +1,7 @@
 #include "server/cluster/zone_wire.hpp"
 
+#include "server/store/edit_codec.hpp"
+
 namespace vox::cluster {
 namespace {
 
@@ -68,6 +70,51 @@ std::optional<ZoneMessage> decode_zone_message(std::span<const uint8_t> bytes) {
   m.record.payload.assign(bytes.begin() + kRecordHeader, bytes.end());
   if (m.record.seq == 0) return std::nullopt;  // sequences start at 1
   return m;
+}
+
+namespace {
+constexpr uint8_t kEditPayloadVersion = 1;
+constexpr size_t kMaxAuthor = 1024;
+}  // namespace
+
+std::vector<uint8_t> encode_zone_edit(const store::LoggedEdit& edit) {
+  const std::string& author =
+      edit.author.size() > kMaxAuthor ? edit.author.substr(0, kMaxAuthor) : edit.author;
+  const std::vector<uint8_t> body = store::encode_edit(edit.edit, edit.keep);
+  std::vector<uint8_t> out;
+  out.reserve(3 + author.size() + body.size());
+  out.push_back(kEditPayloadVersion);
+  out.push_back(static_cast<uint8_t>(author.size() & 0xff));
+  out.push_back(static_cast<uint8_t>(author.size() >> 8));
+  out.insert(out.end(), author.begin(), author.end());
+  out.insert(out.end(), body.begin(), body.end());
+  return out;
+}
+
+std::optional<store::LoggedEdit> decode_zone_edit(const store::ZoneRecord& record,
+                                                  std::string* error) {
+  const auto fail = [error](const char* why) -> std::optional<store::LoggedEdit> {
+    if (error) *error = why;
+    return std::nullopt;
+  };
+  const std::vector<uint8_t>& p = record.payload;
+  if (p.size() < 3) return fail("an edit record shorter than its header");
+  if (p[0] != kEditPayloadVersion) return fail("an edit record of an unknown version");
+  const size_t author = p[1] | (size_t{p[2]} << 8);
+  if (author > kMaxAuthor || p.size() < 3 + author) return fail("an edit record's author is cut");
+  std::string why;
+  auto decoded = store::decode_edit_record(std::span(p).subspan(3 + author), &why);
+  if (!decoded) {
+    if (error) *error = "an edit record: " + why;
+    return std::nullopt;
+  }
+  store::LoggedEdit out;
+  out.seq = record.seq;
+  out.unix_ms = record.unix_ms;
+  out.author.assign(reinterpret_cast<const char*>(p.data() + 3), author);
+  out.edit = std::move(decoded->edit);
+  out.keep = std::move(decoded->keep);
+  return out;
 }
 
 }  // namespace vox::cluster

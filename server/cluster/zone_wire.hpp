@@ -5,6 +5,8 @@
 // Layout (little-endian):
 //   record     u8 version (1), u8 kind (1), u64 zone key, u64 seq, i64 unix_ms, payload
 //   heartbeat  u8 version (1), u8 kind (2), u64 zone key, u64 last seq
+//   a record's payload, an edit: u8 version (1), u16 author length, author, the edit as
+//   the world store encodes it (store/edit_codec.hpp, with the samples it keeps)
 //
 // Pure functions: any thread.
 #pragma once
@@ -35,5 +37,11 @@ struct ZoneMessage {
 };
 // nullopt when the bytes are not a message of this version (too short, unknown kind).
 std::optional<ZoneMessage> decode_zone_message(std::span<const uint8_t> bytes);
+
+// A logged edit as a zone record's payload (its seq and time are the record's), and back:
+// nullopt, with `error` set, when the payload is not one.
+std::vector<uint8_t> encode_zone_edit(const store::LoggedEdit& edit);
+std::optional<store::LoggedEdit> decode_zone_edit(const store::ZoneRecord& record,
+                                                  std::string* error = nullptr);
 
 }  // namespace vox::cluster

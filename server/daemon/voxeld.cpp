@@ -9,6 +9,8 @@
 #include <memory>
 #include <thread>
 
+#include "server/cluster/cluster_config.hpp"
+#include "server/cluster/cluster_node.hpp"
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
 #include "server/store/world_store.hpp"
@@ -74,8 +76,9 @@ std::filesystem::path default_http_root() {
   return {};
 }
 
-// Runs the opened world until a signal; throws what the server throws.
-void serve(const VoxeldConfig& c) {
+// Runs the opened world until a signal; throws what the server throws. `node`: a cluster
+// node's links (null: a single node).
+void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   net::ServerCounters counters;
   // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
   // sessions they hold, which hold nothing of the Server), then the pipeline (sessions
@@ -91,6 +94,7 @@ void serve(const VoxeldConfig& c) {
     spdlog::info("metrics on http://{}:{}/metrics", c.net.bind, metrics->port());
     if (!c.metrics_port_file.empty()) write_port_file(c.metrics_port_file, metrics->port());
   }
+  if (node) node->start(c.net.bind + ":" + std::to_string(server.port()));
   if (!c.port_file.empty()) write_port_file(c.port_file, server.port());
   if (server.http_port() != 0) {
     spdlog::info("open http://{}:{}/ in a browser", c.net.bind, server.http_port());
@@ -111,6 +115,7 @@ void serve(const VoxeldConfig& c) {
   for (int i = 1; i < c.io_threads; ++i) threads.emplace_back([&io] { io.run(); });
   io.run();
   for (auto& t : threads) t.join();
+  if (node) node->stop(true);  // the pipeline's appends landed: hand the zones off
 }
 
 }  // namespace
@@ -121,7 +126,19 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
   log_start(c, allocator);
   // The durable world: opened (and checked) before anything listens.
   std::unique_ptr<store::WorldStore> store, checkpoint_store;
-  if (c.in_memory) {
+  std::unique_ptr<cluster::ClusterNode> node;
+  if (!c.cluster_file.empty()) {
+    try {
+      c.world.seed = c.seed.value_or(1);
+      node = std::make_unique<cluster::ClusterNode>(cluster::read_cluster_config(c.cluster_file),
+                                                    c.world.seed);
+    } catch (const std::exception& e) {
+      std::cerr << "voxeld: " << e.what() << "\n";
+      return 1;
+    }
+    c.world.store = &node->store();
+    c.world.zones = node.get();
+  } else if (c.in_memory) {
     spdlog::warn("--in-memory: no world on disk; every edit is lost when voxeld stops");
   } else {
     const std::string where = c.store_uri.empty() ? c.world_dir : c.store_uri;
@@ -139,7 +156,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
     c.world.checkpoint_store = checkpoint_store.get();
   }
   try {
-    serve(c);
+    serve(c, node.get());
     spdlog::info("voxeld stopped");
   } catch (const std::exception& e) {
     spdlog::error("voxeld: {}", e.what());

@@ -64,6 +64,9 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "the world's directory (SQLite store; created on first start)");
   add("store", po::value<std::string>(&c.store_uri),
       "postgresql://... : keep the world in this PostgreSQL database instead of --world");
+  add("cluster", po::value<std::string>(&c.cluster_file),
+      "FILE: run as a node of a cluster world, whose PostgreSQL and NATS (and their "
+      "passwords) the file names (docs/CLUSTER.md); instead of --world and --store");
   add("checkpoint-interval", po::value<double>(&r.checkpoint_s)->default_value(10),
       "seconds between checkpoints of the changed chunks (sooner past 2,048 chunks or 20,000 "
       "edits); a restart replays the log since the last one");
@@ -241,6 +244,8 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
            r.max_memory + "')");
   rule(c.store_uri.empty() || store::is_postgres_uri(c.store_uri),
        "--store must be a postgresql:// URI (the default store is --world)");
+  rule(c.cluster_file.empty() || (c.store_uri.empty() && !c.in_memory),
+       "--cluster keeps the world in the cluster's database: not with --store or --in-memory");
   if (!bad.empty()) return bad;
 
   net.open_role = *role;

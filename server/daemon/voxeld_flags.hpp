@@ -22,6 +22,7 @@ struct VoxeldConfig {
   std::string world_dir = "world";
   std::string store_uri;  // postgresql://... instead of world_dir
   bool in_memory = false;
+  std::string cluster_file;  // --cluster: a node of a cluster world (docs/CLUSTER.md)
   std::string port_file, metrics_port_file, http_port_file;
   std::optional<uint16_t> metrics_port;
   int io_threads = 1;

@@ -6,6 +6,7 @@
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/memory_keeper.hpp"
 #include "server/pipeline/protected_regions.hpp"
+#include "server/pipeline/zone_authority.hpp"
 #include "server/world/edit_apply.hpp"
 
 namespace vox::pipeline {
@@ -21,6 +22,15 @@ constexpr const char* kStorageReadMessage =
 constexpr const char* kLogFullMessage =
     "the world store is behind: its log holds as many edits as a checkpoint may leave "
     "unwritten; edits are taken again once the checkpoint in progress is written";
+
+constexpr const char* kClusterRegionsMessage =
+    "protected regions are not kept across a cluster's nodes yet; this world has none";
+
+// The samples an edit reads: a smooth reads around what it writes.
+world::VoxelBox read_box(const world::Edit& edit) {
+  const auto* smooth = std::get_if<world::Smooth>(&edit);
+  return smooth ? world::smooth_read_box(*smooth) : world::touched_box(edit);
+}
 
 void refuse(EditResult& result, world::RefusalReason reason, std::string message,
             BatchCounts& counts) {
@@ -49,7 +59,9 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     }
     if (auto* region = std::get_if<RegionTask>(&tasks[t])) {
       b.any_edit = true;  // answered with the batch
-      regions.apply(*region, t, rules.store_resting, b.regions, kStorageMessage);
+      // A cluster keeps no protected regions yet: a change is refused like a store down.
+      regions.apply(*region, t, rules.store_resting || rules.zones, b.regions,
+                    rules.zones ? kClusterRegionsMessage : kStorageMessage);
       continue;
     }
     const EditTask& task = std::get<EditTask>(tasks[t]);
@@ -64,7 +76,11 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       refuse(result, world::RefusalReason::kStorageUnavailable, kStorageMessage, delta);
       continue;
     }
-    if (rules.durable && world.checkpoints->log_full(rules.log_tail + b.accepted.size())) {
+    if (std::string why; rules.zones && !rules.zones->writable(edit, read_box(edit), why)) {
+      refuse(result, world::RefusalReason::kStorageUnavailable, std::move(why), delta);
+      continue;
+    }
+    if (world.checkpoints && world.checkpoints->log_full(rules.log_tail + b.accepted.size())) {
       refuse(result, world::RefusalReason::kServerBusy, kLogFullMessage, delta);
       continue;
     }

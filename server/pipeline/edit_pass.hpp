@@ -16,6 +16,7 @@
 namespace vox::pipeline {
 
 class ProtectedRegions;
+class ZoneAuthority;
 
 // What an edit refused because the store could not write is told.
 inline constexpr const char* kStorageMessage =
@@ -29,6 +30,7 @@ struct EditRules {
   bool durable;                    // with a store (edits record their undo)
   bool store_resting;              // after a failed append: edits are refused untried
   uint64_t log_tail;               // logged edits no checkpoint holds (world.checkpoints)
+  ZoneAuthority* zones = nullptr;  // a cluster node: edits only in the zones it may write
 };
 
 // Applies `tasks` (moved into the batch) and runs its inspections; returns the batch with

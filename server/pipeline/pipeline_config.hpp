@@ -10,6 +10,7 @@
 
 #include "server/pipeline/checkpoint_policy.hpp"
 #include "server/pipeline/lod_stage.hpp"
+#include "server/pipeline/zone_authority.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/terrain_generator.hpp"
@@ -63,6 +64,10 @@ struct PipelineConfig {
   // `store`). It must outlive the pipeline.
   store::WorldStore* checkpoint_store = nullptr;
   CheckpointLimits checkpoint;
+  // A cluster node (docs/CLUSTER.md): the zones it may write and the records it must
+  // apply (null: a single node). `store` is then the node's zone logs; no checkpoints are
+  // written yet, so every changed chunk stays resident. It must outlive the pipeline.
+  ZoneAuthority* zones = nullptr;
   // Checkpoints leave the log whole (an audit trail of every edit) instead of deleting
   // what they include.
   bool keep_log = false;

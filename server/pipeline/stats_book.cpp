@@ -1,5 +1,7 @@
 #include "server/pipeline/stats_book.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include "server/pipeline/world_state.hpp"
 
 namespace vox::pipeline {
@@ -24,6 +26,14 @@ void StatsBook::count(const BatchCounts& delta, const WorldState& st, size_t uns
   stats_.chunks_generated += delta.chunks_generated;
   residency(stats_, st);
   stats_.unsaved_chunks = unsaved_chunks;
+}
+
+void StatsBook::log_slow(double took, size_t loaded) const {
+  spdlog::warn(
+      "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
+      "published)",
+      took * 1000, batch_.edits_applied + batch_.edits_refused, loaded, batch_.chunks_generated,
+      batch_.meshes_published);
 }
 
 }  // namespace vox::pipeline

@@ -26,7 +26,9 @@ class StatsBook {
   static void residency(PipelineStats& s, const WorldState& state);
   void start_batch() { batch_ = {}; }                  // pipeline thread
   const BatchCounts& batch() const { return batch_; }  // pipeline thread
-  PipelineStats snapshot() const {                     // any thread
+  // One line for a slow batch (`took` seconds, `loaded` chunks): every edit behind it waited.
+  void log_slow(double took, size_t loaded) const;  // pipeline thread
+  PipelineStats snapshot() const {                  // any thread
     std::lock_guard lock(mutex_);
     return stats_;
   }

@@ -10,6 +10,7 @@
 #include "server/pipeline/remesh.hpp"
 #include "server/pipeline/world_restore.hpp"
 #include "server/pipeline/world_state.hpp"
+#include "server/pipeline/zone_records.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/parallel.hpp"
 #include "server/world/thread_name.hpp"
@@ -46,12 +47,14 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
                   : nullptr),
       lod_(std::make_unique<LodStage>(generator_, *state_, config_.lod, reader_.get())),
       regions_(config_.limits) {
+  if (config_.zones) config_.zones->set_wake([this] { inbox_.poke(); });
   if (config_.store) {
     state_->read_stored = [this](ChunkCoord c) { return reader_->read(c); };
     store::WorldStore& cp = config_.checkpoint_store ? *config_.checkpoint_store : *config_.store;
-    checkpoints_ = std::make_unique<Checkpoints>(
-        cp, config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
-        [this] { inbox_.poke(); }, Clock::now());
+    if (!config_.zones)  // a cluster node keeps its zones' changed chunks resident, for now
+      checkpoints_ = std::make_unique<Checkpoints>(
+          cp, config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
+          [this] { inbox_.poke(); }, Clock::now());
     commit_ = std::make_unique<DurableCommit>(
         *config_.store, config_.store_retry, [this] { inbox_.append_landed(); },
         DurableCommit::Hooks{.answer = [this](EditBatch& b, bool durable) { answer(b, durable); },
@@ -70,10 +73,10 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     EditWorld world = edit_world();
     const RestoredWorld restored = restore_world(*config_.store, world, regions_, *reader_);
     commit_->restore(restored.next_seq);
-    checkpoints_->logged(restored.replayed);
+    if (checkpoints_) checkpoints_->logged(restored.replayed);
     stats_.update([&](PipelineStats& s) {
       StatsBook::residency(s, *state_);
-      s.unsaved_chunks = checkpoints_->unsaved_chunks();
+      s.unsaved_chunks = checkpoints_ ? checkpoints_->unsaved_chunks() : 0;
       s.checkpoint_seq = restored.info.checkpoint_seq;
     });
   }
@@ -202,8 +205,9 @@ std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const
   milliseconds wait = memory_.next_look(in.scheduler.has_loads());
   // Unsaved chunks: their checkpoint (a finished one wakes us).
   if (checkpoints_ && checkpoints_->has_unsaved()) wait = std::min(wait, checkpoints_->interval());
-  // A chunk the store could not give back, or a region table in doubt: try again then.
-  if (loads_->waiting_for_store() || regions_.doubtful())
+  // A chunk not read back, a region table in doubt, a zone's log unread: try again then.
+  if (loads_->waiting_for_store() || regions_.doubtful() ||
+      (config_.zones && config_.zones->records_waiting()))
     wait = std::min(wait, std::chrono::duration_cast<milliseconds>(config_.store_retry));
   // A coarse chunk's re-mesh falls due (while a pass put everything off for edits not
   // durable yet, an append's landing wakes us).
@@ -217,8 +221,10 @@ std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const
 // protects); waiting loads no view holds any more are dropped.
 void WorldPipeline::take_view_updates(Inbox::State& in) {
   if (in.view_updates.empty()) return;
-  for (const auto& [owner, view] : in.view_updates)
+  for (const auto& [owner, view] : in.view_updates) {
     state_->views.set(owner, view.first, view.second);
+    if (config_.zones) config_.zones->viewing(view.first, view.second);
+  }
   in.view_updates.clear();
   loads_->drop_unviewed();
 }
@@ -231,6 +237,14 @@ void WorldPipeline::between_batches(Clock::time_point now) {
   checkpoints_turn(now);
   repair_regions(now);
   finish_landed();
+  if (config_.zones && config_.zones->records_waiting()) {
+    drain_commits();  // a zone's records apply on the world its durable edits left
+    zone_records_turn(*config_.zones, edit_world(), now, [&](AppliedRecords& r) {
+      r.batch.fresh = remesh(*state_, r.batch.dirty, meshes_, commit_.get());
+      for (const world::VoxelBox& box : r.touched) lod_->edited(box, now);
+      answer(r.batch, true);
+    });
+  }
 }
 
 // A batch: every queued edit and inspection first; then, on the world as the edits left
@@ -277,15 +291,8 @@ void WorldPipeline::run() {
     stats_.update([](PipelineStats& s) { s.batches += 1; });
     between_batches(Clock::now());
     const double took = seconds_since(now);
-    const BatchCounts& counts = stats_.batch();
     if (observer_.batch) observer_.batch(took, ordered_count, loaded);
-    if (took > std::chrono::duration<double>(kSlowBatch).count()) {
-      spdlog::warn(
-          "pipeline: a batch took {:.0f} ms ({} edits, {} chunks loaded, {} generated, {} meshes "
-          "published)",
-          took * 1000, counts.edits_applied + counts.edits_refused, loaded, counts.chunks_generated,
-          counts.meshes_published);
-    }
+    if (took > std::chrono::duration<double>(kSlowBatch).count()) stats_.log_slow(took, loaded);
   }
   drain_commits();  // what was applied is answered before anything is refused
   repair_regions(Clock::now(), true);
@@ -305,7 +312,8 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
       .max_generated_per_owner = config_.max_generated_per_owner,
       .durable = durable,
       .store_resting = durable && commit_->resting(now),
-      .log_tail = durable ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0};
+      .log_tail = checkpoints_ ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0,
+      .zones = config_.zones};
   EditWorld world = edit_world();
   EditBatch b = apply_edits(tasks, world, regions_, rules, now);
   if (!b.any_edit) return;

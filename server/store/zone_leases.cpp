@@ -1,5 +1,6 @@
 #include "server/store/zone_leases.hpp"
 
+#include <algorithm>
 #include <pqxx/pqxx>
 #include <string>
 
@@ -17,6 +18,9 @@ CREATE TABLE IF NOT EXISTS zone_log (zone BIGINT NOT NULL, seq BIGINT NOT NULL,
                                      record BYTEA NOT NULL, PRIMARY KEY (zone, seq));
 CREATE TABLE IF NOT EXISTS nodes (node TEXT PRIMARY KEY, address TEXT NOT NULL,
                                   alive_until TIMESTAMPTZ NOT NULL);
+CREATE TABLE IF NOT EXISTS cluster_world (one BOOLEAN PRIMARY KEY DEFAULT TRUE CHECK (one),
+                                          name TEXT NOT NULL, seed BIGINT NOT NULL,
+                                          zone_chunks INTEGER NOT NULL);
 )sql";
 
 // Rows key zones by ZoneId::key()'s bits as a signed BIGINT.
@@ -110,39 +114,59 @@ void ZoneLeases::release(world::ZoneId zone, uint64_t epoch) {
 }
 
 void ZoneLeases::append(world::ZoneId zone, uint64_t epoch, std::span<const ZoneRecord> records) {
-  if (records.empty()) return;
-  for (size_t i = 1; i < records.size(); ++i) {
-    if (records[i].seq != records[i - 1].seq + 1)
-      throw StoreError(name_ + ": " + describe(zone) + ": records " +
-                       std::to_string(records[i - 1].seq) + " and " +
-                       std::to_string(records[i].seq) + " leave a gap");
+  const ZoneAppend one{zone, epoch, records};
+  append(std::span<const ZoneAppend>(&one, 1));
+}
+
+void ZoneLeases::append(std::span<const ZoneAppend> appends) {
+  std::vector<const ZoneAppend*> order;
+  for (const ZoneAppend& a : appends) {
+    for (size_t i = 1; i < a.records.size(); ++i) {
+      if (a.records[i].seq != a.records[i - 1].seq + 1)
+        throw StoreError(name_ + ": " + describe(a.zone) + ": records " +
+                         std::to_string(a.records[i - 1].seq) + " and " +
+                         std::to_string(a.records[i].seq) + " leave a gap");
+    }
+    if (!a.records.empty()) order.push_back(&a);
+  }
+  if (order.empty()) return;
+  // Rows locked in one order by every writer: two writers of overlapping zones never
+  // wait for each other in a circle.
+  std::sort(order.begin(), order.end(),
+            [](const ZoneAppend* a, const ZoneAppend* b) { return a->zone < b->zone; });
+  for (size_t i = 1; i < order.size(); ++i) {
+    if (order[i]->zone == order[i - 1]->zone)
+      throw StoreError(name_ + ": " + describe(order[i]->zone) + " twice in one append");
   }
   try {
     run([&](pqxx::connection& c) {
       pqxx::work t(c);
-      // The fence: the zone row locked for the rest of the transaction, so no successor's
-      // take can slip between this check and the commit.
-      const pqxx::result r = t.exec_params(
-          "SELECT epoch, last_seq FROM zones WHERE zone = $1 FOR UPDATE", row_key(zone));
-      const uint64_t current = r.empty() ? 0 : r[0][0].as<uint64_t>();
-      if (current != epoch) {
-        throw FencedError(name_ + ": " + describe(zone) + " is at epoch " +
-                          std::to_string(current) + ", this write's is " + std::to_string(epoch) +
-                          ": another node took it; write refused");
+      for (const ZoneAppend* a : order) {
+        // The fence: the zone row locked for the rest of the transaction, so no
+        // successor's take can slip between this check and the commit.
+        const pqxx::result r = t.exec_params(
+            "SELECT epoch, last_seq FROM zones WHERE zone = $1 FOR UPDATE", row_key(a->zone));
+        const uint64_t current = r.empty() ? 0 : r[0][0].as<uint64_t>();
+        if (current != a->epoch) {
+          throw FencedError(name_ + ": " + describe(a->zone) + " is at epoch " +
+                                std::to_string(current) + ", this write's is " +
+                                std::to_string(a->epoch) + ": another node took it; write refused",
+                            a->zone);
+        }
+        const auto last = r[0][1].as<uint64_t>();
+        if (a->records.front().seq != last + 1)
+          throw StoreError(name_ + ": " + describe(a->zone) + " ends at record " +
+                           std::to_string(last) + "; an append starting at " +
+                           std::to_string(a->records.front().seq) + " refused");
+        for (const ZoneRecord& rec : a->records) {
+          t.exec_params(
+              "INSERT INTO zone_log (zone, seq, epoch, at_ms, record) VALUES ($1, $2, $3, $4, $5)",
+              row_key(a->zone), static_cast<int64_t>(rec.seq), static_cast<int64_t>(a->epoch),
+              rec.unix_ms, pqxx::binarystring(rec.payload.data(), rec.payload.size()));
+        }
+        t.exec_params("UPDATE zones SET last_seq = $2 WHERE zone = $1", row_key(a->zone),
+                      static_cast<int64_t>(a->records.back().seq));
       }
-      const auto last = r[0][1].as<uint64_t>();
-      if (records.front().seq != last + 1)
-        throw StoreError(name_ + ": " + describe(zone) + " ends at record " + std::to_string(last) +
-                         "; an append starting at " + std::to_string(records.front().seq) +
-                         " refused");
-      for (const ZoneRecord& rec : records) {
-        t.exec_params(
-            "INSERT INTO zone_log (zone, seq, epoch, at_ms, record) VALUES ($1, $2, $3, $4, $5)",
-            row_key(zone), static_cast<int64_t>(rec.seq), static_cast<int64_t>(epoch), rec.unix_ms,
-            pqxx::binarystring(rec.payload.data(), rec.payload.size()));
-      }
-      t.exec_params("UPDATE zones SET last_seq = $2 WHERE zone = $1", row_key(zone),
-                    static_cast<int64_t>(records.back().seq));
       t.commit();
     });
   } catch (const FencedError&) {
@@ -208,6 +232,20 @@ std::vector<std::string> ZoneLeases::live_nodes() {
     for (const auto& row : t.exec("SELECT node FROM nodes WHERE alive_until > now() ORDER BY node"))
       out.push_back(row[0].as<std::string>());
     return out;
+  });
+}
+
+WorldSettings ZoneLeases::settle_world(const WorldSettings& mine) {
+  return run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec_params(
+        "INSERT INTO cluster_world (name, seed, zone_chunks) VALUES ($1, $2, $3) "
+        "ON CONFLICT DO NOTHING",
+        mine.name, static_cast<int64_t>(mine.seed), mine.zone_chunks);
+    const pqxx::row r = t.exec1("SELECT name, seed, zone_chunks FROM cluster_world");
+    t.commit();
+    return WorldSettings{r[0].as<std::string>(), static_cast<uint64_t>(r[1].as<int64_t>()),
+                         r[2].as<int>()};
   });
 }
 

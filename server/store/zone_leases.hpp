@@ -36,7 +36,8 @@ namespace vox::store {
 
 // A write refused because the zone's epoch moved on: another node took it.
 struct FencedError : StoreError {
-  using StoreError::StoreError;
+  FencedError(const std::string& what, world::ZoneId z) : StoreError(what), zone(z) {}
+  world::ZoneId zone;  // the zone refused
 };
 
 struct ZoneRecord {
@@ -45,11 +46,26 @@ struct ZoneRecord {
   std::vector<uint8_t> payload;  // an encoded edit (opaque here)
 };
 
+// One zone's part of an append (ZoneLeases::append).
+struct ZoneAppend {
+  world::ZoneId zone;
+  uint64_t epoch = 0;
+  std::span<const ZoneRecord> records;
+};
+
 struct ZoneRow {
   uint64_t epoch = 0;
   std::string owner;          // empty: released
   int64_t lease_left_ms = 0;  // by the database's clock; <= 0: expired
   uint64_t last_seq = 0;
+};
+
+// What every node of one cluster world must agree on (one world per database).
+struct WorldSettings {
+  std::string name;
+  uint64_t seed = 0;
+  int zone_chunks = 0;
+  friend bool operator==(const WorldSettings&, const WorldSettings&) = default;
 };
 
 class ZoneLeases {
@@ -78,6 +94,9 @@ class ZoneLeases {
   // Appends `records` to the zone's log in one transaction, fenced by `epoch`; the first
   // record's seq must be the zone's last + 1 and the others follow without a gap.
   void append(world::ZoneId zone, uint64_t epoch, std::span<const ZoneRecord> records);
+  // Several zones' appends in one transaction, each fenced by its epoch and continuing
+  // its zone's sequence: all land or none (FencedError names the first zone refused).
+  void append(std::span<const ZoneAppend> appends);
   // The zone's records after `after_seq`, in order (at most `max`).
   std::vector<ZoneRecord> read_log(world::ZoneId zone, uint64_t after_seq, size_t max = 10000);
   std::optional<ZoneRow> read(world::ZoneId zone);
@@ -87,6 +106,10 @@ class ZoneLeases {
   void heartbeat(const std::string& address);
   void leave();
   std::vector<std::string> live_nodes();
+
+  // The world's settings: `mine` when the database has none yet (the first node made the
+  // world), else those it has (the caller refuses to start when they differ).
+  WorldSettings settle_world(const WorldSettings& mine);
 
   // Writes this object refused by the fence so far.
   uint64_t fenced() const { return fenced_; }

@@ -1,5 +1,8 @@
 #include "server/world/zone.hpp"
 
+#include <algorithm>
+#include <climits>
+#include <cstdint>
 #include <stdexcept>
 
 namespace vox::world {
@@ -31,6 +34,47 @@ std::vector<ZoneId> zones_of(const VoxelBox& box, int size) {
   std::vector<ZoneId> out;
   for (int32_t x = lo.x; x <= hi.x; ++x)
     for (int32_t z = lo.z; z <= hi.z; ++z) out.push_back({x, z});
+  return out;
+}
+
+std::vector<VoxelBox> outside_zone(const VoxelBox& box, ZoneId zone, int size) {
+  check_size(size);
+  const int64_t side = int64_t{size} * kChunkSize;
+  // The zone's voxel columns, clamped to what a box can hold.
+  const auto clamp = [](int64_t v) {
+    return static_cast<int32_t>(std::clamp<int64_t>(v, INT32_MIN, INT32_MAX));
+  };
+  const int32_t x0 = clamp(zone.x * side), x1 = clamp(zone.x * side + side - 1);
+  const int32_t z0 = clamp(zone.z * side), z1 = clamp(zone.z * side + side - 1);
+  std::vector<VoxelBox> out;
+  const auto add = [&out](VoxelBox b) {
+    if (b.lo[0] <= b.hi[0] && b.lo[2] <= b.hi[2]) out.push_back(b);
+  };
+  // Each bound is moved past the zone's only when the box reaches past it (no overflow).
+  if (x0 > box.lo[0]) {
+    VoxelBox b = box;  // whole z range, x below
+    b.hi[0] = std::min(box.hi[0], x0 - 1);
+    add(b);
+  }
+  if (x1 < box.hi[0]) {
+    VoxelBox b = box;  // whole z range, x above
+    b.lo[0] = std::max(box.lo[0], x1 + 1);
+    add(b);
+  }
+  VoxelBox middle = box;  // x inside, z outside
+  middle.lo[0] = std::max(box.lo[0], x0);
+  middle.hi[0] = std::min(box.hi[0], x1);
+  if (middle.lo[0] > middle.hi[0]) return out;
+  if (z0 > box.lo[2]) {
+    VoxelBox b = middle;
+    b.hi[2] = std::min(box.hi[2], z0 - 1);
+    add(b);
+  }
+  if (z1 < box.hi[2]) {
+    VoxelBox b = middle;
+    b.lo[2] = std::max(box.lo[2], z1 + 1);
+    add(b);
+  }
   return out;
 }
 

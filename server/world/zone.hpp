@@ -46,6 +46,11 @@ ZoneId zone_of(ChunkCoord c, int size);
 // The zones whose chunks hold a voxel of `box` (inclusive), in (x, z) order.
 std::vector<ZoneId> zones_of(const VoxelBox& box, int size);
 
+// The parts of `box` (inclusive) outside `zone`'s columns: none when the box lies in it,
+// else up to four boxes. An edit logged in one zone keeps these samples as they are, so it
+// changes only its own zone's (docs/CLUSTER.md, "Edits across a border").
+std::vector<VoxelBox> outside_zone(const VoxelBox& box, ZoneId zone, int size);
+
 // The weight of `node` for `zone`: a 64-bit hash of both.
 uint64_t rendezvous_weight(ZoneId zone, std::string_view node);
 // Which of `nodes` ranks first for `zone` (ties: the smaller id); nullopt when none.

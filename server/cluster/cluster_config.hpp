@@ -1,0 +1,40 @@
+// A cluster node's configuration file (docs/CLUSTER.md): where the cluster's PostgreSQL
+// and NATS are and the credentials for both — kept in a file readable by voxeld's user
+// only, never on a command line — plus the world's name, this node's id, the lease and
+// the zones' size. `key = value` lines, `#` comments (Boost.program_options' config-file
+// syntax):
+//
+//   database = postgresql://voxeld:secret@10.0.0.5/voxworld
+//   nats = nats://10.0.0.6:4222
+//   nats_user = voxeld
+//   nats_password = secret
+//   world = main            # subjects' prefix: letters, digits, '-' and '_'
+//   node = eu-1             # default: <host name>-<process id>, new for every run
+//   lease_ms = 3000
+//   zone_chunks = 16        # fixed when the world is made; every node must agree
+//
+// Pure functions: any thread.
+#pragma once
+
+#include <chrono>
+#include <string>
+
+#include "server/cluster/nats_link.hpp"
+
+namespace vox::cluster {
+
+struct ClusterConfig {
+  std::string database;  // a postgresql:// URI
+  NatsConfig nats;
+  std::string world = "main";
+  std::string node;
+  std::chrono::milliseconds lease{3000};
+  int zone_chunks = 16;
+};
+
+// Throws ClusterError naming the file (and the key) for a file that cannot be read, an
+// unknown key, a bad value or a missing `database` or `nats`. A file others may read is
+// accepted with a warning (it holds passwords).
+ClusterConfig read_cluster_config(const std::string& path);
+
+}  // namespace vox::cluster

@@ -1,0 +1,76 @@
+// A voxeld node of a cluster world (docs/CLUSTER.md): its links to the cluster's NATS and
+// PostgreSQL, the keeper of its zones, the world store its pipeline appends to (each
+// edit to its zone's log, fenced, then published) and what the pipeline asks about zones
+// (pipeline::ZoneAuthority): an edit is taken only in zones this node holds and whose
+// log its world has caught up with; a zone just taken, or whose append was in doubt, has
+// its log applied first. An edit in a zone it does not hold is refused, and the node asks
+// for the zone (it takes it when it ranks first among the live nodes).
+//
+// Threads: construct, start and stop on one thread (the daemon's); the ZoneAuthority
+// members on the pipeline thread; store() is the pipeline's (its appender's thread). The
+// keeper's callbacks run on its thread and only update the zone table.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+
+#include "server/cluster/cluster_config.hpp"
+#include "server/cluster/nats_link.hpp"
+#include "server/cluster/zone_keeper.hpp"
+#include "server/cluster/zone_log_store.hpp"
+#include "server/cluster/zone_publisher.hpp"
+#include "server/cluster/zone_table.hpp"
+#include "server/pipeline/zone_authority.hpp"
+#include "server/store/zone_leases.hpp"
+
+namespace vox::cluster {
+
+class ClusterNode : public pipeline::ZoneAuthority {
+ public:
+  // Connects to NATS and PostgreSQL and checks the world's settings (seed, zone size)
+  // against the database's: throws ClusterError or store::StoreError with one line.
+  ClusterNode(ClusterConfig config, uint64_t seed);
+  ~ClusterNode() override;  // stop(false)
+  ClusterNode(const ClusterNode&) = delete;
+  ClusterNode& operator=(const ClusterNode&) = delete;
+
+  store::WorldStore& store() { return store_; }
+  // Starts taking zones (after the pipeline exists: it set its wake-up). `address`: where
+  // players reach this node (the live nodes' list shows it).
+  void start(const std::string& address);
+  // Stops the keeper: `release` hands every zone off at once (after the pipeline stopped:
+  // its appends have landed), else the leases run out (a crash's way). Idempotent.
+  void stop(bool release);
+
+  const std::string& node() const { return config_.node; }
+  size_t zones_held() const { return keeper_ ? keeper_->held_count() : 0; }
+  uint64_t fenced() const { return append_db_.fenced(); }  // appends the fence refused
+
+  // pipeline::ZoneAuthority (the pipeline thread).
+  void set_wake(std::function<void()> wake) override { wake_ = std::move(wake); }
+  bool writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) override;
+  void viewing(world::ChunkCoord center, int radius) override;
+  bool records_waiting() override { return table_.catching_up(); }
+  std::optional<pipeline::ZoneRecords> next_records() override;
+  void applied(const pipeline::ZoneRecords& records, uint64_t through) override;
+
+ private:
+  void taken(world::ZoneId zone, uint64_t epoch);  // the keeper's thread
+  void lost(world::ZoneId zone, uint64_t epoch);   // likewise
+
+  const ClusterConfig config_;
+  NatsLink nats_;
+  store::ZoneLeases append_db_;  // the appender thread's connection
+  store::ZoneLeases read_db_;    // the pipeline thread's: zone logs and rows
+  ZonePublisher publisher_;
+  ZoneTable table_;
+  ZoneLogStore store_;
+  std::function<void()> wake_;  // set before start()
+  // Pipeline thread: per zone catching up, the log's last record when it began.
+  std::map<world::ZoneId, uint64_t> targets_;
+  std::unique_ptr<ZoneKeeper> keeper_;
+};
+
+}  // namespace vox::cluster

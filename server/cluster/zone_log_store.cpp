@@ -1,0 +1,74 @@
+#include "server/cluster/zone_log_store.hpp"
+
+#include <map>
+
+#include "server/cluster/zone_wire.hpp"
+#include "server/world/edit_apply.hpp"
+
+namespace vox::cluster {
+
+ZoneLogStore::ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher, int zone_chunks,
+                           uint64_t seed, std::string name)
+    : zones_(zones),
+      publisher_(publisher),
+      zone_chunks_(zone_chunks),
+      seed_(seed),
+      name_(std::move(name)) {}
+
+store::WorldInfo ZoneLogStore::info() {
+  store::WorldInfo out;
+  out.seed = seed_;
+  out.starts = 1;
+  return out;
+}
+
+void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
+                                std::span<const SeqRange> /*forget: zones catch up instead*/,
+                                const store::RegionWrite* regions) {
+  if (regions) throw store::StoreError(name_ + ": protected regions are not kept in a cluster yet");
+  std::map<world::ZoneId, ZonePublisher::Part> parts;
+  for (const store::LoggedEdit& e : edits) {
+    const world::VoxelBox box = world::touched_box(e.edit);
+    for (const world::ZoneId zone : world::zones_of(box, zone_chunks_)) {
+      ZonePublisher::Part& part = parts[zone];
+      if (part.records.empty()) {
+        const std::optional<uint64_t> epoch = zones_.writable(zone);
+        // Lost since the pipeline took the edit: the append fails as a fenced one would.
+        if (!epoch)
+          throw store::FencedError(name_ + ": zone (" + std::to_string(zone.x) + ", " +
+                                       std::to_string(zone.z) + ") is no longer this node's",
+                                   zone);
+        part.zone = zone;
+        part.epoch = *epoch;
+      }
+      store::LoggedEdit piece = e;
+      for (const world::VoxelBox& outside : world::outside_zone(box, zone, zone_chunks_))
+        piece.keep.push_back(outside);
+      part.records.push_back({0, e.unix_ms, encode_zone_edit(piece)});
+    }
+  }
+  std::vector<ZonePublisher::Part> list;
+  list.reserve(parts.size());
+  for (auto& [zone, part] : parts) list.push_back(std::move(part));
+  try {
+    publisher_.commit(list);
+  } catch (const store::FencedError& e) {
+    for (const auto& part : list) {
+      if (part.zone == e.zone) zones_.lost(part.zone, part.epoch);  // the keeper hears it too
+    }
+    publisher_.forget(e.zone);
+    throw;
+  } catch (const store::StoreError&) {
+    for (const auto& part : list) zones_.doubt(part.zone);  // it may have landed
+    throw;
+  }
+  for (const auto& part : list) {
+    if (!part.records.empty()) zones_.committed(part.zone, part.records.back().seq);
+  }
+}
+
+void ZoneLogStore::write_checkpoint(std::span<const store::ChunkRecord>, uint64_t, uint64_t) {
+  throw store::StoreError(name_ + ": zone checkpoints are not written yet");
+}
+
+}  // namespace vox::cluster

@@ -1,0 +1,68 @@
+#include "server/cluster/zone_table.hpp"
+
+namespace vox::cluster {
+
+void ZoneTable::taken(world::ZoneId zone, uint64_t epoch) {
+  std::lock_guard lock(mutex_);
+  Zone& z = zones_[zone];
+  z.epoch = epoch;
+  z.behind = true;
+}
+
+void ZoneTable::lost(world::ZoneId zone, uint64_t epoch) {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it == zones_.end() || it->second.epoch != epoch) return;
+  it->second.epoch.reset();
+  it->second.behind = false;
+}
+
+std::optional<uint64_t> ZoneTable::writable(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it == zones_.end() || it->second.behind) return std::nullopt;
+  return it->second.epoch;
+}
+
+bool ZoneTable::held(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  return it != zones_.end() && it->second.epoch.has_value();
+}
+
+void ZoneTable::doubt(world::ZoneId zone) {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it != zones_.end() && it->second.epoch) it->second.behind = true;
+}
+
+void ZoneTable::committed(world::ZoneId zone, uint64_t last) {
+  std::lock_guard lock(mutex_);
+  Zone& z = zones_[zone];
+  if (last > z.applied) z.applied = last;
+}
+
+std::optional<ZoneTable::CatchUp> ZoneTable::next_catch_up() const {
+  std::lock_guard lock(mutex_);
+  for (const auto& [zone, z] : zones_) {
+    if (z.epoch && z.behind) return CatchUp{zone, *z.epoch, z.applied};
+  }
+  return std::nullopt;
+}
+
+bool ZoneTable::catching_up() const { return next_catch_up().has_value(); }
+
+void ZoneTable::caught_up(world::ZoneId zone, uint64_t epoch, uint64_t through, bool complete) {
+  std::lock_guard lock(mutex_);
+  Zone& z = zones_[zone];
+  if (through > z.applied) z.applied = through;
+  if (complete && z.epoch == epoch) z.behind = false;
+}
+
+uint64_t ZoneTable::applied(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  return it == zones_.end() ? 0 : it->second.applied;
+}
+
+}  // namespace vox::cluster

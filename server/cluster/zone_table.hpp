@@ -1,0 +1,57 @@
+// A cluster node's zones as its world sees them (docs/CLUSTER.md): for each zone it holds,
+// the epoch and whether its world has caught up with the zone's log (only then are edits
+// in it taken); for every zone its world has records of, the last one applied. The keeper
+// reports takes and losses, the appender commits and appends in doubt, the pipeline
+// catch-ups. Bounded by the zones a node was asked for (ZoneKeeper::Config::max_zones).
+//
+// Threads: any; one leaf lock, never held across I/O or a callback.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <optional>
+
+#include "server/world/zone.hpp"
+
+namespace vox::cluster {
+
+class ZoneTable {
+ public:
+  // The keeper took `zone` at `epoch`: its world catches up before edits are taken.
+  void taken(world::ZoneId zone, uint64_t epoch);
+  // The zone is no longer held at `epoch` (a later epoch's take is left alone).
+  void lost(world::ZoneId zone, uint64_t epoch);
+  // Edits in it are taken: its epoch; nullopt when it is not held or still catching up.
+  std::optional<uint64_t> writable(world::ZoneId zone) const;
+  bool held(world::ZoneId zone) const;
+
+  // An append of these zones whose outcome is in doubt: they catch up again (whatever of
+  // it landed is applied from the log; the pipeline undid it).
+  void doubt(world::ZoneId zone);
+  // Records through `last` of `zone` are durable and applied.
+  void committed(world::ZoneId zone, uint64_t last);
+
+  // A held zone whose world is behind: its epoch and the last record applied.
+  struct CatchUp {
+    world::ZoneId zone;
+    uint64_t epoch = 0, applied = 0;
+  };
+  std::optional<CatchUp> next_catch_up() const;
+  bool catching_up() const;
+  // The pipeline applied the zone's records through `through`; `complete`: the log has no
+  // more (the zone becomes writable, if still held at `epoch`).
+  void caught_up(world::ZoneId zone, uint64_t epoch, uint64_t through, bool complete);
+  uint64_t applied(world::ZoneId zone) const;
+
+ private:
+  struct Zone {
+    std::optional<uint64_t> epoch;  // held at
+    bool behind = false;            // held, the world not caught up yet
+    uint64_t applied = 0;           // the last record the world has
+  };
+  mutable std::mutex mutex_;
+  std::map<world::ZoneId, Zone> zones_;
+};
+
+}  // namespace vox::cluster

@@ -1,0 +1,54 @@
+// What the pipeline asks of a cluster node about zones (docs/CLUSTER.md); null in
+// PipelineConfig: a single node, every edit its own. The node (server/cluster) implements
+// it: which zones it may write now, and the committed records its world must apply before
+// a zone becomes writable (a zone just taken: what earlier owners logged; an append whose
+// outcome was in doubt: whatever of it landed).
+//
+// Threads: the pipeline thread calls every member; `set_wake` once, from the pipeline's
+// constructor (the node calls the function it was given, from any thread, when records
+// wait).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "server/store/world_store.hpp"
+#include "server/world/chunk_coord.hpp"
+#include "server/world/edit.hpp"
+#include "server/world/zone.hpp"
+
+namespace vox::pipeline {
+
+// A zone's committed records to apply, in its log's order.
+struct ZoneRecords {
+  world::ZoneId zone;
+  uint64_t epoch = 0;                    // the node's epoch of the zone when they were read
+  std::vector<store::LoggedEdit> edits;  // seq: the zone's sequence numbers
+  uint64_t through = 0;                  // the last record read (the zone's log had no more)
+};
+
+class ZoneAuthority {
+ public:
+  virtual ~ZoneAuthority() = default;
+  virtual void set_wake(std::function<void()> wake) = 0;
+  // Whether an edit whose touched box is `box` (a smooth: its read box) may be applied
+  // and logged now; if not, `why` says so for the player (and the node asks for the zone).
+  virtual bool writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) = 0;
+  // A player's view of chunks within `radius` of `center`: the node asks for its zones
+  // (it shows a zone as its log has it only while it holds it, for now).
+  virtual void viewing(world::ChunkCoord center, int radius) = 0;
+  // Whether records wait to be applied (the pipeline then lets its batches in flight land
+  // first: a zone's records apply on the world as its durable edits left it).
+  virtual bool records_waiting() = 0;
+  // The next records to apply (at most a few thousand; call again for more), or nullopt.
+  // Throws store::StoreError when the log cannot be read (tried again later).
+  virtual std::optional<ZoneRecords> next_records() = 0;
+  // The pipeline applied them through record `through` (short of records.through when one
+  // could not be applied: memory, an unreadable stored chunk; the rest is tried again).
+  virtual void applied(const ZoneRecords& records, uint64_t through) = 0;
+};
+
+}  // namespace vox::pipeline

@@ -1,0 +1,239 @@
+// voxeld nodes of one cluster world (docs/CLUSTER.md) as an operator runs them: a real
+// PostgreSQL and nats-server the tests start, voxeld processes with --cluster FILE, players
+// speaking the protocol. Zones are 2 × 2 chunks here, so the edits near x = 64 and z = 64
+// cross zone borders and are logged as one part per zone.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <thread>
+
+#include "server/world/zone.hpp"
+#include "tests/nats_server.hpp"
+#include "tests/postgres_server.hpp"
+#include "tests/session_test_util.hpp"
+#include "tests/temp_dir.hpp"
+
+namespace vox::test {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+constexpr int kZoneChunks = 2;
+
+// A node's configuration file, readable by its owner only (it holds passwords).
+std::string node_config(const TempDir& tmp, const std::string& node, const std::string& database,
+                        const NatsServer& nats) {
+  const fs::path path = tmp / (node + ".conf");
+  std::ofstream(path) << "# a test node\n"
+                      << "database = " << database << "\n"
+                      << "nats = " << nats.url() << "\n"
+                      << "nats_user = " << NatsServer::kUser << "\n"
+                      << "nats_password = " << NatsServer::kPassword << "\n"
+                      << "world = test\n"
+                      << "node = " << node << "\n"
+                      << "lease_ms = 1000\n"
+                      << "zone_chunks = " << kZoneChunks << "\n";
+  ::chmod(path.c_str(), 0600);
+  return path.string();
+}
+
+wire::Envelope brush(uint64_t request, float x, float z, int material, float radius = 5.5f) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(request);
+  auto* b = e->mutable_brush();
+  b->mutable_center()->set_x(x);
+  b->mutable_center()->set_y(surface_y(x, z));
+  b->mutable_center()->set_z(z);
+  b->set_radius(radius);
+  b->set_strength(0.8f);
+  b->set_material(static_cast<uint32_t>(material));
+  return m;
+}
+
+wire::Envelope explosion(uint64_t request, float x, float z) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(request);
+  auto* x1 = e->mutable_explosion();
+  x1->mutable_center()->set_x(x);
+  x1->mutable_center()->set_y(surface_y(x, z));
+  x1->mutable_center()->set_z(z);
+  x1->set_radius(7);
+  x1->set_power(1.3f);
+  return m;
+}
+
+wire::Envelope smooth(uint64_t request, float x, float z) {
+  wire::Envelope m;
+  auto* e = m.mutable_edit();
+  e->set_request_id(request);
+  auto* s = e->mutable_smooth();
+  s->mutable_center()->set_x(x);
+  s->mutable_center()->set_y(surface_y(x, z));
+  s->mutable_center()->set_z(z);
+  s->set_radius(6);
+  s->set_strength(0.5f);
+  return m;
+}
+
+// Brushes and explosions on and across the zone borders at x = 64 and z = 64, a paint-like
+// brush on top of them, and a smooth inside one zone.
+std::vector<wire::Envelope> border_edits() {
+  std::vector<wire::Envelope> out;
+  uint64_t id = 1;
+  for (const float x : {58.0f, 63.5f, 66.0f})
+    for (const float z : {61.0f, 64.0f}) out.push_back(brush(id++, x, z, 4));
+  out.push_back(explosion(id++, 64.0f, 64.0f));
+  out.push_back(explosion(id++, 70.0f, 58.0f));
+  out.push_back(brush(id++, 64.0f, 60.0f, 2, 8.0f));
+  out.push_back(smooth(id++, 40.0f, 40.0f));
+  return out;
+}
+
+// Sends the edit until it is accepted: a node refuses edits (STORAGE_UNAVAILABLE) in a
+// zone it is still taking or loading. Returns the last result.
+wire::EditResult edit_until_accepted(client::Client& c, const wire::Envelope& edit,
+                                     std::chrono::seconds limit = 20s) {
+  const auto deadline = std::chrono::steady_clock::now() + limit * kSlow;
+  wire::EditResult last;
+  for (;;) {
+    const auto r = edit_and_wait(c, edit);
+    if (!r) return last;
+    last = r->edit_result();
+    if (last.status() != wire::EditResult::STORAGE_UNAVAILABLE ||
+        std::chrono::steady_clock::now() > deadline)
+      return last;
+    std::this_thread::sleep_for(100ms);
+  }
+}
+
+void apply_all(const ServerProcess& server, const std::vector<wire::Envelope>& edits) {
+  auto c = player(server, "editor");
+  for (const auto& e : edits) {
+    const wire::EditResult r = edit_until_accepted(*c, e);
+    ASSERT_EQ(r.status(), wire::EditResult::ACCEPTED) << r.reason();
+  }
+}
+
+using Seen = std::map<client::ChunkKey, std::vector<uint8_t>>;
+
+// Every chunk's encoding of a radius-2 view around (64, 64), as a fresh client gets it.
+Seen world_seen(const ServerProcess& server) {
+  auto c = player(server, "viewer");
+  view(*c, 64, surface_y(64, 64), 64, 2);
+  Seen out;
+  for (const auto& [key, held] : c->chunks()) out[key] = held.encoding;
+  return out;
+}
+
+// What a single node shows after the same edits.
+Seen single_node_after(const std::vector<wire::Envelope>& edits) {
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  return world_seen(fresh);
+}
+
+// A node shows a zone as its log has it once it holds the zone (it asks for the zones its
+// players view): asks again until it does, or the time is up.
+Seen eventually_seen(const ServerProcess& server, const Seen& expected,
+                     std::chrono::seconds limit = 20s) {
+  const auto deadline = std::chrono::steady_clock::now() + limit * kSlow;
+  Seen seen;
+  while (std::chrono::steady_clock::now() < deadline) {
+    seen = world_seen(server);
+    if (seen == expected) break;
+    std::this_thread::sleep_for(300ms);
+  }
+  return seen;
+}
+
+struct Cluster {
+  std::string database = fresh_shared_database("cluster_node");
+  NatsServer nats;
+  TempDir tmp{"cluster_node"};
+  std::string config(const std::string& node) const {
+    return node_config(tmp, node, database, nats);
+  }
+};
+
+TEST(ClusterNode, AKilledNodesZonesAreTakenOverWithEveryAcceptedEditAcrossTheirBorders) {
+  const Cluster cluster;
+  const auto edits = border_edits();
+  {
+    ServerProcess a({"--cluster", cluster.config("a")});
+    apply_all(a, edits);
+  }  // kill -9 right after the last ACCEPTED
+  const Seen expected = single_node_after(edits);
+  ASSERT_FALSE(expected.empty());
+  ServerProcess b({"--cluster", cluster.config("b")});
+  EXPECT_TRUE(eventually_seen(b, expected) == expected)
+      << "the node that took the zones over does not show the edits its logs hold";
+}
+
+TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
+  const Cluster cluster;
+  ServerProcess a({"--cluster", cluster.config("a")});
+  auto c = player(a, "editor");
+  // Both zones held and loaded (a is the only node), then a smooth across their border.
+  ASSERT_EQ(edit_until_accepted(*c, brush(1, 54.0f, 40.0f, 4)).status(),
+            wire::EditResult::ACCEPTED);
+  ASSERT_EQ(edit_until_accepted(*c, brush(2, 74.0f, 40.0f, 4)).status(),
+            wire::EditResult::ACCEPTED);
+  const auto r = edit_and_wait(*c, smooth(3, 64.0f, 40.0f));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->edit_result().status(), wire::EditResult::STORAGE_UNAVAILABLE);
+  EXPECT_NE(r->edit_result().reason().find("zone border"), std::string::npos)
+      << r->edit_result().reason();
+}
+
+TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) {
+  const Cluster cluster;
+  // A zone node "a" ranks first for among {a, b}, and a point well inside it.
+  const std::vector<std::string> nodes = {"a", "b"};
+  world::ZoneId zone{0, 0};
+  for (int32_t x = 0; x < 8; ++x) {
+    if (nodes[*world::first_ranked({x, 0}, nodes)] == "a") {
+      zone = {x, 0};
+      break;
+    }
+  }
+  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
+  const float x = (static_cast<float>(zone.x) + 0.5f) * side, z = 0.5f * side;
+  ServerProcess a({"--cluster", cluster.config("a")});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  auto on_a = player(a, "early");
+  ASSERT_EQ(edit_until_accepted(*on_a, brush(1, x, z, 4, 4.0f)).status(),
+            wire::EditResult::ACCEPTED);
+  ::kill(a.pid(), SIGSTOP);
+  // b takes the zone once a's heartbeat and lease have run out (1 s each).
+  auto on_b = player(b, "later");
+  const wire::EditResult taken = edit_until_accepted(*on_b, brush(2, x + 3, z, 2, 4.0f));
+  ::kill(a.pid(), SIGCONT);
+  ASSERT_EQ(taken.status(), wire::EditResult::ACCEPTED) << taken.reason();
+  // a wakes believing it may still hold the zone: its edit is refused, by the fence or by
+  // its keeper having noticed, and never accepted.
+  const auto late = edit_and_wait(*on_a, brush(3, x - 3, z, 5, 4.0f));
+  ASSERT_TRUE(late);
+  EXPECT_NE(late->edit_result().status(), wire::EditResult::ACCEPTED);
+  // b's world holds the first two edits, not the late one.
+  auto viewer = player(b, "viewer");
+  view(*viewer, x, surface_y(x, z), z, 1);
+  Seen at_b;
+  for (const auto& [key, held] : viewer->chunks()) at_b[key] = held.encoding;
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, {brush(1, x, z, 4, 4.0f), brush(2, x + 3, z, 2, 4.0f)});
+  auto fresh_viewer = player(fresh, "viewer");
+  view(*fresh_viewer, x, surface_y(x, z), z, 1);
+  Seen expected;
+  for (const auto& [key, held] : fresh_viewer->chunks()) expected[key] = held.encoding;
+  EXPECT_TRUE(at_b == expected) << "b shows something other than the two accepted edits";
+}
+
+}  // namespace
+}  // namespace vox::test
