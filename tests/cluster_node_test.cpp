@@ -176,6 +176,58 @@ TEST(ClusterNode, AKilledNodesZonesAreTakenOverWithEveryAcceptedEditAcrossTheirB
       << "the node that took the zones over does not show the edits its logs hold";
 }
 
+// The first zone along x (z = 0) that node "a" ranks first for among {a, b}, and the
+// voxel column at its middle.
+std::pair<float, float> middle_of_a_zone_of_a() {
+  const std::vector<std::string> nodes = {"a", "b"};
+  world::ZoneId zone{0, 0};
+  for (int32_t x = 0; x < 16; ++x) {
+    if (nodes[*world::first_ranked({x, 0}, nodes)] == "a") {
+      zone = {x, 0};
+      break;
+    }
+  }
+  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
+  return {(static_cast<float>(zone.x) + 0.5f) * side, 0.5f * side};
+}
+
+Seen held_by(const client::Client& c) {
+  Seen out;
+  for (const auto& [key, held] : c.chunks()) out[key] = held.encoding;
+  return out;
+}
+
+// Replicas: a viewer on another node sees the owner's edits as they are committed, and
+// its view (meshed on its own node) equals a single node's after the same edits.
+TEST(ClusterNode, AViewerOnAnotherNodeSeesTheOwnersEditsAsTheyAreCommitted) {
+  const Cluster cluster;
+  const auto [x, z] = middle_of_a_zone_of_a();
+  const std::vector<wire::Envelope> edits = {brush(1, x, z, 4, 5.0f), explosion(2, x + 4, z - 3),
+                                             smooth(3, x - 2, z + 2), brush(4, x, z + 5, 2, 3.0f)};
+  ServerProcess a({"--cluster", cluster.config("a")});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  // The viewer on b first: b follows the zone before the edits.
+  auto viewer = player(b, "viewer");
+  view(*viewer, x, surface_y(x, z), z, 1);
+  const Seen before = held_by(*viewer);
+  apply_all(a, edits);
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  auto fresh_viewer = player(fresh, "viewer");
+  view(*fresh_viewer, x, surface_y(x, z), z, 1);
+  const Seen expected = held_by(*fresh_viewer);
+  Seen live;
+  const auto deadline = std::chrono::steady_clock::now() + 20s * kSlow;
+  while (std::chrono::steady_clock::now() < deadline) {
+    wait_for(
+        *viewer, [](const wire::Envelope&) { return false; }, 200ms);  // deltas applied
+    live = held_by(*viewer);
+    if (live == expected) break;
+  }
+  EXPECT_FALSE(before == expected);
+  EXPECT_TRUE(live == expected) << "the viewer on b does not see a's edits";
+}
+
 TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
   const Cluster cluster;
   ServerProcess a({"--cluster", cluster.config("a")});
@@ -194,17 +246,7 @@ TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
 
 TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) {
   const Cluster cluster;
-  // A zone node "a" ranks first for among {a, b}, and a point well inside it.
-  const std::vector<std::string> nodes = {"a", "b"};
-  world::ZoneId zone{0, 0};
-  for (int32_t x = 0; x < 8; ++x) {
-    if (nodes[*world::first_ranked({x, 0}, nodes)] == "a") {
-      zone = {x, 0};
-      break;
-    }
-  }
-  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
-  const float x = (static_cast<float>(zone.x) + 0.5f) * side, z = 0.5f * side;
+  const auto [x, z] = middle_of_a_zone_of_a();
   ServerProcess a({"--cluster", cluster.config("a")});
   ServerProcess b({"--cluster", cluster.config("b")});
   auto on_a = player(a, "early");

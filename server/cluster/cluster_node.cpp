@@ -28,7 +28,11 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
       read_db_(config_.database, config_.node, config_.lease),
       publisher_(nats_, append_db_, config_.world),
       store_(table_, publisher_, config_.zone_chunks, seed,
-             "cluster world " + config_.world + " (" + store::redact_uri(config_.database) + ")") {
+             "cluster world " + config_.world + " (" + store::redact_uri(config_.database) + ")"),
+      replicas_(nats_, {.world = config_.world, .uri = config_.database, .node = config_.node},
+                [this] {
+                  if (wake_) wake_();
+                }) {
   const store::WorldSettings mine{config_.world, seed, config_.zone_chunks};
   const store::WorldSettings theirs = read_db_.settle_world(mine);
   if (theirs != mine) {
@@ -50,7 +54,7 @@ void ClusterNode::start(const std::string& address) {
                          .lease = config_.lease},
       ZoneKeeper::Events{.taken = [this](world::ZoneId z, uint64_t epoch) { taken(z, epoch); },
                          .lost = [this](world::ZoneId z, uint64_t epoch) { lost(z, epoch); },
-                         .round = [this] { publisher_.heartbeat(); }});
+                         .round = [this] { round(); }});
   spdlog::info("cluster: node {} of world {} (zones of {} chunks, lease {} ms), NATS {}",
                config_.node, config_.world, config_.zone_chunks, config_.lease.count(),
                nats_.server());
@@ -70,8 +74,13 @@ void ClusterNode::lost(world::ZoneId zone, uint64_t epoch) {
   if (!table_.held(zone)) publisher_.forget(zone);
 }
 
+void ClusterNode::round() {
+  publisher_.heartbeat();
+  replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
+                      [this](world::ZoneId z) { return table_.applied(z); });
+}
+
 void ClusterNode::viewing(world::ChunkCoord center, int radius) {
-  if (!keeper_) return;
   const int64_t r = std::clamp(radius, 0, 1 << 16);
   const auto voxel = [](int64_t chunk) {
     return static_cast<int32_t>(
@@ -79,10 +88,9 @@ void ClusterNode::viewing(world::ChunkCoord center, int radius) {
   };
   const world::VoxelBox box{{voxel(center.x - r), 0, voxel(center.z - r)},
                             {voxel(center.x + r), 0, voxel(center.z + r)}};
-  // Views are at most a few dozen chunks across; the keeper bounds what it remembers.
-  for (const world::ZoneId zone : world::zones_of(box, config_.zone_chunks)) {
-    if (!table_.held(zone)) keeper_->want(zone);
-  }
+  // Views are at most a few dozen chunks across; the replicas bound what they remember.
+  for (const world::ZoneId zone : world::zones_of(box, config_.zone_chunks))
+    replicas_.viewing(zone);
 }
 
 bool ClusterNode::writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) {
@@ -107,6 +115,12 @@ bool ClusterNode::writable(const world::Edit& edit, const world::VoxelBox& box, 
 }
 
 std::optional<pipeline::ZoneRecords> ClusterNode::next_records() {
+  if (auto records = catch_up()) return records;
+  return followed_records();
+}
+
+// A held zone's log after what the world has (a zone just taken, or an append in doubt).
+std::optional<pipeline::ZoneRecords> ClusterNode::catch_up() {
   for (;;) {
     const std::optional<ZoneTable::CatchUp> c = table_.next_catch_up();
     if (!c) return std::nullopt;
@@ -133,7 +147,43 @@ std::optional<pipeline::ZoneRecords> ClusterNode::next_records() {
   }
 }
 
+// Records of a followed zone, as its owner committed them.
+std::optional<pipeline::ZoneRecords> ClusterNode::followed_records() {
+  std::optional<ZoneReplicas::Taken> taken = replicas_.take(
+      kRecordsPerRead, [this](world::ZoneId z) { return table_.held(z); },
+      [this](world::ZoneId z) { return table_.applied(z); });
+  if (!taken) return std::nullopt;
+  const world::ZoneId zone = taken->zone;
+  const uint64_t applied = table_.applied(zone);
+  if (taken->records.front().seq != applied + 1) {
+    // Not the next record (this node's world moved otherwise): the log has the ones between.
+    taken->records = read_db_.read_log(zone, applied, kRecordsPerRead);
+    if (taken->records.empty()) return std::nullopt;
+  }
+  pipeline::ZoneRecords out{.zone = zone, .epoch = 0, .edits = {}, .through = applied};
+  for (const store::ZoneRecord& r : taken->records) {
+    std::string why;
+    std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
+    if (!e) {
+      replicas_.give_back(zone, std::move(taken->records));
+      throw store::StoreError(store_.name() + ": " + describe(zone) + " record " +
+                              std::to_string(r.seq) + ": " + why);
+    }
+    out.edits.push_back(std::move(*e));
+    out.through = r.seq;
+  }
+  handed_ = std::move(taken->records);
+  return out;
+}
+
 void ClusterNode::applied(const pipeline::ZoneRecords& records, uint64_t through) {
+  if (records.epoch == 0) {  // a followed zone's
+    table_.committed(records.zone, through);
+    std::erase_if(handed_, [&](const store::ZoneRecord& r) { return r.seq <= through; });
+    if (!handed_.empty()) replicas_.give_back(records.zone, std::move(handed_));
+    handed_.clear();
+    return;
+  }
   const auto it = targets_.find(records.zone);
   const bool complete = it != targets_.end() && through >= it->second;
   if (complete) {

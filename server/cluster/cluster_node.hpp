@@ -4,7 +4,9 @@
 // (pipeline::ZoneAuthority): an edit is taken only in zones this node holds and whose
 // log its world has caught up with; a zone just taken, or whose append was in doubt, has
 // its log applied first. An edit in a zone it does not hold is refused, and the node asks
-// for the zone (it takes it when it ranks first among the live nodes).
+// for the zone (it takes it when it ranks first among the live nodes). The zones its
+// players view and it does not hold are followed (ZoneReplicas): their records are applied
+// to its world as they are committed elsewhere, and it meshes them itself.
 //
 // Threads: construct, start and stop on one thread (the daemon's); the ZoneAuthority
 // members on the pipeline thread; store() is the pipeline's (its appender's thread). The
@@ -21,6 +23,7 @@
 #include "server/cluster/zone_keeper.hpp"
 #include "server/cluster/zone_log_store.hpp"
 #include "server/cluster/zone_publisher.hpp"
+#include "server/cluster/zone_replicas.hpp"
 #include "server/cluster/zone_table.hpp"
 #include "server/pipeline/zone_authority.hpp"
 #include "server/store/zone_leases.hpp"
@@ -46,19 +49,23 @@ class ClusterNode : public pipeline::ZoneAuthority {
 
   const std::string& node() const { return config_.node; }
   size_t zones_held() const { return keeper_ ? keeper_->held_count() : 0; }
+  size_t zones_followed() const { return replicas_.followed(); }
   uint64_t fenced() const { return append_db_.fenced(); }  // appends the fence refused
 
   // pipeline::ZoneAuthority (the pipeline thread).
   void set_wake(std::function<void()> wake) override { wake_ = std::move(wake); }
   bool writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) override;
   void viewing(world::ChunkCoord center, int radius) override;
-  bool records_waiting() override { return table_.catching_up(); }
+  bool records_waiting() override { return table_.catching_up() || replicas_.waiting(); }
   std::optional<pipeline::ZoneRecords> next_records() override;
   void applied(const pipeline::ZoneRecords& records, uint64_t through) override;
 
  private:
-  void taken(world::ZoneId zone, uint64_t epoch);  // the keeper's thread
-  void lost(world::ZoneId zone, uint64_t epoch);   // likewise
+  void taken(world::ZoneId zone, uint64_t epoch);           // the keeper's thread
+  void lost(world::ZoneId zone, uint64_t epoch);            // likewise
+  void round();                                             // likewise, after each round
+  std::optional<pipeline::ZoneRecords> catch_up();          // the pipeline thread
+  std::optional<pipeline::ZoneRecords> followed_records();  // likewise
 
   const ClusterConfig config_;
   NatsLink nats_;
@@ -68,6 +75,10 @@ class ClusterNode : public pipeline::ZoneAuthority {
   ZoneTable table_;
   ZoneLogStore store_;
   std::function<void()> wake_;  // set before start()
+  ZoneReplicas replicas_;
+  // Pipeline thread: the followed records handed to the pipeline last (given back when it
+  // could not apply them all).
+  std::vector<store::ZoneRecord> handed_;
   // Pipeline thread: per zone catching up, the log's last record when it began.
   std::map<world::ZoneId, uint64_t> targets_;
   std::unique_ptr<ZoneKeeper> keeper_;

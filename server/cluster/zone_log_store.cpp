@@ -50,8 +50,15 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   std::vector<ZonePublisher::Part> list;
   list.reserve(parts.size());
   for (auto& [zone, part] : parts) list.push_back(std::move(part));
+  // The records are this node's before anyone hears of them: a follower of a zone this
+  // node has just lost then starts after them.
+  const auto durable = [&] {
+    for (const auto& part : list) {
+      if (!part.records.empty()) zones_.committed(part.zone, part.records.back().seq);
+    }
+  };
   try {
-    publisher_.commit(list);
+    publisher_.commit(list, durable);
   } catch (const store::FencedError& e) {
     for (const auto& part : list) {
       if (part.zone == e.zone) zones_.lost(part.zone, part.epoch);  // the keeper hears it too
@@ -61,9 +68,6 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   } catch (const store::StoreError&) {
     for (const auto& part : list) zones_.doubt(part.zone);  // it may have landed
     throw;
-  }
-  for (const auto& part : list) {
-    if (!part.records.empty()) zones_.committed(part.zone, part.records.back().seq);
   }
 }
 

@@ -42,7 +42,7 @@ std::pair<uint64_t, uint64_t> ZonePublisher::commit(world::ZoneId zone, uint64_t
   return {part.records.front().seq, part.records.back().seq};
 }
 
-void ZonePublisher::commit(std::span<Part> parts) {
+void ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& durable) {
   std::vector<store::ZoneAppend> appends;
   {
     std::lock_guard lock(mutex_);
@@ -66,6 +66,7 @@ void ZonePublisher::commit(std::span<Part> parts) {
         it->second = part.records.back().seq;
     }
   }
+  if (durable) durable();
   for (const Part& part : parts) {
     const std::string subject = zone_subject(world_, part.zone, "rec");
     for (const store::ZoneRecord& r : part.records)

@@ -11,6 +11,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -42,9 +43,10 @@ class ZonePublisher {
     std::vector<store::ZoneRecord> records;
   };
   // Appends every part in one transaction (all zones adopted, each at its epoch), durable
-  // when it returns, then publishes them. Throws store::FencedError or store::StoreError,
-  // having published nothing.
-  void commit(std::span<Part> parts);
+  // when it returns; runs `durable` (the caller notes the records as its own before anyone
+  // can hear of them), then publishes them. Throws store::FencedError or
+  // store::StoreError, having published nothing.
+  void commit(std::span<Part> parts, const std::function<void()>& durable = {});
 
   // Appends `payloads` as the zone's next records at `epoch` (the zone must be adopted),
   // durable when it returns, then publishes them; returns the first and last seq. Throws

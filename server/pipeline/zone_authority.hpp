@@ -25,7 +25,7 @@ namespace vox::pipeline {
 // A zone's committed records to apply, in its log's order.
 struct ZoneRecords {
   world::ZoneId zone;
-  uint64_t epoch = 0;                    // the node's epoch of the zone when they were read
+  uint64_t epoch = 0;  // the node's epoch of the zone when read; 0: a zone it follows
   std::vector<store::LoggedEdit> edits;  // seq: the zone's sequence numbers
   uint64_t through = 0;                  // the last record read (the zone's log had no more)
 };
