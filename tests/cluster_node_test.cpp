@@ -153,6 +153,17 @@ Seen eventually_seen(const ServerProcess& server, const Seen& expected,
   return seen;
 }
 
+// Whether `pred` holds within a while (a node follows a zone a moment after its first view).
+template <typename Pred>
+bool eventually(const ServerProcess*, Pred pred, std::chrono::seconds limit = 10s) {
+  const auto deadline = std::chrono::steady_clock::now() + limit * kSlow;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(300ms);
+  }
+  return true;
+}
+
 struct Cluster {
   std::string database = fresh_shared_database("cluster_node");
   NatsServer nats;
@@ -176,13 +187,13 @@ TEST(ClusterNode, AKilledNodesZonesAreTakenOverWithEveryAcceptedEditAcrossTheirB
       << "the node that took the zones over does not show the edits its logs hold";
 }
 
-// The first zone along x (z = 0) that node "a" ranks first for among {a, b}, and the
-// voxel column at its middle.
-std::pair<float, float> middle_of_a_zone_of_a() {
+// The first zone along x (z = 0) that `node` ranks first for among {a, b}, and the voxel
+// column at its middle.
+std::pair<float, float> middle_of_a_zone_of(const std::string& node) {
   const std::vector<std::string> nodes = {"a", "b"};
   world::ZoneId zone{0, 0};
   for (int32_t x = 0; x < 16; ++x) {
-    if (nodes[*world::first_ranked({x, 0}, nodes)] == "a") {
+    if (nodes[*world::first_ranked({x, 0}, nodes)] == node) {
       zone = {x, 0};
       break;
     }
@@ -201,7 +212,7 @@ Seen held_by(const client::Client& c) {
 // its view (meshed on its own node) equals a single node's after the same edits.
 TEST(ClusterNode, AViewerOnAnotherNodeSeesTheOwnersEditsAsTheyAreCommitted) {
   const Cluster cluster;
-  const auto [x, z] = middle_of_a_zone_of_a();
+  const auto [x, z] = middle_of_a_zone_of("a");
   const std::vector<wire::Envelope> edits = {brush(1, x, z, 4, 5.0f), explosion(2, x + 4, z - 3),
                                              smooth(3, x - 2, z + 2), brush(4, x, z + 5, 2, 3.0f)};
   ServerProcess a({"--cluster", cluster.config("a")});
@@ -228,6 +239,37 @@ TEST(ClusterNode, AViewerOnAnotherNodeSeesTheOwnersEditsAsTheyAreCommitted) {
   EXPECT_TRUE(live == expected) << "the viewer on b does not see a's edits";
 }
 
+Seen view_of(const ServerProcess& server, float x, float z) {
+  auto viewer = player(server, "viewer");
+  view(*viewer, x, surface_y(x, z), z, 1);
+  return held_by(*viewer);
+}
+
+// Any node is a gateway: an edit sent to a node that does not hold its zone goes to the
+// node that does (taken on first use by the node that ranks first), and viewers on both
+// nodes see the world a single node would show.
+TEST(ClusterNode, AnEditSentToAnyNodeIsAppliedByTheZonesHolderAndSeenOnEveryNode) {
+  const Cluster cluster;
+  const auto [ax, az] = middle_of_a_zone_of("a");
+  const auto [bx, bz] = middle_of_a_zone_of("b");
+  const std::vector<wire::Envelope> in_a = {brush(1, ax, az, 4, 5.0f), explosion(2, ax + 3, az)};
+  const std::vector<wire::Envelope> in_b = {brush(3, bx, bz, 2, 5.0f), smooth(4, bx + 1, bz)};
+  ServerProcess a({"--cluster", cluster.config("a")});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  apply_all(b, in_a);  // b forwards them to a
+  apply_all(a, in_b);  // and a to b
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, in_a);
+  apply_all(fresh, in_b);
+  const Seen expect_a = view_of(fresh, ax, az), expect_b = view_of(fresh, bx, bz);
+  for (const ServerProcess* node : {&a, &b}) {
+    EXPECT_TRUE(eventually(node, [&] { return view_of(*node, ax, az) == expect_a; }))
+        << "a's zone differs on node " << (node == &a ? "a" : "b");
+    EXPECT_TRUE(eventually(node, [&] { return view_of(*node, bx, bz) == expect_b; }))
+        << "b's zone differs on node " << (node == &a ? "a" : "b");
+  }
+}
+
 TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
   const Cluster cluster;
   ServerProcess a({"--cluster", cluster.config("a")});
@@ -246,7 +288,7 @@ TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
 
 TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) {
   const Cluster cluster;
-  const auto [x, z] = middle_of_a_zone_of_a();
+  const auto [x, z] = middle_of_a_zone_of("a");
   ServerProcess a({"--cluster", cluster.config("a")});
   ServerProcess b({"--cluster", cluster.config("b")});
   auto on_a = player(a, "early");

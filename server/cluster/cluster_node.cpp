@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <climits>
 
+#include "server/cluster/edit_wire.hpp"
 #include "server/cluster/zone_wire.hpp"
 #include "server/store/postgres_store.hpp"
 
@@ -46,7 +47,15 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
 
 ClusterNode::~ClusterNode() { stop(false); }
 
+namespace {
+
+std::string take_subject(const std::string& world) { return "vox." + world + ".take"; }
+
+}  // namespace
+
 void ClusterNode::start(const std::string& address) {
+  forwarder_ = std::make_unique<EditForwarder>(nats_, EditForwarder::Config{.world = config_.world},
+                                               [this](world::ZoneId zone) { ask_to_take(zone); });
   keeper_ = std::make_unique<ZoneKeeper>(
       ZoneKeeper::Config{.uri = config_.database,
                          .node = config_.node,
@@ -55,27 +64,142 @@ void ClusterNode::start(const std::string& address) {
       ZoneKeeper::Events{.taken = [this](world::ZoneId z, uint64_t epoch) { taken(z, epoch); },
                          .lost = [this](world::ZoneId z, uint64_t epoch) { lost(z, epoch); },
                          .round = [this] { round(); }});
+  take_subscription_ = nats_.subscribe(take_subject(config_.world), [this](const NatsMessage& m) {
+    if (m.data.size() != 8) return;
+    uint64_t key = 0;
+    for (int i = 0; i < 8; ++i) key |= uint64_t{m.data[i]} << (8 * i);
+    keeper_->want(world::ZoneId::from_key(key));
+  });
   spdlog::info("cluster: node {} of world {} (zones of {} chunks, lease {} ms), NATS {}",
                config_.node, config_.world, config_.zone_chunks, config_.lease.count(),
                nats_.server());
 }
 
+// Whoever ranks first among the live nodes takes the zone (every node hears this, this
+// one too; the holder, if it lives, keeps it).
+void ClusterNode::ask_to_take(world::ZoneId zone) {
+  const uint64_t key = zone.key();
+  std::vector<uint8_t> bytes(8);
+  for (int i = 0; i < 8; ++i) bytes[i] = static_cast<uint8_t>(key >> (8 * i));
+  try {
+    nats_.publish(take_subject(config_.world), bytes);
+  } catch (const ClusterError&) {  // the next edit asks again
+  }
+}
+
 void ClusterNode::stop(bool release) {
-  if (keeper_) keeper_->stop(release);
+  if (take_subscription_ != 0) nats_.unsubscribe(take_subscription_);
+  take_subscription_ = 0;
+  if (keeper_) keeper_->stop(release);  // its thread has ended: serving_ is ours now
+  for (const auto& [zone, id] : serving_) nats_.unsubscribe(id);
+  serving_.clear();
+  forwarder_.reset();  // refuses what still waits for an answer
+  release_relays(true);
 }
 
 void ClusterNode::taken(world::ZoneId zone, uint64_t epoch) {
   table_.taken(zone, epoch);  // the keeper logged it
   if (wake_) wake_();
+  if (serving_.count(zone)) return;
+  try {  // edits forwarded to it: answered (refused while its log is applied)
+    serving_[zone] = nats_.subscribe(zone_subject(config_.world, zone, "edit"),
+                                     [this](const NatsMessage& m) { serve(m); });
+  } catch (const ClusterError& e) {
+    spdlog::warn("cluster: cannot answer edits for {}: {}", describe(zone), e.what());
+  }
 }
 
 void ClusterNode::lost(world::ZoneId zone, uint64_t epoch) {
-  table_.lost(zone, epoch);  // likewise
-  if (!table_.held(zone)) publisher_.forget(zone);
+  table_.lost(zone, epoch);       // likewise
+  if (table_.held(zone)) return;  // taken again since
+  publisher_.forget(zone);
+  if (const auto it = serving_.find(zone); it != serving_.end()) {
+    nats_.unsubscribe(it->second);  // waits for a handler in progress (it only submits)
+    serving_.erase(it);
+  }
+}
+
+void ClusterNode::serve(const NatsMessage& m) {
+  if (m.reply.empty() || !submit_) return;
+  std::string why;
+  std::optional<EditRequest> request = decode_edit_request(m.data, &why);
+  if (!request) {
+    EditReply refused;
+    refused.reason = world::RefusalReason::kStorageUnavailable;
+    refused.message = "the node holding the zone could not read the forwarded edit: " + why;
+    try {
+      nats_.publish(m.reply, encode_edit_reply(refused));
+    } catch (const ClusterError&) {  // the gateway times out
+    }
+    return;
+  }
+  const world::VoxelBox box = world::touched_box(request->edit);
+  submit_(std::move(request->edit), std::move(request->author), request->bypass_regions,
+          [this, reply_to = m.reply, id = request->id, box](const pipeline::EditResult& r) {
+            EditReply out;
+            out.id = id;
+            out.reason = r.accepted ? world::RefusalReason::kNone : r.reason;
+            out.message = r.message;
+            // Durable: each zone's log holds it, at or before its last record now.
+            if (r.accepted) {
+              for (const world::ZoneId zone : world::zones_of(box, config_.zone_chunks))
+                out.zones.emplace_back(zone, table_.applied(zone));
+            }
+            out.changed_chunks = r.changed_chunks;
+            out.clipped_by = r.clipped_by;
+            try {
+              nats_.publish(reply_to, encode_edit_reply(out));
+            } catch (const ClusterError&) {  // the gateway times out
+            }
+          });
+}
+
+void ClusterNode::relay(EditReply reply, std::function<void(const pipeline::EditResult&)> done) {
+  pipeline::EditResult result;
+  result.accepted = reply.reason == world::RefusalReason::kNone;
+  result.reason = reply.reason;
+  result.message = std::move(reply.message);
+  result.changed_chunks = std::move(reply.changed_chunks);
+  result.clipped_by = std::move(reply.clipped_by);
+  // Its meshes before its result, as on a single node: wait for the zones this node
+  // follows to show it (at most a moment: a follower may be slow to start).
+  std::erase_if(reply.zones, [this](const auto& z) { return !replicas_.following(z.first); });
+  if (!result.accepted || reply.zones.empty() || !done) {
+    if (done) done(result);
+    return;
+  }
+  {
+    std::lock_guard lock(relay_mutex_);
+    relays_.push_back(Relay{std::move(reply.zones),
+                            std::chrono::steady_clock::now() + std::chrono::seconds(2),
+                            std::move(result), std::move(done)});
+  }
+  release_relays(false);
+}
+
+void ClusterNode::release_relays(bool all) {
+  const auto now = std::chrono::steady_clock::now();
+  std::vector<Relay> ready;
+  {
+    std::lock_guard lock(relay_mutex_);
+    for (auto it = relays_.begin(); it != relays_.end();) {
+      bool shown = true;
+      for (const auto& [zone, seq] : it->zones) shown = shown && table_.applied(zone) >= seq;
+      if (all || shown || now >= it->deadline) {
+        ready.push_back(std::move(*it));
+        it = relays_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (Relay& r : ready) r.done(r.result);
 }
 
 void ClusterNode::round() {
   publisher_.heartbeat();
+  if (forwarder_) forwarder_->sweep();
+  release_relays(false);
   replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
                       [this](world::ZoneId z) { return table_.applied(z); });
 }
@@ -93,25 +217,45 @@ void ClusterNode::viewing(world::ChunkCoord center, int radius) {
     replicas_.viewing(zone);
 }
 
-bool ClusterNode::writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) {
+pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
+                                                    const world::VoxelBox& box, std::string& why) {
   const std::vector<world::ZoneId> zones = world::zones_of(box, config_.zone_chunks);
-  if (zones.size() > 1 && std::holds_alternative<world::Smooth>(edit)) {
+  if (zones.size() > 1 && std::holds_alternative<world::Smooth>(task.edit)) {
     why = "a smooth across a zone border is not taken by a cluster yet";
-    return false;
+    return Verdict::kRefused;
   }
+  bool all_writable = true, any_held = false;
+  std::vector<world::ZoneId> elsewhere;
   for (const world::ZoneId zone : zones) {
-    if (table_.writable(zone)) continue;
+    if (table_.writable(zone)) {
+      any_held = true;
+      continue;
+    }
+    all_writable = false;
     if (table_.held(zone)) {
       why = describe(zone) + " is being loaded on this node; retry shortly";
-    } else {
-      if (keeper_) keeper_->want(zone);
-      why = describe(zone) +
-            " is not held by this node: it is taken if this node ranks first for it, else "
-            "edit it through the node that holds it";
+      return Verdict::kRefused;
     }
-    return false;
+    elsewhere.push_back(zone);
   }
-  return true;
+  if (all_writable) return Verdict::kWritable;
+  if (any_held) {
+    // Perhaps nobody holds the others yet: the nodes ranking first take them.
+    for (const world::ZoneId zone : elsewhere) ask_to_take(zone);
+    why = "an edit across zones held by different nodes is not taken by a cluster yet";
+    return Verdict::kRefused;
+  }
+  if (task.forwarded || !forwarder_) {
+    why = describe(zones.front()) + " is not held by this node (any more); retry shortly";
+    return Verdict::kRefused;
+  }
+  forwarder_->forward(
+      zones.front(),
+      EditRequest{
+          .id = 0, .bypass_regions = task.bypass_regions, .author = task.author, .edit = task.edit},
+      [this, done = std::move(task.done)](const EditReply& r) { relay(r, done); });
+  task.done = nullptr;
+  return Verdict::kForwarded;
 }
 
 std::optional<pipeline::ZoneRecords> ClusterNode::next_records() {
@@ -179,6 +323,7 @@ std::optional<pipeline::ZoneRecords> ClusterNode::followed_records() {
 void ClusterNode::applied(const pipeline::ZoneRecords& records, uint64_t through) {
   if (records.epoch == 0) {  // a followed zone's
     table_.committed(records.zone, through);
+    release_relays(false);
     std::erase_if(handed_, [&](const store::ZoneRecord& r) { return r.seq <= through; });
     if (!handed_.empty()) replicas_.give_back(records.zone, std::move(handed_));
     handed_.clear();

@@ -19,12 +19,14 @@
 #include <string>
 
 #include "server/cluster/cluster_config.hpp"
+#include "server/cluster/edit_forwarder.hpp"
 #include "server/cluster/nats_link.hpp"
 #include "server/cluster/zone_keeper.hpp"
 #include "server/cluster/zone_log_store.hpp"
 #include "server/cluster/zone_publisher.hpp"
 #include "server/cluster/zone_replicas.hpp"
 #include "server/cluster/zone_table.hpp"
+#include "server/pipeline/edit_batch.hpp"
 #include "server/pipeline/zone_authority.hpp"
 #include "server/store/zone_leases.hpp"
 
@@ -40,8 +42,13 @@ class ClusterNode : public pipeline::ZoneAuthority {
   ClusterNode& operator=(const ClusterNode&) = delete;
 
   store::WorldStore& store() { return store_; }
-  // Starts taking zones (after the pipeline exists: it set its wake-up). `address`: where
-  // players reach this node (the live nodes' list shows it).
+  // How edits forwarded by other nodes reach this node's pipeline (WorldPipeline::submit
+  // with `forwarded`); set before start.
+  using Submit = std::function<void(world::Edit edit, std::string author, bool bypass_regions,
+                                    std::function<void(const pipeline::EditResult&)> done)>;
+  void set_submit(Submit submit) { submit_ = std::move(submit); }
+  // Starts taking zones and answering edits forwarded to them (after the pipeline exists:
+  // it set its wake-up). `address`: where players reach this node (the live nodes' list).
   void start(const std::string& address);
   // Stops the keeper: `release` hands every zone off at once (after the pipeline stopped:
   // its appends have landed), else the leases run out (a crash's way). Idempotent.
@@ -54,16 +61,22 @@ class ClusterNode : public pipeline::ZoneAuthority {
 
   // pipeline::ZoneAuthority (the pipeline thread).
   void set_wake(std::function<void()> wake) override { wake_ = std::move(wake); }
-  bool writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) override;
+  Verdict admit(pipeline::EditTask& task, const world::VoxelBox& box, std::string& why) override;
   void viewing(world::ChunkCoord center, int radius) override;
   bool records_waiting() override { return table_.catching_up() || replicas_.waiting(); }
   std::optional<pipeline::ZoneRecords> next_records() override;
   void applied(const pipeline::ZoneRecords& records, uint64_t through) override;
 
  private:
-  void taken(world::ZoneId zone, uint64_t epoch);           // the keeper's thread
-  void lost(world::ZoneId zone, uint64_t epoch);            // likewise
-  void round();                                             // likewise, after each round
+  void taken(world::ZoneId zone, uint64_t epoch);  // the keeper's thread
+  void lost(world::ZoneId zone, uint64_t epoch);   // likewise
+  void round();                                    // likewise, after each round
+  void serve(const NatsMessage& m);                // a NATS thread: a forwarded edit
+  // A forwarded edit's answer, relayed to the player once this node's world shows it (or
+  // a while later: the zone may not be followed here).
+  void relay(EditReply reply, std::function<void(const pipeline::EditResult&)> done);
+  void release_relays(bool all);                            // any thread
+  void ask_to_take(world::ZoneId zone);                     // any thread
   std::optional<pipeline::ZoneRecords> catch_up();          // the pipeline thread
   std::optional<pipeline::ZoneRecords> followed_records();  // likewise
 
@@ -81,6 +94,18 @@ class ClusterNode : public pipeline::ZoneAuthority {
   std::vector<store::ZoneRecord> handed_;
   // Pipeline thread: per zone catching up, the log's last record when it began.
   std::map<world::ZoneId, uint64_t> targets_;
+  Submit submit_;  // set before start()
+  std::unique_ptr<EditForwarder> forwarder_;
+  uint64_t take_subscription_ = 0;
+  std::map<world::ZoneId, uint64_t> serving_;  // the keeper's thread: edit subscriptions
+  struct Relay {
+    std::vector<std::pair<world::ZoneId, uint64_t>> zones;
+    std::chrono::steady_clock::time_point deadline;
+    pipeline::EditResult result;
+    std::function<void(const pipeline::EditResult&)> done;
+  };
+  std::mutex relay_mutex_;  // guards relays_ (leaf; bounded by the forwarder's pending bound)
+  std::vector<Relay> relays_;
   std::unique_ptr<ZoneKeeper> keeper_;
 };
 

@@ -56,7 +56,8 @@ struct NatsLink::Subscription {
     const NatsMessage m{natsMsg_GetSubject(msg),
                         reply ? reply : "",
                         {reinterpret_cast<const uint8_t*>(natsMsg_GetData(msg)),
-                         static_cast<size_t>(natsMsg_GetDataLength(msg))}};
+                         static_cast<size_t>(natsMsg_GetDataLength(msg))},
+                        natsMsg_IsNoResponders(msg)};
     try {
       self->handler(m);
     } catch (...) {  // a handler's failure stays with that message

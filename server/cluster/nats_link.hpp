@@ -44,6 +44,8 @@ struct NatsMessage {
   std::string subject;
   std::string reply;              // where a request wants its answer; empty for a plain publish
   std::span<const uint8_t> data;  // valid during the handler only
+  // On a reply subject: the server's word that nobody listened on the request's subject.
+  bool no_responders = false;
 };
 
 class NatsLink {

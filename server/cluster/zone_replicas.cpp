@@ -132,6 +132,11 @@ void ZoneReplicas::give_back(world::ZoneId zone, std::vector<store::ZoneRecord> 
            std::make_move_iterator(records.end()));
 }
 
+bool ZoneReplicas::following(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  return waiting_.count(zone) > 0;
+}
+
 bool ZoneReplicas::waiting() const {
   std::lock_guard lock(mutex_);
   for (const auto& [zone, q] : waiting_) {

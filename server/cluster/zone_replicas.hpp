@@ -67,6 +67,7 @@ class ZoneReplicas {
   // Hands back records the pipeline could not apply (memory), to be taken again first.
   void give_back(world::ZoneId zone, std::vector<store::ZoneRecord> records);
   bool waiting() const;
+  bool following(world::ZoneId zone) const;  // any thread
   size_t followed() const { return followed_.load(std::memory_order_relaxed); }
 
  private:

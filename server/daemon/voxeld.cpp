@@ -94,7 +94,13 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
     spdlog::info("metrics on http://{}:{}/metrics", c.net.bind, metrics->port());
     if (!c.metrics_port_file.empty()) write_port_file(c.metrics_port_file, metrics->port());
   }
-  if (node) node->start(c.net.bind + ":" + std::to_string(server.port()));
+  if (node) {
+    node->set_submit([&pipeline](world::Edit edit, std::string author, bool bypass,
+                                 std::function<void(const pipeline::EditResult&)> done) {
+      pipeline.submit(std::move(edit), std::move(done), 0, std::move(author), bypass, true);
+    });
+    node->start(c.net.bind + ":" + std::to_string(server.port()));
+  }
   if (!c.port_file.empty()) write_port_file(c.port_file, server.port());
   if (server.http_port() != 0) {
     spdlog::info("open http://{}:{}/ in a browser", c.net.bind, server.http_port());

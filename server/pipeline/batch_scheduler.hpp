@@ -44,6 +44,7 @@ struct EditTask {
   std::chrono::steady_clock::time_point submitted{};  // set by WorldPipeline::submit
   std::string author;           // the player id the edit is logged under (empty: none)
   bool bypass_regions = false;  // an admin's: protected regions do not hold it back
+  bool forwarded = false;       // a cluster node sent it to this one: never forwarded on
 };
 // Adds a protected region (`add`, its id chosen by the pipeline) or removes one
 // (`remove_id`), in order with the edits around it; durable with their batch.

@@ -64,7 +64,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
                     rules.zones ? kClusterRegionsMessage : kStorageMessage);
       continue;
     }
-    const EditTask& task = std::get<EditTask>(tasks[t]);
+    EditTask& task = std::get<EditTask>(tasks[t]);
     const world::Edit& edit = task.edit;
     EditResult& result = b.results[t];
     b.any_edit = true;
@@ -76,9 +76,14 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       refuse(result, world::RefusalReason::kStorageUnavailable, kStorageMessage, delta);
       continue;
     }
-    if (std::string why; rules.zones && !rules.zones->writable(edit, read_box(edit), why)) {
-      refuse(result, world::RefusalReason::kStorageUnavailable, std::move(why), delta);
-      continue;
+    if (rules.zones) {
+      std::string why;
+      const ZoneAuthority::Verdict verdict = rules.zones->admit(task, read_box(edit), why);
+      if (verdict == ZoneAuthority::Verdict::kForwarded) continue;  // the holder answers it
+      if (verdict == ZoneAuthority::Verdict::kRefused) {
+        refuse(result, world::RefusalReason::kStorageUnavailable, std::move(why), delta);
+        continue;
+      }
     }
     if (world.checkpoints && world.checkpoints->log_full(rules.log_tail + b.accepted.size())) {
       refuse(result, world::RefusalReason::kServerBusy, kLogFullMessage, delta);

@@ -98,9 +98,9 @@ void WorldPipeline::enqueue(OrderedTask task) {
 }
 
 void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner, std::string author,
-                           bool bypass_regions) {
+                           bool bypass_regions, bool forwarded) {
   enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now(), std::move(author),
-                   bypass_regions});
+                   bypass_regions, forwarded});
 }
 
 void WorldPipeline::change_regions(RegionTask task) { enqueue(std::move(task)); }

@@ -48,9 +48,10 @@ class WorldPipeline {
   // (or it was refused); it must not block. Every queued edit is in the next batch.
   // `owner` (a session id; 0 for none) bounds the terrain its edits may make the pipeline
   // generate in one batch. `author`: the player id the edit is logged under;
-  // `bypass_regions`: an admin's edit, which protected regions do not hold back.
+  // `bypass_regions`: an admin's edit, which protected regions do not hold back;
+  // `forwarded`: another cluster node sent it (docs/CLUSTER.md): never forwarded on.
   void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0, std::string author = {},
-              bool bypass_regions = false);
+              bool bypass_regions = false, bool forwarded = false);
   std::future<EditResult> submit(world::Edit edit);
   // Any thread. Adds or removes a protected region in order with the edits around it;
   // `task.done` runs on the pipeline thread once the change is durable (or refused).

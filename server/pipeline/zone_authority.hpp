@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "server/pipeline/batch_scheduler.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
@@ -34,9 +35,11 @@ class ZoneAuthority {
  public:
   virtual ~ZoneAuthority() = default;
   virtual void set_wake(std::function<void()> wake) = 0;
-  // Whether an edit whose touched box is `box` (a smooth: its read box) may be applied
-  // and logged now; if not, `why` says so for the player (and the node asks for the zone).
-  virtual bool writable(const world::Edit& edit, const world::VoxelBox& box, std::string& why) = 0;
+  // What becomes of an edit whose touched box is `box` (a smooth: its read box): applied
+  // and logged here; refused (`why` says so for the player); or forwarded to the node that
+  // holds its zone, which then answers it (the node took task.done).
+  enum class Verdict { kWritable, kRefused, kForwarded };
+  virtual Verdict admit(EditTask& task, const world::VoxelBox& box, std::string& why) = 0;
   // A player's view of chunks within `radius` of `center`: the node asks for its zones
   // (it shows a zone as its log has it only while it holds it, for now).
   virtual void viewing(world::ChunkCoord center, int radius) = 0;

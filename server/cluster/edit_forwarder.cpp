@@ -1,0 +1,134 @@
+#include "server/cluster/edit_forwarder.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <random>
+#include <vector>
+
+#include "server/cluster/zone_wire.hpp"
+
+namespace vox::cluster {
+
+namespace {
+
+std::string random_inbox() {
+  std::random_device rd;
+  const uint64_t v = (uint64_t{rd()} << 32) ^ rd();
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "_INBOX.vox%016llx", static_cast<unsigned long long>(v));
+  return buf;
+}
+
+}  // namespace
+
+EditForwarder::EditForwarder(NatsLink& nats, Config config,
+                             std::function<void(world::ZoneId)> nobody_holds)
+    : nats_(nats),
+      config_(std::move(config)),
+      nobody_holds_(std::move(nobody_holds)),
+      inbox_(random_inbox()) {
+  subscription_ = nats_.subscribe(inbox_ + ".*", [this](const NatsMessage& m) { on_reply(m); });
+}
+
+EditForwarder::~EditForwarder() {
+  nats_.unsubscribe(subscription_);
+  std::map<uint64_t, Pending> left;
+  {
+    std::lock_guard lock(mutex_);
+    left.swap(pending_);
+  }
+  for (auto& [id, p] : left)
+    p.done(refusal(id, world::RefusalReason::kShuttingDown, "the server is shutting down"));
+}
+
+EditReply EditForwarder::refusal(uint64_t id, world::RefusalReason reason, std::string message) {
+  EditReply r;
+  r.id = id;
+  r.reason = reason;
+  r.message = std::move(message);
+  return r;
+}
+
+void EditForwarder::forward(world::ZoneId zone, EditRequest request, Done done) {
+  std::unique_lock lock(mutex_);
+  if (pending_.size() >= config_.max_pending) {
+    lock.unlock();
+    return done(refusal(0, world::RefusalReason::kServerBusy,
+                        "too many edits wait for other nodes; retry shortly"));
+  }
+  request.id = next_id_++;
+  pending_[request.id] = Pending{std::move(done), zone, Clock::now() + config_.timeout};
+  lock.unlock();
+  const uint64_t id = request.id;
+  try {
+    nats_.publish(zone_subject(config_.world, zone, "edit"), encode_edit_request(request),
+                  inbox_ + "." + std::to_string(id));
+  } catch (const ClusterError& e) {
+    std::unique_lock again(mutex_);
+    const auto it = pending_.find(id);
+    if (it == pending_.end()) return;  // answered meanwhile
+    Done d = std::move(it->second.done);
+    pending_.erase(it);
+    again.unlock();
+    d(refusal(id, world::RefusalReason::kStorageUnavailable,
+              std::string("the cluster's messaging is down (") + e.what() + "); retry"));
+  }
+}
+
+void EditForwarder::on_reply(const NatsMessage& m) {
+  const size_t dot = m.subject.rfind('.');
+  uint64_t id = 0;
+  try {
+    id = std::stoull(m.subject.substr(dot + 1));
+  } catch (const std::exception&) {
+    return;
+  }
+  std::unique_lock lock(mutex_);
+  const auto it = pending_.find(id);
+  if (it == pending_.end()) return;  // timed out already
+  Pending p = std::move(it->second);
+  pending_.erase(it);
+  lock.unlock();
+  if (m.no_responders) {
+    nobody_holds_(p.zone);
+    return p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
+                          "zone (" + std::to_string(p.zone.x) + ", " + std::to_string(p.zone.z) +
+                              ") is held by no node right now: it is being taken; retry shortly"));
+  }
+  std::string why;
+  std::optional<EditReply> reply = decode_edit_reply(m.data, &why);
+  if (!reply) {
+    spdlog::warn("cluster: a damaged edit reply: {}", why);
+    return p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
+                          "the zone's holder answered in a form this node cannot read"));
+  }
+  p.done(*reply);
+}
+
+void EditForwarder::sweep() {
+  const Clock::time_point now = Clock::now();
+  std::vector<std::pair<uint64_t, Pending>> late;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto it = pending_.begin(); it != pending_.end();) {
+      if (it->second.deadline <= now) {
+        late.emplace_back(it->first, std::move(it->second));
+        it = pending_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (auto& [id, p] : late) {
+    nobody_holds_(p.zone);  // its holder may have died or stalled: the next live one takes it
+    p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
+                   "the zone's holder did not answer in time; the edit may have been applied"));
+  }
+}
+
+size_t EditForwarder::pending() const {
+  std::lock_guard lock(mutex_);
+  return pending_.size();
+}
+
+}  // namespace vox::cluster

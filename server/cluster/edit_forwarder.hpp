@@ -1,0 +1,67 @@
+// A gateway's side of edits in zones another node holds (docs/CLUSTER.md, "Messaging over
+// NATS"): each is sent as a NATS request on its zone's edit subject, whoever holds the
+// zone answers once the edit is durable (or refused), and the answer comes back on this
+// node's own reply subjects. Nobody holding the zone: the server says so at once, the
+// edit is refused (STORAGE_UNAVAILABLE, retry) and `nobody_holds` asks the cluster to
+// take the zone. No answer within the timeout: refused, saying the edit may have landed,
+// and the cluster is asked to take the zone (its holder may be dead or stalled; the node
+// ranking first among the live ones takes it once the holder's lease has run out).
+// At most `max_pending` wait at once (past that: SERVER_BUSY).
+//
+// Threads: forward and sweep from any thread; `done` runs on a NATS thread or the caller
+// of sweep (or the destructor, which refuses what still waits).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <string>
+
+#include "server/cluster/edit_wire.hpp"
+#include "server/cluster/nats_link.hpp"
+
+namespace vox::cluster {
+
+class EditForwarder {
+ public:
+  using Clock = std::chrono::steady_clock;
+  using Done = std::function<void(const EditReply&)>;
+  struct Config {
+    std::string world;
+    std::chrono::milliseconds timeout{5000};
+    size_t max_pending = 4096;
+  };
+  // Subscribes to its reply subjects (throws ClusterError when it cannot).
+  EditForwarder(NatsLink& nats, Config config, std::function<void(world::ZoneId)> nobody_holds);
+  ~EditForwarder();
+  EditForwarder(const EditForwarder&) = delete;
+  EditForwarder& operator=(const EditForwarder&) = delete;
+
+  // Sends `request` (its id is set here) to `zone`'s holder; `done` hears the answer.
+  void forward(world::ZoneId zone, EditRequest request, Done done);
+  // Refuses the requests past their time.
+  void sweep();
+  size_t pending() const;
+
+ private:
+  struct Pending {
+    Done done;
+    world::ZoneId zone;
+    Clock::time_point deadline;
+  };
+  void on_reply(const NatsMessage& m);  // NATS thread
+  static EditReply refusal(uint64_t id, world::RefusalReason reason, std::string message);
+
+  NatsLink& nats_;
+  const Config config_;
+  const std::function<void(world::ZoneId)> nobody_holds_;
+  const std::string inbox_;   // "_INBOX.<random>": replies come on <inbox>.<id>
+  mutable std::mutex mutex_;  // guards pending_, next_id_ (leaf; never held across a callback)
+  std::map<uint64_t, Pending> pending_;
+  uint64_t next_id_ = 1;
+  uint64_t subscription_ = 0;
+};
+
+}  // namespace vox::cluster

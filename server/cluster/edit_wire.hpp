@@ -1,0 +1,53 @@
+// An edit forwarded from a gateway node to the node that holds its zone, and the answer,
+// as NATS request and reply bytes (docs/CLUSTER.md, "Messaging over NATS"). Decoding
+// never trusts the bytes: a short or long message, an unknown version or reason, or an
+// edit the world store's codec refuses is nullopt with the reason.
+//
+// Layout (little-endian):
+//   request  u8 version (1), u8 kind (3), u64 id, u8 flags (1: bypasses protected
+//            regions), u16 author length, author, the edit (store/edit_codec.hpp)
+//   reply    u8 version (1), u8 kind (4), u64 id, u8 reason (world::RefusalReason; 0:
+//            accepted), u16 message length, message, u16 zones, each (u64 zone key, u64
+//            the zone's last record once the edit was durable), u16 chunks, each (i32 x,
+//            y, z: chunks given a new mesh on the holder), u16 regions, each u64
+//
+// Pure functions: any thread.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "server/world/chunk_coord.hpp"
+#include "server/world/edit.hpp"
+#include "server/world/zone.hpp"
+
+namespace vox::cluster {
+
+struct EditRequest {
+  uint64_t id = 0;
+  bool bypass_regions = false;
+  std::string author;
+  world::Edit edit;
+};
+
+struct EditReply {
+  uint64_t id = 0;
+  world::RefusalReason reason = world::RefusalReason::kNone;  // kNone: accepted
+  std::string message;
+  std::vector<std::pair<world::ZoneId, uint64_t>> zones;  // where it is durable, up to which record
+  std::vector<world::ChunkCoord> changed_chunks;
+  std::vector<uint64_t> clipped_by;
+};
+
+std::vector<uint8_t> encode_edit_request(const EditRequest& r);
+std::optional<EditRequest> decode_edit_request(std::span<const uint8_t> bytes,
+                                               std::string* error = nullptr);
+std::vector<uint8_t> encode_edit_reply(const EditReply& r);
+std::optional<EditReply> decode_edit_reply(std::span<const uint8_t> bytes,
+                                           std::string* error = nullptr);
+
+}  // namespace vox::cluster
