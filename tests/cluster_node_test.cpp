@@ -6,11 +6,17 @@
 #include <signal.h>
 #include <sys/stat.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <thread>
 
+#include "server/cluster/zone_wire.hpp"
+#include "server/net/wire_convert.hpp"
+#include "server/store/edit_codec.hpp"
+#include "server/store/zone_leases.hpp"
 #include "server/world/zone.hpp"
 #include "tests/nats_server.hpp"
 #include "tests/postgres_server.hpp"
@@ -164,6 +170,12 @@ bool eventually(const ServerProcess*, Pred pred, std::chrono::seconds limit = 10
   return true;
 }
 
+// An edit message's world edit as the store encodes it: what a zone's log holds.
+std::string encoding_of(const wire::Envelope& m) {
+  const auto bytes = store::encode_edit(*net::edit_from_wire(m.edit()).edit);
+  return {bytes.begin(), bytes.end()};
+}
+
 struct Cluster {
   std::string database = fresh_shared_database("cluster_node");
   NatsServer nats;
@@ -268,6 +280,105 @@ TEST(ClusterNode, AnEditSentToAnyNodeIsAppliedByTheZonesHolderAndSeenOnEveryNode
     EXPECT_TRUE(eventually(node, [&] { return view_of(*node, bx, bz) == expect_b; }))
         << "b's zone differs on node " << (node == &a ? "a" : "b");
   }
+}
+
+// The failover check: players on two nodes edit the zones a third node holds
+// (their edits forwarded to it) while it is killed with SIGKILL; the others take its zones
+// over once its leases run out. Every edit a player saw ACCEPTED is in its zone's log
+// exactly once, and the nodes' worlds equal a single node replaying those logs.
+TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNoneTwice) {
+  const Cluster cluster;
+  const std::vector<std::string> three = {"a", "b", "c"};
+  std::vector<world::ZoneId> zones;  // zones c ranks first for (all c's at first)
+  for (int32_t x = 0; x < 40 && zones.size() < 2; ++x) {
+    if (three[*world::first_ranked({x, 0}, three)] == "c") zones.push_back({x, 0});
+  }
+  ASSERT_EQ(zones.size(), 2u);
+  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
+  ServerProcess a({"--cluster", cluster.config("a")});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  auto c =
+      std::make_unique<ServerProcess>(std::vector<std::string>{"--cluster", cluster.config("c")});
+  // Each edit unique (its centre), well inside its zone.
+  const auto edit_for = [&](int player, int i) {
+    const world::ZoneId zone = zones[static_cast<size_t>(i) % zones.size()];
+    const float x = (static_cast<float>(zone.x) + 0.3f + 0.02f * static_cast<float>(i % 20)) * side;
+    const float z =
+        (0.3f + 0.2f * static_cast<float>(player)) * side + 0.01f * static_cast<float>(i);
+    return brush(static_cast<uint64_t>(i + 1), x, z, 1 + (i % 5), 2.5f);
+  };
+  std::mutex mutex;
+  std::vector<std::string> accepted;           // the accepted edits' encodings
+  std::map<std::string, wire::Envelope> sent;  // every edit sent, by its encoding
+  std::atomic<bool> stop{false};
+  std::atomic<int> refused{0};
+  const auto editor = [&](const ServerProcess& node, int player) {
+    auto client = player == 0 ? test::player(node, "editor-a") : test::player(node, "editor-b");
+    for (int i = 0; !stop; ++i) {
+      const wire::Envelope e = edit_for(player, i);
+      const std::string key = encoding_of(e);
+      {
+        std::lock_guard lock(mutex);
+        sent[key] = e;
+      }
+      const auto r = edit_and_wait(*client, e, 15s);
+      if (!r) break;
+      if (r->edit_result().status() != wire::EditResult::ACCEPTED) {
+        ++refused;
+        std::this_thread::sleep_for(50ms);
+        continue;
+      }
+      std::lock_guard lock(mutex);
+      accepted.push_back(key);
+    }
+  };
+  std::thread on_a(editor, std::cref(a), 0), on_b(editor, std::cref(b), 1);
+  const auto count = [&] {
+    std::lock_guard lock(mutex);
+    return accepted.size();
+  };
+  ASSERT_TRUE(eventually(
+      nullptr, [&] { return count() >= 20; }, 20s))
+      << "no edits accepted";
+  c.reset();  // SIGKILL
+  const size_t at_kill = count();
+  const bool recovered = eventually(
+      nullptr, [&] { return count() >= at_kill + 20; }, 30s);
+  stop = true;
+  on_a.join();
+  on_b.join();
+  ASSERT_TRUE(recovered) << "c's zones were not writable again";
+  // Every accepted edit is in a log exactly once.
+  store::ZoneLeases reader(cluster.database, "test-reader", 3000ms);
+  std::map<std::string, int> logged;
+  std::vector<wire::Envelope> replay;
+  for (const world::ZoneId zone : zones) {
+    uint64_t expect_seq = 1;
+    for (const store::ZoneRecord& r : reader.read_log(zone, 0)) {
+      EXPECT_EQ(r.seq, expect_seq++);
+      const auto e = cluster::decode_zone_edit(r);
+      ASSERT_TRUE(e);
+      const auto bytes = store::encode_edit(e->edit);
+      const std::string key(bytes.begin(), bytes.end());
+      ++logged[key];
+      ASSERT_TRUE(sent.count(key)) << "a logged edit nobody sent";
+      replay.push_back(sent[key]);
+    }
+  }
+  for (const std::string& e : accepted)
+    EXPECT_EQ(logged[e], 1) << "an accepted edit logged so often";
+  for (const auto& [e, n] : logged) EXPECT_EQ(n, 1) << "an edit logged twice";
+  // The survivors show what a single node replaying the logs shows.
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, replay);
+  for (const world::ZoneId zone : zones) {
+    const float x = (static_cast<float>(zone.x) + 0.5f) * side, z = 0.5f * side;
+    const Seen expected = view_of(fresh, x, z);
+    EXPECT_TRUE(eventually(&a, [&] { return view_of(a, x, z) == expected; })) << "a differs";
+    EXPECT_TRUE(eventually(&b, [&] { return view_of(b, x, z) == expected; })) << "b differs";
+  }
+  std::printf("accepted %zu edits (%zu before the kill), %d refused during the failover\n",
+              accepted.size(), at_kill, refused.load());
 }
 
 TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
