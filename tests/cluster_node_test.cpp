@@ -381,6 +381,65 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
               accepted.size(), at_kill, refused.load());
 }
 
+// NATS restarted mid-run: records published while it was down are read from the zones'
+// logs (heartbeats tell a follower what it missed), and the replica is the same again.
+TEST(ClusterNode, AfterANatsRestartAReplicaFillsWhatItMissedFromTheLogs) {
+  Cluster cluster;
+  const auto [x, z] = middle_of_a_zone_of("a");
+  ServerProcess a({"--cluster", cluster.config("a")});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  auto viewer = player(b, "viewer");
+  view(*viewer, x, surface_y(x, z), z, 1);
+  std::vector<wire::Envelope> edits;
+  for (int i = 0; i < 6; ++i)
+    edits.push_back(
+        brush(static_cast<uint64_t>(i + 1), x + static_cast<float>(i), z, 1 + i % 4, 3));
+  auto editor = player(a, "editor");
+  for (int i = 0; i < 6; ++i) {
+    if (i == 3) cluster.nats.restart();  // edits go on: the holder needs no NATS to commit
+    const wire::EditResult r = edit_until_accepted(*editor, edits[static_cast<size_t>(i)]);
+    ASSERT_EQ(r.status(), wire::EditResult::ACCEPTED) << r.reason();
+  }
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  const Seen expected = view_of(fresh, x, z);
+  EXPECT_TRUE(eventually(
+      &b,
+      [&] {
+        wait_for(
+            *viewer, [](const wire::Envelope&) { return false; }, 200ms);
+        return held_by(*viewer) == expected;
+      },
+      20s))
+      << "b's replica did not catch up after the NATS restart";
+}
+
+// PostgreSQL unreachable for a few seconds: edits are refused STORAGE_UNAVAILABLE (none is
+// half applied), and taken again once it is back, without restarting anything.
+TEST(ClusterNode, WhilePostgresqlIsDownEditsAreRefusedAndAfterwardsTakenAgain) {
+  PostgresServer pg;
+  const std::string database = pg.create_database("down");
+  NatsServer nats;
+  const TempDir tmp("cluster_pg_down");
+  ServerProcess a({"--cluster", node_config(tmp, "a", database, nats)});
+  auto editor = player(a, "editor");
+  std::vector<wire::Envelope> accepted = {brush(1, 40, 40, 4)};
+  ASSERT_EQ(edit_until_accepted(*editor, accepted[0]).status(), wire::EditResult::ACCEPTED);
+  pg.stop();
+  const auto down = edit_and_wait(*editor, brush(2, 44, 40, 3));
+  ASSERT_TRUE(down);
+  EXPECT_EQ(down->edit_result().status(), wire::EditResult::STORAGE_UNAVAILABLE)
+      << down->edit_result().reason();
+  std::this_thread::sleep_for(2s);  // past the lease: the node no longer knows it holds it
+  pg.start();
+  accepted.push_back(brush(3, 36, 40, 2));
+  const wire::EditResult back = edit_until_accepted(*editor, accepted[1], 30s);
+  EXPECT_EQ(back.status(), wire::EditResult::ACCEPTED) << back.reason();
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, accepted);
+  EXPECT_TRUE(view_of(a, 40, 40) == view_of(fresh, 40, 40)) << "the refused edit left a trace";
+}
+
 TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
   const Cluster cluster;
   ServerProcess a({"--cluster", cluster.config("a")});
