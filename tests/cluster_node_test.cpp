@@ -224,7 +224,8 @@ Seen held_by(const client::Client& c) {
 // its view (meshed on its own node) equals a single node's after the same edits.
 TEST(ClusterNode, AViewerOnAnotherNodeSeesTheOwnersEditsAsTheyAreCommitted) {
   const Cluster cluster;
-  const auto [x, z] = middle_of_a_zone_of("a");
+  const auto [x_, z_] = middle_of_a_zone_of("a");
+  const float x = x_, z = z_;
   const std::vector<wire::Envelope> edits = {brush(1, x, z, 4, 5.0f), explosion(2, x + 4, z - 3),
                                              smooth(3, x - 2, z + 2), brush(4, x, z + 5, 2, 3.0f)};
   ServerProcess a({"--cluster", cluster.config("a")});
@@ -262,8 +263,8 @@ Seen view_of(const ServerProcess& server, float x, float z) {
 // nodes see the world a single node would show.
 TEST(ClusterNode, AnEditSentToAnyNodeIsAppliedByTheZonesHolderAndSeenOnEveryNode) {
   const Cluster cluster;
-  const auto [ax, az] = middle_of_a_zone_of("a");
-  const auto [bx, bz] = middle_of_a_zone_of("b");
+  const std::pair<float, float> pa = middle_of_a_zone_of("a"), pb = middle_of_a_zone_of("b");
+  const float ax = pa.first, az = pa.second, bx = pb.first, bz = pb.second;
   const std::vector<wire::Envelope> in_a = {brush(1, ax, az, 4, 5.0f), explosion(2, ax + 3, az)};
   const std::vector<wire::Envelope> in_b = {brush(3, bx, bz, 2, 5.0f), smooth(4, bx + 1, bz)};
   ServerProcess a({"--cluster", cluster.config("a")});
@@ -385,7 +386,8 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
 // logs (heartbeats tell a follower what it missed), and the replica is the same again.
 TEST(ClusterNode, AfterANatsRestartAReplicaFillsWhatItMissedFromTheLogs) {
   Cluster cluster;
-  const auto [x, z] = middle_of_a_zone_of("a");
+  const auto [x_, z_] = middle_of_a_zone_of("a");
+  const float x = x_, z = z_;
   ServerProcess a({"--cluster", cluster.config("a")});
   ServerProcess b({"--cluster", cluster.config("b")});
   auto viewer = player(b, "viewer");
@@ -458,7 +460,8 @@ TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
 
 TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) {
   const Cluster cluster;
-  const auto [x, z] = middle_of_a_zone_of("a");
+  const auto [x_, z_] = middle_of_a_zone_of("a");
+  const float x = x_, z = z_;
   ServerProcess a({"--cluster", cluster.config("a")});
   ServerProcess b({"--cluster", cluster.config("b")});
   auto on_a = player(a, "early");

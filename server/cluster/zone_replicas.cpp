@@ -55,7 +55,8 @@ void ZoneReplicas::reconcile(const std::function<bool(world::ZoneId)>& held,
   }
   for (const world::ZoneId zone : drop) stop_follower(zone);
   followed_.store(followers_.size(), std::memory_order_relaxed);
-  for (const auto& [zone, yes] : keep) {
+  for (const auto& entry : keep) {
+    const world::ZoneId zone = entry.first;  // captured below (not a structured binding)
     if (followers_.count(zone)) continue;
     {
       std::lock_guard lock(mutex_);

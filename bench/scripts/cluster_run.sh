@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# A load-test run against one node of a cluster world (docs/CLUSTER.md), as
+# docs/PERFORMANCE.md reports it:
+#   bench/scripts/cluster_run.sh NAME PLAYERS DURATION NODES [-- extra voxel-loadtest args]
+# Starts a PostgreSQL (initdb in a temporary directory, on a Unix socket) and a nats-server
+# (a user and password from its configuration file) on 127.0.0.1, writes one --cluster file
+# per node (nodes a, b, c, ...; zones of ZONE_CHUNKS chunks, default 16), starts nodes
+# b.. in the background, then runs bench/scripts/attack_run.sh NAME PLAYERS DURATION with
+# node a (the players connect to a; edits in zones another node holds are forwarded to
+# it). Prints attack_run.sh's table, then each background node's CPU share over the run.
+# Everything is stopped at the end; files stay in /tmp/voxeld_bench/NAME.cluster.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+bin="${VOXEL_BIN:-$root/build/bin}"
+name="$1" players="$2" duration="$3" nodes="$4"
+shift 4
+dir=/tmp/voxeld_bench/$name.cluster
+rm -rf "$dir"; mkdir -p "$dir"; chmod 755 "$dir"
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
+  wait 2>/dev/null || true
+  if [ -d "$dir/pg" ]; then as_pg "$pgbin/pg_ctl -D $dir/pg -m fast -w stop" > /dev/null 2>&1 || true; fi
+}
+trap cleanup EXIT
+
+# PostgreSQL, as the postgres user when run as root.
+pgbin=$(ls -d /usr/lib/postgresql/*/bin | sort -V | tail -1)
+as_pg() { if [ "$(id -u)" = 0 ]; then runuser -u postgres -- sh -c "$1"; else sh -c "$1"; fi; }
+mkdir -p "$dir/pg" && [ "$(id -u)" = 0 ] && chown postgres "$dir/pg" "$dir"
+as_pg "$pgbin/initdb -D $dir/pg -U postgres -A trust > $dir/initdb.log 2>&1"
+as_pg "$pgbin/pg_ctl -D $dir/pg -l $dir/pg.log -w -o \"-k $dir -p 55432 -c listen_addresses=''\" start" > /dev/null
+as_pg "$pgbin/psql -q -h $dir -p 55432 -U postgres -c 'CREATE DATABASE vox'"
+database="postgresql:///vox?host=$dir&port=55432&user=postgres"
+
+# nats-server with a password, on a free port written to its ports file.
+cat > "$dir/nats.conf" <<EOF
+host: 127.0.0.1
+port: -1
+authorization { user: "voxnode", password: "bench-only-secret" }
+EOF
+mkdir -p "$dir/ports"
+nats-server -c "$dir/nats.conf" --ports_file_dir "$dir/ports" > "$dir/nats.log" 2>&1 &
+pids+=($!)
+for _ in $(seq 100); do ls "$dir/ports"/* > /dev/null 2>&1 && break; sleep 0.1; done
+nats_url=$(grep -o 'nats://[^"]*' "$dir/ports"/* | head -1)
+
+letters=(a b c d e f g h)
+for i in $(seq 0 $((nodes - 1))); do
+  n=${letters[$i]}
+  cat > "$dir/$n.conf" <<EOF
+database = $database
+nats = $nats_url
+nats_user = voxnode
+nats_password = bench-only-secret
+world = bench
+node = $n
+zone_chunks = ${ZONE_CHUNKS:-16}
+EOF
+  chmod 600 "$dir/$n.conf"
+done
+others=()
+for i in $(seq 1 $((nodes - 1))); do
+  n=${letters[$i]}
+  "$bin/voxeld" --cluster "$dir/$n.conf" --port 0 --port-file "$dir/$n.port" --max-memory 1G \
+    --max-clients 4000 --stats-interval 10 > "$dir/$n.log" 2>&1 &
+  pids+=($!)
+  others+=("$n:$!")
+done
+for o in "${others[@]}"; do
+  pid=${o#*:}
+  "$root/bench/scripts/thread_cpu.py" "$pid" 10 $((duration > 10 ? duration - 5 : duration)) \
+    > "$dir/${o%%:*}.threads" 2>/dev/null &
+done
+VOXELD_ARGS="--cluster $dir/a.conf ${VOXELD_ARGS:-}" "$root/bench/scripts/attack_run.sh" \
+  "$name" "$players" "$duration" -- "$@"
+for o in "${others[@]}"; do
+  echo "node ${o%%:*}:"
+  cat "$dir/${o%%:*}.threads" 2>/dev/null || true
+done
+grep -h "fenced\|took zone\|lost zone" "$dir"/*.log /tmp/voxeld_bench/"$name".log 2>/dev/null | wc -l |
+  xargs echo "zone events (took, lost, fenced) in the nodes' logs:"
