@@ -311,6 +311,7 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
   std::mutex mutex;
   std::vector<std::string> accepted;           // the accepted edits' encodings
   std::map<std::string, wire::Envelope> sent;  // every edit sent, by its encoding
+  std::vector<std::chrono::steady_clock::time_point> accepted_at;
   std::atomic<bool> stop{false};
   std::atomic<int> refused{0};
   const auto editor = [&](const ServerProcess& node, int player) {
@@ -331,6 +332,7 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
       }
       std::lock_guard lock(mutex);
       accepted.push_back(key);
+      accepted_at.push_back(std::chrono::steady_clock::now());
     }
   };
   std::thread on_a(editor, std::cref(a), 0), on_b(editor, std::cref(b), 1);
@@ -341,8 +343,9 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
   ASSERT_TRUE(eventually(
       nullptr, [&] { return count() >= 20; }, 20s))
       << "no edits accepted";
-  c.reset();  // SIGKILL
   const size_t at_kill = count();
+  const auto killed_at = std::chrono::steady_clock::now();
+  c.reset();  // SIGKILL
   const bool recovered = eventually(
       nullptr, [&] { return count() >= at_kill + 20; }, 30s);
   stop = true;
@@ -378,8 +381,18 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
     EXPECT_TRUE(eventually(&a, [&] { return view_of(a, x, z) == expected; })) << "a differs";
     EXPECT_TRUE(eventually(&b, [&] { return view_of(b, x, z) == expected; })) << "b differs";
   }
-  std::printf("accepted %zu edits (%zu before the kill), %d refused during the failover\n",
-              accepted.size(), at_kill, refused.load());
+  // Not a timed test: the figure is printed for docs/PERFORMANCE.md, never asserted.
+  double writable_after_ms = -1;
+  for (const auto& t : accepted_at) {
+    if (t > killed_at) {
+      writable_after_ms = std::chrono::duration<double, std::milli>(t - killed_at).count();
+      break;
+    }
+  }
+  std::printf(
+      "accepted %zu edits (%zu before the kill), %d refused during the failover; the first "
+      "accepted after the kill came %.0f ms after it (lease 1 s)\n",
+      accepted.size(), at_kill, refused.load(), writable_after_ms);
 }
 
 // NATS restarted mid-run: records published while it was down are read from the zones'

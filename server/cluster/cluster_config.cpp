@@ -35,7 +35,8 @@ ClusterConfig read_cluster_config(const std::string& path) {
   keys.add_options()("database", po::value(&c.database))("nats", po::value(&c.nats.url))(
       "nats_user", po::value(&c.nats.user))("nats_password", po::value(&c.nats.password))(
       "world", po::value(&c.world))("node", po::value(&c.node))("lease_ms", po::value(&lease_ms))(
-      "zone_chunks", po::value(&c.zone_chunks));
+      "zone_chunks", po::value(&c.zone_chunks))("max_followed_zones",
+                                                po::value(&c.max_followed_zones));
   try {
     po::variables_map vm;
     po::store(po::parse_config_file(in, keys, false), vm);
@@ -54,6 +55,8 @@ ClusterConfig read_cluster_config(const std::string& path) {
   c.lease = std::chrono::milliseconds(lease_ms);
   if (c.zone_chunks < 1 || c.zone_chunks > world::kMaxZoneChunks)
     throw bad("zone_chunks must be 1 .. " + std::to_string(world::kMaxZoneChunks));
+  if (c.max_followed_zones < 1 || c.max_followed_zones > 1024)
+    throw bad("max_followed_zones must be 1 .. 1024");
   if (c.node.empty()) c.node = default_node();
   if (c.node.size() > 200) throw bad("node: at most 200 bytes");
   c.nats.name = "voxeld " + c.node;

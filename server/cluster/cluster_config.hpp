@@ -12,6 +12,8 @@
 //   node = eu-1             # default: <host name>-<process id>, new for every run
 //   lease_ms = 3000
 //   zone_chunks = 16        # fixed when the world is made; every node must agree
+//   max_followed_zones = 32 # zones followed at once for players' views (each holds a
+//                           # database connection: max_connections >= nodes x (this + 4))
 //
 // Pure functions: any thread.
 #pragma once
@@ -30,6 +32,7 @@ struct ClusterConfig {
   std::string node;
   std::chrono::milliseconds lease{3000};
   int zone_chunks = 16;
+  int max_followed_zones = 32;
 };
 
 // Throws ClusterError naming the file (and the key) for a file that cannot be read, an

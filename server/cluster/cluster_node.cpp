@@ -30,7 +30,11 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
       publisher_(nats_, append_db_, config_.world),
       store_(table_, publisher_, config_.zone_chunks, seed,
              "cluster world " + config_.world + " (" + store::redact_uri(config_.database) + ")"),
-      replicas_(nats_, {.world = config_.world, .uri = config_.database, .node = config_.node},
+      replicas_(nats_,
+                {.world = config_.world,
+                 .uri = config_.database,
+                 .node = config_.node,
+                 .max_zones = static_cast<size_t>(config_.max_followed_zones)},
                 [this] {
                   if (wake_) wake_();
                 }) {

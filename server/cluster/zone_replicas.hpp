@@ -38,7 +38,7 @@ class ZoneReplicas {
   using Clock = std::chrono::steady_clock;
   struct Config {
     std::string world, uri, node;
-    size_t max_zones = 64;
+    size_t max_zones = 32;
     std::chrono::milliseconds idle{std::chrono::minutes(5)};
     size_t max_waiting = 4096;  // records per zone waiting for the pipeline
   };
