@@ -58,8 +58,13 @@ std::string take_subject(const std::string& world) { return "vox." + world + ".t
 }  // namespace
 
 void ClusterNode::start(const std::string& address) {
-  forwarder_ = std::make_unique<EditForwarder>(nats_, EditForwarder::Config{.world = config_.world},
-                                               [this](world::ZoneId zone) { ask_to_take(zone); });
+  // A holder silent for a lease has likely lost its zones too: the edit is refused and the
+  // zone asked for, rather than the player kept waiting.
+  forwarder_ = std::make_unique<EditForwarder>(
+      nats_,
+      EditForwarder::Config{.world = config_.world,
+                            .timeout = std::max(config_.lease, std::chrono::milliseconds(1000))},
+      [this](world::ZoneId zone) { ask_to_take(zone); });
   keeper_ = std::make_unique<ZoneKeeper>(
       ZoneKeeper::Config{.uri = config_.database,
                          .node = config_.node,
@@ -89,6 +94,19 @@ void ClusterNode::ask_to_take(world::ZoneId zone) {
     nats_.publish(take_subject(config_.world), bytes);
   } catch (const ClusterError&) {  // the next edit asks again
   }
+}
+
+ClusterNode::Figures ClusterNode::figures() const {
+  Figures f;
+  f.zones_held = zones_held();
+  f.zones_followed = zones_followed();
+  f.appends_fenced = fenced();
+  if (const EditForwarder* fw = forwarder_.get()) {
+    f.edits_forwarded = fw->forwarded();
+    f.forwards_unheld = fw->unheld();
+    f.forwards_timed_out = fw->timed_out();
+  }
+  return f;
 }
 
 void ClusterNode::stop(bool release) {

@@ -58,6 +58,12 @@ class ClusterNode : public pipeline::ZoneAuthority {
   size_t zones_held() const { return keeper_ ? keeper_->held_count() : 0; }
   size_t zones_followed() const { return replicas_.followed(); }
   uint64_t fenced() const { return append_db_.fenced(); }  // appends the fence refused
+  // What /metrics shows of the node (any thread).
+  struct Figures {
+    size_t zones_held = 0, zones_followed = 0;
+    uint64_t appends_fenced = 0, edits_forwarded = 0, forwards_unheld = 0, forwards_timed_out = 0;
+  };
+  Figures figures() const;
 
   // pipeline::ZoneAuthority (the pipeline thread).
   void set_wake(std::function<void()> wake) override { wake_ = std::move(wake); }

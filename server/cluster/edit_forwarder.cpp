@@ -57,6 +57,7 @@ void EditForwarder::forward(world::ZoneId zone, EditRequest request, Done done) 
                         "too many edits wait for other nodes; retry shortly"));
   }
   request.id = next_id_++;
+  forwarded_.fetch_add(1, std::memory_order_relaxed);
   pending_[request.id] = Pending{std::move(done), zone, Clock::now() + config_.timeout};
   lock.unlock();
   const uint64_t id = request.id;
@@ -90,6 +91,7 @@ void EditForwarder::on_reply(const NatsMessage& m) {
   pending_.erase(it);
   lock.unlock();
   if (m.no_responders) {
+    unheld_.fetch_add(1, std::memory_order_relaxed);
     nobody_holds_(p.zone);
     return p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
                           "zone (" + std::to_string(p.zone.x) + ", " + std::to_string(p.zone.z) +
@@ -119,6 +121,7 @@ void EditForwarder::sweep() {
       }
     }
   }
+  timed_out_.fetch_add(late.size(), std::memory_order_relaxed);
   for (auto& [id, p] : late) {
     nobody_holds_(p.zone);  // its holder may have died or stalled: the next live one takes it
     p.done(refusal(id, world::RefusalReason::kStorageUnavailable,

@@ -12,6 +12,7 @@
 // of sweep (or the destructor, which refuses what still waits).
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -44,6 +45,10 @@ class EditForwarder {
   // Refuses the requests past their time.
   void sweep();
   size_t pending() const;
+  // Counts since start (any thread): edits forwarded, refused for no holder, timed out.
+  uint64_t forwarded() const { return forwarded_.load(std::memory_order_relaxed); }
+  uint64_t unheld() const { return unheld_.load(std::memory_order_relaxed); }
+  uint64_t timed_out() const { return timed_out_.load(std::memory_order_relaxed); }
 
  private:
   struct Pending {
@@ -62,6 +67,7 @@ class EditForwarder {
   std::map<uint64_t, Pending> pending_;
   uint64_t next_id_ = 1;
   uint64_t subscription_ = 0;
+  std::atomic<uint64_t> forwarded_{0}, unheld_{0}, timed_out_{0};
 };
 
 }  // namespace vox::cluster

@@ -76,6 +76,28 @@ std::filesystem::path default_http_root() {
   return {};
 }
 
+// A cluster node's figures on /metrics (none for a single node).
+metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node) {
+  if (!node) return {};
+  return [node] {
+    const cluster::ClusterNode::Figures f = node->figures();
+    return std::vector<metrics::ExtraFigure>{
+        {"voxeld_cluster_zones_held", "Zones this node holds", false, double(f.zones_held)},
+        {"voxeld_cluster_zones_followed", "Zones followed for players' views", false,
+         double(f.zones_followed)},
+        {"voxeld_cluster_appends_fenced_total",
+         "Appends refused because another node took the zone (the fence)", true,
+         double(f.appends_fenced)},
+        {"voxeld_cluster_edits_forwarded_total", "Edits sent to the node holding their zone", true,
+         double(f.edits_forwarded)},
+        {"voxeld_cluster_forwards_unheld_total", "Forwarded edits no node held the zone of", true,
+         double(f.forwards_unheld)},
+        {"voxeld_cluster_forwards_timed_out_total",
+         "Forwarded edits whose holder did not answer within a lease", true,
+         double(f.forwards_timed_out)}};
+  };
+}
+
 // Runs the opened world until a signal; throws what the server throws. `node`: a cluster
 // node's links (null: a single node).
 void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
@@ -89,8 +111,8 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   server.start();
   std::unique_ptr<metrics::MetricsEndpoint> metrics;
   if (c.metrics_port) {
-    metrics =
-        std::make_unique<metrics::MetricsEndpoint>(c.net.bind, *c.metrics_port, counters, pipeline);
+    metrics = std::make_unique<metrics::MetricsEndpoint>(c.net.bind, *c.metrics_port, counters,
+                                                         pipeline, cluster_figures(node));
     spdlog::info("metrics on http://{}:{}/metrics", c.net.bind, metrics->port());
     if (!c.metrics_port_file.empty()) write_port_file(c.metrics_port_file, metrics->port());
   }
@@ -121,6 +143,7 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   for (int i = 1; i < c.io_threads; ++i) threads.emplace_back([&io] { io.run(); });
   io.run();
   for (auto& t : threads) t.join();
+  metrics.reset();             // it reads the node's figures
   if (node) node->stop(true);  // the pipeline's appends landed: hand the zones off
 }
 

@@ -71,11 +71,17 @@ std::string lower(std::string s) {
 
 class MetricsEndpoint::Collector : public prometheus::Collectable {
  public:
-  Collector(const net::ServerCounters& counters, const pipeline::WorldPipeline& pipeline)
-      : c_(counters), pipeline_(pipeline) {}
+  Collector(const net::ServerCounters& counters, const pipeline::WorldPipeline& pipeline,
+            Extra extra)
+      : c_(counters), pipeline_(pipeline), extra_(std::move(extra)) {}
 
   std::vector<MetricFamily> Collect() const override {  // exposer threads
     std::vector<MetricFamily> out;
+    if (extra_) {
+      for (const ExtraFigure& f : extra_())
+        single(out, f.name.c_str(), f.help.c_str(),
+               f.counter ? MetricType::Counter : MetricType::Gauge, f.value);
+    }
     connections(out);
     edits(out);
     world(out);
@@ -302,12 +308,13 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
 
   const net::ServerCounters& c_;
   const pipeline::WorldPipeline& pipeline_;
+  const Extra extra_;
 };
 
 MetricsEndpoint::MetricsEndpoint(const std::string& bind, uint16_t port,
                                  const net::ServerCounters& counters,
-                                 const pipeline::WorldPipeline& pipeline)
-    : collector_(std::make_shared<Collector>(counters, pipeline)) {
+                                 const pipeline::WorldPipeline& pipeline, Extra extra)
+    : collector_(std::make_shared<Collector>(counters, pipeline, std::move(extra))) {
   const std::string address =
       (bind.find(':') != std::string::npos ? "[" + bind + "]" : bind) + ":" + std::to_string(port);
   exposer_ = std::make_unique<prometheus::Exposer>(address, 2);

@@ -5,8 +5,10 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "server/net/server_counters.hpp"
 #include "server/pipeline/world_pipeline.hpp"
@@ -17,11 +19,19 @@ class Exposer;
 
 namespace vox::metrics {
 
+// A figure of a part the endpoint does not know (a cluster node's), read at each scrape.
+struct ExtraFigure {
+  std::string name, help;
+  bool counter = false;  // else a gauge
+  double value = 0;
+};
+
 class MetricsEndpoint {
  public:
+  using Extra = std::function<std::vector<ExtraFigure>()>;  // called on the exposer's threads
   // Listens on bind:port (0: a free port); throws std::exception when it cannot.
   MetricsEndpoint(const std::string& bind, uint16_t port, const net::ServerCounters& counters,
-                  const pipeline::WorldPipeline& pipeline);
+                  const pipeline::WorldPipeline& pipeline, Extra extra = {});
   ~MetricsEndpoint();
   uint16_t port() const { return port_; }
 

@@ -21,6 +21,7 @@
 // call reconnects.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -112,7 +113,7 @@ class ZoneLeases {
   WorldSettings settle_world(const WorldSettings& mine);
 
   // Writes this object refused by the fence so far.
-  uint64_t fenced() const { return fenced_; }
+  uint64_t fenced() const { return fenced_.load(std::memory_order_relaxed); }  // any thread
 
  private:
   template <typename Fn>
@@ -122,7 +123,7 @@ class ZoneLeases {
   std::string uri_, name_, node_;
   std::chrono::milliseconds lease_;
   std::unique_ptr<Connection> conn_;
-  uint64_t fenced_ = 0;
+  std::atomic<uint64_t> fenced_{0};
 };
 
 }  // namespace vox::store
