@@ -8,6 +8,7 @@
 #include "server/cluster/edit_wire.hpp"
 #include "server/cluster/zone_wire.hpp"
 #include "server/store/postgres_store.hpp"
+#include "server/world/edit_apply.hpp"
 
 namespace vox::cluster {
 
@@ -176,25 +177,36 @@ void ClusterNode::serve(const NatsMessage& m) {
           });
 }
 
-void ClusterNode::relay(EditReply reply, std::function<void(const pipeline::EditResult&)> done) {
+// The meshes this node has of the chunks whose meshes read an edit's samples (its box and
+// one voxel around).
+ClusterNode::Versions ClusterNode::versions_around(const world::VoxelBox& box) const {
+  Versions out;
+  if (!mesh_version_) return out;
+  world::VoxelBox around = box;
+  for (int i = 0; i < 3; ++i) {
+    around.lo[i] = around.lo[i] > INT32_MIN ? around.lo[i] - 1 : around.lo[i];
+    around.hi[i] = around.hi[i] < INT32_MAX ? around.hi[i] + 1 : around.hi[i];
+  }
+  for (const world::ChunkCoord& c : world::chunks_overlapping(around))
+    out.emplace_back(c, mesh_version_(c));
+  return out;
+}
+
+void ClusterNode::relay(EditReply reply, Versions before,
+                        std::function<void(const pipeline::EditResult&)> done) {
   pipeline::EditResult result;
   result.accepted = reply.reason == world::RefusalReason::kNone;
   result.reason = reply.reason;
   result.message = std::move(reply.message);
-  result.changed_chunks = std::move(reply.changed_chunks);
   result.clipped_by = std::move(reply.clipped_by);
   // Its meshes before its result, as on a single node: wait for the zones this node
   // follows to show it (at most a moment: a follower may be slow to start).
   std::erase_if(reply.zones, [this](const auto& z) { return !replicas_.following(z.first); });
-  if (!result.accepted || reply.zones.empty() || !done) {
-    if (done) done(result);
-    return;
-  }
   {
     std::lock_guard lock(relay_mutex_);
     relays_.push_back(Relay{std::move(reply.zones),
                             std::chrono::steady_clock::now() + std::chrono::seconds(2),
-                            std::move(result), std::move(done)});
+                            std::move(result), std::move(done), std::move(before)});
   }
   release_relays(false);
 }
@@ -215,7 +227,15 @@ void ClusterNode::release_relays(bool all) {
       }
     }
   }
-  for (Relay& r : ready) r.done(r.result);
+  for (Relay& r : ready) {
+    if (r.result.accepted) {
+      // Its changed chunks as this node shows them: the meshes around it that changed.
+      for (const auto& [c, version] : r.before) {
+        if (mesh_version_ && mesh_version_(c) != version) r.result.changed_chunks.push_back(c);
+      }
+    }
+    if (r.done) r.done(r.result);
+  }
 }
 
 void ClusterNode::round() {
@@ -275,7 +295,9 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
       zones.front(),
       EditRequest{
           .id = 0, .bypass_regions = task.bypass_regions, .author = task.author, .edit = task.edit},
-      [this, done = std::move(task.done)](const EditReply& r) { relay(r, done); });
+      [this, before = versions_around(box), done = std::move(task.done)](const EditReply& r) {
+        relay(r, before, done);
+      });
   task.done = nullptr;
   return Verdict::kForwarded;
 }

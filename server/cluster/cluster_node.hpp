@@ -47,6 +47,11 @@ class ClusterNode : public pipeline::ZoneAuthority {
   using Submit = std::function<void(world::Edit edit, std::string author, bool bypass_regions,
                                     std::function<void(const pipeline::EditResult&)> done)>;
   void set_submit(Submit submit) { submit_ = std::move(submit); }
+  // The version of this node's published mesh of a chunk, 0 for none (any thread; set
+  // before start): a forwarded edit's changed_chunks are the chunks around it whose mesh
+  // here changed between its forwarding and its answer.
+  using MeshVersionOf = std::function<uint64_t(world::ChunkCoord)>;
+  void set_mesh_version(MeshVersionOf of) { mesh_version_ = std::move(of); }
   // Starts taking zones and answering edits forwarded to them (after the pipeline exists:
   // it set its wake-up). `address`: where players reach this node (the live nodes' list).
   void start(const std::string& address);
@@ -80,7 +85,10 @@ class ClusterNode : public pipeline::ZoneAuthority {
   void serve(const NatsMessage& m);                // a NATS thread: a forwarded edit
   // A forwarded edit's answer, relayed to the player once this node's world shows it (or
   // a while later: the zone may not be followed here).
-  void relay(EditReply reply, std::function<void(const pipeline::EditResult&)> done);
+  using Versions = std::vector<std::pair<world::ChunkCoord, uint64_t>>;
+  void relay(EditReply reply, Versions before,
+             std::function<void(const pipeline::EditResult&)> done);
+  Versions versions_around(const world::VoxelBox& box) const;
   void release_relays(bool all);                            // any thread
   void ask_to_take(world::ZoneId zone);                     // any thread
   std::optional<pipeline::ZoneRecords> catch_up();          // the pipeline thread
@@ -100,7 +108,8 @@ class ClusterNode : public pipeline::ZoneAuthority {
   std::vector<store::ZoneRecord> handed_;
   // Pipeline thread: per zone catching up, the log's last record when it began.
   std::map<world::ZoneId, uint64_t> targets_;
-  Submit submit_;  // set before start()
+  Submit submit_;               // set before start()
+  MeshVersionOf mesh_version_;  // likewise
   std::unique_ptr<EditForwarder> forwarder_;
   uint64_t take_subscription_ = 0;
   std::map<world::ZoneId, uint64_t> serving_;  // the keeper's thread: edit subscriptions
@@ -109,6 +118,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
     std::chrono::steady_clock::time_point deadline;
     pipeline::EditResult result;
     std::function<void(const pipeline::EditResult&)> done;
+    Versions before;  // the meshes around the edit when it was forwarded
   };
   std::mutex relay_mutex_;  // guards relays_ (leaf; bounded by the forwarder's pending bound)
   std::vector<Relay> relays_;

@@ -121,6 +121,10 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
                                  std::function<void(const pipeline::EditResult&)> done) {
       pipeline.submit(std::move(edit), std::move(done), 0, std::move(author), bypass, true);
     });
+    node->set_mesh_version([&pipeline](world::ChunkCoord chunk) -> uint64_t {
+      const pipeline::MeshVersionPtr m = pipeline.meshes().get(chunk);
+      return m ? m->version : 0;
+    });
     node->start(c.net.bind + ":" + std::to_string(server.port()));
   }
   if (!c.port_file.empty()) write_port_file(c.port_file, server.port());
