@@ -9,6 +9,7 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -49,44 +50,44 @@ std::string node_config(const TempDir& tmp, const std::string& node, const std::
   return path.string();
 }
 
-wire::Envelope brush(uint64_t request, float x, float z, int material, float radius = 5.5f) {
+// An edit message of `request` whose centre is at (x, surface, z).
+wire::Envelope edit_at(uint64_t request, float x, float z,
+                       const std::function<wire::Vec3*(wire::Edit*)>& shape) {
   wire::Envelope m;
-  auto* e = m.mutable_edit();
-  e->set_request_id(request);
-  auto* b = e->mutable_brush();
-  b->mutable_center()->set_x(x);
-  b->mutable_center()->set_y(surface_y(x, z));
-  b->mutable_center()->set_z(z);
-  b->set_radius(radius);
-  b->set_strength(0.8f);
-  b->set_material(static_cast<uint32_t>(material));
+  m.mutable_edit()->set_request_id(request);
+  wire::Vec3* center = shape(m.mutable_edit());
+  center->set_x(x);
+  center->set_y(surface_y(x, z));
+  center->set_z(z);
   return m;
+}
+
+wire::Envelope brush(uint64_t request, float x, float z, int material, float radius = 5.5f) {
+  return edit_at(request, x, z, [&](wire::Edit* e) {
+    auto* b = e->mutable_brush();
+    b->set_radius(radius);
+    b->set_strength(0.8f);
+    b->set_material(static_cast<uint32_t>(material));
+    return b->mutable_center();
+  });
 }
 
 wire::Envelope explosion(uint64_t request, float x, float z) {
-  wire::Envelope m;
-  auto* e = m.mutable_edit();
-  e->set_request_id(request);
-  auto* x1 = e->mutable_explosion();
-  x1->mutable_center()->set_x(x);
-  x1->mutable_center()->set_y(surface_y(x, z));
-  x1->mutable_center()->set_z(z);
-  x1->set_radius(7);
-  x1->set_power(1.3f);
-  return m;
+  return edit_at(request, x, z, [](wire::Edit* e) {
+    auto* x1 = e->mutable_explosion();
+    x1->set_radius(7);
+    x1->set_power(1.3f);
+    return x1->mutable_center();
+  });
 }
 
 wire::Envelope smooth(uint64_t request, float x, float z) {
-  wire::Envelope m;
-  auto* e = m.mutable_edit();
-  e->set_request_id(request);
-  auto* s = e->mutable_smooth();
-  s->mutable_center()->set_x(x);
-  s->mutable_center()->set_y(surface_y(x, z));
-  s->mutable_center()->set_z(z);
-  s->set_radius(6);
-  s->set_strength(0.5f);
-  return m;
+  return edit_at(request, x, z, [](wire::Edit* e) {
+    auto* s = e->mutable_smooth();
+    s->set_radius(6);
+    s->set_strength(0.5f);
+    return s->mutable_center();
+  });
 }
 
 // Brushes and explosions on and across the zone borders at x = 64 and z = 64, a paint-like

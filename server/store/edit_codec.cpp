@@ -5,75 +5,30 @@
 #include <cstring>
 #include <sstream>
 
+#include "server/world/byte_io.hpp"
+
 namespace vox::store {
 namespace {
 
 enum Kind : uint8_t { kBrush = 0, kExplosion = 1, kSmooth = 2, kPaint = 3, kStamp = 4 };
 
-class Writer {
+class Writer : public world::ByteWriter {
  public:
   Writer() = default;  // no header
-  explicit Writer(Kind kind) : out_{kEditFormat, kind} {}
-  Writer& u8(uint8_t v) {
-    out_.push_back(v);
+  explicit Writer(Kind kind) : ByteWriter({kEditFormat, kind}) {}
+  Writer& vec(const world::Vec3& v) {
+    f32(v.x).f32(v.y).f32(v.z);
     return *this;
   }
-  Writer& f32(float v) {
-    const auto bits = std::bit_cast<uint32_t>(v);
-    for (int i = 0; i < 4; ++i) out_.push_back(static_cast<uint8_t>(bits >> (8 * i)));
-    return *this;
-  }
-  Writer& vec(const world::Vec3& v) { return f32(v.x).f32(v.y).f32(v.z); }
-  Writer& i32(int32_t v) {
-    const auto bits = static_cast<uint32_t>(v);
-    for (int i = 0; i < 4; ++i) out_.push_back(static_cast<uint8_t>(bits >> (8 * i)));
-    return *this;
-  }
-  std::vector<uint8_t> take() { return std::move(out_); }
-
- private:
-  std::vector<uint8_t> out_;
 };
 
-class Reader {
+class Reader : public world::ByteReader {
  public:
-  explicit Reader(std::span<const uint8_t> bytes) : bytes_(bytes) {}
-  uint8_t u8() {
-    if (pos_ + 1 > bytes_.size()) return fail();
-    return bytes_[pos_++];
-  }
-  float f32() {
-    if (pos_ + 4 > bytes_.size()) return fail();
-    uint32_t bits = 0;
-    for (int i = 0; i < 4; ++i) bits |= uint32_t{bytes_[pos_ + i]} << (8 * i);
-    pos_ += 4;
-    return std::bit_cast<float>(bits);
-  }
+  using ByteReader::ByteReader;
   world::Vec3 vec() {
     const float x = f32(), y = f32(), z = f32();
     return {x, y, z};
   }
-  int32_t i32() {
-    if (pos_ + 4 > bytes_.size()) return fail();
-    uint32_t bits = 0;
-    for (int i = 0; i < 4; ++i) bits |= uint32_t{bytes_[pos_ + i]} << (8 * i);
-    pos_ += 4;
-    return static_cast<int32_t>(bits);
-  }
-  uint16_t u16() {
-    const uint8_t lo = u8(), hi = u8();
-    return static_cast<uint16_t>(lo | (hi << 8));
-  }
-  bool ok_at_end() const { return ok_ && pos_ == bytes_.size(); }
-
- private:
-  uint8_t fail() {
-    ok_ = false;
-    return 0;
-  }
-  std::span<const uint8_t> bytes_;
-  size_t pos_ = 0;
-  bool ok_ = true;
 };
 
 struct Encode {
@@ -174,7 +129,7 @@ std::vector<uint8_t> encode_edit(const world::Edit& edit, std::span<const world:
   out[0] = kClippedEditFormat;
   const size_t n = std::min(keep.size(), kMaxKeepBoxes);  // callers stay below it
   Writer w;
-  w.u8(static_cast<uint8_t>(n & 0xff)).u8(static_cast<uint8_t>(n >> 8));
+  w.u16(static_cast<uint16_t>(n));
   for (size_t i = 0; i < n; ++i)
     for (const auto& corner : {keep[i].lo, keep[i].hi})
       for (const int32_t v : corner) w.i32(v);
@@ -206,7 +161,7 @@ std::optional<EditRecord> decode_edit_record(std::span<const uint8_t> bytes, std
         if (box.lo[a] > box.hi[a]) return fail("clipped edit record with an inverted box");
     }
   }
-  if (!r.ok_at_end()) return fail("edit record of the wrong length");
+  if (!r.done()) return fail("edit record of the wrong length");
   return record;
 }
 
