@@ -462,6 +462,33 @@ TEST(ClusterNode, WhilePostgresqlIsDownEditsAreRefusedAndAfterwardsTakenAgain) {
   EXPECT_TRUE(view_of(a, 40, 40) == view_of(fresh, 40, 40)) << "the refused edit left a trace";
 }
 
+// A node stopped (SIGTERM) while it follows zones, whose records keep arriving, and while it
+// holds zones: it hands them off and exits 0 (its followers were stopped before the
+// pipeline they wake went away).
+TEST(ClusterNode, ANodeFollowingAndHoldingZonesStopsCleanlyOnSigterm) {
+  const Cluster cluster;
+  const auto [x_, z_] = middle_of_a_zone_of("a");
+  const float x = x_, z = z_;
+  const auto [bx_, bz_] = middle_of_a_zone_of("b");
+  ServerProcess a({"--cluster", cluster.config("a")});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  auto viewer = player(b, "viewer");
+  view(*viewer, x, surface_y(x, z), z, 1);
+  auto editor = player(a, "editor");
+  ASSERT_EQ(edit_until_accepted(*editor, brush(1, bx_, bz_, 2, 3)).status(),
+            wire::EditResult::ACCEPTED);  // b holds its zone (a forwarded it)
+  std::atomic<bool> stop{false};
+  std::thread edits([&] {
+    for (uint64_t i = 2; !stop; ++i)
+      edit_and_wait(*editor, brush(i, x, z, static_cast<int>(1 + i % 4), 3), 2s);
+  });
+  std::this_thread::sleep_for(500ms);
+  EXPECT_EQ(b.terminate(), 0) << "b did not stop cleanly (see its log)";
+  stop = true;
+  edits.join();
+  EXPECT_EQ(a.terminate(), 0);
+}
+
 TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
   const Cluster cluster;
   ServerProcess a({"--cluster", cluster.config("a")});

@@ -118,6 +118,7 @@ void ClusterNode::stop(bool release) {
   serving_.clear();
   forwarder_.reset();  // refuses what still waits for an answer
   release_relays(true);
+  replicas_.stop();  // no record, and no wake-up of the pipeline, comes after this
 }
 
 void ClusterNode::taken(world::ZoneId zone, uint64_t epoch) {

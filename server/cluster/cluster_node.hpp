@@ -120,7 +120,9 @@ class ClusterNode : public pipeline::ZoneAuthority {
     std::function<void(const pipeline::EditResult&)> done;
     Versions before;  // the meshes around the edit when it was forwarded
   };
-  std::mutex relay_mutex_;  // guards relays_ (leaf; bounded by the forwarder's pending bound)
+  // Guards relays_ (bounded by the forwarder's pending bound); taken before the zone table's
+  // lock, never held across a callback.
+  std::mutex relay_mutex_;
   std::vector<Relay> relays_;
   std::unique_ptr<ZoneKeeper> keeper_;
 };

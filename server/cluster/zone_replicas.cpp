@@ -16,10 +16,14 @@ constexpr size_t kViewedPerFollowed = 4;
 ZoneReplicas::ZoneReplicas(NatsLink& nats, Config config, std::function<void()> wake)
     : nats_(nats), config_(std::move(config)), wake_(std::move(wake)) {}
 
-ZoneReplicas::~ZoneReplicas() {
+ZoneReplicas::~ZoneReplicas() { stop(); }
+
+void ZoneReplicas::stop() {
+  stopped_ = true;
   std::vector<world::ZoneId> zones;
   for (const auto& [zone, f] : followers_) zones.push_back(zone);
   for (const world::ZoneId zone : zones) stop_follower(zone);
+  followed_.store(0, std::memory_order_relaxed);
 }
 
 void ZoneReplicas::viewing(world::ZoneId zone) {
@@ -35,6 +39,7 @@ void ZoneReplicas::viewing(world::ZoneId zone) {
 
 void ZoneReplicas::reconcile(const std::function<bool(world::ZoneId)>& held,
                              const std::function<uint64_t(world::ZoneId)>& applied) {
+  if (stopped_) return;
   const Clock::time_point now = Clock::now();
   std::vector<std::pair<Clock::time_point, world::ZoneId>> wanted;  // newest first
   {

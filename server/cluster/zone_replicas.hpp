@@ -68,6 +68,9 @@ class ZoneReplicas {
   void give_back(world::ZoneId zone, std::vector<store::ZoneRecord> records);
   bool waiting() const;
   bool following(world::ZoneId zone) const;  // any thread
+  // Stops every follower, for good (reconcile's thread, or once that thread has ended):
+  // after it no record arrives and `wake` is not called again.
+  void stop();
   size_t followed() const { return followed_.load(std::memory_order_relaxed); }
 
  private:
@@ -83,6 +86,7 @@ class ZoneReplicas {
   std::map<world::ZoneId, bool> stopping_;  // a follower being stopped: its queue is not waited on
   std::map<world::ZoneId, std::unique_ptr<ZoneFollower>> followers_;  // reconcile's thread
   std::atomic<size_t> followed_{0};
+  bool stopped_ = false;  // reconcile's thread
 };
 
 }  // namespace vox::cluster
