@@ -73,7 +73,9 @@ void ClusterNode::start(const std::string& address) {
                          .lease = config_.lease},
       ZoneKeeper::Events{.taken = [this](world::ZoneId z, uint64_t epoch) { taken(z, epoch); },
                          .lost = [this](world::ZoneId z, uint64_t epoch) { lost(z, epoch); },
-                         .round = [this] { round(); }});
+                         .round = [this] { round(); },
+                         // The node now ranking first takes it at once, not at the next edit.
+                         .handed_off = [this](world::ZoneId z) { ask_to_take(z); }});
   take_subscription_ = nats_.subscribe(take_subject(config_.world), [this](const NatsMessage& m) {
     if (m.data.size() != 8) return;
     uint64_t key = 0;

@@ -123,6 +123,7 @@ void ZoneKeeper::round() {
       const uint64_t epoch = held.at(zone).epoch;
       lose(zone, epoch, "handed off to the node that now ranks first");
       db.release(zone, epoch);
+      if (events_.handed_off) events_.handed_off(zone);
     }
     for (const world::ZoneId zone : plan.take) {
       if (const auto epoch = db.acquire(zone)) {
