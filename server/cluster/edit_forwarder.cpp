@@ -100,7 +100,9 @@ void EditForwarder::on_reply(const NatsMessage& m) {
   std::string why;
   std::optional<EditReply> reply = decode_edit_reply(m.data, &why);
   if (!reply) {
-    spdlog::warn("cluster: a damaged edit reply: {}", why);
+    const uint64_t damaged = ++damaged_;
+    if (damaged % 1000 == 1)  // one line per thousand
+      spdlog::warn("cluster: a damaged edit reply: {} [{} so far]", why, damaged);
     return p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
                           "the zone's holder answered in a form this node cannot read"));
   }

@@ -67,7 +67,7 @@ class EditForwarder {
   std::map<uint64_t, Pending> pending_;
   uint64_t next_id_ = 1;
   uint64_t subscription_ = 0;
-  std::atomic<uint64_t> forwarded_{0}, unheld_{0}, timed_out_{0};
+  std::atomic<uint64_t> forwarded_{0}, unheld_{0}, timed_out_{0}, damaged_{0};
 };
 
 }  // namespace vox::cluster

@@ -87,7 +87,11 @@ void ZoneReplicas::reconcile(const std::function<bool(world::ZoneId)>& held,
             wake_();
           });
     } catch (const std::exception& e) {
-      spdlog::warn("cluster: cannot follow zone ({}, {}) now: {}", zone.x, zone.z, e.what());
+      if (now - warned_at_ >= std::chrono::seconds(10)) {  // at most one line per 10 s
+        warned_at_ = now;
+        spdlog::warn("cluster: cannot follow zone ({}, {}) now: {} (tried again each round)",
+                     zone.x, zone.z, e.what());
+      }
     }
   }
   followed_.store(followers_.size(), std::memory_order_relaxed);

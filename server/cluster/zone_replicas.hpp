@@ -86,7 +86,8 @@ class ZoneReplicas {
   std::map<world::ZoneId, bool> stopping_;  // a follower being stopped: its queue is not waited on
   std::map<world::ZoneId, std::unique_ptr<ZoneFollower>> followers_;  // reconcile's thread
   std::atomic<size_t> followed_{0};
-  bool stopped_ = false;  // reconcile's thread
+  bool stopped_ = false;         // reconcile's thread
+  Clock::time_point warned_at_;  // likewise: the last "cannot follow" line
 };
 
 }  // namespace vox::cluster
