@@ -106,6 +106,9 @@ TEST(ClusterNode, ANodeFollowingAndHoldingZonesStopsCleanlyOnSigterm) {
   EXPECT_EQ(b.terminate(), 0) << "b did not stop cleanly (see its log)";
   stop = true;
   edits.join();
+  // b handed its zone on as it stopped: a takes it and edits there go on.
+  EXPECT_EQ(edit_until_accepted(*editor, brush(1000, bx_, bz_ + 3, 3, 3)).status(),
+            wire::EditResult::ACCEPTED);
   EXPECT_EQ(a.terminate(), 0);
 }
 

@@ -80,6 +80,7 @@ void ZoneKeeper::run() {
     if (events_.lost) events_.lost(zone, h.epoch);
     try {
       leases_->db.release(zone, h.epoch);
+      if (events_.handed_off) events_.handed_off(zone);  // a graceful stop hands it on too
     } catch (const store::StoreError& e) {
       spdlog::warn("zones: could not release zone ({}, {}): {}", zone.x, zone.z, e.what());
     }

@@ -39,8 +39,9 @@ class ZoneKeeper {
   };
   struct Events {
     std::function<void(world::ZoneId, uint64_t epoch)> taken, lost;
-    std::function<void()> round;                    // after each round (about every lease / 3)
-    std::function<void(world::ZoneId)> handed_off;  // released for the node now ranking first
+    std::function<void()> round;  // after each round (about every lease / 3)
+    // Released for another node: one ranking first now, or any, at a graceful stop.
+    std::function<void(world::ZoneId)> handed_off;
   };
 
   // Opens its connection (throws store::StoreError when the database cannot be reached)
