@@ -67,13 +67,16 @@ TEST(ClusterNode, ANodeJoiningUnderLoadTakesItsZonesOverLosingNothing) {
       << "no edits accepted";
   const auto joined_at = std::chrono::steady_clock::now();
   ServerProcess b({"--cluster", cluster.config("b"), "--metrics-port", "0"});
-  const size_t at_join = load.accepted();
+  // a hands the zones over once its round sees b alive (within a lease or so; slower
+  // under a sanitizer); then edits must go on through b.
+  const bool handed = eventually(
+      nullptr, [&] { return scrape(b.metrics_port()).at("voxeld_cluster_zones_held") >= 1; }, 20s);
+  const size_t at_hand_off = load.accepted();
   const bool went_on = eventually(
-      nullptr, [&] { return load.accepted() >= at_join + 40; }, 30s);
+      nullptr, [&] { return load.accepted() >= at_hand_off + 40; }, 30s);
   load.stop();
+  ASSERT_TRUE(handed) << "b took none of its zones";
   ASSERT_TRUE(went_on) << "the zones were not writable after the hand-off";
-  EXPECT_GE(scrape(b.metrics_port()).at("voxeld_cluster_zones_held"), 1)
-      << "b took none of its zones";
   const std::vector<wire::Envelope> replay = load.check_logs(cluster.database);
   ServerProcess fresh({"--in-memory"});
   apply_all(fresh, replay);
