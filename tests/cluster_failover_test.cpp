@@ -34,17 +34,8 @@ TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNone
       nullptr, [&] { return load.accepted() >= at_kill + 20; }, 30s);
   load.stop();
   ASSERT_TRUE(recovered) << "c's zones were not writable again";
-  const std::vector<wire::Envelope> replay = load.check_logs(cluster.database);
   // The survivors show what a single node replaying the logs shows.
-  ServerProcess fresh({"--in-memory"});
-  apply_all(fresh, replay);
-  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
-  for (const world::ZoneId zone : zones) {
-    const float x = (static_cast<float>(zone.x) + 0.5f) * side, z = 0.5f * side;
-    const Seen expected = view_of(fresh, x, z);
-    EXPECT_TRUE(eventually(&a, [&] { return view_of(a, x, z) == expected; })) << "a differs";
-    EXPECT_TRUE(eventually(&b, [&] { return view_of(b, x, z) == expected; })) << "b differs";
-  }
+  expect_nodes_show({&a, &b}, zones, load.check_logs(cluster.database));
   // Not a timed test: the figure is printed for docs/PERFORMANCE.md, never asserted.
   std::printf(
       "accepted %zu edits (%zu before the kill), %d refused during the failover; the first "
@@ -77,15 +68,7 @@ TEST(ClusterNode, ANodeJoiningUnderLoadTakesItsZonesOverLosingNothing) {
   load.stop();
   ASSERT_TRUE(handed) << "b took none of its zones";
   ASSERT_TRUE(went_on) << "the zones were not writable after the hand-off";
-  const std::vector<wire::Envelope> replay = load.check_logs(cluster.database);
-  ServerProcess fresh({"--in-memory"});
-  apply_all(fresh, replay);
-  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
-  for (const world::ZoneId zone : zones) {
-    const float x = (static_cast<float>(zone.x) + 0.5f) * side, z = 0.5f * side;
-    const Seen expected = view_of(fresh, x, z);
-    EXPECT_TRUE(eventually(&a, [&] { return view_of(a, x, z) == expected; })) << "a differs";
-  }
+  expect_nodes_show({&a, &b}, zones, load.check_logs(cluster.database));
   // Not a timed test: printed for docs/PERFORMANCE.md.
   std::printf(
       "hand-off: %zu edits accepted, %d refused; the longest stall after b joined %.0f ms\n",

@@ -334,6 +334,25 @@ class EditingLoad {
   std::vector<std::thread> threads_;
 };
 
+// Each of `nodes` shows, in the middle of each of `zones`, what a single node shows after
+// `replay` (the zones' logged edits): every replica equals a replay of the log.
+inline void expect_nodes_show(const std::vector<const ServerProcess*>& nodes,
+                              const std::vector<world::ZoneId>& zones,
+                              const std::vector<wire::Envelope>& replay) {
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, replay);
+  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
+  for (const world::ZoneId zone : zones) {
+    const float x = (static_cast<float>(zone.x) + 0.5f) * side,
+                z = (static_cast<float>(zone.z) + 0.5f) * side;
+    const Seen expected = view_of(fresh, x, z);
+    for (const ServerProcess* node : nodes) {
+      EXPECT_TRUE(eventually(node, [&] { return view_of(*node, x, z) == expected; }))
+          << "a node's replica of zone (" << zone.x << ", " << zone.z << ") differs from its log";
+    }
+  }
+}
+
 // The first `n` zones along x (z = 0) that `node` ranks first for among `nodes`.
 inline std::vector<world::ZoneId> zones_ranked_first_by(const std::string& node,
                                                         const std::vector<std::string>& nodes,
