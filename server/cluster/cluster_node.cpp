@@ -378,6 +378,8 @@ void ClusterNode::applied(const pipeline::ZoneRecords& records, uint64_t through
   }
   const auto it = targets_.find(records.zone);
   const bool complete = it != targets_.end() && through >= it->second;
+  // A zone lost while its log was being applied is caught up afresh if taken again.
+  if (it != targets_.end() && !complete && !table_.held(records.zone)) targets_.erase(it);
   if (complete) {
     // Its records continue from here; then edits in it are taken.
     publisher_.adopt(records.zone, through);

@@ -1,0 +1,78 @@
+#!/usr/bin/python3
+# Failover as a stranger meets it, with the Python reference client (clients/python,
+# written from docs/PROTOCOL.md) and the default lease (3 s):
+#   /usr/bin/python3 bench/scripts/cluster_failover_client.py   (as root: PostgreSQL runs as postgres)
+# Starts PostgreSQL and nats-server in /tmp/stranger_cluster, two voxeld nodes (a, b) with
+# --cluster, a viewer on b and an editor on a; 10 explosions; kill -9 of the node holding
+# zone (0, 0); the editor reconnects to the other node and makes 10 more (retrying
+# STORAGE_UNAVAILABLE); prints the statuses, when the first edit was accepted after the
+# kill, and what a fresh viewer on the survivor gets.
+import os, re, signal, subprocess, sys, time, glob
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, ROOT + "/clients/python")
+from voxelclient.client import Client
+D="/tmp/stranger_cluster"; subprocess.run(["rm","-rf",D]); os.makedirs(D+"/pg"); os.chmod(D,0o755)
+pgbin=sorted(glob.glob("/usr/lib/postgresql/*/bin"))[-1]
+subprocess.run(["chown","postgres",D,D+"/pg"])
+def pg(cmd): subprocess.run(["runuser","-u","postgres","--","sh","-c",cmd],check=True,stdout=subprocess.DEVNULL)
+pg(f"{pgbin}/initdb -D {D}/pg -U postgres -A trust")
+pg(f"{pgbin}/pg_ctl -D {D}/pg -l {D}/pg.log -w -o \"-k {D} -p 55433 -c listen_addresses=''\" start")
+pg(f"{pgbin}/psql -q -h {D} -p 55433 -U postgres -c 'CREATE DATABASE vox'")
+open(D+"/nats.conf","w").write('host: 127.0.0.1\nport: -1\nauthorization { user: "u", password: "p-secret" }\n')
+os.makedirs(D+"/ports")
+nats=subprocess.Popen(["nats-server","-c",D+"/nats.conf","--ports_file_dir",D+"/ports"],stdout=subprocess.DEVNULL,stderr=subprocess.DEVNULL)
+for _ in range(100):
+    f=glob.glob(D+"/ports/*")
+    if f: break
+    time.sleep(0.1)
+url=re.search(r'nats://[^"]*',open(f[0]).read()).group(0)
+procs={}
+def start(n):
+    conf=f"{D}/{n}.conf"
+    open(conf,"w").write(f"database = postgresql:///vox?host={D}&port=55433&user=postgres\nnats = {url}\nnats_user = u\nnats_password = p-secret\nnode = {n}\n")
+    os.chmod(conf,0o600)
+    pf=f"{D}/{n}.port"
+    p=subprocess.Popen([ROOT + "/build/bin/voxeld","--cluster",conf,"--port","0","--port-file",pf,"--http-port","0"],stdout=open(f"{D}/{n}.log","w"),stderr=subprocess.STDOUT)
+    for _ in range(100):
+        if os.path.exists(pf) and open(pf).read().strip(): break
+        time.sleep(0.1)
+    procs[n]=p; return int(open(pf).read())
+pa, pb = start("a"), start("b")
+viewer = Client("127.0.0.1", pb, decode=False); viewer.hello("viewer")
+vid = viewer.set_view((40, 10, 40), 3); viewer.wait_view_ready(vid, 60)
+editor = Client("127.0.0.1", pa, decode=False); editor.hello("editor")
+first_ok = []
+def edits(n, x0):
+    st=[]
+    for i in range(n):
+        for attempt in range(60):
+            rid = editor.edit("explosion", center=(x0 + 3 * i, 2, 40), radius=3, power=1)
+            r = editor.wait_result(rid, 10)
+            if r.status != 12: break
+            time.sleep(0.1)
+        st.append(r.status)
+        if r.status == 0 and not first_ok: first_ok.append(time.time())
+    return st
+t=time.time(); s1=edits(10, 20); print("10 edits via a:", s1, "%.1f s" % (time.time()-t))
+time.sleep(1.0)
+try: viewer.pump(lambda: False, 1.0)
+except TimeoutError: pass
+print("viewer on b holds", len(viewer.chunks), "chunks")
+holder = "a" if "took zone (0, 0)" in open(D+"/a.log").read() else "b"
+other, oport = ("b", pb) if holder == "a" else ("a", pa)
+print("holder of zone (0, 0):", holder)
+os.kill(procs[holder].pid, signal.SIGKILL); procs[holder].wait(); t=time.time()
+editor = Client("127.0.0.1", oport, decode=False); editor.hello("editor2")
+first_ok.clear()
+s2=edits(10, 22)
+print("10 edits via %s after kill -9 of %s:" % (other, holder), s2,
+      "the first accepted %.2f s after the kill" % (first_ok[0] - t if first_ok else -1))
+v2 = Client("127.0.0.1", oport, decode=False); v2.hello("viewer2")
+vid = v2.set_view((40, 10, 40), 3); v2.wait_view_ready(vid, 60)
+print("a fresh viewer on %s holds %d chunks" % (other, len(v2.chunks)))
+print(other + "'s log tail:"); print("".join(open(D+"/"+other+".log").readlines()[-5:]))
+for name, p in procs.items():
+    if p.poll() is None:
+        p.send_signal(signal.SIGTERM)
+        print(name, "stopped with exit code", p.wait(timeout=15))
+nats.terminate(); pg(f"{pgbin}/pg_ctl -D {D}/pg -m fast -w stop")
