@@ -141,6 +141,51 @@ TEST(ClusterNode, WhilePostgresqlIsDownEditsAreRefusedAndAfterwardsTakenAgain) {
 // or, once it noticed, forwarded to the new holder and accepted there. Whichever way the
 // race goes, nothing it did as a stale owner reaches anyone: the new holder's world is
 // the zone's log replayed, and every accepted edit is in the log exactly once.
+// Roll forward: an edit across zones of two nodes whose second holder is stopped. The
+// first part is logged (leaving the second pending) and the player is answered; the
+// stopped node's zone is taken by the other once its lease runs out, and the part left
+// undone is completed there, once: the world is a single node's after the same edits.
+TEST(ClusterNode, APartLeftUndoneByAStoppedHolderIsCompletedOnceItsZoneIsTaken) {
+  const Cluster cluster;
+  const ZonesApart apart = zones_held_apart();
+  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
+  const float bx = apart.border_x(), z = apart.middle_z();
+  const std::vector<wire::Envelope> edits = {
+      brush(1, (static_cast<float>(apart.of_a.x) + 0.5f) * side, z, 4, 4.0f),
+      brush(2, (static_cast<float>(apart.of_b.x) + 0.5f) * side, z, 2, 4.0f),
+      explosion(3, bx + 0.5f, z)};
+  ServerProcess a({"--cluster", cluster.config("a"), "--metrics-port", "0"});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  auto editor = player(a, "editor");
+  // Both zones taken and loaded by their nodes.
+  ASSERT_EQ(edit_until_accepted(*editor, edits[0]).status(), wire::EditResult::ACCEPTED);
+  ASSERT_EQ(edit_until_accepted(*editor, edits[1]).status(), wire::EditResult::ACCEPTED);
+  ::kill(b.pid(), SIGSTOP);
+  const auto across = edit_and_wait(*editor, edits[2], 20s * kSlow);
+  ASSERT_TRUE(across);
+  EXPECT_EQ(across->edit_result().status(), wire::EditResult::ACCEPTED)
+      << across->edit_result().reason();
+  EXPECT_TRUE(eventually(
+      &a, [&] { return scrape(a.metrics_port()).at("voxeld_cluster_parts_completed_total") >= 1; },
+      30s))
+      << "a did not complete b's part once it took b's zone";
+  ::kill(b.pid(), SIGKILL);
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  const Seen expected = view_of(fresh, bx, z);
+  EXPECT_TRUE(eventually(&a, [&] { return view_of(a, bx, z) == expected; }))
+      << "a does not show the edit across the border whole";
+  // The edit's two parts, each once in its zone's log (a's first edit was a's own: no id).
+  const auto logged = edit_ids_logged(cluster.database, {apart.of_a, apart.of_b});
+  std::vector<uint64_t> in_a;
+  for (const auto& [where, n] : logged) {
+    EXPECT_EQ(n, 1);
+    if (where.first == apart.of_a) in_a.push_back(where.second);
+  }
+  ASSERT_EQ(in_a.size(), 1u) << "the edit across the border has no part in a's zone";
+  EXPECT_EQ(logged.count({apart.of_b, in_a[0]}), 1u) << "its part in b's zone is missing";
+}
+
 TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) {
   const Cluster cluster;
   const auto [x_, z_] = middle_of_a_zone_of("a");
@@ -168,7 +213,9 @@ TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) 
   std::printf("the late edit: %s (%s); a's appends fenced: %.0f\n",
               late_accepted ? "accepted through b" : "refused",
               late->edit_result().reason().c_str(), fenced);
-  if (late_accepted) EXPECT_GE(metrics.at("voxeld_cluster_edits_forwarded_total"), 1);
+  if (late_accepted) {
+    EXPECT_GE(metrics.at("voxeld_cluster_edits_forwarded_total"), 1);
+  }
   // The zone's log: the accepted edits, each once, and nothing else of a's.
   store::ZoneLeases reader(cluster.database, "test-reader", 3000ms);
   std::map<std::string, int> logged;

@@ -112,6 +112,48 @@ TEST(ClusterNode, ANodeFollowingAndHoldingZonesStopsCleanlyOnSigterm) {
   EXPECT_EQ(a.terminate(), 0);
 }
 
+// An edit across zones held by different nodes: one part per zone, each applied and logged
+// by its zone's holder; the player is answered once; both nodes show what a single node
+// shows after the same edits, across two and four zones.
+TEST(ClusterNode, AnEditAcrossZonesHeldByDifferentNodesIsAppliedByEachHolder) {
+  const Cluster cluster;
+  const ZonesApart apart = zones_held_apart();
+  const float bx = apart.border_x(), z = apart.middle_z();
+  const std::vector<wire::Envelope> edits = {
+      brush(1, bx - 1.5f, z, 4, 6.0f), explosion(2, bx + 1.0f, z + 5.0f),
+      brush(3, bx + 0.5f, 0.5f, 2, 6.0f),  // four zones: the z = 0 border too
+      explosion(4, bx - 2.0f, 1.0f), brush(5, bx, z - 4.0f, 5, 3.0f)};
+  ServerProcess a({"--cluster", cluster.config("a"), "--metrics-port", "0"});
+  ServerProcess b({"--cluster", cluster.config("b")});
+  auto on_a = player(a, "editor-a");
+  auto on_b = player(b, "editor-b");
+  for (size_t i = 0; i < edits.size(); ++i) {
+    client::Client& c = i % 2 == 0 ? *on_a : *on_b;
+    const wire::EditResult r = edit_until_accepted(c, edits[i]);
+    EXPECT_EQ(r.status(), wire::EditResult::ACCEPTED) << "edit " << i + 1 << ": " << r.reason();
+  }
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  for (const float at_z : {z, 0.5f}) {
+    const Seen expected = view_of(fresh, bx, at_z);
+    for (const ServerProcess* node : {&a, &b}) {
+      // A view's edge chunks read a voxel of zones it does not show: the node follows
+      // those too (the halo), or their meshes there stay stale.
+      EXPECT_TRUE(eventually(node, [&] { return view_of(*node, bx, at_z) == expected; }))
+          << "the border at z = " << at_z << " differs on node " << (node == &a ? "a" : "b");
+    }
+  }
+  EXPECT_GE(scrape(a.metrics_port()).at("voxeld_cluster_edits_split_total"), 1);
+  // Every part in its zone's log once.
+  const std::vector<world::ZoneId> zones = {
+      apart.of_a, apart.of_b, {apart.of_a.x, -1}, {apart.of_b.x, -1}};
+  const auto logged = edit_ids_logged(cluster.database, zones);
+  EXPECT_FALSE(logged.empty()) << "no edit was split";
+  for (const auto& [where, n] : logged)
+    EXPECT_EQ(n, 1) << "edit " << where.second << " logged " << n << " times in zone ("
+                    << where.first.x << ", " << where.first.z << ")";
+}
+
 TEST(ClusterNode, ASmoothAcrossAZoneBorderIsRefusedAndChangesNothing) {
   const Cluster cluster;
   ServerProcess a({"--cluster", cluster.config("a")});

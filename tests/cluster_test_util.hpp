@@ -364,4 +364,40 @@ inline std::vector<world::ZoneId> zones_ranked_first_by(const std::string& node,
   return out;
 }
 
+// Two zones side by side along x (z = 0), the first ranked first by node a among {a, b}
+// and the second by b: where an edit across their border has parts on both nodes.
+struct ZonesApart {
+  world::ZoneId of_a, of_b;
+  float border_x() const {  // the voxel x of the border between them
+    return static_cast<float>(std::max(of_a.x, of_b.x) * kZoneChunks * world::kChunkSize);
+  }
+  float middle_z() const { return 0.5f * static_cast<float>(kZoneChunks * world::kChunkSize); }
+};
+inline ZonesApart zones_held_apart() {
+  const std::vector<std::string> nodes = {"a", "b"};
+  for (int32_t x = 0; x < 64; ++x) {
+    const size_t here = *world::first_ranked({x, 0}, nodes);
+    const size_t next = *world::first_ranked({x + 1, 0}, nodes);
+    if (here != next)
+      return here == 0 ? ZonesApart{{x, 0}, {x + 1, 0}} : ZonesApart{{x + 1, 0}, {x, 0}};
+  }
+  return {};
+}
+
+// How often each edit id is in each of `zones`' logs (ids 0 left out).
+inline std::map<std::pair<world::ZoneId, uint64_t>, int> edit_ids_logged(
+    const std::string& database, const std::vector<world::ZoneId>& zones) {
+  store::ZoneLeases reader(database, "test-reader", 3000ms);
+  std::map<std::pair<world::ZoneId, uint64_t>, int> out;
+  for (const world::ZoneId zone : zones) {
+    for (const store::ZoneRecord& r : reader.read_log(zone, 0)) {
+      const auto e = cluster::decode_zone_edit(r);
+      EXPECT_TRUE(e);
+      EXPECT_EQ(e ? e->edit_id : 0, r.edit_id) << "a record's edit id differs from its row's";
+      if (r.edit_id != 0) ++out[{zone, r.edit_id}];
+    }
+  }
+  return out;
+}
+
 }  // namespace vox::test

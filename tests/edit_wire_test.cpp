@@ -36,6 +36,19 @@ TEST(EditWire, ARequestAndAReplyGoThereAndBack) {
   EXPECT_TRUE(req->bypass_regions);
   EXPECT_EQ(req->author, "player-9");
   EXPECT_EQ(store::encode_edit(req->edit), store::encode_edit(a_request().edit));
+  EXPECT_EQ(req->edit_id, 0u);
+  EXPECT_FALSE(req->part);
+  // One zone's part of an edit across zones: its edit id and zone come along.
+  EditRequest part = a_request();
+  part.edit_id = 0xfedcba9876543210ULL;
+  part.part = world::ZoneId{-3, 2147483647};
+  const auto back_part = decode_edit_request(encode_edit_request(part));
+  ASSERT_TRUE(back_part);
+  EXPECT_EQ(back_part->edit_id, part.edit_id);
+  ASSERT_TRUE(back_part->part);
+  EXPECT_EQ(*back_part->part, *part.part);
+  EXPECT_TRUE(back_part->bypass_regions);
+  EXPECT_EQ(back_part->author, "player-9");
   const auto rep = decode_edit_reply(encode_edit_reply(a_reply()));
   ASSERT_TRUE(rep);
   EXPECT_EQ(rep->id, 77u);

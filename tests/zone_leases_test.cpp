@@ -225,6 +225,67 @@ TEST_F(ZoneLeasesTest, OfNodesRacingForAFreeZoneExactlyOneTakesIt) {
   EXPECT_EQ(nodes[0]->read({7, 7})->epoch, 1u);
 }
 
+// Edits across zones held by different nodes (docs/CLUSTER.md): a part logged in one zone
+// leaves the others pending unless their logs have them; a pending part goes when its
+// zone's log gets it; read_pending shows only old enough rows, and drops stale ones.
+TEST_F(ZoneLeasesTest, APartLoggedInOneZoneLeavesTheOthersPendingUntilTheirLogsHaveThem) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000)), b(db, "b", milliseconds(30000));
+  const ZoneId za{0, 0}, zb{1, 0}, zc{1, 1};
+  const uint64_t ea = *a.acquire(za), eb = *b.acquire(zb);
+  // Edit 41 across za, zb and zc: a logs its part first; zb's and zc's are pending.
+  std::vector<ZoneRecord> part_a = {{1, 500, {1, 41}, 41}};
+  std::vector<ZonePending> others = {{zb, 41, 500, {2, 41}}, {zc, 41, 500, {3, 41}}};
+  a.append(std::vector<ZoneAppend>{{za, ea, part_a, others}});
+  const std::vector<ZoneId> mine = {zb, zc};
+  EXPECT_TRUE(b.read_pending(mine, milliseconds(60000)).empty()) << "too young to be shown";
+  std::vector<ZonePending> pending = b.read_pending(mine, milliseconds(0));
+  ASSERT_EQ(pending.size(), 2u);
+  EXPECT_EQ(pending[0].edit_id, 41u);
+  EXPECT_EQ(pending[0].unix_ms, 500);
+  // b logs zb's part (its own request came): zb's pending part goes in that transaction.
+  std::vector<ZoneRecord> part_b = {{1, 500, {2, 41}, 41}};
+  std::vector<ZonePending> others_b = {{za, 41, 500, {1, 41}}, {zc, 41, 500, {3, 41}}};
+  b.append(std::vector<ZoneAppend>{{zb, eb, part_b, others_b}});
+  pending = b.read_pending(mine, milliseconds(0));
+  ASSERT_EQ(pending.size(), 1u) << "za's log has the edit: no part of it pending for za";
+  EXPECT_EQ(pending[0].zone, zc);
+  EXPECT_EQ(pending[0].payload, (std::vector<uint8_t>{3, 41}));
+  EXPECT_TRUE(a.read_pending(std::vector<ZoneId>{za}, milliseconds(0)).empty());
+  // The log keeps each record's edit id.
+  const auto log = a.read_log(zb, 0);
+  ASSERT_EQ(log.size(), 1u);
+  EXPECT_EQ(log[0].edit_id, 41u);
+  // zc's holder completes it: nothing is left.
+  const uint64_t ec = *b.acquire(zc);
+  b.append(std::vector<ZoneAppend>{{zc, ec, std::vector<ZoneRecord>{{1, 500, {3, 41}, 41}}, {}}});
+  EXPECT_TRUE(b.read_pending(mine, milliseconds(0)).empty());
+}
+
+// A node stopped (SIGSTOP, a VM pause) inside a transaction keeps its zone row locked:
+// another node's round must not wait on it longer than a fraction of a lease (it fails and
+// retries), and the server ends the stalled transaction after a lease.
+TEST_F(ZoneLeasesTest, ANodeStalledHoldingAZoneRowsLockDoesNotStallAnothersRound) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(1000));
+  const ZoneId zone{0, 0};  // its row's key is 0
+  ASSERT_TRUE(a.acquire(zone));
+  std::this_thread::sleep_for(milliseconds(400));  // a's lease has run out
+  std::thread stalled([&] {                        // a writer holding the row's lock for 3 s
+    const std::string cmd = "psql '" + db +
+                            "' -q -c 'BEGIN; SELECT 1 FROM zones WHERE zone = 0 FOR UPDATE; "
+                            "SELECT pg_sleep(3); COMMIT;' > /dev/null 2>&1";
+    EXPECT_EQ(std::system(cmd.c_str()), 0);
+  });
+  std::this_thread::sleep_for(milliseconds(700));
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_THROW(b.acquire(zone), StoreError);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, milliseconds(1500))
+      << "a round waited on the stalled writer's lock";
+  stalled.join();
+  EXPECT_TRUE(b.acquire(zone).has_value()) << "taken once the lock is gone";
+}
+
 TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {
   const std::string db = fresh_database();
   ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <random>
 
 #include "server/cluster/edit_wire.hpp"
 #include "server/cluster/zone_wire.hpp"
@@ -38,7 +39,8 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
                  .max_zones = static_cast<size_t>(config_.max_followed_zones)},
                 [this] {
                   if (wake_) wake_();
-                }) {
+                }),
+      edit_id_base_((uint64_t{std::random_device{}()} << 32) ^ std::random_device{}()) {
   const store::WorldSettings mine{config_.world, seed, config_.zone_chunks};
   const store::WorldSettings theirs = read_db_.settle_world(mine);
   if (theirs != mine) {
@@ -76,6 +78,16 @@ void ClusterNode::start(const std::string& address) {
                          .round = [this] { round(); },
                          // The node now ranking first takes it at once, not at the next edit.
                          .handed_off = [this](world::ZoneId z) { ask_to_take(z); }});
+  // Parts of edits across zones left undone in the zones held here (their requests were
+  // lost with a node, or refused) are completed once well past a forward's timeout.
+  completer_ = std::make_unique<PartCompleter>(
+      PartCompleter::Config{.uri = config_.database,
+                            .node = config_.node,
+                            .lease = config_.lease,
+                            .age = 2 * std::max(config_.lease, std::chrono::milliseconds(1000)) +
+                                   std::chrono::milliseconds(1000)},
+      [this] { return table_.writable_zones(); },
+      [this](pipeline::EditTask task) { submit_(std::move(task)); });
   take_subscription_ = nats_.subscribe(take_subject(config_.world), [this](const NatsMessage& m) {
     if (m.data.size() != 8) return;
     uint64_t key = 0;
@@ -109,10 +121,13 @@ ClusterNode::Figures ClusterNode::figures() const {
     f.forwards_unheld = fw->unheld();
     f.forwards_timed_out = fw->timed_out();
   }
+  f.edits_split = edits_split_.load(std::memory_order_relaxed);
+  if (const PartCompleter* pc = completer_.get()) f.parts_completed = pc->completed();
   return f;
 }
 
 void ClusterNode::stop(bool release) {
+  if (completer_) completer_->stop();  // submits nothing more
   if (take_subscription_ != 0) nats_.unsubscribe(take_subscription_);
   take_subscription_ = 0;
   if (keeper_) keeper_->stop(release);  // its thread has ended: serving_ is ours now
@@ -159,25 +174,34 @@ void ClusterNode::serve(const NatsMessage& m) {
     }
     return;
   }
-  const world::VoxelBox box = world::touched_box(request->edit);
-  submit_(std::move(request->edit), std::move(request->author), request->bypass_regions,
-          [this, reply_to = m.reply, id = request->id, box](const pipeline::EditResult& r) {
-            EditReply out;
-            out.id = id;
-            out.reason = r.accepted ? world::RefusalReason::kNone : r.reason;
-            out.message = r.message;
-            // Durable: each zone's log holds it, at or before its last record now.
-            if (r.accepted) {
-              for (const world::ZoneId zone : world::zones_of(box, config_.zone_chunks))
-                out.zones.emplace_back(zone, table_.applied(zone));
-            }
-            out.changed_chunks = r.changed_chunks;
-            out.clipped_by = r.clipped_by;
-            try {
-              nats_.publish(reply_to, encode_edit_reply(out));
-            } catch (const ClusterError&) {  // the gateway times out
-            }
-          });
+  // Its zones: a part's own, else all it touches.
+  const std::vector<world::ZoneId> zones =
+      request->part ? std::vector<world::ZoneId>{*request->part}
+                    : world::zones_of(world::touched_box(request->edit), config_.zone_chunks);
+  pipeline::EditTask task;
+  task.edit = std::move(request->edit);
+  task.author = std::move(request->author);
+  task.bypass_regions = request->bypass_regions;
+  task.forwarded = true;
+  task.edit_id = request->edit_id;
+  task.part = request->part;
+  task.done = [this, reply_to = m.reply, id = request->id, zones](const pipeline::EditResult& r) {
+    EditReply out;
+    out.id = id;
+    out.reason = r.accepted ? world::RefusalReason::kNone : r.reason;
+    out.message = r.message;
+    // Durable: each zone's log holds it, at or before its last record now.
+    if (r.accepted) {
+      for (const world::ZoneId zone : zones) out.zones.emplace_back(zone, table_.applied(zone));
+    }
+    out.changed_chunks = r.changed_chunks;
+    out.clipped_by = r.clipped_by;
+    try {
+      nats_.publish(reply_to, encode_edit_reply(out));
+    } catch (const ClusterError&) {  // the gateway times out
+    }
+  };
+  submit_(std::move(task));
 }
 
 // The meshes this node has of the chunks whose meshes read an edit's samples (its box and
@@ -250,7 +274,8 @@ void ClusterNode::round() {
 }
 
 void ClusterNode::viewing(world::ChunkCoord center, int radius) {
-  const int64_t r = std::clamp(radius, 0, 1 << 16);
+  // Plus a chunk around: a mesh at the view's edge reads a voxel of its neighbours.
+  const int64_t r = std::clamp(radius, 0, 1 << 16) + 1;
   const auto voxel = [](int64_t chunk) {
     return static_cast<int32_t>(
         std::clamp<int64_t>(chunk * world::kChunkSize, INT32_MIN + 64, INT32_MAX - 64));
@@ -263,46 +288,158 @@ void ClusterNode::viewing(world::ChunkCoord center, int radius) {
 }
 
 pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
-                                                    const world::VoxelBox& box, std::string& why) {
+                                                    const world::VoxelBox& box,
+                                                    std::vector<world::VoxelBox>& keep,
+                                                    std::string& why) {
+  if (task.part) return admit_part(task, keep, why);
   const std::vector<world::ZoneId> zones = world::zones_of(box, config_.zone_chunks);
   if (zones.size() > 1 && std::holds_alternative<world::Smooth>(task.edit)) {
     why = "a smooth across a zone border is not taken by a cluster yet";
     return Verdict::kRefused;
   }
-  bool all_writable = true, any_held = false;
-  std::vector<world::ZoneId> elsewhere;
+  bool all_writable = true;
   for (const world::ZoneId zone : zones) {
-    if (table_.writable(zone)) {
-      any_held = true;
-      continue;
-    }
+    if (table_.writable(zone)) continue;
     all_writable = false;
     if (table_.held(zone)) {
       why = describe(zone) + " is being loaded on this node; retry shortly";
       return Verdict::kRefused;
     }
-    elsewhere.push_back(zone);
   }
-  if (all_writable) return Verdict::kWritable;
-  if (any_held) {
-    // Perhaps nobody holds the others yet: the nodes ranking first take them.
-    for (const world::ZoneId zone : elsewhere) ask_to_take(zone);
-    why = "an edit across zones held by different nodes is not taken by a cluster yet";
-    return Verdict::kRefused;
+  if (all_writable) {
+    for (const world::ZoneId zone : zones) {
+      if (table_.has_edit(zone, task.edit_id)) {
+        why = "this edit was applied already";
+        return Verdict::kAlreadyApplied;
+      }
+    }
+    return Verdict::kWritable;
   }
   if (task.forwarded || !forwarder_) {
     why = describe(zones.front()) + " is not held by this node (any more); retry shortly";
     return Verdict::kRefused;
   }
-  forwarder_->forward(
-      zones.front(),
-      EditRequest{
-          .id = 0, .bypass_regions = task.bypass_regions, .author = task.author, .edit = task.edit},
-      [this, before = versions_around(box), done = std::move(task.done)](const EditReply& r) {
-        relay(r, before, done);
-      });
+  if (zones.size() > 1) {
+    split(task, zones, box);
+    return Verdict::kForwarded;
+  }
+  forwarder_->forward(zones.front(),
+                      EditRequest{.id = 0,
+                                  .bypass_regions = task.bypass_regions,
+                                  .edit_id = new_edit_id(),
+                                  .part = std::nullopt,
+                                  .author = task.author,
+                                  .edit = task.edit},
+                      [this, before = versions_around(box), done = std::move(task.done)](
+                          const EditReply& r) { relay(r, before, done); });
   task.done = nullptr;
   return Verdict::kForwarded;
+}
+
+// One zone's part of an edit across zones held by different nodes: a gateway sent it, or
+// this node completes it (PartCompleter). Only the zone's own samples are written.
+pipeline::ZoneAuthority::Verdict ClusterNode::admit_part(pipeline::EditTask& task,
+                                                         std::vector<world::VoxelBox>& keep,
+                                                         std::string& why) {
+  const world::ZoneId zone = *task.part;
+  const world::VoxelBox touched = world::touched_box(task.edit);
+  const std::vector<world::ZoneId> zones = world::zones_of(touched, config_.zone_chunks);
+  if (task.edit_id == 0 || std::holds_alternative<world::Smooth>(task.edit) ||
+      std::find(zones.begin(), zones.end(), zone) == zones.end()) {
+    why = "a part of an edit that is not one (no edit id, a smooth, or a zone it misses)";
+    return Verdict::kRefused;
+  }
+  if (!table_.writable(zone)) {
+    why = describe(zone) + (table_.held(zone)
+                                ? " is being loaded on this node; retry shortly"
+                                : " is not held by this node (any more); retry shortly");
+    return Verdict::kRefused;
+  }
+  if (table_.has_edit(zone, task.edit_id)) {
+    why = "this part of the edit was applied already";
+    return Verdict::kAlreadyApplied;
+  }
+  keep = world::outside_zone(touched, zone, config_.zone_chunks);
+  return Verdict::kWritable;
+}
+
+void ClusterNode::accepted(const pipeline::EditTask& task) {
+  if (task.edit_id == 0) return;
+  if (task.part) return table_.note_edit(*task.part, task.edit_id);
+  for (const world::ZoneId zone :
+       world::zones_of(world::touched_box(task.edit), config_.zone_chunks))
+    table_.note_edit(zone, task.edit_id);
+}
+
+uint64_t ClusterNode::new_edit_id() {
+  // splitmix64 of a random base plus a counter: distinct here, and across nodes but for
+  // a chance of one in 2^64 per pair.
+  uint64_t z = edit_id_base_ +
+               0x9e3779b97f4a7c15ULL * (edit_counter_.fetch_add(1, std::memory_order_relaxed) + 1);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z ^= z >> 31;
+  return z == 0 ? 1 : z;
+}
+
+namespace {
+
+// The answers of an edit's parts, joined into the player's: accepted once any part is
+// durable (that part's transaction left the others pending: they are certain to follow).
+struct PartsJoin {
+  std::mutex mutex;  // leaf
+  size_t left = 0;
+  bool accepted = false;
+  EditReply reply;                   // the accepted parts' zones and regions
+  std::optional<EditReply> refusal;  // the first refusal
+  std::vector<world::ZoneId> refused_zones;
+};
+
+}  // namespace
+
+void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneId>& zones,
+                        const world::VoxelBox& box) {
+  edits_split_.fetch_add(1, std::memory_order_relaxed);
+  const uint64_t id = new_edit_id();
+  auto join = std::make_shared<PartsJoin>();
+  join->left = zones.size();
+  auto finish = std::make_shared<std::function<void(EditReply)>>(
+      [this, before = versions_around(box), done = std::move(task.done)](EditReply r) {
+        relay(std::move(r), before, done);
+      });
+  task.done = nullptr;
+  for (const world::ZoneId zone : zones) {
+    forwarder_->forward(
+        zone,
+        EditRequest{.id = 0,
+                    .bypass_regions = task.bypass_regions,
+                    .edit_id = id,
+                    .part = zone,
+                    .author = task.author,
+                    .edit = task.edit},
+        [join, finish, zone, id](const EditReply& r) {
+          std::unique_lock lock(join->mutex);
+          if (r.reason == world::RefusalReason::kNone) {
+            join->accepted = true;
+            join->reply.zones.insert(join->reply.zones.end(), r.zones.begin(), r.zones.end());
+            join->reply.clipped_by.insert(join->reply.clipped_by.end(), r.clipped_by.begin(),
+                                          r.clipped_by.end());
+          } else {
+            if (!join->refusal) join->refusal = r;
+            join->refused_zones.push_back(zone);
+          }
+          if (--join->left > 0) return;
+          EditReply out = join->accepted ? std::move(join->reply) : std::move(*join->refusal);
+          if (join->accepted && !join->refused_zones.empty()) {
+            spdlog::debug(
+                "cluster: edit {} accepted; {} of its parts follow when their zones' "
+                "holders can take them",
+                id, join->refused_zones.size());
+          }
+          lock.unlock();
+          (*finish)(std::move(out));
+        });
+  }
 }
 
 std::optional<pipeline::ZoneRecords> ClusterNode::next_records() {
@@ -368,6 +505,9 @@ std::optional<pipeline::ZoneRecords> ClusterNode::followed_records() {
 }
 
 void ClusterNode::applied(const pipeline::ZoneRecords& records, uint64_t through) {
+  for (const store::LoggedEdit& e : records.edits) {
+    if (e.seq <= through) table_.note_edit(records.zone, e.edit_id);
+  }
   if (records.epoch == 0) {  // a followed zone's
     table_.committed(records.zone, through);
     release_relays(false);

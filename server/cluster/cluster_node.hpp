@@ -21,6 +21,7 @@
 #include "server/cluster/cluster_config.hpp"
 #include "server/cluster/edit_forwarder.hpp"
 #include "server/cluster/nats_link.hpp"
+#include "server/cluster/part_completer.hpp"
 #include "server/cluster/zone_keeper.hpp"
 #include "server/cluster/zone_log_store.hpp"
 #include "server/cluster/zone_publisher.hpp"
@@ -44,8 +45,8 @@ class ClusterNode : public pipeline::ZoneAuthority {
   store::WorldStore& store() { return store_; }
   // How edits forwarded by other nodes reach this node's pipeline (WorldPipeline::submit
   // with `forwarded`); set before start.
-  using Submit = std::function<void(world::Edit edit, std::string author, bool bypass_regions,
-                                    std::function<void(const pipeline::EditResult&)> done)>;
+  // (the task's forwarded, edit_id and part set; `done` answers the other node).
+  using Submit = std::function<void(pipeline::EditTask task)>;
   void set_submit(Submit submit) { submit_ = std::move(submit); }
   // The version of this node's published mesh of a chunk, 0 for none (any thread; set
   // before start): a forwarded edit's changed_chunks are the chunks around it whose mesh
@@ -67,12 +68,15 @@ class ClusterNode : public pipeline::ZoneAuthority {
   struct Figures {
     size_t zones_held = 0, zones_followed = 0;
     uint64_t appends_fenced = 0, edits_forwarded = 0, forwards_unheld = 0, forwards_timed_out = 0;
+    uint64_t edits_split = 0, parts_completed = 0;
   };
   Figures figures() const;
 
   // pipeline::ZoneAuthority (the pipeline thread).
   void set_wake(std::function<void()> wake) override { wake_ = std::move(wake); }
-  Verdict admit(pipeline::EditTask& task, const world::VoxelBox& box, std::string& why) override;
+  Verdict admit(pipeline::EditTask& task, const world::VoxelBox& box,
+                std::vector<world::VoxelBox>& keep, std::string& why) override;
+  void accepted(const pipeline::EditTask& task) override;
   void viewing(world::ChunkCoord center, int radius) override;
   bool records_waiting() override { return table_.catching_up() || replicas_.waiting(); }
   std::optional<pipeline::ZoneRecords> next_records() override;
@@ -89,6 +93,12 @@ class ClusterNode : public pipeline::ZoneAuthority {
   void relay(EditReply reply, Versions before,
              std::function<void(const pipeline::EditResult&)> done);
   Versions versions_around(const world::VoxelBox& box) const;
+  Verdict admit_part(pipeline::EditTask& task, std::vector<world::VoxelBox>& keep,
+                     std::string& why);
+  // An edit across zones not all writable here: one part per zone, each to its holder.
+  void split(pipeline::EditTask& task, const std::vector<world::ZoneId>& zones,
+             const world::VoxelBox& box);
+  uint64_t new_edit_id();
   void release_relays(bool all);                            // any thread
   void ask_to_take(world::ZoneId zone);                     // any thread
   std::optional<pipeline::ZoneRecords> catch_up();          // the pipeline thread
@@ -111,6 +121,10 @@ class ClusterNode : public pipeline::ZoneAuthority {
   Submit submit_;               // set before start()
   MeshVersionOf mesh_version_;  // likewise
   std::unique_ptr<EditForwarder> forwarder_;
+  std::unique_ptr<PartCompleter> completer_;
+  const uint64_t edit_id_base_;  // random: ids of edits this node splits
+  std::atomic<uint64_t> edits_split_{0};
+  std::atomic<uint64_t> edit_counter_{0};
   uint64_t take_subscription_ = 0;
   std::map<world::ZoneId, uint64_t> serving_;  // the keeper's thread: edit subscriptions
   struct Relay {

@@ -6,7 +6,7 @@
 namespace vox::cluster {
 namespace {
 
-constexpr uint8_t kVersion = 1;
+constexpr uint8_t kVersion = 2;
 constexpr uint8_t kRequest = 3;
 constexpr uint8_t kReply = 4;
 constexpr size_t kMaxText = 4096;   // an author, a message
@@ -40,7 +40,8 @@ bool header(world::ByteReader& r, uint8_t kind) {
 
 std::vector<uint8_t> encode_edit_request(const EditRequest& r) {
   world::ByteWriter w({kVersion, kRequest});
-  w.u64(r.id).u8(r.bypass_regions ? 1 : 0);
+  w.u64(r.id).u8((r.bypass_regions ? 1 : 0) | (r.part ? 2 : 0)).u64(r.edit_id);
+  if (r.part) w.u64(r.part->key());
   put_text(w, r.author);
   w.bytes(store::encode_edit(r.edit));
   return w.take();
@@ -52,9 +53,11 @@ std::optional<EditRequest> decode_edit_request(std::span<const uint8_t> bytes, s
   EditRequest out;
   out.id = r.u64();
   const uint8_t flags = r.u8();
+  out.edit_id = r.u64();
+  if (flags & 2) out.part = world::ZoneId::from_key(r.u64());
   out.author = get_text(r);
-  if (!r.ok() || flags > 1) return fail<EditRequest>(error, "an edit request's header is damaged");
-  out.bypass_regions = flags == 1;
+  if (!r.ok() || flags > 3) return fail<EditRequest>(error, "an edit request's header is damaged");
+  out.bypass_regions = (flags & 1) != 0;
   std::string why;
   auto edit = store::decode_edit(r.rest(), &why);
   if (!edit) return fail<EditRequest>(error, "an edit request's edit: " + why);

@@ -4,9 +4,10 @@
 // edit the world store's codec refuses is nullopt with the reason.
 //
 // Layout (little-endian):
-//   request  u8 version (1), u8 kind (3), u64 id, u8 flags (1: bypasses protected
-//            regions), u16 author length, author, the edit (store/edit_codec.hpp)
-//   reply    u8 version (1), u8 kind (4), u64 id, u8 reason (world::RefusalReason; 0:
+//   request  u8 version (2), u8 kind (3), u64 id, u8 flags (1: bypasses protected
+//            regions; 2: one zone's part), u64 edit id, [u64 the part's zone key,]
+//            u16 author length, author, the edit (store/edit_codec.hpp)
+//   reply    u8 version (2), u8 kind (4), u64 id, u8 reason (world::RefusalReason; 0:
 //            accepted), u16 message length, message, u16 zones, each (u64 zone key, u64
 //            the zone's last record once the edit was durable), u16 chunks, each (i32 x,
 //            y, z: chunks given a new mesh on the holder), u16 regions, each u64
@@ -28,8 +29,10 @@
 namespace vox::cluster {
 
 struct EditRequest {
-  uint64_t id = 0;
+  uint64_t id = 0;  // the forwarder's, for its answer
   bool bypass_regions = false;
+  uint64_t edit_id = 0;               // the cluster-wide id its gateway gave the edit (0: none)
+  std::optional<world::ZoneId> part;  // only this zone's samples: one part of an edit
   std::string author;
   world::Edit edit;
 };

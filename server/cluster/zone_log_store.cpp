@@ -29,7 +29,25 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   std::map<world::ZoneId, ZonePublisher::Part> parts;
   for (const store::LoggedEdit& e : edits) {
     const world::VoxelBox box = world::touched_box(e.edit);
-    for (const world::ZoneId zone : world::zones_of(box, zone_chunks_)) {
+    const std::vector<world::ZoneId> all = world::zones_of(box, zone_chunks_);
+    // A part's keep ends with its other zones' samples: what is left is its own.
+    std::vector<world::VoxelBox> own_keep = e.keep;
+    if (e.part) {
+      for (const world::VoxelBox& b : world::outside_zone(box, *e.part, zone_chunks_)) {
+        std::erase_if(own_keep,
+                      [&](const world::VoxelBox& k) { return k.lo == b.lo && k.hi == b.hi; });
+      }
+    }
+    const auto piece_for = [&](world::ZoneId zone) {
+      store::LoggedEdit piece = e;
+      piece.part.reset();
+      piece.keep = own_keep;
+      for (const world::VoxelBox& outside : world::outside_zone(box, zone, zone_chunks_))
+        piece.keep.push_back(outside);
+      return encode_zone_edit(piece);
+    };
+    for (const world::ZoneId zone : all) {
+      if (e.part && zone != *e.part) continue;  // other nodes' parts
       ZonePublisher::Part& part = parts[zone];
       if (part.records.empty()) {
         const std::optional<uint64_t> epoch = zones_.writable(zone);
@@ -41,10 +59,12 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
         part.zone = zone;
         part.epoch = *epoch;
       }
-      store::LoggedEdit piece = e;
-      for (const world::VoxelBox& outside : world::outside_zone(box, zone, zone_chunks_))
-        piece.keep.push_back(outside);
-      part.records.push_back({0, e.unix_ms, encode_zone_edit(piece)});
+      part.records.push_back({0, e.unix_ms, piece_for(zone), e.edit_id});
+      if (!e.part) continue;
+      // The other zones' parts: completed by their holders should they never come.
+      for (const world::ZoneId other : all) {
+        if (other != zone) part.pending.push_back({other, e.edit_id, e.unix_ms, piece_for(other)});
+      }
     }
   }
   std::vector<ZonePublisher::Part> list;
@@ -60,14 +80,23 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   try {
     publisher_.commit(list, durable);
   } catch (const store::FencedError& e) {
+    forget_edits(list);
     for (const auto& part : list) {
       if (part.zone == e.zone) zones_.lost(part.zone, part.epoch);  // the keeper hears it too
     }
     publisher_.forget(e.zone);
     throw;
   } catch (const store::StoreError&) {
+    forget_edits(list);  // what landed is noted again as the zones catch up
     for (const auto& part : list) zones_.doubt(part.zone);  // it may have landed
     throw;
+  }
+}
+
+// The pipeline undoes a failed append's edits: their ids are no longer applied here.
+void ZoneLogStore::forget_edits(std::span<const ZonePublisher::Part> parts) {
+  for (const auto& part : parts) {
+    for (const store::ZoneRecord& r : part.records) zones_.forget_edit(part.zone, r.edit_id);
   }
 }
 

@@ -2,6 +2,9 @@
 // it does to a single node's store, and each edit goes to the log of the zone it lies in —
 // one part per zone for an edit across a border, each keeping the samples outside its
 // zone — every zone fenced by the node's epoch, all in one transaction, then published.
+// One part of an edit whose other zones other nodes hold (LoggedEdit::part) goes to its
+// zone's log with the other parts as pending (ZonePending): their holders complete them
+// should their own requests never come.
 // A fenced zone is lost at once; an append whose outcome is in doubt makes its zones catch
 // up from their logs again (whatever of it landed is applied; ZoneTable::doubt). Nothing
 // else of a single node's store is kept here yet: no protected regions, no checkpoints
@@ -36,6 +39,8 @@ class ZoneLogStore : public store::WorldStore {
   void for_each_edit(uint64_t, const std::function<bool(const store::LoggedEdit&)>&) override {}
 
  private:
+  void forget_edits(std::span<const ZonePublisher::Part> parts);
+
   ZoneTable& zones_;
   ZonePublisher& publisher_;
   const int zone_chunks_;

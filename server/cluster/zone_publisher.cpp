@@ -56,7 +56,8 @@ void ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& d
       for (store::ZoneRecord& r : part.records) r.seq = ++seq;
     }
   }
-  for (const Part& part : parts) appends.push_back({part.zone, part.epoch, part.records});
+  for (const Part& part : parts)
+    appends.push_back({part.zone, part.epoch, part.records, part.pending});
   log_.append(appends);  // throws: nothing published
   {
     std::lock_guard lock(mutex_);

@@ -41,6 +41,7 @@ class ZonePublisher {
     world::ZoneId zone;
     uint64_t epoch = 0;
     std::vector<store::ZoneRecord> records;
+    std::vector<store::ZonePending> pending;  // other zones' parts of its edits
   };
   // Appends every part in one transaction (all zones adopted, each at its epoch), durable
   // when it returns; runs `durable` (the caller notes the records as its own before anyone

@@ -65,4 +65,39 @@ uint64_t ZoneTable::applied(world::ZoneId zone) const {
   return it == zones_.end() ? 0 : it->second.applied;
 }
 
+std::vector<world::ZoneId> ZoneTable::writable_zones() const {
+  std::lock_guard lock(mutex_);
+  std::vector<world::ZoneId> out;
+  for (const auto& [zone, z] : zones_) {
+    if (z.epoch && !z.behind) out.push_back(zone);
+  }
+  return out;
+}
+
+bool ZoneTable::has_edit(world::ZoneId zone, uint64_t id) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  return id != 0 && it != zones_.end() && it->second.edits.count(id) != 0;
+}
+
+void ZoneTable::note_edit(world::ZoneId zone, uint64_t id) {
+  if (id == 0) return;
+  std::lock_guard lock(mutex_);
+  Zone& z = zones_[zone];
+  const uint64_t when = ++z.notes;
+  z.edits[id] = when;
+  z.noted.emplace_back(id, when);
+  while (z.noted.size() > kRememberedEdits) {
+    const auto [old, at] = z.noted.front();
+    z.noted.pop_front();
+    if (const auto it = z.edits.find(old); it != z.edits.end() && it->second == at)
+      z.edits.erase(it);  // noted again since: the later note stays
+  }
+}
+
+void ZoneTable::forget_edit(world::ZoneId zone, uint64_t id) {
+  std::lock_guard lock(mutex_);
+  if (const auto it = zones_.find(zone); it != zones_.end()) it->second.edits.erase(id);
+}
+
 }  // namespace vox::cluster

@@ -8,9 +8,13 @@
 #pragma once
 
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <mutex>
 #include <optional>
+#include <unordered_map>
+#include <utility>
+#include <vector>
 
 #include "server/world/zone.hpp"
 
@@ -43,12 +47,26 @@ class ZoneTable {
   // more (the zone becomes writable, if still held at `epoch`).
   void caught_up(world::ZoneId zone, uint64_t epoch, uint64_t through, bool complete);
   uint64_t applied(world::ZoneId zone) const;
+  // The zones edits are taken in now.
+  std::vector<world::ZoneId> writable_zones() const;
+
+  // Edit ids (docs/CLUSTER.md, "Edits across a border"): whether the zone's world has the
+  // edit `id`, among the last kRememberedEdits noted for the zone (the log is asked for
+  // older ones). Noted when the pipeline applies an edit or its records; forgotten when
+  // the append that held it failed (the pipeline undid it).
+  static constexpr size_t kRememberedEdits = 8192;
+  bool has_edit(world::ZoneId zone, uint64_t id) const;
+  void note_edit(world::ZoneId zone, uint64_t id);
+  void forget_edit(world::ZoneId zone, uint64_t id);
 
  private:
   struct Zone {
-    std::optional<uint64_t> epoch;  // held at
-    bool behind = false;            // held, the world not caught up yet
-    uint64_t applied = 0;           // the last record the world has
+    std::optional<uint64_t> epoch;                    // held at
+    bool behind = false;                              // held, the world not caught up yet
+    uint64_t applied = 0;                             // the last record the world has
+    std::unordered_map<uint64_t, uint64_t> edits;     // edit id -> when noted (a counter)
+    std::deque<std::pair<uint64_t, uint64_t>> noted;  // (id, when), oldest first
+    uint64_t notes = 0;
   };
   mutable std::mutex mutex_;
   std::map<world::ZoneId, Zone> zones_;

@@ -59,7 +59,8 @@ std::optional<ZoneMessage> decode_zone_message(std::span<const uint8_t> bytes) {
 }
 
 namespace {
-constexpr uint8_t kEditPayloadVersion = 1;
+// 1: no edit id (records written before edits across holders); 2: with it.
+constexpr uint8_t kEditPayloadVersion = 2;
 constexpr size_t kMaxAuthor = 1024;
 }  // namespace
 
@@ -68,6 +69,7 @@ std::vector<uint8_t> encode_zone_edit(const store::LoggedEdit& edit) {
   return world::ByteWriter({kEditPayloadVersion})
       .u16(static_cast<uint16_t>(author.size()))
       .text(author)
+      .u64(edit.edit_id)
       .bytes(store::encode_edit(edit.edit, edit.keep))
       .take();
 }
@@ -82,8 +84,10 @@ std::optional<store::LoggedEdit> decode_zone_edit(const store::ZoneRecord& recor
   const uint8_t version = r.u8();
   const size_t length = r.u16();
   if (!r.ok()) return fail("an edit record shorter than its header");
-  if (version != kEditPayloadVersion) return fail("an edit record of an unknown version");
+  if (version != 1 && version != kEditPayloadVersion)
+    return fail("an edit record of an unknown version");
   std::string author = length > kMaxAuthor ? std::string() : r.text(length);
+  const uint64_t edit_id = version >= 2 ? r.u64() : 0;
   if (length > kMaxAuthor || !r.ok()) return fail("an edit record's author is cut");
   std::string why;
   auto decoded = store::decode_edit_record(r.rest(), &why);
@@ -97,6 +101,7 @@ std::optional<store::LoggedEdit> decode_zone_edit(const store::ZoneRecord& recor
   out.author = std::move(author);
   out.edit = std::move(decoded->edit);
   out.keep = std::move(decoded->keep);
+  out.edit_id = edit_id;
   return out;
 }
 

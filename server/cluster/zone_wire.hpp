@@ -5,8 +5,9 @@
 // Layout (little-endian):
 //   record     u8 version (1), u8 kind (1), u64 zone key, u64 seq, i64 unix_ms, payload
 //   heartbeat  u8 version (1), u8 kind (2), u64 zone key, u64 last seq
-//   a record's payload, an edit: u8 version (1), u16 author length, author, the edit as
-//   the world store encodes it (store/edit_codec.hpp, with the samples it keeps)
+//   a record's payload, an edit: u8 version (2), u16 author length, author, u64 edit id
+//   (0: none), the edit as the world store encodes it (store/edit_codec.hpp, with the
+//   samples it keeps); version 1 had no edit id
 //
 // Pure functions: any thread.
 #pragma once

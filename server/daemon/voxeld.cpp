@@ -94,7 +94,13 @@ metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node
          double(f.forwards_unheld)},
         {"voxeld_cluster_forwards_timed_out_total",
          "Forwarded edits whose holder did not answer within a lease", true,
-         double(f.forwards_timed_out)}};
+         double(f.forwards_timed_out)},
+        {"voxeld_cluster_edits_split_total",
+         "Edits across zones not all held here, sent as one part per zone", true,
+         double(f.edits_split)},
+        {"voxeld_cluster_parts_completed_total",
+         "Parts of edits across zones this node completed after their requests never came", true,
+         double(f.parts_completed)}};
   };
 }
 
@@ -117,10 +123,7 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
     if (!c.metrics_port_file.empty()) write_port_file(c.metrics_port_file, metrics->port());
   }
   if (node) {
-    node->set_submit([&pipeline](world::Edit edit, std::string author, bool bypass,
-                                 std::function<void(const pipeline::EditResult&)> done) {
-      pipeline.submit(std::move(edit), std::move(done), 0, std::move(author), bypass, true);
-    });
+    node->set_submit([&pipeline](pipeline::EditTask task) { pipeline.submit(std::move(task)); });
     node->set_mesh_version([&pipeline](world::ChunkCoord chunk) -> uint64_t {
       const pipeline::MeshVersionPtr m = pipeline.meshes().get(chunk);
       return m ? m->version : 0;

@@ -29,6 +29,7 @@
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/region.hpp"
+#include "server/world/zone.hpp"
 
 namespace vox::pipeline {
 
@@ -45,6 +46,11 @@ struct EditTask {
   std::string author;           // the player id the edit is logged under (empty: none)
   bool bypass_regions = false;  // an admin's: protected regions do not hold it back
   bool forwarded = false;       // a cluster node sent it to this one: never forwarded on
+  // A cluster's (docs/CLUSTER.md): the id its gateway gave the edit (0: none; an edit
+  // already applied under its id is answered, not applied again), and, for one part of
+  // an edit across zones held by different nodes, the only zone whose samples it writes.
+  uint64_t edit_id = 0;
+  std::optional<world::ZoneId> part;
 };
 // Adds a protected region (`add`, its id chosen by the pipeline) or removes one
 // (`remove_id`), in order with the edits around it; durable with their batch.

@@ -40,7 +40,7 @@ void DurableCommit::start(EditBatch& b, std::optional<store::RegionWrite> region
   // doubt): the log may have gaps, never two edits with one number.
   for (size_t i = 0; i < b.accepted.size(); ++i) {
     const EditTask& t = *b.accepted[i];
-    log.push_back({next_seq_++, unix_ms, t.author, t.edit, b.keep[i]});
+    log.push_back({next_seq_++, unix_ms, t.author, t.edit, b.keep[i], t.edit_id, t.part});
   }
   if (!log.empty()) b.seqs = {log.front().seq, log.back().seq};  // else {0, 0}: regions only
   b.appended_at = Clock::now();

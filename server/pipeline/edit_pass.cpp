@@ -76,12 +76,19 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       refuse(result, world::RefusalReason::kStorageUnavailable, kStorageMessage, delta);
       continue;
     }
+    std::vector<world::VoxelBox> zone_keep;  // a part's: the samples of its other zones
     if (rules.zones) {
       std::string why;
-      const ZoneAuthority::Verdict verdict = rules.zones->admit(task, read_box(edit), why);
+      const ZoneAuthority::Verdict verdict =
+          rules.zones->admit(task, read_box(edit), zone_keep, why);
       if (verdict == ZoneAuthority::Verdict::kForwarded) continue;  // the holder answers it
       if (verdict == ZoneAuthority::Verdict::kRefused) {
         refuse(result, world::RefusalReason::kStorageUnavailable, std::move(why), delta);
+        continue;
+      }
+      if (verdict == ZoneAuthority::Verdict::kAlreadyApplied) {
+        result.accepted = true;  // a resend: its first answer may have been lost
+        result.message = std::move(why);
         continue;
       }
     }
@@ -92,6 +99,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     world::Protection protection;
     if (!task.bypass_regions && !regions.in_force().empty())
       protection = world::protection_for(regions.in_force(), edit, task.author);
+    protection.keep.insert(protection.keep.end(), zone_keep.begin(), zone_keep.end());
     if (protection.forbidden_by) {
       refuse(result, world::RefusalReason::kForbidden,
              "it lies wholly inside protected region " + std::to_string(*protection.forbidden_by),
@@ -119,6 +127,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     generated += result.chunks_generated;
     result.accepted = true;
     result.clipped_by = std::move(protection.regions);
+    if (rules.zones) rules.zones->accepted(task);
     b.accepted.push_back(&task);
     b.keep.push_back(std::move(protection.keep));
     ++delta.edits_applied;

@@ -103,6 +103,11 @@ void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner,
                    bypass_regions, forwarded});
 }
 
+void WorldPipeline::submit(EditTask task) {
+  task.submitted = Clock::now();
+  enqueue(std::move(task));
+}
+
 void WorldPipeline::change_regions(RegionTask task) { enqueue(std::move(task)); }
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {

@@ -53,6 +53,9 @@ class WorldPipeline {
   void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0, std::string author = {},
               bool bypass_regions = false, bool forwarded = false);
   std::future<EditResult> submit(world::Edit edit);
+  // Any thread: a task made whole by the caller (a cluster node's forwarded parts); its
+  // `submitted` time is set here.
+  void submit(EditTask task);
   // Any thread. Adds or removes a protected region in order with the edits around it;
   // `task.done` runs on the pipeline thread once the change is durable (or refused).
   void change_regions(RegionTask task);

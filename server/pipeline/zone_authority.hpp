@@ -36,10 +36,15 @@ class ZoneAuthority {
   virtual ~ZoneAuthority() = default;
   virtual void set_wake(std::function<void()> wake) = 0;
   // What becomes of an edit whose touched box is `box` (a smooth: its read box): applied
-  // and logged here; refused (`why` says so for the player); or forwarded to the node that
-  // holds its zone, which then answers it (the node took task.done).
-  enum class Verdict { kWritable, kRefused, kForwarded };
-  virtual Verdict admit(EditTask& task, const world::VoxelBox& box, std::string& why) = 0;
+  // and logged here (leaving the samples in `keep` as they are: those of a part's other
+  // zones); refused (`why` says so for the player); forwarded to the nodes that hold its
+  // zones, which then answer it (the node took task.done); or answered as accepted without
+  // applying it again (its edit id was applied here already).
+  enum class Verdict { kWritable, kRefused, kForwarded, kAlreadyApplied };
+  virtual Verdict admit(EditTask& task, const world::VoxelBox& box,
+                        std::vector<world::VoxelBox>& keep, std::string& why) = 0;
+  // An edit admitted writable was applied (after admit, in the same batch).
+  virtual void accepted(const EditTask& task) = 0;
   // A player's view of chunks within `radius` of `center`: the node asks for its zones
   // (it shows a zone as its log has it only while it holds it, for now).
   virtual void viewing(world::ChunkCoord center, int radius) = 0;

@@ -22,6 +22,7 @@
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/region.hpp"
+#include "server/world/zone.hpp"
 
 namespace vox::store {
 
@@ -41,6 +42,11 @@ struct LoggedEdit {
   // (world/region.hpp). Replay leaves them too, so it is bit-identical whatever the
   // regions are by then.
   std::vector<world::VoxelBox> keep;
+  // A cluster world (docs/CLUSTER.md): the id its gateway gave the edit (0: none), and,
+  // for one part of an edit across zones held by different nodes, the zone it writes
+  // (`keep` then holds the samples outside it).
+  uint64_t edit_id = 0;
+  std::optional<world::ZoneId> part;
 };
 
 // A change of the stored protected regions, written in an append's transaction.

@@ -21,6 +21,12 @@ CREATE TABLE IF NOT EXISTS nodes (node TEXT PRIMARY KEY, address TEXT NOT NULL,
 CREATE TABLE IF NOT EXISTS cluster_world (one BOOLEAN PRIMARY KEY DEFAULT TRUE CHECK (one),
                                           name TEXT NOT NULL, seed BIGINT NOT NULL,
                                           zone_chunks INTEGER NOT NULL);
+ALTER TABLE zone_log ADD COLUMN IF NOT EXISTS edit_id BIGINT NOT NULL DEFAULT 0;
+CREATE INDEX IF NOT EXISTS zone_log_edit ON zone_log (zone, edit_id) WHERE edit_id <> 0;
+CREATE TABLE IF NOT EXISTS zone_pending (zone BIGINT NOT NULL, edit_id BIGINT NOT NULL,
+                                         at_ms BIGINT NOT NULL, record BYTEA NOT NULL,
+                                         since TIMESTAMPTZ NOT NULL DEFAULT now(),
+                                         PRIMARY KEY (zone, edit_id));
 )sql";
 
 // Rows key zones by ZoneId::key()'s bits as a signed BIGINT.
@@ -42,7 +48,16 @@ auto ZoneLeases::run(Fn&& fn) {
   return translate_pq_errors(
       name_, [&] { conn_.reset(); },
       [&] {
-        if (!conn_ || !conn_->c.is_open()) conn_ = std::make_unique<Connection>(uri_);
+        if (!conn_ || !conn_->c.is_open()) {
+          conn_ = std::make_unique<Connection>(uri_);
+          // A node stalled inside a transaction (SIGSTOP, a VM pause) holds its zone rows'
+          // locks: the server ends its transaction after a lease, and nobody waits for a
+          // lock longer than a quarter lease (the keeper's round must go on; it retries).
+          const auto lease_ms = static_cast<long long>(lease_.count());
+          pqxx::nontransaction n(conn_->c);
+          n.exec("SET lock_timeout = " + std::to_string(std::max(lease_ms / 4, 50LL)) +
+                 "; SET idle_in_transaction_session_timeout = " + std::to_string(lease_ms));
+        }
         return fn(conn_->c);
       });
 }
@@ -160,9 +175,26 @@ void ZoneLeases::append(std::span<const ZoneAppend> appends) {
                            std::to_string(a->records.front().seq) + " refused");
         for (const ZoneRecord& rec : a->records) {
           t.exec_params(
-              "INSERT INTO zone_log (zone, seq, epoch, at_ms, record) VALUES ($1, $2, $3, $4, $5)",
+              "INSERT INTO zone_log (zone, seq, epoch, at_ms, record, edit_id) "
+              "VALUES ($1, $2, $3, $4, $5, $6)",
               row_key(a->zone), static_cast<int64_t>(rec.seq), static_cast<int64_t>(a->epoch),
-              rec.unix_ms, pqxx::binarystring(rec.payload.data(), rec.payload.size()));
+              rec.unix_ms, pqxx::binarystring(rec.payload.data(), rec.payload.size()),
+              static_cast<int64_t>(rec.edit_id));
+          // This zone's part of an edit across zones has landed: nothing is left to complete.
+          if (rec.edit_id != 0)
+            t.exec_params("DELETE FROM zone_pending WHERE zone = $1 AND edit_id = $2",
+                          row_key(a->zone), static_cast<int64_t>(rec.edit_id));
+        }
+        // The other zones' parts, unless their logs have them already (a concurrent
+        // writer's part not yet visible leaves a stale row: read_pending drops it).
+        for (const ZonePending& p : a->pending) {
+          t.exec_params(
+              "INSERT INTO zone_pending (zone, edit_id, at_ms, record) "
+              "SELECT $1, $2, $3, $4 WHERE NOT EXISTS "
+              "(SELECT 1 FROM zone_log WHERE zone = $1 AND edit_id = $2) "
+              "ON CONFLICT (zone, edit_id) DO NOTHING",
+              row_key(p.zone), static_cast<int64_t>(p.edit_id), p.unix_ms,
+              pqxx::binarystring(p.payload.data(), p.payload.size()));
         }
         t.exec_params("UPDATE zones SET last_seq = $2 WHERE zone = $1", row_key(a->zone),
                       static_cast<int64_t>(a->records.back().seq));
@@ -175,17 +207,46 @@ void ZoneLeases::append(std::span<const ZoneAppend> appends) {
   }
 }
 
+std::vector<ZonePending> ZoneLeases::read_pending(std::span<const world::ZoneId> zones,
+                                                  std::chrono::milliseconds age, size_t max) {
+  if (zones.empty()) return {};
+  std::string keys = "{";
+  for (size_t i = 0; i < zones.size(); ++i)
+    keys += (i ? "," : "") + std::to_string(row_key(zones[i]));
+  keys += "}";
+  return run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec_params(
+        "DELETE FROM zone_pending p WHERE p.zone = ANY($1::BIGINT[]) AND EXISTS "
+        "(SELECT 1 FROM zone_log l WHERE l.zone = p.zone AND l.edit_id = p.edit_id)",
+        keys);
+    std::vector<ZonePending> out;
+    for (const auto& row : t.exec_params(
+             "SELECT zone, edit_id, at_ms, record FROM zone_pending WHERE zone = ANY($1::BIGINT[]) "
+             "AND since <= now() - $2 * interval '1 millisecond' ORDER BY since, edit_id LIMIT $3",
+             keys, static_cast<int64_t>(age.count()), static_cast<int64_t>(max))) {
+      const pqxx::binarystring bytes(row[3]);
+      out.push_back({world::ZoneId::from_key(static_cast<uint64_t>(row[0].as<int64_t>())),
+                     static_cast<uint64_t>(row[1].as<int64_t>()), row[2].as<int64_t>(),
+                     std::vector<uint8_t>(bytes.begin(), bytes.end())});
+    }
+    t.commit();
+    return out;
+  });
+}
+
 std::vector<ZoneRecord> ZoneLeases::read_log(world::ZoneId zone, uint64_t after_seq, size_t max) {
   return run([&](pqxx::connection& c) {
     pqxx::read_transaction t(c);
     std::vector<ZoneRecord> out;
-    for (const auto& row :
-         t.exec_params("SELECT seq, at_ms, record FROM zone_log WHERE zone = $1 AND seq > $2 "
-                       "ORDER BY seq LIMIT $3",
-                       row_key(zone), static_cast<int64_t>(after_seq), static_cast<int64_t>(max))) {
+    for (const auto& row : t.exec_params(
+             "SELECT seq, at_ms, record, edit_id FROM zone_log WHERE zone = $1 AND seq > $2 "
+             "ORDER BY seq LIMIT $3",
+             row_key(zone), static_cast<int64_t>(after_seq), static_cast<int64_t>(max))) {
       const pqxx::binarystring bytes(row[2]);
       out.push_back({row[0].as<uint64_t>(), row[1].as<int64_t>(),
-                     std::vector<uint8_t>(bytes.begin(), bytes.end())});
+                     std::vector<uint8_t>(bytes.begin(), bytes.end()),
+                     static_cast<uint64_t>(row[3].as<int64_t>())});
     }
     return out;
   });

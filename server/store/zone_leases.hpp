@@ -45,6 +45,18 @@ struct ZoneRecord {
   uint64_t seq = 0;
   int64_t unix_ms = 0;
   std::vector<uint8_t> payload;  // an encoded edit (opaque here)
+  uint64_t edit_id = 0;          // the edit's cluster-wide id (0: none)
+};
+
+// A part of an edit across zones that another zone's log must still get (docs/CLUSTER.md,
+// "Edits across a border"): written with the part the writer logged, in its
+// transaction, unless `zone`'s log has the edit already; removed when `zone`'s log gets
+// it. Whoever holds `zone` completes what is left (roll forward).
+struct ZonePending {
+  world::ZoneId zone;
+  uint64_t edit_id = 0;
+  int64_t unix_ms = 0;
+  std::vector<uint8_t> payload;  // the part as `zone`'s record will hold it
 };
 
 // One zone's part of an append (ZoneLeases::append).
@@ -52,6 +64,7 @@ struct ZoneAppend {
   world::ZoneId zone;
   uint64_t epoch = 0;
   std::span<const ZoneRecord> records;
+  std::span<const ZonePending> pending;  // other zones' parts of these records' edits
 };
 
 struct ZoneRow {
@@ -98,6 +111,11 @@ class ZoneLeases {
   // Several zones' appends in one transaction, each fenced by its epoch and continuing
   // its zone's sequence: all land or none (FencedError names the first zone refused).
   void append(std::span<const ZoneAppend> appends);
+  // The parts the logs of `zones` still miss, written at least `age` ago by the database's
+  // clock (younger ones are likely on their way), at most `max`; pending rows whose zone's
+  // log has the edit by now are removed on the way.
+  std::vector<ZonePending> read_pending(std::span<const world::ZoneId> zones,
+                                        std::chrono::milliseconds age, size_t max = 256);
   // The zone's records after `after_seq`, in order (at most `max`).
   std::vector<ZoneRecord> read_log(world::ZoneId zone, uint64_t after_seq, size_t max = 10000);
   std::optional<ZoneRow> read(world::ZoneId zone);
