@@ -186,6 +186,58 @@ TEST(ClusterNode, APartLeftUndoneByAStoppedHolderIsCompletedOnceItsZoneIsTaken) 
   EXPECT_EQ(logged.count({apart.of_b, in_a[0]}), 1u) << "its part in b's zone is missing";
 }
 
+// A player's edit carries its own edit id. Its node dies before the answer arrives (here:
+// after it, which the node cannot tell apart); the player reconnects to another node and
+// resends the edit: it is answered ACCEPTED with already_applied and applied once, whole
+// edits and edits across zones of two nodes alike.
+TEST(ClusterNode, AnEditResentThroughAnotherNodeAfterItsNodesDeathIsAppliedOnce) {
+  const Cluster cluster;
+  const ZonesApart apart = zones_held_apart();
+  const float side = static_cast<float>(kZoneChunks * world::kChunkSize);
+  const float bx = apart.border_x(), z = apart.middle_z();
+  std::vector<wire::Envelope> edits = {
+      brush(1, (static_cast<float>(apart.of_a.x) + 0.5f) * side, z, 4, 4.0f),  // a's zone
+      explosion(2, bx - 0.5f, z + 2.0f)};                                      // across
+  edits[0].mutable_edit()->set_edit_id(0xabc);
+  edits[1].mutable_edit()->set_edit_id(0xabd);
+  ServerProcess a({"--cluster", cluster.config("a")});
+  std::optional<ServerProcess> b(std::in_place,
+                                 std::vector<std::string>{"--cluster", cluster.config("b")});
+  {
+    auto on_b = player(*b, "player-1");
+    for (const auto& e : edits) {
+      const wire::EditResult r = edit_until_accepted(*on_b, e);
+      ASSERT_EQ(r.status(), wire::EditResult::ACCEPTED) << r.reason();
+      EXPECT_FALSE(r.already_applied());
+    }
+  }
+  b.reset();                          // kill -9
+  auto on_a = player(a, "player-1");  // the same player, on the node left
+  for (const auto& e : edits) {
+    const wire::EditResult r = edit_until_accepted(*on_a, e);
+    EXPECT_EQ(r.status(), wire::EditResult::ACCEPTED) << r.reason();
+    EXPECT_TRUE(r.already_applied()) << "edit " << e.edit().request_id() << " applied again";
+  }
+  // Another player's edit with the same client id is another edit.
+  auto other = player(a, "player-2");
+  wire::Envelope theirs = brush(3, (static_cast<float>(apart.of_a.x) + 0.5f) * side, z + 8, 2, 3);
+  theirs.mutable_edit()->set_edit_id(0xabc);
+  const wire::EditResult r = edit_until_accepted(*other, theirs);
+  EXPECT_EQ(r.status(), wire::EditResult::ACCEPTED);
+  EXPECT_FALSE(r.already_applied());
+  edits.push_back(theirs);
+  for (auto& e : edits) e.mutable_edit()->clear_edit_id();  // one player replays them all
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  for (const float at_x : {bx, (static_cast<float>(apart.of_a.x) + 0.5f) * side}) {
+    const Seen expected = view_of(fresh, at_x, z);
+    EXPECT_TRUE(eventually(&a, [&] { return view_of(a, at_x, z) == expected; }))
+        << "a resent edit was applied twice, or one was lost (x = " << at_x << ")";
+  }
+  for (const auto& [where, n] : edit_ids_logged(cluster.database, {apart.of_a, apart.of_b}))
+    EXPECT_EQ(n, 1) << "edit " << where.second << " logged " << n << " times";
+}
+
 TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) {
   const Cluster cluster;
   const auto [x_, z_] = middle_of_a_zone_of("a");

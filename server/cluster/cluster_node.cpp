@@ -196,6 +196,7 @@ void ClusterNode::serve(const NatsMessage& m) {
     }
     out.changed_chunks = r.changed_chunks;
     out.clipped_by = r.clipped_by;
+    out.already_applied = r.already_applied;
     try {
       nats_.publish(reply_to, encode_edit_reply(out));
     } catch (const ClusterError&) {  // the gateway times out
@@ -226,6 +227,7 @@ void ClusterNode::relay(EditReply reply, Versions before,
   result.reason = reply.reason;
   result.message = std::move(reply.message);
   result.clipped_by = std::move(reply.clipped_by);
+  result.already_applied = result.accepted && reply.already_applied;
   // Its meshes before its result, as on a single node: wait for the zones this node
   // follows to show it (at most a moment: a follower may be slow to start).
   std::erase_if(reply.zones, [this](const auto& z) { return !replicas_.following(z.first); });
@@ -326,7 +328,7 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
   forwarder_->forward(zones.front(),
                       EditRequest{.id = 0,
                                   .bypass_regions = task.bypass_regions,
-                                  .edit_id = new_edit_id(),
+                                  .edit_id = task.edit_id != 0 ? task.edit_id : new_edit_id(),
                                   .part = std::nullopt,
                                   .author = task.author,
                                   .edit = task.edit},
@@ -390,6 +392,7 @@ struct PartsJoin {
   std::mutex mutex;  // leaf
   size_t left = 0;
   bool accepted = false;
+  bool all_applied_before = true;    // every accepted part a resend's
   EditReply reply;                   // the accepted parts' zones and regions
   std::optional<EditReply> refusal;  // the first refusal
   std::vector<world::ZoneId> refused_zones;
@@ -400,7 +403,7 @@ struct PartsJoin {
 void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneId>& zones,
                         const world::VoxelBox& box) {
   edits_split_.fetch_add(1, std::memory_order_relaxed);
-  const uint64_t id = new_edit_id();
+  const uint64_t id = task.edit_id != 0 ? task.edit_id : new_edit_id();
   auto join = std::make_shared<PartsJoin>();
   join->left = zones.size();
   auto finish = std::make_shared<std::function<void(EditReply)>>(
@@ -421,6 +424,7 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
           std::unique_lock lock(join->mutex);
           if (r.reason == world::RefusalReason::kNone) {
             join->accepted = true;
+            join->all_applied_before = join->all_applied_before && r.already_applied;
             join->reply.zones.insert(join->reply.zones.end(), r.zones.begin(), r.zones.end());
             join->reply.clipped_by.insert(join->reply.clipped_by.end(), r.clipped_by.begin(),
                                           r.clipped_by.end());
@@ -430,6 +434,7 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
           }
           if (--join->left > 0) return;
           EditReply out = join->accepted ? std::move(join->reply) : std::move(*join->refusal);
+          out.already_applied = join->accepted && join->all_applied_before;
           if (join->accepted && !join->refused_zones.empty()) {
             spdlog::debug(
                 "cluster: edit {} accepted; {} of its parts follow when their zones' "

@@ -9,6 +9,7 @@
 #include "proto/mesh_codec.hpp"
 #include "server/net/client_session.hpp"
 #include "server/net/wire_convert.hpp"
+#include "server/pipeline/edit_ids.hpp"
 
 namespace vox::net {
 
@@ -249,18 +250,26 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
   // Read before submitting: every version this edit makes is above it.
   const uint64_t ticket = results_.reserve(pipeline_.meshes().newest_version() + 1);
   const auto submitted = Clock::now();
-  pipeline_.submit(
-      std::move(*converted.edit),
-      [self = shared_from_this(), request, ticket, submitted](const pipeline::EditResult& r) {
-        // Pipeline thread: build the result here, queue it on the strand.
-        self->counters_.edit_to_publish.observe(
-            std::chrono::duration<double>(Clock::now() - submitted).count());
-        asio::post(self->strand_, [self, ticket, result = edit_result_message(request, r),
-                                   work = r.chunks_generated + r.chunks_expanded]() mutable {
-          self->on_edit_result(ticket, std::move(result), work);
-        });
-      },
-      id_, player_id_, role_ == auth::Role::kAdmin);
+  pipeline::EditTask task;
+  task.edit = std::move(*converted.edit);
+  task.done = [self = shared_from_this(), request, ticket,
+               submitted](const pipeline::EditResult& r) {
+    // Pipeline thread: build the result here, queue it on the strand.
+    self->counters_.edit_to_publish.observe(
+        std::chrono::duration<double>(Clock::now() - submitted).count());
+    asio::post(self->strand_, [self, ticket, result = edit_result_message(request, r),
+                               work = r.chunks_generated + r.chunks_expanded]() mutable {
+      self->on_edit_result(ticket, std::move(result), work);
+    });
+  };
+  task.owner = id_;
+  task.author = player_id_;
+  task.bypass_regions = role_ == auth::Role::kAdmin;
+  // A resend (the same edit_id) after a lost answer is answered, not applied twice. Without
+  // tokens, the name a player gave stands for it.
+  task.edit_id = pipeline::EditIds::of_player(player_id_.empty() ? "name:" + name_ : player_id_,
+                                              edit.edit_id());
+  pipeline_.submit(std::move(task));
 }
 
 // Strand: the pipeline's answer, queued in the order of the client's edits.

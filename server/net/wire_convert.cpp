@@ -123,6 +123,7 @@ wire::Envelope edit_result_message(uint64_t request, const pipeline::EditResult&
     w->set_retry_after_ms(kBusyRetryMs);
   for (const world::ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
   for (const uint64_t region : r.clipped_by) w->add_clipped_by(region);
+  if (r.already_applied) w->set_already_applied(true);
   return result;
 }
 

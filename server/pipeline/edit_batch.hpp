@@ -31,6 +31,8 @@ struct EditResult {
   std::vector<world::ChunkCoord> changed_chunks;  // chunks given a new mesh version
   // Protected regions whose samples it left as they were (it was clipped; world/region.hpp).
   std::vector<uint64_t> clipped_by;
+  // Accepted as a resend of an edit applied already (its edit id): nothing changed now.
+  bool already_applied = false;
   // What the edit cost the server beyond its samples, charged to its sender: chunks of
   // terrain generated for it, and uniform chunks it turned into full ones.
   size_t chunks_generated = 0, chunks_expanded = 0;

@@ -76,6 +76,10 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       refuse(result, world::RefusalReason::kStorageUnavailable, kStorageMessage, delta);
       continue;
     }
+    if (rules.edit_ids && rules.edit_ids->has(task.edit_id)) {
+      result.accepted = result.already_applied = true;  // a resend: its answer was lost
+      continue;
+    }
     std::vector<world::VoxelBox> zone_keep;  // a part's: the samples of its other zones
     if (rules.zones) {
       std::string why;
@@ -87,7 +91,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
         continue;
       }
       if (verdict == ZoneAuthority::Verdict::kAlreadyApplied) {
-        result.accepted = true;  // a resend: its first answer may have been lost
+        result.accepted = result.already_applied = true;
         result.message = std::move(why);
         continue;
       }
@@ -128,6 +132,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     result.accepted = true;
     result.clipped_by = std::move(protection.regions);
     if (rules.zones) rules.zones->accepted(task);
+    if (rules.edit_ids) rules.edit_ids->note(task.edit_id);
     b.accepted.push_back(&task);
     b.keep.push_back(std::move(protection.keep));
     ++delta.edits_applied;
@@ -141,9 +146,12 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
   return b;
 }
 
-void refuse_undone(EditBatch& b) {
+void refuse_undone(EditBatch& b, EditIds* ids) {
+  if (ids) {
+    for (const EditTask* t : b.accepted) ids->forget(t->edit_id);
+  }
   for (EditResult& r : b.results) {
-    if (!r.accepted) continue;
+    if (!r.accepted || r.already_applied) continue;  // a resend: applied by an earlier batch
     r.accepted = false;
     r.reason = world::RefusalReason::kStorageUnavailable;
     r.message = kStorageMessage;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "server/pipeline/edit_batch.hpp"
+#include "server/pipeline/edit_ids.hpp"
 #include "server/pipeline/edit_step.hpp"
 #include "server/world/edit.hpp"
 
@@ -31,6 +32,7 @@ struct EditRules {
   bool store_resting;              // after a failed append: edits are refused untried
   uint64_t log_tail;               // logged edits no checkpoint holds (world.checkpoints)
   ZoneAuthority* zones = nullptr;  // a cluster node: edits only in the zones it may write
+  EditIds* edit_ids = nullptr;     // a single node's: the edit ids it has applied
 };
 
 // Applies `tasks` (moved into the batch) and runs its inspections; returns the batch with
@@ -40,6 +42,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
 
 // A batch the store could not make durable (it was undone): each edit it accepted is
 // refused STORAGE_UNAVAILABLE, and nothing of it is to be published.
-void refuse_undone(EditBatch& b);
+// Their edit ids are forgotten (`ids`: the single node's, or null).
+void refuse_undone(EditBatch& b, EditIds* ids);
 
 }  // namespace vox::pipeline

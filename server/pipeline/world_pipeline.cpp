@@ -97,12 +97,6 @@ void WorldPipeline::enqueue(OrderedTask task) {
   if (!inbox_.add(task)) refuse_stopped(task, true);  // answered on the caller's thread
 }
 
-void WorldPipeline::submit(world::Edit edit, EditCallback done, LoadOwner owner, std::string author,
-                           bool bypass_regions, bool forwarded) {
-  enqueue(EditTask{std::move(edit), std::move(done), owner, Clock::now(), std::move(author),
-                   bypass_regions, forwarded});
-}
-
 void WorldPipeline::submit(EditTask task) {
   task.submitted = Clock::now();
   enqueue(std::move(task));
@@ -318,7 +312,8 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
       .durable = durable,
       .store_resting = durable && commit_->resting(now),
       .log_tail = checkpoints_ ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0,
-      .zones = config_.zones};
+      .zones = config_.zones,
+      .edit_ids = config_.zones ? nullptr : &edit_ids_};
   EditWorld world = edit_world();
   EditBatch b = apply_edits(tasks, world, regions_, rules, now);
   if (!b.any_edit) return;
@@ -337,7 +332,7 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
 // rolled back), then answers its edits and notifies the subscribers.
 void WorldPipeline::answer(EditBatch& b, bool durable) {
   if (!durable) {
-    refuse_undone(b);
+    refuse_undone(b, config_.zones ? nullptr : &edit_ids_);
   } else {
     if (checkpoints_) checkpoints_->logged(b.accepted.size());
     // The coarse levels re-mesh what durable edits changed.

@@ -17,6 +17,7 @@
 #include "server/mesh/region_mesher.hpp"
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/durable_commit.hpp"
+#include "server/pipeline/edit_ids.hpp"
 #include "server/pipeline/edit_step.hpp"
 #include "server/pipeline/inbox.hpp"
 #include "server/pipeline/lod_stage.hpp"
@@ -48,10 +49,12 @@ class WorldPipeline {
   // (or it was refused); it must not block. Every queued edit is in the next batch.
   // `owner` (a session id; 0 for none) bounds the terrain its edits may make the pipeline
   // generate in one batch. `author`: the player id the edit is logged under;
-  // `bypass_regions`: an admin's edit, which protected regions do not hold back;
-  // `forwarded`: another cluster node sent it (docs/CLUSTER.md): never forwarded on.
+  // `bypass_regions`: an admin's edit, which protected regions do not hold back.
   void submit(world::Edit edit, EditCallback done, LoadOwner owner = 0, std::string author = {},
-              bool bypass_regions = false, bool forwarded = false);
+              bool bypass_regions = false) {
+    submit(
+        EditTask{std::move(edit), std::move(done), owner, {}, std::move(author), bypass_regions});
+  }
   std::future<EditResult> submit(world::Edit edit);
   // Any thread: a task made whole by the caller (a cluster node's forwarded parts); its
   // `submitted` time is set here.
@@ -149,6 +152,7 @@ class WorldPipeline {
   ProtectedRegions regions_;  // regions(): any thread
   // With a store; reset by stop() once thread_ has ended (their threads wake the pipeline).
   std::unique_ptr<Checkpoints> checkpoints_;
+  EditIds edit_ids_;  // pipeline thread: a single node's applied edit ids (a cluster's: ZoneTable)
   std::unique_ptr<DurableCommit> commit_;
   std::unique_ptr<ViewLoads> loads_;
   std::thread thread_;

@@ -197,6 +197,30 @@ class T3Edits(Case):
         self.assertEqual(c.result_log.count(rid), 1)
 
 
+class T3bResend(Case):
+    def test_a_resent_edit_id_is_answered_not_applied_twice(self):
+        first = self.connect("resender")
+        h.load_view(first, ORIGIN_VIEW, 1, 1)
+        p = h.surface_point(first, (0, 0, 0))
+        rid = first.edit("explosion", edit_id=0x5eed, center=p, radius=4, power=2)
+        result = first.wait_result(rid)
+        self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
+        self.assertFalse(result.already_applied)
+        self.assertTrue(result.changed_chunks)
+        first.close()
+        again = self.connect("resender")  # a reconnect: the same player resends it
+        rid = again.edit("explosion", edit_id=0x5eed, center=p, radius=4, power=2)
+        result = again.wait_result(rid)
+        self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
+        self.assertTrue(result.already_applied, "the resend was applied again")
+        self.assertEqual(len(result.changed_chunks), 0)
+        other = self.connect("someone-else")  # another player's edit with the same id
+        rid = other.edit("explosion", edit_id=0x5eed, center=p, radius=4, power=2)
+        result = other.wait_result(rid)
+        self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
+        self.assertFalse(result.already_applied)
+
+
 def edits_at(p):
     x, y, z = p
     return [

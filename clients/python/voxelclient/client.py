@@ -100,11 +100,13 @@ class Client:
             lod_level=lod_level, lod_distance=lod_distance))
         return view_id
 
-    def edit(self, kind, request_id=None, **fields):
+    def edit(self, kind, request_id=None, edit_id=0, **fields):
         """Sends an Edit of `kind` (brush, explosion, smooth, paint, stamp); returns its id.
-        Vector fields take (x, y, z); a stamp's `shape` may be "box" or "sphere"."""
+        Vector fields take (x, y, z); a stamp's `shape` may be "box" or "sphere".
+        `edit_id` (non-zero, unique among the player's edits) makes a resend of the same
+        edit safe: the server answers it already_applied instead of applying it twice."""
         request_id = next(self._ids) if request_id is None else request_id
-        msg = self.pb.Edit(request_id=request_id)
+        msg = self.pb.Edit(request_id=request_id, edit_id=edit_id)
         if kind is not None:
             getattr(msg, kind).CopyFrom(self._edit_body(kind, fields))
         self.send_message(edit=msg)

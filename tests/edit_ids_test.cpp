@@ -1,0 +1,103 @@
+// Edit ids (docs/PROTOCOL.md 4.4, Edit.edit_id): a resend of an edit already applied is
+// answered ACCEPTED with already_applied and changes nothing; an edit undone because its
+// append failed is not remembered (its resend applies it); the memory is bounded.
+#include "server/pipeline/edit_ids.hpp"
+
+#include <gtest/gtest.h>
+
+#include <future>
+#include <memory>
+#include <thread>
+
+#include "server/pipeline/world_pipeline.hpp"
+#include "server/store/world_store.hpp"
+#include "server/world/terrain_generator.hpp"
+#include "tests/gated_store.hpp"
+#include "tests/pipeline_test_util.hpp"
+#include "tests/temp_dir.hpp"
+
+namespace vox::pipeline {
+namespace {
+
+TEST(EditIds, RemembersTheLastNotedAndForgetsTheOldestFirst) {
+  EditIds ids(3);
+  EXPECT_FALSE(ids.has(0));
+  ids.note(0);  // none
+  EXPECT_EQ(ids.size(), 0u);
+  for (uint64_t id = 1; id <= 4; ++id) ids.note(id);
+  EXPECT_FALSE(ids.has(1));
+  EXPECT_TRUE(ids.has(2) && ids.has(3) && ids.has(4));
+  ids.note(2);  // noted again: now the newest
+  ids.note(5);
+  EXPECT_TRUE(ids.has(2)) << "a note again keeps an id";
+  EXPECT_FALSE(ids.has(3));
+  ids.forget(5);
+  EXPECT_FALSE(ids.has(5));
+  for (uint64_t id = 100; id < 10100; ++id) {  // bounded whatever is noted and forgotten
+    ids.note(id);
+    if (id % 2) ids.forget(id);
+  }
+  EXPECT_LE(ids.size(), 3u);
+}
+
+TEST(EditIds, APlayersIdIsTheSameEverywhereAndDiffersByPlayerAndId) {
+  EXPECT_EQ(EditIds::of_player("alice", 0), 0u);
+  EXPECT_EQ(EditIds::of_player("alice", 7), EditIds::of_player("alice", 7));
+  EXPECT_NE(EditIds::of_player("alice", 7), EditIds::of_player("bob", 7));
+  EXPECT_NE(EditIds::of_player("alice", 7), EditIds::of_player("alice", 8));
+  EXPECT_NE(EditIds::of_player("", 1), 0u);
+}
+
+EditResult submit_with_id(WorldPipeline& p, world::Edit edit, uint64_t id) {
+  auto promise = std::make_shared<std::promise<EditResult>>();
+  EditTask task;
+  task.edit = std::move(edit);
+  task.edit_id = id;
+  task.done = [promise](const EditResult& r) { promise->set_value(r); };
+  p.submit(std::move(task));
+  return promise->get_future().get();
+}
+
+TEST(EditIds, AResentEditIsAnsweredAndNotAppliedTwice) {
+  WorldPipeline p(PipelineConfig{.seed = 3, .threads = 2});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  const world::Edit dig = world::Explosion{{10, float(y), 10}, 4, 1};
+  const EditResult first = submit_with_id(p, dig, 42);
+  ASSERT_TRUE(first.accepted);
+  EXPECT_FALSE(first.already_applied);
+  const auto once = test::samples_around(p, 10, y, 10, 6);
+  const EditResult again = submit_with_id(p, dig, 42);
+  EXPECT_TRUE(again.accepted);
+  EXPECT_TRUE(again.already_applied);
+  EXPECT_TRUE(again.changed_chunks.empty());
+  EXPECT_EQ(test::samples_around(p, 10, y, 10, 6), once) << "the resend was applied again";
+  const EditResult other = submit_with_id(p, dig, 43);  // another id: another edit
+  EXPECT_TRUE(other.accepted && !other.already_applied);
+  EXPECT_NE(test::samples_around(p, 10, y, 10, 6), once);
+  p.stop();
+}
+
+// An edit undone because its append failed is not remembered: its resend is applied.
+TEST(EditIds, AnEditWhoseAppendFailedIsAppliedWhenResent) {
+  const test::TempDir tmp("edit_ids_fail");
+  auto sqlite = store::open_world_store((tmp / "world").string(), {.seed = 3});
+  test::GatedStore store(*sqlite);
+  WorldPipeline p(PipelineConfig{
+      .seed = 3, .threads = 2, .store = &store, .store_retry = std::chrono::milliseconds(20)});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  const world::Edit dig = world::Explosion{{10, float(y), 10}, 4, 1};
+  store.set_failing(true);
+  const EditResult failed = submit_with_id(p, dig, 9);
+  EXPECT_EQ(failed.reason, world::RefusalReason::kStorageUnavailable);
+  store.set_failing(false);
+  std::this_thread::sleep_for(std::chrono::milliseconds(40));  // the store's rest
+  const EditResult resent = submit_with_id(p, dig, 9);
+  EXPECT_TRUE(resent.accepted) << resent.message;
+  EXPECT_FALSE(resent.already_applied) << "an undone edit was taken as applied";
+  p.stop();
+}
+
+}  // namespace
+}  // namespace vox::pipeline
