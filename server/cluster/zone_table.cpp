@@ -77,27 +77,18 @@ std::vector<world::ZoneId> ZoneTable::writable_zones() const {
 bool ZoneTable::has_edit(world::ZoneId zone, uint64_t id) const {
   std::lock_guard lock(mutex_);
   const auto it = zones_.find(zone);
-  return id != 0 && it != zones_.end() && it->second.edits.count(id) != 0;
+  return it != zones_.end() && it->second.edits.has(id);
 }
 
 void ZoneTable::note_edit(world::ZoneId zone, uint64_t id) {
   if (id == 0) return;
   std::lock_guard lock(mutex_);
-  Zone& z = zones_[zone];
-  const uint64_t when = ++z.notes;
-  z.edits[id] = when;
-  z.noted.emplace_back(id, when);
-  while (z.noted.size() > kRememberedEdits) {
-    const auto [old, at] = z.noted.front();
-    z.noted.pop_front();
-    if (const auto it = z.edits.find(old); it != z.edits.end() && it->second == at)
-      z.edits.erase(it);  // noted again since: the later note stays
-  }
+  zones_[zone].edits.note(id);
 }
 
 void ZoneTable::forget_edit(world::ZoneId zone, uint64_t id) {
   std::lock_guard lock(mutex_);
-  if (const auto it = zones_.find(zone); it != zones_.end()) it->second.edits.erase(id);
+  if (const auto it = zones_.find(zone); it != zones_.end()) it->second.edits.forget(id);
 }
 
 }  // namespace vox::cluster

@@ -8,14 +8,12 @@
 #pragma once
 
 #include <cstdint>
-#include <deque>
 #include <map>
 #include <mutex>
 #include <optional>
-#include <unordered_map>
-#include <utility>
 #include <vector>
 
+#include "server/pipeline/edit_ids.hpp"
 #include "server/world/zone.hpp"
 
 namespace vox::cluster {
@@ -61,12 +59,10 @@ class ZoneTable {
 
  private:
   struct Zone {
-    std::optional<uint64_t> epoch;                    // held at
-    bool behind = false;                              // held, the world not caught up yet
-    uint64_t applied = 0;                             // the last record the world has
-    std::unordered_map<uint64_t, uint64_t> edits;     // edit id -> when noted (a counter)
-    std::deque<std::pair<uint64_t, uint64_t>> noted;  // (id, when), oldest first
-    uint64_t notes = 0;
+    std::optional<uint64_t> epoch;  // held at
+    bool behind = false;            // held, the world not caught up yet
+    uint64_t applied = 0;           // the last record the world has
+    pipeline::EditIds edits{kRememberedEdits};
   };
   mutable std::mutex mutex_;
   std::map<world::ZoneId, Zone> zones_;
