@@ -45,6 +45,9 @@ struct LoadConfig {
   // instead of the TCP port above, which the verifier and the attackers still use. 0: TCP.
   std::string ws_host;
   uint16_t ws_port = 0;
+  // --more-servers (nodes of one cluster world, over TCP): player i connects to the i mod
+  // (1 + n)-th of host:port and these; the verifier and the attackers use host:port.
+  std::vector<std::pair<std::string, uint16_t>> more_servers;
   int players = 20;
   double duration_s = 10;
   double edit_rate = 0.5;  // edits per second per player

@@ -1,6 +1,7 @@
 // voxel-loadtest: thin entry point; the simulation lives in the voxel_loadtest library.
 #include <unistd.h>
 
+#include <algorithm>
 #include <boost/program_options.hpp>
 #include <fstream>
 #include <iostream>
@@ -25,7 +26,7 @@ vox::loadtest::GroundHeight ground_for_seed(uint64_t seed) {
 
 struct Options {
   vox::loadtest::LoadConfig config;
-  std::string server, websocket, json, svg, sweep, attack, token_key;
+  std::string server, more_servers, websocket, json, svg, sweep, attack, token_key;
   double sweep_limit_ms = 100, max_p99_ms = 0, max_rss_mib = 0;
   vox::loadtest::Limits limits;  // from max_p99_ms and max_rss_mib, when given
 };
@@ -36,6 +37,9 @@ void describe(po::options_description& opts, Options& o) {
   opts.add_options()("help,h", "show this help")(
       "server", po::value<std::string>(&o.server)->default_value("127.0.0.1:7777"),
       "HOST:PORT of voxeld (with --websocket: for --verify and --attack only)")(
+      "more-servers", po::value<std::string>(&o.more_servers),
+      "HOST:PORT,...: more nodes of the same cluster world (docs/CLUSTER.md); the players are "
+      "spread over --server and these (player i on the i mod n-th), over TCP")(
       "websocket", po::value<std::string>(&o.websocket),
       "HOST:PORT of voxeld's HTTP port: the players connect over WebSocket (GET /ws, one "
       "Envelope per binary message) instead of TCP; hostile clients (--attack) and the "
@@ -179,8 +183,18 @@ std::optional<int> parse(int argc, char** argv, Options& o) {
     o.config.host = host;
     o.config.port = port;
     if (vm.count("websocket")) parse_websocket(o);
-    if (o.config.spread_addresses &&
-        (host != "127.0.0.1" || (o.config.ws_port && o.config.ws_host != "127.0.0.1")))
+    for (size_t at = 0; !o.more_servers.empty() && at <= o.more_servers.size();) {
+      const size_t comma = std::min(o.more_servers.find(',', at), o.more_servers.size());
+      o.config.more_servers.push_back(
+          vox::options::parse_server(o.more_servers.substr(at, comma - at)));
+      at = comma + 1;
+    }
+    if (!o.config.more_servers.empty() && vm.count("websocket"))
+      throw std::invalid_argument("--more-servers takes TCP nodes, not --websocket");
+    const bool more_local = std::all_of(o.config.more_servers.begin(), o.config.more_servers.end(),
+                                        [](const auto& s) { return s.first == "127.0.0.1"; });
+    if (o.config.spread_addresses && (host != "127.0.0.1" || !more_local ||
+                                      (o.config.ws_port && o.config.ws_host != "127.0.0.1")))
       throw std::invalid_argument(
           "--spread-addresses needs --server (and --websocket) 127.0.0.1:PORT");
   } catch (const std::exception& e) {

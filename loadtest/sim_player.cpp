@@ -42,8 +42,13 @@ std::vector<uint8_t> bytes_of(const wire::Envelope& m) {
 // loopback address with --spread-addresses.
 LinkTarget target_of(const LoadConfig& c, int id) {
   const bool ws = c.ws_port != 0;
-  return {.host = ws ? c.ws_host : c.host,
-          .port = ws ? c.ws_port : c.port,
+  const size_t server = ws ? 0 : static_cast<size_t>(id) % (1 + c.more_servers.size());
+  return {.host = ws            ? c.ws_host
+                  : server == 0 ? c.host
+                                : c.more_servers[server - 1].first,
+          .port = ws            ? c.ws_port
+                  : server == 0 ? c.port
+                                : c.more_servers[server - 1].second,
           .source = c.spread_addresses ? spread_source_address(0, id) : std::string(),
           .websocket = ws};
 }

@@ -8,6 +8,9 @@
 # b.. in the background, then runs bench/scripts/attack_run.sh NAME PLAYERS DURATION with
 # node a (the players connect to a; edits in zones another node holds are forwarded to
 # it). Prints attack_run.sh's table, then each background node's CPU share over the run.
+# SPREAD=1: the players are spread over all the nodes (voxel-loadtest --more-servers).
+# Then the cluster's traffic over the run: NATS messages and bytes (the server's /varz),
+# PostgreSQL WAL bytes, the zone log's records, and the meshes each node published.
 # Everything is stopped at the end; files stay in /tmp/voxeld_bench/NAME.cluster.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -37,6 +40,7 @@ database="postgresql:///vox?host=$dir&port=55432&user=postgres"
 cat > "$dir/nats.conf" <<EOF
 host: 127.0.0.1
 port: -1
+http_port: ${NATS_MONITOR_PORT:-58222}
 authorization { user: "voxnode", password: "bench-only-secret" }
 EOF
 mkdir -p "$dir/ports"
@@ -63,7 +67,8 @@ others=()
 for i in $(seq 1 $((nodes - 1))); do
   n=${letters[$i]}
   "$bin/voxeld" --cluster "$dir/$n.conf" --port 0 --port-file "$dir/$n.port" --max-memory 1G \
-    --max-clients 4000 --stats-interval 10 > "$dir/$n.log" 2>&1 &
+    --max-clients 4000 --stats-interval 10 --max-per-address 0 --metrics-port 0 \
+    --metrics-port-file "$dir/$n.mport" > "$dir/$n.log" 2>&1 &
   pids+=($!)
   others+=("$n:$!")
 done
@@ -72,11 +77,50 @@ for o in "${others[@]}"; do
   "$root/bench/scripts/thread_cpu.py" "$pid" 10 $((duration > 10 ? duration - 5 : duration)) \
     > "$dir/${o%%:*}.threads" 2>/dev/null &
 done
+more=()
+if [ "${SPREAD:-0}" = 1 ] && [ "$nodes" -gt 1 ]; then
+  list=""
+  for i in $(seq 1 $((nodes - 1))); do
+    n=${letters[$i]}
+    for _ in $(seq 100); do [ -s "$dir/$n.port" ] && break; sleep 0.1; done
+    list="$list${list:+,}127.0.0.1:$(cat "$dir/$n.port")"
+  done
+  more=(--more-servers "$list")
+fi
+varz() { curl -s "http://127.0.0.1:${NATS_MONITOR_PORT:-58222}/varz"; }
+sql() { as_pg "$pgbin/psql -qtA -h $dir -p 55432 -U postgres -d vox -c \"$1\""; }
+varz > "$dir/varz.before"
+wal_before=$(sql "SELECT pg_current_wal_lsn()")
+set +e
 VOXELD_ARGS="--cluster $dir/a.conf ${VOXELD_ARGS:-}" "$root/bench/scripts/attack_run.sh" \
-  "$name" "$players" "$duration" -- "$@"
+  "$name" "$players" "$duration" -- "${more[@]}" "$@"
+code=$?
+set -e
+varz > "$dir/varz.after"
+wal_bytes=$(sql "SELECT pg_wal_lsn_diff(pg_current_wal_lsn(), '$wal_before')")
+records=$(sql "SELECT count(*) FROM zone_log")
+split=$(sql "SELECT count(DISTINCT edit_id) FROM zone_log WHERE edit_id <> 0")
+meshes=""
+for i in $(seq 1 $((nodes - 1))); do
+  n=${letters[$i]}
+  m=$(curl -s "http://127.0.0.1:$(cat "$dir/$n.mport")/metrics" | awk '/^voxeld_meshes_published_total /{print $2}')
+  meshes="$meshes node $n ${m:-?},"
+done
+/usr/bin/python3 - "$dir/varz.before" "$dir/varz.after" "$records" "$wal_bytes" "$split" <<'PY'
+import json, sys
+b, a = (json.load(open(p)) for p in sys.argv[1:3])
+records, wal, split = int(sys.argv[3] or 0), float(sys.argv[4] or 0), int(sys.argv[5] or 0)
+d = {k: a[k] - b[k] for k in ("in_msgs", "out_msgs", "in_bytes", "out_bytes")}
+per = lambda v: f"{v / records:.0f}" if records else "?"
+print(f"cluster traffic: {records} zone log records ({split} edit ids: forwarded or split edits); "
+      f"NATS in {d['in_msgs']} msgs / {d['in_bytes']} B, out {d['out_msgs']} msgs / {d['out_bytes']} B "
+      f"= {per(d['in_bytes'] + d['out_bytes'])} B per record; PostgreSQL WAL {wal:.0f} B = {per(wal)} B per record")
+PY
+echo "meshes published (node a: attack_run's metrics):${meshes%,}"
 for o in "${others[@]}"; do
   echo "node ${o%%:*}:"
   cat "$dir/${o%%:*}.threads" 2>/dev/null || true
 done
 grep -h "fenced\|took zone\|lost zone" "$dir"/*.log /tmp/voxeld_bench/"$name".log 2>/dev/null | wc -l |
   xargs echo "zone events (took, lost, fenced) in the nodes' logs:"
+exit "$code"
