@@ -69,6 +69,13 @@ TEST(ClusterNode, ANodeJoiningUnderLoadTakesItsZonesOverLosingNothing) {
   ASSERT_TRUE(handed) << "b took none of its zones";
   ASSERT_TRUE(went_on) << "the zones were not writable after the hand-off";
   expect_nodes_show({&a, &b}, zones, load.check_logs(cluster.database));
+  // A graceful hand-off refuses nothing: a takes no more edits in the zones, lets its
+  // appends land, releases, and what comes meanwhile waits for b (the gateway asks again).
+  // It once refused the batches in flight, and rested the whole store a second for them.
+  // (Under a sanitizer an append may outlast the hand-off's grace: not counted there.)
+  if (kSlow == 1) {
+    EXPECT_EQ(load.refused(), 0) << "a graceful hand-off refused edits";
+  }
   // Not a timed test: printed for docs/PERFORMANCE.md.
   std::printf(
       "hand-off: %zu edits accepted, %d refused; the longest stall after b joined %.0f ms\n",
@@ -175,15 +182,15 @@ TEST(ClusterNode, APartLeftUndoneByAStoppedHolderIsCompletedOnceItsZoneIsTaken) 
   const Seen expected = view_of(fresh, bx, z);
   EXPECT_TRUE(eventually(&a, [&] { return view_of(a, bx, z) == expected; }))
       << "a does not show the edit across the border whole";
-  // The edit's two parts, each once in its zone's log (a's first edit was a's own: no id).
+  // The edit's two parts, each once in its zone's log: its id is the one both logs have
+  // (the other edits, forwarded or not, are in one zone each).
   const auto logged = edit_ids_logged(cluster.database, {apart.of_a, apart.of_b});
-  std::vector<uint64_t> in_a;
+  int in_both = 0;
   for (const auto& [where, n] : logged) {
     EXPECT_EQ(n, 1);
-    if (where.first == apart.of_a) in_a.push_back(where.second);
+    if (where.first == apart.of_a && logged.count({apart.of_b, where.second})) ++in_both;
   }
-  ASSERT_EQ(in_a.size(), 1u) << "the edit across the border has no part in a's zone";
-  EXPECT_EQ(logged.count({apart.of_b, in_a[0]}), 1u) << "its part in b's zone is missing";
+  EXPECT_EQ(in_both, 1) << "the edit across the border is not in both zones' logs";
 }
 
 // A player's edit carries its own edit id. Its node dies before the answer arrives (here:

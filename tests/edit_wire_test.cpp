@@ -65,6 +65,12 @@ TEST(EditWire, ARequestAndAReplyGoThereAndBack) {
   ASSERT_TRUE(back);
   EXPECT_EQ(back->reason, world::RefusalReason::kStorageUnavailable);
   EXPECT_EQ(back->message, refused.message);
+  EXPECT_FALSE(back->zone_moving || back->already_applied);
+  refused.zone_moving = true;
+  EditReply resent = a_reply();
+  resent.already_applied = true;
+  EXPECT_TRUE(decode_edit_reply(encode_edit_reply(refused))->zone_moving);
+  EXPECT_TRUE(decode_edit_reply(encode_edit_reply(resent))->already_applied);
 }
 
 TEST(EditWire, CutLengthenedOrDamagedMessagesAreRefusedWithAReason) {

@@ -73,11 +73,13 @@ void ClusterNode::start(const std::string& address) {
                          .node = config_.node,
                          .address = address,
                          .lease = config_.lease},
-      ZoneKeeper::Events{.taken = [this](world::ZoneId z, uint64_t epoch) { taken(z, epoch); },
-                         .lost = [this](world::ZoneId z, uint64_t epoch) { lost(z, epoch); },
-                         .round = [this] { round(); },
-                         // The node now ranking first takes it at once, not at the next edit.
-                         .handed_off = [this](world::ZoneId z) { ask_to_take(z); }});
+      ZoneKeeper::Events{
+          .taken = [this](world::ZoneId z, uint64_t epoch) { taken(z, epoch); },
+          .lost = [this](world::ZoneId z, uint64_t epoch) { lost(z, epoch); },
+          .round = [this] { round(); },
+          // The node now ranking first takes it at once, not at the next edit.
+          .handed_off = [this](world::ZoneId z) { ask_to_take(z); },
+          .leaving = [this](world::ZoneId z, uint64_t epoch) { table_.leave(z, epoch); }});
   // Parts of edits across zones left undone in the zones held here (their requests were
   // lost with a node, or refused) are completed once well past a forward's timeout.
   completer_ = std::make_unique<PartCompleter>(
@@ -197,6 +199,7 @@ void ClusterNode::serve(const NatsMessage& m) {
     out.changed_chunks = r.changed_chunks;
     out.clipped_by = r.clipped_by;
     out.already_applied = r.already_applied;
+    out.zone_moving = r.zone_moving;
     try {
       nats_.publish(reply_to, encode_edit_reply(out));
     } catch (const ClusterError&) {  // the gateway times out
@@ -269,7 +272,6 @@ void ClusterNode::release_relays(bool all) {
 
 void ClusterNode::round() {
   publisher_.heartbeat();
-  if (forwarder_) forwarder_->sweep();
   release_relays(false);
   replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
                       [this](world::ZoneId z) { return table_.applied(z); });
@@ -303,9 +305,9 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
   for (const world::ZoneId zone : zones) {
     if (table_.writable(zone)) continue;
     all_writable = false;
-    if (table_.held(zone)) {
+    if (table_.held(zone) && !table_.leaving(zone)) {
       why = describe(zone) + " is being loaded on this node; retry shortly";
-      return Verdict::kRefused;
+      return Verdict::kNotHere;
     }
   }
   if (all_writable) {
@@ -319,7 +321,7 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
   }
   if (task.forwarded || !forwarder_) {
     why = describe(zones.front()) + " is not held by this node (any more); retry shortly";
-    return Verdict::kRefused;
+    return Verdict::kNotHere;
   }
   if (zones.size() > 1) {
     split(task, zones, box);
@@ -352,10 +354,10 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit_part(pipeline::EditTask& tas
     return Verdict::kRefused;
   }
   if (!table_.writable(zone)) {
-    why = describe(zone) + (table_.held(zone)
+    why = describe(zone) + (table_.held(zone) && !table_.leaving(zone)
                                 ? " is being loaded on this node; retry shortly"
                                 : " is not held by this node (any more); retry shortly");
-    return Verdict::kRefused;
+    return Verdict::kNotHere;
   }
   if (table_.has_edit(zone, task.edit_id)) {
     why = "this part of the edit was applied already";

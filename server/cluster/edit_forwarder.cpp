@@ -3,9 +3,11 @@
 #include <spdlog/spdlog.h>
 
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "server/cluster/zone_wire.hpp"
+#include "server/world/thread_name.hpp"
 
 namespace vox::cluster {
 
@@ -28,9 +30,16 @@ EditForwarder::EditForwarder(NatsLink& nats, Config config,
       nobody_holds_(std::move(nobody_holds)),
       inbox_(random_inbox()) {
   subscription_ = nats_.subscribe(inbox_ + ".*", [this](const NatsMessage& m) { on_reply(m); });
+  thread_ = named_thread("vox-forward", [this] { run(); });
 }
 
 EditForwarder::~EditForwarder() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  wake_.notify_all();
+  if (thread_.joinable()) thread_.join();
   nats_.unsubscribe(subscription_);
   std::map<uint64_t, Pending> left;
   {
@@ -58,11 +67,15 @@ void EditForwarder::forward(world::ZoneId zone, EditRequest request, Done done) 
   }
   request.id = next_id_++;
   forwarded_.fetch_add(1, std::memory_order_relaxed);
-  pending_[request.id] = Pending{std::move(done), zone, Clock::now() + config_.timeout};
+  std::vector<uint8_t> bytes = encode_edit_request(request);
+  pending_[request.id] = Pending{std::move(done), zone, Clock::now() + config_.timeout, bytes};
   lock.unlock();
-  const uint64_t id = request.id;
+  send(zone, request.id, bytes);
+}
+
+void EditForwarder::send(world::ZoneId zone, uint64_t id, const std::vector<uint8_t>& request) {
   try {
-    nats_.publish(zone_subject(config_.world, zone, "edit"), encode_edit_request(request),
+    nats_.publish(zone_subject(config_.world, zone, "edit"), request,
                   inbox_ + "." + std::to_string(id));
   } catch (const ClusterError& e) {
     std::unique_lock again(mutex_);
@@ -84,21 +97,38 @@ void EditForwarder::on_reply(const NatsMessage& m) {
   } catch (const std::exception&) {
     return;
   }
+  std::string why;
+  std::optional<EditReply> reply;
+  if (!m.no_responders) reply = decode_edit_reply(m.data, &why);
+  const Clock::time_point now = Clock::now();
   std::unique_lock lock(mutex_);
   const auto it = pending_.find(id);
   if (it == pending_.end()) return;  // timed out already
-  Pending p = std::move(it->second);
+  Pending& waiting = it->second;
+  // The zone is moving (nobody holds it yet, or its holder cannot write it now): asked
+  // again shortly, while there is time.
+  const bool moving = m.no_responders || (reply && reply->zone_moving);
+  if (moving && now + config_.retry < waiting.deadline) {
+    waiting.unheld = m.no_responders;
+    if (reply) waiting.moving = std::move(reply);
+    waiting.again_at = now + config_.retry;
+    const world::ZoneId zone = waiting.zone;
+    lock.unlock();
+    if (m.no_responders) {
+      unheld_.fetch_add(1, std::memory_order_relaxed);
+      nobody_holds_(zone);
+    }
+    wake_.notify_one();
+    return;
+  }
+  Pending p = std::move(waiting);
   pending_.erase(it);
   lock.unlock();
   if (m.no_responders) {
     unheld_.fetch_add(1, std::memory_order_relaxed);
     nobody_holds_(p.zone);
-    return p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
-                          "zone (" + std::to_string(p.zone.x) + ", " + std::to_string(p.zone.z) +
-                              ") is held by no node right now: it is being taken; retry shortly"));
+    return p.done(unheld_refusal(id, p.zone));
   }
-  std::string why;
-  std::optional<EditReply> reply = decode_edit_reply(m.data, &why);
   if (!reply) {
     const uint64_t damaged = ++damaged_;
     if (damaged % 1000 == 1)  // one line per thousand
@@ -109,22 +139,55 @@ void EditForwarder::on_reply(const NatsMessage& m) {
   p.done(*reply);
 }
 
+EditReply EditForwarder::unheld_refusal(uint64_t id, world::ZoneId zone) {
+  return refusal(id, world::RefusalReason::kStorageUnavailable,
+                 "zone (" + std::to_string(zone.x) + ", " + std::to_string(zone.z) +
+                     ") is held by no node right now: it is being taken; retry shortly");
+}
+
+void EditForwarder::run() {
+  std::unique_lock lock(mutex_);
+  while (!stopping_) {
+    // Retries are due within `retry`; timeouts are checked as often.
+    wake_.wait_for(lock, pending_.empty() ? std::chrono::milliseconds(200) : config_.retry,
+                   [this] { return stopping_; });
+    if (stopping_) break;
+    lock.unlock();
+    sweep();
+    lock.lock();
+  }
+}
+
 void EditForwarder::sweep() {
   const Clock::time_point now = Clock::now();
   std::vector<std::pair<uint64_t, Pending>> late;
+  std::vector<std::tuple<world::ZoneId, uint64_t, std::vector<uint8_t>>> again;
   {
     std::lock_guard lock(mutex_);
     for (auto it = pending_.begin(); it != pending_.end();) {
-      if (it->second.deadline <= now) {
-        late.emplace_back(it->first, std::move(it->second));
+      Pending& p = it->second;
+      if (p.deadline <= now) {
+        late.emplace_back(it->first, std::move(p));
         it = pending_.erase(it);
-      } else {
-        ++it;
+        continue;
       }
+      if (p.again_at && *p.again_at <= now) {
+        p.again_at.reset();
+        again.emplace_back(p.zone, it->first, p.request);
+      }
+      ++it;
     }
   }
-  timed_out_.fetch_add(late.size(), std::memory_order_relaxed);
+  for (auto& [zone, id, request] : again) {
+    retried_.fetch_add(1, std::memory_order_relaxed);
+    send(zone, id, request);
+  }
   for (auto& [id, p] : late) {
+    if (p.again_at) {  // it was still moving: refused as its last answer said
+      p.done(p.moving && !p.unheld ? *p.moving : unheld_refusal(id, p.zone));
+      continue;
+    }
+    timed_out_.fetch_add(1, std::memory_order_relaxed);
     nobody_holds_(p.zone);  // its holder may have died or stalled: the next live one takes it
     p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
                    "the zone's holder did not answer in time; the edit may have been applied"));

@@ -67,7 +67,9 @@ std::optional<EditRequest> decode_edit_request(std::span<const uint8_t> bytes, s
 
 std::vector<uint8_t> encode_edit_reply(const EditReply& r) {
   world::ByteWriter w({kVersion, kReply});
-  w.u64(r.id).u8(static_cast<uint8_t>(r.reason)).u8(r.already_applied ? 1 : 0);
+  w.u64(r.id)
+      .u8(static_cast<uint8_t>(r.reason))
+      .u8((r.already_applied ? 1 : 0) | (r.zone_moving ? 2 : 0));
   put_text(w, r.message);
   const size_t zones = std::min(r.zones.size(), kMaxList);
   w.u16(static_cast<uint16_t>(zones));
@@ -99,8 +101,9 @@ std::optional<EditReply> decode_edit_reply(std::span<const uint8_t> bytes, std::
     return fail<EditReply>(error, "an edit reply's reason is unknown");
   out.reason = static_cast<world::RefusalReason>(reason);
   const uint8_t flags = r.u8();
-  if (flags > 1) return fail<EditReply>(error, "an edit reply's flags are unknown");
-  out.already_applied = flags == 1;
+  if (flags > 3) return fail<EditReply>(error, "an edit reply's flags are unknown");
+  out.already_applied = (flags & 1) != 0;
+  out.zone_moving = (flags & 2) != 0;
   out.message = get_text(r);
   const size_t zones = r.u16();
   for (size_t i = 0; i < zones && r.ok(); ++i) {

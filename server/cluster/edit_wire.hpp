@@ -8,9 +8,10 @@
 //            regions; 2: one zone's part), u64 edit id, [u64 the part's zone key,]
 //            u16 author length, author, the edit (store/edit_codec.hpp)
 //   reply    u8 version (2), u8 kind (4), u64 id, u8 reason (world::RefusalReason; 0:
-//            accepted), u8 flags (1: applied already), u16 message length, message, u16 zones, each
-//            (u64 zone key, u64 the zone's last record once the edit was durable), u16 chunks, each
-//            (i32 x, y, z: chunks given a new mesh on the holder), u16 regions, each u64
+//            accepted), u8 flags (1: applied already, 2: the zone is moving), u16 message length,
+//            message, u16 zones, each (u64 zone key, u64 the zone's last record once the edit was
+//            durable), u16 chunks, each (i32 x, y, z: chunks given a new mesh on the holder), u16
+//            regions, each u64
 //
 // Pure functions: any thread.
 #pragma once
@@ -45,6 +46,9 @@ struct EditReply {
   std::vector<world::ChunkCoord> changed_chunks;
   std::vector<uint64_t> clipped_by;
   bool already_applied = false;  // accepted as a resend: applied before (its edit id)
+  // Refused because the zone is not writable at the node that answered (handed off, or
+  // its log still being applied): the gateway asks again.
+  bool zone_moving = false;
 };
 
 std::vector<uint8_t> encode_edit_request(const EditRequest& r);

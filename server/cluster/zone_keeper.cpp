@@ -2,6 +2,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <chrono>
+#include <thread>
 #include <vector>
 
 #include "server/cluster/zone_plan.hpp"
@@ -119,6 +122,12 @@ void ZoneKeeper::round() {
       } else {
         lose(zone, epoch, "another node took it");
       }
+    }
+    // A graceful hand-off: no more edits here, a moment for the appends in flight to land
+    // (the lease is still this node's), then released.
+    if (!plan.hand_off.empty() && events_.leaving) {
+      for (const world::ZoneId zone : plan.hand_off) events_.leaving(zone, held.at(zone).epoch);
+      std::this_thread::sleep_for(std::min(config_.lease / 10, std::chrono::milliseconds(50)));
     }
     for (const world::ZoneId zone : plan.hand_off) {
       const uint64_t epoch = held.at(zone).epoch;

@@ -42,6 +42,9 @@ class ZoneKeeper {
     std::function<void()> round;  // after each round (about every lease / 3)
     // Released for another node: one ranking first now, or any, at a graceful stop.
     std::function<void(world::ZoneId)> handed_off;
+    // A hand-off's first step, a moment before `lost`: take no more edits in the zone
+    // (the appends made meanwhile still land under its epoch).
+    std::function<void(world::ZoneId, uint64_t epoch)> leaving;
   };
 
   // Opens its connection (throws store::StoreError when the database cannot be reached)

@@ -50,7 +50,7 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
       if (e.part && zone != *e.part) continue;  // other nodes' parts
       ZonePublisher::Part& part = parts[zone];
       if (part.records.empty()) {
-        const std::optional<uint64_t> epoch = zones_.writable(zone);
+        const std::optional<uint64_t> epoch = zones_.appendable(zone);
         // Lost since the pipeline took the edit: the append fails as a fenced one would.
         if (!epoch)
           throw store::FencedError(name_ + ": zone (" + std::to_string(zone.x) + ", " +

@@ -7,6 +7,19 @@ void ZoneTable::taken(world::ZoneId zone, uint64_t epoch) {
   Zone& z = zones_[zone];
   z.epoch = epoch;
   z.behind = true;
+  z.leaving = false;
+}
+
+void ZoneTable::leave(world::ZoneId zone, uint64_t epoch) {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it != zones_.end() && it->second.epoch == epoch) it->second.leaving = true;
+}
+
+bool ZoneTable::leaving(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  return it != zones_.end() && it->second.leaving;
 }
 
 void ZoneTable::lost(world::ZoneId zone, uint64_t epoch) {
@@ -15,9 +28,17 @@ void ZoneTable::lost(world::ZoneId zone, uint64_t epoch) {
   if (it == zones_.end() || it->second.epoch != epoch) return;
   it->second.epoch.reset();
   it->second.behind = false;
+  it->second.leaving = false;
 }
 
 std::optional<uint64_t> ZoneTable::writable(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it == zones_.end() || it->second.behind || it->second.leaving) return std::nullopt;
+  return it->second.epoch;
+}
+
+std::optional<uint64_t> ZoneTable::appendable(world::ZoneId zone) const {
   std::lock_guard lock(mutex_);
   const auto it = zones_.find(zone);
   if (it == zones_.end() || it->second.behind) return std::nullopt;
@@ -69,7 +90,7 @@ std::vector<world::ZoneId> ZoneTable::writable_zones() const {
   std::lock_guard lock(mutex_);
   std::vector<world::ZoneId> out;
   for (const auto& [zone, z] : zones_) {
-    if (z.epoch && !z.behind) out.push_back(zone);
+    if (z.epoch && !z.behind && !z.leaving) out.push_back(zone);
   }
   return out;
 }

@@ -24,8 +24,14 @@ class ZoneTable {
   void taken(world::ZoneId zone, uint64_t epoch);
   // The zone is no longer held at `epoch` (a later epoch's take is left alone).
   void lost(world::ZoneId zone, uint64_t epoch);
+  // A graceful hand-off's first step: no edit is taken in it any more (they go to its next
+  // holder), while the appends already made land under its epoch; lost() follows.
+  void leave(world::ZoneId zone, uint64_t epoch);
+  bool leaving(world::ZoneId zone) const;
   // Edits in it are taken: its epoch; nullopt when it is not held or still catching up.
   std::optional<uint64_t> writable(world::ZoneId zone) const;
+  // Its appends land: its epoch while held and caught up, being handed off or not.
+  std::optional<uint64_t> appendable(world::ZoneId zone) const;
   bool held(world::ZoneId zone) const;
 
   // An append of these zones whose outcome is in doubt: they catch up again (whatever of
@@ -61,6 +67,7 @@ class ZoneTable {
   struct Zone {
     std::optional<uint64_t> epoch;  // held at
     bool behind = false;            // held, the world not caught up yet
+    bool leaving = false;           // held, being handed off
     uint64_t applied = 0;           // the last record the world has
     pipeline::EditIds edits{kRememberedEdits};
   };

@@ -75,7 +75,7 @@ void DurableCommit::finish(size_t keep) {
       const AppendOutcome& out = b.outcome.get();
       b.waited += ready ? 0 : seconds_since(start);
       if (hooks_.committed) hooks_.committed(out, b.waited);
-      if (!out.error.empty()) return fail(out.error);
+      if (!out.error.empty()) return fail(out.error, out.fenced);
       doubtful_.reset();
       if (failing_) {
         failing_ = false;
@@ -89,7 +89,7 @@ void DurableCommit::finish(size_t keep) {
 
 // The oldest pending append failed: every pending batch is undone (newest first) and its
 // accepted edits refused; nothing of them was published.
-void DurableCommit::fail(const std::string& error) {
+void DurableCommit::fail(const std::string& error, bool fenced) {
   for (EditBatch& b : pending_) {
     if (b.outcome.valid()) b.outcome.wait();  // the later ones return without trying
   }
@@ -101,10 +101,17 @@ void DurableCommit::fail(const std::string& error) {
     if (!doubtful_) doubtful_ = b.seqs;
     doubtful_->last = b.seqs.last;
   }
-  retry_at_ = Clock::now() + retry_;
-  if (!failing_) spdlog::error("world store: {}; edits are refused until it works", error);
-  failing_ = true;
-  for (EditBatch& b : pending_) hooks_.answer(b, false);
+  if (fenced) {  // a cluster zone moved: its holder now takes them (gateways ask it again)
+    spdlog::info("world store: {}; the edits in flight were refused", error);
+  } else {
+    retry_at_ = Clock::now() + retry_;
+    if (!failing_) spdlog::error("world store: {}; edits are refused until it works", error);
+    failing_ = true;
+  }
+  for (EditBatch& b : pending_) {
+    b.zone_moved = fenced;
+    hooks_.answer(b, false);
+  }
   pending_.clear();
 }
 

@@ -73,7 +73,7 @@ class DurableCommit {
   void wait_for_appends() const;
 
  private:
-  void fail(const std::string& error);
+  void fail(const std::string& error, bool fenced);
 
   const std::chrono::milliseconds retry_;
   const Hooks hooks_;

@@ -33,6 +33,8 @@ struct EditResult {
   std::vector<uint64_t> clipped_by;
   // Accepted as a resend of an edit applied already (its edit id): nothing changed now.
   bool already_applied = false;
+  // A cluster node's refusal: the zone is not writable here just now (docs/CLUSTER.md).
+  bool zone_moving = false;
   // What the edit cost the server beyond its samples, charged to its sender: chunks of
   // terrain generated for it, and uniform chunks it turned into full ones.
   size_t chunks_generated = 0, chunks_expanded = 0;
@@ -79,6 +81,7 @@ struct EditBatch {
   Undo undo;
   BatchCounts counts;
   bool any_edit = false;
+  bool zone_moved = false;                    // undone because a cluster zone moved to another node
   store::WorldStore::SeqRange seqs;           // of the accepted edits, when appended
   std::shared_future<AppendOutcome> outcome;  // invalid: nothing to append
   Clock::time_point appended_at;              // when the append started

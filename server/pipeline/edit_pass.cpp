@@ -86,7 +86,9 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       const ZoneAuthority::Verdict verdict =
           rules.zones->admit(task, read_box(edit), zone_keep, why);
       if (verdict == ZoneAuthority::Verdict::kForwarded) continue;  // the holder answers it
-      if (verdict == ZoneAuthority::Verdict::kRefused) {
+      if (verdict == ZoneAuthority::Verdict::kRefused ||
+          verdict == ZoneAuthority::Verdict::kNotHere) {
+        result.zone_moving = verdict == ZoneAuthority::Verdict::kNotHere;
         refuse(result, world::RefusalReason::kStorageUnavailable, std::move(why), delta);
         continue;
       }
@@ -155,6 +157,7 @@ void refuse_undone(EditBatch& b, EditIds* ids) {
     r.accepted = false;
     r.reason = world::RefusalReason::kStorageUnavailable;
     r.message = kStorageMessage;
+    r.zone_moving = b.zone_moved;  // a forwarded edit is asked again at the zone's holder
   }
   for (auto& d : b.edit_dirty) d.clear();
   b.counts.edits_applied -= b.accepted.size();

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <span>
 
+#include "server/store/zone_leases.hpp"
 #include "server/world/thread_name.hpp"
 
 namespace vox::pipeline {
@@ -83,6 +84,9 @@ void StoreAppender::run(std::vector<Job>& group) {
       }
       out.edits = log.size();
       store_.append_edits(log, forget, head.regions ? &*head.regions : nullptr);
+    } catch (const store::FencedError& e) {  // a cluster zone moved to another node
+      out.error = e.what();
+      out.fenced = true;
     } catch (const std::exception& e) {  // the store's, or no memory for the merged log
       out.error = e.what();
       if (out.error.empty()) out.error = "append failed";

@@ -27,7 +27,10 @@
 namespace vox::pipeline {
 
 struct AppendOutcome {
-  std::string error;   // empty: durable
+  std::string error;  // empty: durable
+  // The error was a cluster zone's fence (store::FencedError: another node writes the zone
+  // now): it says nothing about the store, which does not rest.
+  bool fenced = false;
   double seconds = 0;  // the store's transaction (0 when not tried)
   // The transaction may carry several appends: the edits in it, and whether this append
   // was its first (a transaction's figures are counted once).

@@ -37,10 +37,11 @@ class ZoneAuthority {
   virtual void set_wake(std::function<void()> wake) = 0;
   // What becomes of an edit whose touched box is `box` (a smooth: its read box): applied
   // and logged here (leaving the samples in `keep` as they are: those of a part's other
-  // zones); refused (`why` says so for the player); forwarded to the nodes that hold its
-  // zones, which then answer it (the node took task.done); or answered as accepted without
-  // applying it again (its edit id was applied here already).
-  enum class Verdict { kWritable, kRefused, kForwarded, kAlreadyApplied };
+  // zones); refused (`why` says so for the player), or refused because a zone is not
+  // writable here just now (being loaded, handed off: a gateway asks again); forwarded to
+  // the nodes that hold its zones, which then answer it (the node took task.done); or
+  // answered as accepted without applying it again (its edit id was applied here already).
+  enum class Verdict { kWritable, kRefused, kNotHere, kForwarded, kAlreadyApplied };
   virtual Verdict admit(EditTask& task, const world::VoxelBox& box,
                         std::vector<world::VoxelBox>& keep, std::string& why) = 0;
   // An edit admitted writable was applied (after admit, in the same batch).
