@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "server/world/edit_apply.hpp"
+#include "server/world/zone.hpp"
 
 namespace vox::world {
 namespace {
@@ -135,6 +136,58 @@ TEST(EditApply, EachEditTypeChangesWhatItShould) {
     apply_edit(smooth, {0, 0, 0}, c, &snap);
     EXPECT_FALSE(is_solid(c.at(16, 20, 16).density)) << "smoothing removes the spike";
   }
+}
+
+// In a cluster world a smooth reads, around each sample, only its own zone's samples: so
+// applying it whole equals applying each zone's part alone (the other zones' samples
+// kept), in any order, and a part's result does not depend on the other zones' samples.
+// That is what lets each zone replay its part from its own log.
+TEST(EditApply, ASmoothReadingWithinZonesEqualsItsZonesPartsAppliedAlone) {
+  constexpr int kZone = 1;  // zones of one chunk: chunks (0,0,0) and (1,0,0) differ
+  const auto world_with = [](int salt) {
+    ChunkMap map;
+    for (const int cx : {0, 1}) {
+      Chunk c = half_solid();
+      for (int z = 10; z < 22; ++z)
+        for (int y = 14; y < 26; ++y)
+          for (int x = 0; x < kChunkSize; ++x) {
+            const int h = (x * 7 + y * 13 + z * 5 + cx * 11 + (cx == 1 ? salt : 0)) % 23;
+            c.set(x, y, z, {static_cast<int8_t>(h * 10 - 110), static_cast<Material>(1 + h % 4)});
+          }
+      map.insert({cx, 0, 0}, std::move(c));
+    }
+    return map;
+  };
+  const Smooth smooth{{32.0f, 20.0f, 16.0f}, 5.0f, 0.9f};  // across the border at x = 32
+  const VoxelBox touched = touched_box(Edit{smooth});
+  const auto apply = [&](ChunkMap& map, std::span<const VoxelBox> keep) {
+    SampleSnapshot snap = take_snapshot(map, smooth_read_box(smooth));
+    snap.zone_chunks = kZone;
+    for (const int cx : {0, 1}) apply_edit(smooth, {cx, 0, 0}, *map.find({cx, 0, 0}), &snap, keep);
+  };
+  const auto outside = [&](ZoneId z) { return outside_zone(touched, z, kZone); };
+  ChunkMap whole = world_with(0);
+  apply(whole, {});
+  ChunkMap parts = world_with(0), reversed = world_with(0);
+  apply(parts, outside({0, 0}));
+  apply(parts, outside({1, 0}));
+  apply(reversed, outside({1, 0}));
+  apply(reversed, outside({0, 0}));
+  ChunkMap other = world_with(5);  // zone 1's samples differ
+  apply(other, outside({0, 0}));
+  for (int z = 0; z < kChunkSize; ++z)
+    for (int y = 0; y < kChunkSize; ++y)
+      for (int x = 0; x < kChunkSize; ++x)
+        for (const int cx : {0, 1}) {
+          const Sample w = whole.find({cx, 0, 0})->at(x, y, z);
+          ASSERT_EQ(parts.find({cx, 0, 0})->at(x, y, z), w)
+              << cx << " " << x << " " << y << " " << z;
+          ASSERT_EQ(reversed.find({cx, 0, 0})->at(x, y, z), w);
+          if (cx == 0) ASSERT_EQ(other.find({0, 0, 0})->at(x, y, z), w) << "zone 0 read zone 1";
+        }
+  ChunkMap changed = world_with(0);
+  EXPECT_NE(changed.find({0, 0, 0})->at(31, 20, 16), whole.find({0, 0, 0})->at(31, 20, 16))
+      << "the smooth changed nothing at the border";
 }
 
 TEST(EditApply, NoChangeReportsNothing) {

@@ -296,11 +296,9 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,
                                                     std::vector<world::VoxelBox>& keep,
                                                     std::string& why) {
   if (task.part) return admit_part(task, keep, why);
-  const std::vector<world::ZoneId> zones = world::zones_of(box, config_.zone_chunks);
-  if (zones.size() > 1 && std::holds_alternative<world::Smooth>(task.edit)) {
-    why = "a smooth across a zone border is not taken by a cluster yet";
-    return Verdict::kRefused;
-  }
+  // The zones it writes (a smooth reads only within each sample's zone: the same).
+  const std::vector<world::ZoneId> zones =
+      world::zones_of(world::touched_box(task.edit), config_.zone_chunks);
   bool all_writable = true;
   for (const world::ZoneId zone : zones) {
     if (table_.writable(zone)) continue;
@@ -348,9 +346,8 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit_part(pipeline::EditTask& tas
   const world::ZoneId zone = *task.part;
   const world::VoxelBox touched = world::touched_box(task.edit);
   const std::vector<world::ZoneId> zones = world::zones_of(touched, config_.zone_chunks);
-  if (task.edit_id == 0 || std::holds_alternative<world::Smooth>(task.edit) ||
-      std::find(zones.begin(), zones.end(), zone) == zones.end()) {
-    why = "a part of an edit that is not one (no edit id, a smooth, or a zone it misses)";
+  if (task.edit_id == 0 || std::find(zones.begin(), zones.end(), zone) == zones.end()) {
+    why = "a part of an edit that is not one (no edit id, or a zone it misses)";
     return Verdict::kRefused;
   }
   if (!table_.writable(zone)) {

@@ -74,6 +74,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
 
   // pipeline::ZoneAuthority (the pipeline thread).
   void set_wake(std::function<void()> wake) override { wake_ = std::move(wake); }
+  int zone_chunks() const override { return config_.zone_chunks; }
   Verdict admit(pipeline::EditTask& task, const world::VoxelBox& box,
                 std::vector<world::VoxelBox>& keep, std::string& why) override;
   void accepted(const pipeline::EditTask& task) override;

@@ -83,6 +83,7 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
   std::optional<world::SampleSnapshot> snapshot;
   if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
     snapshot = world::take_snapshot(st.chunks, world::smooth_read_box(*smooth));
+    snapshot->zone_chunks = w.zone_chunks;
   }
   std::vector<world::ChangedBox> changed(touched.size());
   std::vector<ChunkCoord> dirty_here;  // chunks whose mesh reads a changed sample

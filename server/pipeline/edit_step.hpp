@@ -36,6 +36,7 @@ struct EditWorld {
   Checkpoints* checkpoints;  // null without a store
   size_t other_bytes;        // sessions' state and the unaccounted heap, in the memory budget
   std::function<size_t()> resident_bytes;  // what the budget counts now
+  int zone_chunks = 0;  // a cluster node's zones: a smooth reads within each sample's zone
 };
 
 world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Clock::time_point now,

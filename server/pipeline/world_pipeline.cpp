@@ -592,9 +592,14 @@ void WorldPipeline::drain_after_stop() {
 }
 
 EditWorld WorldPipeline::edit_world() {
-  return {*state_, generator_, memory_, meshes_, checkpoints_.get(), memory_.other_bytes(), [this] {
-            return resident_bytes();
-          }};
+  return {*state_,
+          generator_,
+          memory_,
+          meshes_,
+          checkpoints_.get(),
+          memory_.other_bytes(),
+          [this] { return resident_bytes(); },
+          config_.zones ? config_.zones->zone_chunks() : 0};
 }
 
 }  // namespace vox::pipeline

@@ -35,6 +35,8 @@ class ZoneAuthority {
  public:
   virtual ~ZoneAuthority() = default;
   virtual void set_wake(std::function<void()> wake) = 0;
+  // The world's zone size (chunks a side): a smooth reads within each sample's zone.
+  virtual int zone_chunks() const = 0;
   // What becomes of an edit whose touched box is `box` (a smooth: its read box): applied
   // and logged here (leaving the samples in `keep` as they are: those of a part's other
   // zones); refused (`why` says so for the player), or refused because a zone is not

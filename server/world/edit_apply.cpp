@@ -203,10 +203,24 @@ ChangedBox apply_smooth(const Smooth& sm, const Target& t, const SampleSnapshot&
     if (d2 >= r2) return old;
     float sum = 0;
     Sample densest{kDensityMin, kAir};
+    // The columns a neighbour is read from: any, or (zones) those of this sample's zone.
+    int32_t x_lo = x - 1, x_hi = x + 1, z_lo = z - 1, z_hi = z + 1;
+    if (snapshot.zone_chunks > 0) {
+      const int64_t side = int64_t{snapshot.zone_chunks} * kChunkSize;
+      const auto first = [side](int32_t v) {  // the zone's first column at or below v
+        return static_cast<int32_t>((v >= 0 ? v / side : -((-int64_t{v} - 1) / side) - 1) * side);
+      };
+      const int32_t zx = first(x), zz = first(z);
+      x_lo = std::max(x_lo, zx);
+      x_hi = static_cast<int32_t>(std::min<int64_t>(x_hi, zx + side - 1));
+      z_lo = std::max(z_lo, zz);
+      z_hi = static_cast<int32_t>(std::min<int64_t>(z_hi, zz + side - 1));
+    }
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
-          const Sample n = snapshot.at(x + dx, y + dy, z + dz);
+          const Sample n =
+              snapshot.at(std::clamp(x + dx, x_lo, x_hi), y + dy, std::clamp(z + dz, z_lo, z_hi));
           sum += dequantize_density(n.density);
           if (n.density > densest.density) densest = n;
         }

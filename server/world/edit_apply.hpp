@@ -18,6 +18,11 @@ namespace vox::world {
 struct SampleSnapshot {
   VoxelBox box;
   std::vector<Sample> samples;
+  // A cluster world's zones (zone.hpp; 0: none): a smooth reads, around each sample, only
+  // the samples of that sample's own zone (a neighbour across the zone's border is read
+  // as the nearest sample inside it), so each zone's part of a smooth replays from that
+  // zone's log alone (docs/CLUSTER.md, "Edits across a border").
+  int zone_chunks = 0;
   Sample at(int32_t x, int32_t y, int32_t z) const;
 };
 SampleSnapshot take_snapshot(const ChunkMap& map, const VoxelBox& box);
