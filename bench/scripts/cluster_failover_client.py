@@ -6,7 +6,8 @@
 # --cluster, a viewer on b and an editor on a; 10 explosions; kill -9 of the node holding
 # zone (0, 0); the editor reconnects to the other node and makes 10 more (retrying
 # STORAGE_UNAVAILABLE); prints the statuses, when the first edit was accepted after the
-# kill, and what a fresh viewer on the survivor gets.
+# kill, and what a fresh viewer on the survivor gets. Before the kill, remote visibility:
+# VISIBILITY_EDITS (40) brushes from a, timed to their result and to the viewer's delta on b.
 import os, re, signal, subprocess, sys, time, glob
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, ROOT + "/clients/python")
@@ -61,6 +62,32 @@ print("viewer on b holds", len(viewer.chunks), "chunks")
 holder = "a" if "took zone (0, 0)" in open(D+"/a.log").read() else "b"
 other, oport = ("b", pb) if holder == "a" else ("a", pa)
 print("holder of zone (0, 0):", holder)
+
+# Remote visibility: brushes sent by the editor on a; in turn, the time to the editor's
+# EditResult, and to the first delta of a chunk around the brush at the viewer on b.
+def visibility(n):
+    to_result, to_delta = [], []
+    for i in range(n):
+        x, z = 20 + (i % 10) * 2.5, 44 + (i // 10) * 3.0
+        around = {(cx, cy, cz) for cx in range(int(x // 32) - 1, int(x // 32) + 2)
+                  for cy in range(-1, 2) for cz in range(int(z // 32) - 1, int(z // 32) + 2)}
+        seen = len(viewer.log)
+        t0 = time.monotonic()
+        rid = editor.edit("brush", center=(x, 2, z), radius=3, strength=1, material=1 + i % 4)
+        if i % 2 == 0:
+            if editor.wait_result(rid, 10).status == 0: to_result.append(time.monotonic() - t0)
+        else:
+            viewer.pump(lambda: any(k == "chunk_mesh" and d[0] in around and d[2] != 0
+                                    for k, d in viewer.log[seen:]), 10)
+            to_delta.append(time.monotonic() - t0)
+            editor.wait_result(rid, 10)
+        time.sleep(0.2)
+    q = lambda v, f: 1000 * sorted(v)[min(len(v) - 1, int(f * len(v)))] if v else -1
+    print("remote visibility (editor on a, zone held by %s, viewer on b): edit -> EditResult "
+          "p50 %.1f p95 %.1f ms (n %d); edit -> first delta on b p50 %.1f p95 %.1f ms (n %d)"
+          % (holder, q(to_result, .5), q(to_result, .95), len(to_result),
+             q(to_delta, .5), q(to_delta, .95), len(to_delta)))
+visibility(int(os.environ.get("VISIBILITY_EDITS", "40")))
 os.kill(procs[holder].pid, signal.SIGKILL); procs[holder].wait(); t=time.time()
 editor = Client("127.0.0.1", oport, decode=False); editor.hello("editor2")
 first_ok.clear()

@@ -114,6 +114,14 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   pipeline::WorldPipeline pipeline(c.world, observe_into(counters));
   asio::io_context io;
   net::Server server(io, c.net, pipeline, counters);
+  // Left by an exception: the node stops calling into the pipeline (forwarded edits,
+  // parts it completes) and the sessions before they go. Otherwise stopped below.
+  struct StopNode {
+    cluster::ClusterNode* node;
+    ~StopNode() {
+      if (node) node->stop(false);  // idempotent
+    }
+  } stop_node{node};
   server.start();
   std::unique_ptr<metrics::MetricsEndpoint> metrics;
   if (c.metrics_port) {
