@@ -40,12 +40,19 @@ TEST(EditIds, RemembersTheLastNotedAndForgetsTheOldestFirst) {
   EXPECT_LE(ids.size(), 3u);
 }
 
-TEST(EditIds, APlayersIdIsTheSameEverywhereAndDiffersByPlayerAndId) {
-  EXPECT_EQ(EditIds::of_player("alice", 0), 0u);
-  EXPECT_EQ(EditIds::of_player("alice", 7), EditIds::of_player("alice", 7));
-  EXPECT_NE(EditIds::of_player("alice", 7), EditIds::of_player("bob", 7));
-  EXPECT_NE(EditIds::of_player("alice", 7), EditIds::of_player("alice", 8));
-  EXPECT_NE(EditIds::of_player("", 1), 0u);
+// Keyed: the same on every node with the cluster's key, another under another key (a
+// player cannot compute which client id gives another player's world id).
+TEST(EditIds, APlayersIdIsTheSameUnderOneKeyAndDiffersByPlayerIdAndKey) {
+  const EditIds::Key key = EditIds::key_from_secret("world\nsecret");
+  EXPECT_EQ(key, EditIds::key_from_secret("world\nsecret"));
+  EXPECT_NE(key, EditIds::key_from_secret("world\nother"));
+  EXPECT_EQ(EditIds::of_player(key, "alice", 0), 0u);
+  EXPECT_EQ(EditIds::of_player(key, "alice", 7), EditIds::of_player(key, "alice", 7));
+  EXPECT_NE(EditIds::of_player(key, "alice", 7), EditIds::of_player(key, "bob", 7));
+  EXPECT_NE(EditIds::of_player(key, "alice", 7), EditIds::of_player(key, "alice", 8));
+  EXPECT_NE(EditIds::of_player(key, "", 1), 0u);
+  EXPECT_NE(EditIds::of_player(key, "alice", 7),
+            EditIds::of_player(EditIds::random_key(), "alice", 7));
 }
 
 EditResult submit_with_id(WorldPipeline& p, world::Edit edit, uint64_t id) {
@@ -96,6 +103,53 @@ TEST(EditIds, AnEditWhoseAppendFailedIsAppliedWhenResent) {
   const EditResult resent = submit_with_id(p, dig, 9);
   EXPECT_TRUE(resent.accepted) << resent.message;
   EXPECT_FALSE(resent.already_applied) << "an undone edit was taken as applied";
+  p.stop();
+}
+
+// The ids of edits undone behind a failed append (their own batch never tried) are
+// forgotten too, and a resend answered "applied already" while its original was still in
+// flight is refused with it: once both ids were kept, and a resend was told ACCEPTED for
+// an edit the world did not have.
+TEST(EditIds, EditsUndoneBehindAFailedAppendAreNotTakenAsApplied) {
+  const test::TempDir tmp("edit_ids_behind");
+  auto sqlite = store::open_world_store((tmp / "world").string(), {.seed = 3});
+  test::GatedStore store(*sqlite);
+  WorldPipeline p(PipelineConfig{
+      .seed = 3, .threads = 2, .store = &store, .store_retry = std::chrono::milliseconds(20)});
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  const auto submit_async = [&](world::Edit edit, uint64_t id) {
+    auto promise = std::make_shared<std::promise<EditResult>>();
+    EditTask task;
+    task.edit = std::move(edit);
+    task.edit_id = id;
+    task.done = [promise](const EditResult& r) { promise->set_value(r); };
+    p.submit(std::move(task));
+    return promise->get_future();
+  };
+  store.close();
+  store.set_failing(true);
+  const int entered = store.entered();
+  auto first = submit_async(world::Explosion{{10, float(y), 10}, 4, 1}, 21);
+  ASSERT_TRUE(store.wait_entered(entered + 1));  // its append waits at the gate
+  auto behind = submit_async(world::Explosion{{14, float(y), 12}, 3, 1}, 22);
+  auto resend = submit_async(world::Explosion{{10, float(y), 10}, 4, 1}, 21);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // both applied, in flight
+  store.open();
+  EXPECT_FALSE(first.get().accepted);
+  EXPECT_FALSE(behind.get().accepted);
+  const EditResult r = resend.get();
+  EXPECT_FALSE(r.accepted) << "a resend was ACCEPTED though its original was undone";
+  EXPECT_FALSE(r.already_applied);
+  store.set_failing(false);
+  std::this_thread::sleep_for(std::chrono::milliseconds(40));  // the store's rest
+  for (const uint64_t id : {21, 22}) {
+    const EditResult again = submit_with_id(
+        p, world::Explosion{{id == 21 ? 10.0f : 14.0f, float(y), id == 21 ? 10.0f : 12.0f}, 3, 1},
+        id);
+    EXPECT_TRUE(again.accepted) << again.message;
+    EXPECT_FALSE(again.already_applied) << "edit " << id << " was undone, yet taken as applied";
+  }
   p.stop();
 }
 

@@ -286,6 +286,26 @@ TEST_F(ZoneLeasesTest, ANodeStalledHoldingAZoneRowsLockDoesNotStallAnothersRound
   EXPECT_TRUE(b.acquire(zone).has_value()) << "taken once the lock is gone";
 }
 
+// Two holders committing parts of one edit at once may each miss the other's (neither
+// transaction sees the other's rows): a pending row is left for a zone whose log has the
+// edit. read_pending drops it rather than have it applied twice.
+TEST_F(ZoneLeasesTest, AStalePendingPartWhoseZoneLogHasTheEditIsDropped) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000));
+  const ZoneId za{0, 0};
+  const uint64_t ea = *a.acquire(za);
+  a.append(std::vector<ZoneAppend>{{za, ea, std::vector<ZoneRecord>{{1, 500, {1, 77}, 77}}, {}}});
+  // The row the race leaves (za's key is 0), written as a concurrent writer would have.
+  const std::string cmd = "psql '" + db +
+                          "' -q -c \"INSERT INTO zone_pending (zone, edit_id, at_ms, record) " +
+                          "VALUES (0, 77, 500, '\\\\x0177')\" > /dev/null 2>&1";
+  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  EXPECT_TRUE(a.read_pending(std::vector<ZoneId>{za}, milliseconds(0)).empty())
+      << "a stale pending part would be applied again";
+  a.append(std::vector<ZoneAppend>{{za, ea, std::vector<ZoneRecord>{{2, 501, {2}, 78}}, {}}});
+  EXPECT_EQ(a.read_log(za, 0).size(), 2u);
+}
+
 TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {
   const std::string db = fresh_database();
   ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));

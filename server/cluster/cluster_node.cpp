@@ -260,7 +260,7 @@ void ClusterNode::release_relays(bool all) {
     }
   }
   for (Relay& r : ready) {
-    if (r.result.accepted) {
+    if (r.result.accepted && !r.result.already_applied) {
       // Its changed chunks as this node shows them: the meshes around it that changed.
       for (const auto& [c, version] : r.before) {
         if (mesh_version_ && mesh_version_(c) != version) r.result.changed_chunks.push_back(c);
@@ -275,6 +275,10 @@ void ClusterNode::round() {
   release_relays(false);
   replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
                       [this](world::ZoneId z) { return table_.applied(z); });
+  // Edit ids of zones neither held nor followed any more: the memory stays bounded.
+  for (const world::ZoneId zone : table_.zones_with_edits()) {
+    if (!table_.held(zone) && !replicas_.following(zone)) table_.forget_edits(zone);
+  }
 }
 
 void ClusterNode::viewing(world::ChunkCoord center, int radius) {
@@ -372,6 +376,14 @@ void ClusterNode::accepted(const pipeline::EditTask& task) {
     table_.note_edit(zone, task.edit_id);
 }
 
+void ClusterNode::undone(const pipeline::EditTask& task) {
+  if (task.edit_id == 0) return;
+  if (task.part) return table_.forget_edit(*task.part, task.edit_id);
+  for (const world::ZoneId zone :
+       world::zones_of(world::touched_box(task.edit), config_.zone_chunks))
+    table_.forget_edit(zone, task.edit_id);
+}
+
 uint64_t ClusterNode::new_edit_id() {
   // splitmix64 of a random base plus a counter: distinct here, and across nodes but for
   // a chance of one in 2^64 per pair.
@@ -428,7 +440,9 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
             join->reply.clipped_by.insert(join->reply.clipped_by.end(), r.clipped_by.begin(),
                                           r.clipped_by.end());
           } else {
-            if (!join->refusal) join->refusal = r;
+            // A part whose outcome is unknown says so: the edit may have been applied.
+            if (!join->refusal || (r.maybe_applied && !join->refusal->maybe_applied))
+              join->refusal = r;
             join->refused_zones.push_back(zone);
           }
           if (--join->left > 0) return;

@@ -78,6 +78,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
   Verdict admit(pipeline::EditTask& task, const world::VoxelBox& box,
                 std::vector<world::VoxelBox>& keep, std::string& why) override;
   void accepted(const pipeline::EditTask& task) override;
+  void undone(const pipeline::EditTask& task) override;
   void viewing(world::ChunkCoord center, int radius) override;
   bool records_waiting() override { return table_.catching_up() || replicas_.waiting(); }
   std::optional<pipeline::ZoneRecords> next_records() override;

@@ -189,8 +189,11 @@ void EditForwarder::sweep() {
     }
     timed_out_.fetch_add(1, std::memory_order_relaxed);
     nobody_holds_(p.zone);  // its holder may have died or stalled: the next live one takes it
-    p.done(refusal(id, world::RefusalReason::kStorageUnavailable,
-                   "the zone's holder did not answer in time; the edit may have been applied"));
+    EditReply unknown = refusal(id, world::RefusalReason::kStorageUnavailable,
+                                "the zone's holder did not answer in time; the edit may have "
+                                "been applied");
+    unknown.maybe_applied = true;
+    p.done(unknown);
   }
 }
 

@@ -49,6 +49,9 @@ struct EditReply {
   // Refused because the zone is not writable at the node that answered (handed off, or
   // its log still being applied): the gateway asks again.
   bool zone_moving = false;
+  // Not on the wire: the gateway's own refusal of a request its holder never answered
+  // (the edit may have been applied).
+  bool maybe_applied = false;
 };
 
 std::vector<uint8_t> encode_edit_request(const EditRequest& r);

@@ -55,9 +55,10 @@ void PartCompleter::sweep() {
         decode_zone_edit(store::ZoneRecord{0, p.unix_ms, p.payload, p.edit_id}, &why);
     const std::string where =
         "zone (" + std::to_string(p.zone.x) + ", " + std::to_string(p.zone.z) + ")";
-    if (!part) {  // written by a node of this world: a bug, or a damaged row; left for a person
-      spdlog::error("cluster: the part of edit {} left for {} cannot be read: {}", p.edit_id, where,
-                    why);
+    if (!part) {  // written by a node of this world: a bug, or a damaged row
+      spdlog::error("cluster: the part of edit {} left for {} cannot be read ({}); removed",
+                    p.edit_id, where, why);
+      db_.drop_pending(p.zone, p.edit_id);  // else it would hold a place for ever
       continue;
     }
     {

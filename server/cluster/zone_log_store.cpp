@@ -80,23 +80,14 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   try {
     publisher_.commit(list, durable);
   } catch (const store::FencedError& e) {
-    forget_edits(list);
     for (const auto& part : list) {
       if (part.zone == e.zone) zones_.lost(part.zone, part.epoch);  // the keeper hears it too
     }
     publisher_.forget(e.zone);
     throw;
   } catch (const store::StoreError&) {
-    forget_edits(list);  // what landed is noted again as the zones catch up
     for (const auto& part : list) zones_.doubt(part.zone);  // it may have landed
     throw;
-  }
-}
-
-// The pipeline undoes a failed append's edits: their ids are no longer applied here.
-void ZoneLogStore::forget_edits(std::span<const ZonePublisher::Part> parts) {
-  for (const auto& part : parts) {
-    for (const store::ZoneRecord& r : part.records) zones_.forget_edit(part.zone, r.edit_id);
   }
 }
 

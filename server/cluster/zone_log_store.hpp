@@ -39,8 +39,6 @@ class ZoneLogStore : public store::WorldStore {
   void for_each_edit(uint64_t, const std::function<bool(const store::LoggedEdit&)>&) override {}
 
  private:
-  void forget_edits(std::span<const ZonePublisher::Part> parts);
-
   ZoneTable& zones_;
   ZonePublisher& publisher_;
   const int zone_chunks_;

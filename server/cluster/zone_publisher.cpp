@@ -49,9 +49,10 @@ void ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& d
     for (Part& part : parts) {
       const auto it = last_.find(part.zone);
       if (it == last_.end())
-        throw store::StoreError("zone (" + std::to_string(part.zone.x) + ", " +
-                                std::to_string(part.zone.z) +
-                                ") is not this node's (never adopted)");
+        throw store::FencedError("zone (" + std::to_string(part.zone.x) + ", " +
+                                     std::to_string(part.zone.z) +
+                                     ") is not this node's (lost, or never adopted)",
+                                 part.zone);
       uint64_t seq = it->second;
       for (store::ZoneRecord& r : part.records) r.seq = ++seq;
     }

@@ -107,6 +107,21 @@ void ZoneTable::note_edit(world::ZoneId zone, uint64_t id) {
   zones_[zone].edits.note(id);
 }
 
+std::vector<world::ZoneId> ZoneTable::zones_with_edits() const {
+  std::lock_guard lock(mutex_);
+  std::vector<world::ZoneId> out;
+  for (const auto& [zone, z] : zones_) {
+    if (z.edits.size() > 0) out.push_back(zone);
+  }
+  return out;
+}
+
+void ZoneTable::forget_edits(world::ZoneId zone) {
+  std::lock_guard lock(mutex_);
+  if (const auto it = zones_.find(zone); it != zones_.end())
+    it->second.edits = pipeline::EditIds(kRememberedEdits);
+}
+
 void ZoneTable::forget_edit(world::ZoneId zone, uint64_t id) {
   std::lock_guard lock(mutex_);
   if (const auto it = zones_.find(zone); it != zones_.end()) it->second.edits.forget(id);

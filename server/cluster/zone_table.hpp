@@ -62,6 +62,10 @@ class ZoneTable {
   bool has_edit(world::ZoneId zone, uint64_t id) const;
   void note_edit(world::ZoneId zone, uint64_t id);
   void forget_edit(world::ZoneId zone, uint64_t id);
+  // The zones whose edit ids are remembered; a zone neither held nor followed any more
+  // forgets them all (a later follow or take notes them again from its log).
+  std::vector<world::ZoneId> zones_with_edits() const;
+  void forget_edits(world::ZoneId zone);
 
  private:
   struct Zone {

@@ -118,10 +118,13 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   // parts it completes) and the sessions before they go. Otherwise stopped below.
   struct StopNode {
     cluster::ClusterNode* node;
+    pipeline::WorldPipeline& pipeline;
     ~StopNode() {
-      if (node) node->stop(false);  // idempotent
+      if (!node) return;
+      pipeline.stop();    // first: its thread calls the node (admit, records)
+      node->stop(false);  // both idempotent
     }
-  } stop_node{node};
+  } stop_node{node, pipeline};
   server.start();
   std::unique_ptr<metrics::MetricsEndpoint> metrics;
   if (c.metrics_port) {
@@ -174,8 +177,12 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
   if (!c.cluster_file.empty()) {
     try {
       c.world.seed = c.seed.value_or(1);
-      node = std::make_unique<cluster::ClusterNode>(cluster::read_cluster_config(c.cluster_file),
-                                                    c.world.seed);
+      cluster::ClusterConfig cc = cluster::read_cluster_config(c.cluster_file);
+      // Every node has the cluster's NATS password, no player has: the edit ids' key.
+      if (cc.nats.password.empty())
+        spdlog::warn("cluster: no nats_password: players could guess each other's edit ids");
+      c.world.edit_id_key = pipeline::EditIds::key_from_secret(cc.world + '\n' + cc.nats.password);
+      node = std::make_unique<cluster::ClusterNode>(std::move(cc), c.world.seed);
     } catch (const std::exception& e) {
       std::cerr << "voxeld: " << e.what() << "\n";
       return 1;

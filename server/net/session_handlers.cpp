@@ -267,8 +267,8 @@ void ClientSession::handle_edit(const wire::Edit& edit) {
   task.bypass_regions = role_ == auth::Role::kAdmin;
   // A resend (the same edit_id) after a lost answer is answered, not applied twice. Without
   // tokens, the name a player gave stands for it.
-  task.edit_id = pipeline::EditIds::of_player(player_id_.empty() ? "name:" + name_ : player_id_,
-                                              edit.edit_id());
+  task.edit_id =
+      pipeline_.edit_id_of(player_id_.empty() ? "name:" + name_ : player_id_, edit.edit_id());
   pipeline_.submit(std::move(task));
 }
 

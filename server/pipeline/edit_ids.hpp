@@ -4,6 +4,7 @@
 // node's pipeline thread; a cluster's ZoneTable, under its lock).
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -20,9 +21,14 @@ class EditIds {
   void note(uint64_t id);    // 0: nothing
   void forget(uint64_t id);  // an edit undone (its append failed)
   size_t size() const { return when_.size(); }
-  // The world's id of a player's edit that carries `client_id` (never 0; 0 for none): one
-  // fixed hash every node computes alike, so a resend through another node finds it.
-  static uint64_t of_player(std::string_view player, uint64_t client_id);
+  // The world's id of a player's edit that carries `client_id` (never 0; 0 for none): a
+  // hash keyed by a secret (SipHash-2-4), so that no player can choose a client id whose
+  // world id is another player's; every node of a cluster has the same key, so a resend
+  // through another node finds it.
+  using Key = std::array<uint8_t, 16>;
+  static uint64_t of_player(const Key& key, std::string_view player, uint64_t client_id);
+  static Key random_key();                              // a single node's, for its run
+  static Key key_from_secret(std::string_view secret);  // a cluster's, from a shared secret
 
  private:
   size_t capacity_;

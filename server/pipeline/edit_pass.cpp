@@ -148,12 +148,14 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
   return b;
 }
 
-void refuse_undone(EditBatch& b, EditIds* ids) {
-  if (ids) {
-    for (const EditTask* t : b.accepted) ids->forget(t->edit_id);
+void refuse_undone(EditBatch& b, EditIds* ids, ZoneAuthority* zones) {
+  for (const EditTask* t : b.accepted) {
+    if (ids) ids->forget(t->edit_id);
+    if (zones) zones->undone(*t);
   }
   for (EditResult& r : b.results) {
-    if (!r.accepted || r.already_applied) continue;  // a resend: applied by an earlier batch
+    if (!r.accepted) continue;
+    r.already_applied = false;
     r.accepted = false;
     r.reason = world::RefusalReason::kStorageUnavailable;
     r.message = kStorageMessage;

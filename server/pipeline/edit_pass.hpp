@@ -42,7 +42,9 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
 
 // A batch the store could not make durable (it was undone): each edit it accepted is
 // refused STORAGE_UNAVAILABLE, and nothing of it is to be published.
-// Their edit ids are forgotten (`ids`: the single node's, or null).
-void refuse_undone(EditBatch& b, EditIds* ids);
+// Their edit ids are forgotten (`ids`: a single node's; `zones`: a cluster node's). A
+// resend it answered as applied already is refused too: the original may be among the
+// undone (the client sends it again).
+void refuse_undone(EditBatch& b, EditIds* ids, ZoneAuthority* zones);
 
 }  // namespace vox::pipeline

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "server/pipeline/checkpoint_policy.hpp"
+#include "server/pipeline/edit_ids.hpp"
 #include "server/pipeline/lod_stage.hpp"
 #include "server/pipeline/zone_authority.hpp"
 #include "server/store/world_store.hpp"
@@ -19,6 +20,8 @@ namespace vox::pipeline {
 
 struct PipelineConfig {
   uint64_t seed = 1;
+  // The key of the world's edit ids (EditIds::of_player): a cluster's nodes share one.
+  EditIds::Key edit_id_key = EditIds::random_key();
   world::TerrainParams terrain;
   int threads = 0;  // worker threads for apply/generate/mesh, 0 = all cores
   world::EditLimits limits;

@@ -332,7 +332,7 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
 // rolled back), then answers its edits and notifies the subscribers.
 void WorldPipeline::answer(EditBatch& b, bool durable) {
   if (!durable) {
-    refuse_undone(b, config_.zones ? nullptr : &edit_ids_);
+    refuse_undone(b, config_.zones ? nullptr : &edit_ids_, config_.zones);
   } else {
     if (checkpoints_) checkpoints_->logged(b.accepted.size());
     // The coarse levels re-mesh what durable edits changed.

@@ -56,6 +56,10 @@ class WorldPipeline {
         EditTask{std::move(edit), std::move(done), owner, {}, std::move(author), bypass_regions});
   }
   std::future<EditResult> submit(world::Edit edit);
+  // Any thread: the world's id of a player's edit carrying `client_id` (0: none).
+  uint64_t edit_id_of(std::string_view player, uint64_t client_id) const {
+    return EditIds::of_player(config_.edit_id_key, player, client_id);
+  }
   // Any thread: a task made whole by the caller (a cluster node's forwarded parts); its
   // `submitted` time is set here.
   void submit(EditTask task);

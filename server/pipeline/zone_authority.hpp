@@ -48,6 +48,8 @@ class ZoneAuthority {
                         std::vector<world::VoxelBox>& keep, std::string& why) = 0;
   // An edit admitted writable was applied (after admit, in the same batch).
   virtual void accepted(const EditTask& task) = 0;
+  // An accepted edit was undone (its batch's append failed, or one before it did).
+  virtual void undone(const EditTask& task) = 0;
   // A player's view of chunks within `radius` of `center`: the node asks for its zones
   // (it shows a zone as its log has it only while it holds it, for now).
   virtual void viewing(world::ChunkCoord center, int radius) = 0;

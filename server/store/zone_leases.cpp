@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <pqxx/pqxx>
 #include <string>
+#include <tuple>
 
 #include "server/store/pq_errors.hpp"
 
@@ -180,24 +181,46 @@ void ZoneLeases::append(std::span<const ZoneAppend> appends) {
               row_key(a->zone), static_cast<int64_t>(rec.seq), static_cast<int64_t>(a->epoch),
               rec.unix_ms, pqxx::binarystring(rec.payload.data(), rec.payload.size()),
               static_cast<int64_t>(rec.edit_id));
-          // This zone's part of an edit across zones has landed: nothing is left to complete.
-          if (rec.edit_id != 0)
-            t.exec_params("DELETE FROM zone_pending WHERE zone = $1 AND edit_id = $2",
-                          row_key(a->zone), static_cast<int64_t>(rec.edit_id));
-        }
-        // The other zones' parts, unless their logs have them already (a concurrent
-        // writer's part not yet visible leaves a stale row: read_pending drops it).
-        for (const ZonePending& p : a->pending) {
-          t.exec_params(
-              "INSERT INTO zone_pending (zone, edit_id, at_ms, record) "
-              "SELECT $1, $2, $3, $4 WHERE NOT EXISTS "
-              "(SELECT 1 FROM zone_log WHERE zone = $1 AND edit_id = $2) "
-              "ON CONFLICT (zone, edit_id) DO NOTHING",
-              row_key(p.zone), static_cast<int64_t>(p.edit_id), p.unix_ms,
-              pqxx::binarystring(p.payload.data(), p.payload.size()));
         }
         t.exec_params("UPDATE zones SET last_seq = $2 WHERE zone = $1", row_key(a->zone),
                       static_cast<int64_t>(a->records.back().seq));
+      }
+      // Pending parts: each zone's own part that landed removes its row (nothing is left
+      // to complete); the other zones' parts are written unless their logs have them
+      // already (a concurrent writer's part not yet visible leaves a stale row:
+      // read_pending drops it). All in one order, by (zone, edit id), for every writer:
+      // writers touching the same pending keys (which wait for each other) never wait in
+      // a circle.
+      struct PendingOp {
+        int64_t zone;
+        uint64_t edit_id;
+        const ZonePending* insert;  // null: the zone's own part landed
+      };
+      std::vector<PendingOp> ops;
+      for (const ZoneAppend* a : order) {
+        for (const ZoneRecord& rec : a->records) {
+          if (rec.edit_id != 0) ops.push_back({row_key(a->zone), rec.edit_id, nullptr});
+        }
+        for (const ZonePending& p : a->pending) ops.push_back({row_key(p.zone), p.edit_id, &p});
+      }
+      std::sort(ops.begin(), ops.end(), [](const PendingOp& x, const PendingOp& y) {
+        return std::tuple(x.zone, x.edit_id, x.insert != nullptr) <
+               std::tuple(y.zone, y.edit_id, y.insert != nullptr);
+      });
+      for (const PendingOp& op : ops) {
+        if (!op.insert) {
+          t.exec_params("DELETE FROM zone_pending WHERE zone = $1 AND edit_id = $2", op.zone,
+                        static_cast<int64_t>(op.edit_id));
+          continue;
+        }
+        const ZonePending& p = *op.insert;
+        t.exec_params(
+            "INSERT INTO zone_pending (zone, edit_id, at_ms, record) "
+            "SELECT $1, $2, $3, $4 WHERE NOT EXISTS "
+            "(SELECT 1 FROM zone_log WHERE zone = $1 AND edit_id = $2 AND edit_id <> 0) "
+            "ON CONFLICT (zone, edit_id) DO NOTHING",
+            op.zone, static_cast<int64_t>(p.edit_id), p.unix_ms,
+            pqxx::binarystring(p.payload.data(), p.payload.size()));
       }
       t.commit();
     });
@@ -218,7 +241,8 @@ std::vector<ZonePending> ZoneLeases::read_pending(std::span<const world::ZoneId>
     pqxx::work t(c);
     t.exec_params(
         "DELETE FROM zone_pending p WHERE p.zone = ANY($1::BIGINT[]) AND EXISTS "
-        "(SELECT 1 FROM zone_log l WHERE l.zone = p.zone AND l.edit_id = p.edit_id)",
+        "(SELECT 1 FROM zone_log l WHERE l.zone = p.zone AND l.edit_id = p.edit_id "
+        "AND l.edit_id <> 0)",
         keys);
     std::vector<ZonePending> out;
     for (const auto& row : t.exec_params(
@@ -232,6 +256,15 @@ std::vector<ZonePending> ZoneLeases::read_pending(std::span<const world::ZoneId>
     }
     t.commit();
     return out;
+  });
+}
+
+void ZoneLeases::drop_pending(world::ZoneId zone, uint64_t edit_id) {
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    t.exec_params("DELETE FROM zone_pending WHERE zone = $1 AND edit_id = $2", row_key(zone),
+                  static_cast<int64_t>(edit_id));
+    t.commit();
   });
 }
 

@@ -116,6 +116,8 @@ class ZoneLeases {
   // log has the edit by now are removed on the way.
   std::vector<ZonePending> read_pending(std::span<const world::ZoneId> zones,
                                         std::chrono::milliseconds age, size_t max = 256);
+  // Removes a pending part (one that cannot be read: it would block the others).
+  void drop_pending(world::ZoneId zone, uint64_t edit_id);
   // The zone's records after `after_seq`, in order (at most `max`).
   std::vector<ZoneRecord> read_log(world::ZoneId zone, uint64_t after_seq, size_t max = 10000);
   std::optional<ZoneRow> read(world::ZoneId zone);
