@@ -55,14 +55,18 @@ TEST(EditIds, APlayersIdIsTheSameUnderOneKeyAndDiffersByPlayerIdAndKey) {
             EditIds::of_player(EditIds::random_key(), "alice", 7));
 }
 
-EditResult submit_with_id(WorldPipeline& p, world::Edit edit, uint64_t id) {
+std::future<EditResult> submit_async(WorldPipeline& p, world::Edit edit, uint64_t id) {
   auto promise = std::make_shared<std::promise<EditResult>>();
   EditTask task;
   task.edit = std::move(edit);
   task.edit_id = id;
   task.done = [promise](const EditResult& r) { promise->set_value(r); };
   p.submit(std::move(task));
-  return promise->get_future().get();
+  return promise->get_future();
+}
+
+EditResult submit_with_id(WorldPipeline& p, world::Edit edit, uint64_t id) {
+  return submit_async(p, std::move(edit), id).get();
 }
 
 TEST(EditIds, AResentEditIsAnsweredAndNotAppliedTwice) {
@@ -85,15 +89,32 @@ TEST(EditIds, AResentEditIsAnsweredAndNotAppliedTwice) {
   p.stop();
 }
 
+// A world on a store whose appends can be held and made to fail (tests/gated_store.hpp),
+// its surface near (10, y, 10) loaded.
+struct GatedWorld {
+  explicit GatedWorld(const char* name)
+      : tmp(name),
+        sqlite(store::open_world_store((tmp / "world").string(), {.seed = 3})),
+        store(*sqlite),
+        p(PipelineConfig{.seed = 3,
+                         .threads = 2,
+                         .store = &store,
+                         .store_retry = std::chrono::milliseconds(20)}) {
+    p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  }
+  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
+  test::TempDir tmp;
+  std::unique_ptr<store::WorldStore> sqlite;
+  test::GatedStore store;
+  WorldPipeline p;
+};
+
 // An edit undone because its append failed is not remembered: its resend is applied.
 TEST(EditIds, AnEditWhoseAppendFailedIsAppliedWhenResent) {
-  const test::TempDir tmp("edit_ids_fail");
-  auto sqlite = store::open_world_store((tmp / "world").string(), {.seed = 3});
-  test::GatedStore store(*sqlite);
-  WorldPipeline p(PipelineConfig{
-      .seed = 3, .threads = 2, .store = &store, .store_retry = std::chrono::milliseconds(20)});
-  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
-  p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
+  GatedWorld w("edit_ids_fail");
+  const int y = w.y;
+  test::GatedStore& store = w.store;
+  WorldPipeline& p = w.p;
   const world::Edit dig = world::Explosion{{10, float(y), 10}, 4, 1};
   store.set_failing(true);
   const EditResult failed = submit_with_id(p, dig, 9);
@@ -111,29 +132,17 @@ TEST(EditIds, AnEditWhoseAppendFailedIsAppliedWhenResent) {
 // flight is refused with it: once both ids were kept, and a resend was told ACCEPTED for
 // an edit the world did not have.
 TEST(EditIds, EditsUndoneBehindAFailedAppendAreNotTakenAsApplied) {
-  const test::TempDir tmp("edit_ids_behind");
-  auto sqlite = store::open_world_store((tmp / "world").string(), {.seed = 3});
-  test::GatedStore store(*sqlite);
-  WorldPipeline p(PipelineConfig{
-      .seed = 3, .threads = 2, .store = &store, .store_retry = std::chrono::milliseconds(20)});
-  const int y = static_cast<int>(world::TerrainGenerator(3).height_at(10, 10));
-  p.load(mesh::ChunkBox{{-1, y / 32 - 1, -1}, {1, y / 32 + 1, 1}}).get();
-  const auto submit_async = [&](world::Edit edit, uint64_t id) {
-    auto promise = std::make_shared<std::promise<EditResult>>();
-    EditTask task;
-    task.edit = std::move(edit);
-    task.edit_id = id;
-    task.done = [promise](const EditResult& r) { promise->set_value(r); };
-    p.submit(std::move(task));
-    return promise->get_future();
-  };
+  GatedWorld w("edit_ids_behind");
+  const int y = w.y;
+  test::GatedStore& store = w.store;
+  WorldPipeline& p = w.p;
   store.close();
   store.set_failing(true);
   const int entered = store.entered();
-  auto first = submit_async(world::Explosion{{10, float(y), 10}, 4, 1}, 21);
+  auto first = submit_async(p, world::Explosion{{10, float(y), 10}, 4, 1}, 21);
   ASSERT_TRUE(store.wait_entered(entered + 1));  // its append waits at the gate
-  auto behind = submit_async(world::Explosion{{14, float(y), 12}, 3, 1}, 22);
-  auto resend = submit_async(world::Explosion{{10, float(y), 10}, 4, 1}, 21);
+  auto behind = submit_async(p, world::Explosion{{14, float(y), 12}, 3, 1}, 22);
+  auto resend = submit_async(p, world::Explosion{{10, float(y), 10}, 4, 1}, 21);
   std::this_thread::sleep_for(std::chrono::milliseconds(50));  // both applied, in flight
   store.open();
   EXPECT_FALSE(first.get().accepted);

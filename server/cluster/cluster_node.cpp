@@ -368,20 +368,20 @@ pipeline::ZoneAuthority::Verdict ClusterNode::admit_part(pipeline::EditTask& tas
   return Verdict::kWritable;
 }
 
+// The zones whose samples an applied edit wrote: a part's own, else all it touches.
+std::vector<world::ZoneId> ClusterNode::zones_written(const pipeline::EditTask& task) const {
+  if (task.part) return {*task.part};
+  return world::zones_of(world::touched_box(task.edit), config_.zone_chunks);
+}
+
 void ClusterNode::accepted(const pipeline::EditTask& task) {
   if (task.edit_id == 0) return;
-  if (task.part) return table_.note_edit(*task.part, task.edit_id);
-  for (const world::ZoneId zone :
-       world::zones_of(world::touched_box(task.edit), config_.zone_chunks))
-    table_.note_edit(zone, task.edit_id);
+  for (const world::ZoneId zone : zones_written(task)) table_.note_edit(zone, task.edit_id);
 }
 
 void ClusterNode::undone(const pipeline::EditTask& task) {
   if (task.edit_id == 0) return;
-  if (task.part) return table_.forget_edit(*task.part, task.edit_id);
-  for (const world::ZoneId zone :
-       world::zones_of(world::touched_box(task.edit), config_.zone_chunks))
-    table_.forget_edit(zone, task.edit_id);
+  for (const world::ZoneId zone : zones_written(task)) table_.forget_edit(zone, task.edit_id);
 }
 
 uint64_t ClusterNode::new_edit_id() {

@@ -101,6 +101,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
   void split(pipeline::EditTask& task, const std::vector<world::ZoneId>& zones,
              const world::VoxelBox& box);
   uint64_t new_edit_id();
+  std::vector<world::ZoneId> zones_written(const pipeline::EditTask& task) const;
   void release_relays(bool all);                            // any thread
   void ask_to_take(world::ZoneId zone);                     // any thread
   std::optional<pipeline::ZoneRecords> catch_up();          // the pipeline thread
