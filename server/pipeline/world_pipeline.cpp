@@ -97,11 +97,6 @@ void WorldPipeline::enqueue(OrderedTask task) {
   if (!inbox_.add(task)) refuse_stopped(task, true);  // answered on the caller's thread
 }
 
-void WorldPipeline::submit(EditTask task) {
-  task.submitted = Clock::now();
-  enqueue(std::move(task));
-}
-
 void WorldPipeline::change_regions(RegionTask task) { enqueue(std::move(task)); }
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
@@ -313,7 +308,7 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
       .store_resting = durable && commit_->resting(now),
       .log_tail = checkpoints_ ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0,
       .zones = config_.zones,
-      .edit_ids = config_.zones ? nullptr : &edit_ids_};
+      .edit_ids = edit_ids_.get()};
   EditWorld world = edit_world();
   EditBatch b = apply_edits(tasks, world, regions_, rules, now);
   if (!b.any_edit) return;
@@ -332,7 +327,7 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
 // rolled back), then answers its edits and notifies the subscribers.
 void WorldPipeline::answer(EditBatch& b, bool durable) {
   if (!durable) {
-    refuse_undone(b, config_.zones ? nullptr : &edit_ids_, config_.zones);
+    refuse_undone(b, edit_ids_.get(), config_.zones);
   } else {
     if (checkpoints_) checkpoints_->logged(b.accepted.size());
     // The coarse levels re-mesh what durable edits changed.
@@ -592,14 +587,12 @@ void WorldPipeline::drain_after_stop() {
 }
 
 EditWorld WorldPipeline::edit_world() {
-  return {*state_,
-          generator_,
-          memory_,
-          meshes_,
-          checkpoints_.get(),
-          memory_.other_bytes(),
-          [this] { return resident_bytes(); },
-          config_.zones ? config_.zones->zone_chunks() : 0};
+  EditWorld w{
+      *state_, generator_, memory_, meshes_, checkpoints_.get(), memory_.other_bytes(), [this] {
+        return resident_bytes();
+      }};
+  if (config_.zones) w.zone_chunks = config_.zones->zone_chunks();
+  return w;
 }
 
 }  // namespace vox::pipeline

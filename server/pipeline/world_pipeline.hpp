@@ -62,7 +62,10 @@ class WorldPipeline {
   }
   // Any thread: a task made whole by the caller (a cluster node's forwarded parts); its
   // `submitted` time is set here.
-  void submit(EditTask task);
+  void submit(EditTask task) {
+    task.submitted = std::chrono::steady_clock::now();
+    enqueue(std::move(task));
+  }
   // Any thread. Adds or removes a protected region in order with the edits around it;
   // `task.done` runs on the pipeline thread once the change is durable (or refused).
   void change_regions(RegionTask task);
@@ -156,7 +159,9 @@ class WorldPipeline {
   ProtectedRegions regions_;  // regions(): any thread
   // With a store; reset by stop() once thread_ has ended (their threads wake the pipeline).
   std::unique_ptr<Checkpoints> checkpoints_;
-  EditIds edit_ids_;  // pipeline thread: a single node's applied edit ids (a cluster's: ZoneTable)
+  // Pipeline thread: a single node's applied edit ids (null for a cluster node: its
+  // ZoneTable keeps them per zone).
+  const std::unique_ptr<EditIds> edit_ids_ = config_.zones ? nullptr : std::make_unique<EditIds>();
   std::unique_ptr<DurableCommit> commit_;
   std::unique_ptr<ViewLoads> loads_;
   std::thread thread_;
