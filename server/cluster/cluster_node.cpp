@@ -405,8 +405,9 @@ struct PartsJoin {
   bool accepted = false;
   bool all_applied_before = true;    // every accepted part a resend's
   EditReply reply;                   // the accepted parts' zones and regions
-  std::optional<EditReply> refusal;  // the first refusal
-  std::vector<world::ZoneId> refused_zones;
+  std::optional<EditReply> refusal;  // the first refusal (one whose outcome is unknown first)
+  size_t refused = 0;
+  std::function<void(EditReply)> finish;  // the player's answer, once
 };
 
 }  // namespace
@@ -417,10 +418,9 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
   const uint64_t id = task.edit_id != 0 ? task.edit_id : new_edit_id();
   auto join = std::make_shared<PartsJoin>();
   join->left = zones.size();
-  auto finish = std::make_shared<std::function<void(EditReply)>>(
-      [this, before = versions_around(box), done = std::move(task.done)](EditReply r) {
-        relay(std::move(r), before, done);
-      });
+  join->finish = [this, before = versions_around(box), done = std::move(task.done)](EditReply r) {
+    relay(std::move(r), before, done);
+  };
   task.done = nullptr;
   for (const world::ZoneId zone : zones) {
     forwarder_->forward(
@@ -431,7 +431,7 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
                     .part = zone,
                     .author = task.author,
                     .edit = task.edit},
-        [join, finish, zone, id](const EditReply& r) {
+        [join, id](const EditReply& r) {
           std::unique_lock lock(join->mutex);
           if (r.reason == world::RefusalReason::kNone) {
             join->accepted = true;
@@ -443,19 +443,20 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
             // A part whose outcome is unknown says so: the edit may have been applied.
             if (!join->refusal || (r.maybe_applied && !join->refusal->maybe_applied))
               join->refusal = r;
-            join->refused_zones.push_back(zone);
+            ++join->refused;
           }
           if (--join->left > 0) return;
           EditReply out = join->accepted ? std::move(join->reply) : std::move(*join->refusal);
           out.already_applied = join->accepted && join->all_applied_before;
-          if (join->accepted && !join->refused_zones.empty()) {
+          if (join->accepted && join->refused > 0) {
             spdlog::debug(
                 "cluster: edit {} accepted; {} of its parts follow when their zones' "
                 "holders can take them",
-                id, join->refused_zones.size());
+                id, join->refused);
           }
+          std::function<void(EditReply)> finish = std::move(join->finish);
           lock.unlock();
-          (*finish)(std::move(out));
+          finish(std::move(out));
         });
   }
 }
