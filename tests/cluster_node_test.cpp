@@ -25,6 +25,46 @@ TEST(ClusterNode, AKilledNodesZonesAreTakenOverWithEveryAcceptedEditAcrossTheirB
       << "the node that took the zones over does not show the edits its logs hold";
 }
 
+// Zone checkpoints (docs/CLUSTER.md): a holder writes its zones' chunks, fenced, every
+// checkpoint interval. A node that joins later (taking some zones, following the others
+// for its viewer) installs their checkpoints instead of applying their logs from the
+// start, and so does a third after the second took the first's zones over (its first
+// checkpoint writes every chunk the zones ever changed): each shows what a single node
+// shows after the same edits.
+TEST(ClusterNode,
+     ANodeTakingOrFollowingZonesAfterTheirCheckpointsInstallsThemAndShowsTheSameWorld) {
+  const Cluster cluster;
+  const auto args = [&](const std::string& node) {
+    return std::vector<std::string>{"--cluster", cluster.config(node),    "--metrics-port",
+                                    "0",         "--checkpoint-interval", "0.2"};
+  };
+  const auto metric = [](const ServerProcess& p, const char* name) {
+    return scrape(p.metrics_port()).at(name);
+  };
+  const std::vector<wire::Envelope> edits = border_edits();
+  std::vector<wire::Envelope> all = edits;
+  for (uint64_t i = 0; i < 4; ++i)
+    all.push_back(brush(100 + i, 60.0f + 3.0f * i, 66.0f - 2.0f * i, 3, 4.0f));
+  auto a = std::make_unique<ServerProcess>(args("a"));
+  apply_all(*a, edits);
+  ASSERT_TRUE(eventually(a.get(), [&] {
+    return metric(*a, "voxeld_cluster_checkpoints_written_total") >= 4;  // the four zones
+  }));
+  ServerProcess b(args("b"));
+  const Seen expected = single_node_after(edits);
+  EXPECT_TRUE(eventually_seen(b, expected) == expected) << "b, after installing checkpoints";
+  EXPECT_GE(metric(b, "voxeld_cluster_checkpoints_installed_total"), 1);
+  a.reset();  // kill -9: b takes a's zones over
+  apply_all(b, {all.begin() + static_cast<long>(edits.size()), all.end()});
+  ASSERT_TRUE(
+      eventually(&b, [&] { return metric(b, "voxeld_cluster_checkpoints_written_total") >= 4; }));
+  const Seen expected_all = single_node_after(all);
+  ServerProcess c(args("c"));
+  EXPECT_TRUE(eventually_seen(c, expected_all) == expected_all) << "c, after b's checkpoints";
+  EXPECT_GE(metric(c, "voxeld_cluster_checkpoints_installed_total"), 1);
+  EXPECT_EQ(metric(b, "voxeld_cluster_checkpoints_fenced_total"), 0);
+}
+
 // Replicas: a viewer on another node sees the owner's edits as they are committed, and
 // its view (meshed on its own node) equals a single node's after the same edits.
 TEST(ClusterNode, AViewerOnAnotherNodeSeesTheOwnersEditsAsTheyAreCommitted) {

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <climits>
 #include <map>
+#include <pqxx/pqxx>
 #include <set>
 #include <thread>
 
@@ -304,6 +305,93 @@ TEST_F(ZoneLeasesTest, AStalePendingPartWhoseZoneLogHasTheEditIsDropped) {
       << "a stale pending part would be applied again";
   a.append(std::vector<ZoneAppend>{{za, ea, std::vector<ZoneRecord>{{2, 501, {2}, 78}}, {}}});
   EXPECT_EQ(a.read_log(za, 0).size(), 2u);
+}
+
+// Zone checkpoints (docs/CLUSTER.md): a reader gets every chunk in its latest version
+// through the zone's checkpoint_seq, and the edit ids of the records before it.
+TEST_F(ZoneLeasesTest, AZoneCheckpointIsReadAsEachChunksLatestVersionThroughIt) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000));
+  const ZoneId zone{1, -1};
+  EXPECT_FALSE(a.read_checkpoint(zone, 10).has_value());  // no zone row yet
+  const uint64_t epoch = *a.acquire(zone);
+  std::vector<ZoneRecord> log = records(1, 6);
+  for (size_t i = 0; i < log.size(); ++i) log[i].edit_id = 100 + i;
+  a.append(zone, epoch, log);
+  EXPECT_FALSE(a.read_checkpoint(zone, 10).has_value());  // none written
+  const auto chunk = [](int x, uint64_t seq, uint8_t v) {
+    return ChunkRecord{{x, 0, -1}, seq, {v, v}};
+  };
+  a.write_checkpoint(epoch, {.zone = zone, .seq = 3, .chunks = {chunk(32, 3, 1), chunk(33, 3, 2)}});
+  a.write_checkpoint(epoch, {.zone = zone, .seq = 5, .chunks = {chunk(33, 5, 3)}});
+  const std::optional<ZoneCheckpoint> cp = a.read_checkpoint(zone, 3);
+  ASSERT_TRUE(cp);
+  EXPECT_EQ(cp->seq, 5u);
+  ASSERT_EQ(cp->chunks.size(), 2u);
+  EXPECT_EQ(cp->chunks[0].coord.x, 32);
+  EXPECT_EQ(cp->chunks[0].samples, (std::vector<uint8_t>{1, 1}));  // unchanged since 3
+  EXPECT_EQ(cp->chunks[1].seq, 5u);
+  EXPECT_EQ(cp->chunks[1].samples, (std::vector<uint8_t>{3, 3}));
+  EXPECT_EQ(cp->edit_ids, (std::vector<uint64_t>{102, 103, 104}));  // the last 3 through 5
+  EXPECT_EQ(a.read(zone)->checkpoint_seq, 5u);
+  // An older checkpoint (a retry) changes nothing; one past the log's end is refused.
+  a.write_checkpoint(epoch, {.zone = zone, .seq = 4, .chunks = {chunk(32, 4, 9)}});
+  EXPECT_EQ(a.read_checkpoint(zone, 3)->chunks[0].samples, (std::vector<uint8_t>{1, 1}));
+  EXPECT_THROW(a.write_checkpoint(epoch, {.zone = zone, .seq = 7, .chunks = {}}), StoreError);
+  EXPECT_THROW(a.write_checkpoint(epoch, {.zone = zone, .seq = 6, .chunks = {chunk(32, 7, 1)}}),
+               StoreError);  // a chunk past its checkpoint
+  EXPECT_EQ(a.fenced(), 0u);
+}
+
+// The safety rule for checkpoints: a holder paused past its lease cannot move the
+// zone's checkpoint after its successor took it, and what it wrote before the fence
+// refused it is never read.
+TEST_F(ZoneLeasesTest, AStaleHoldersCheckpointIsFencedAndItsChunksAreNeverRead) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));
+  const ZoneId zone{0, 0};
+  const uint64_t first = *a.acquire(zone);
+  a.append(zone, first, records(1, 4));
+  a.write_checkpoint(first, {.zone = zone, .seq = 2, .chunks = {{{1, 1, 1}, 2, {2}}}});
+  std::this_thread::sleep_for(milliseconds(400));  // a is "paused" past its lease
+  const uint64_t second = *b.acquire(zone);
+  b.append(zone, second, records(5, 1));
+  EXPECT_THROW(a.write_checkpoint(first, {.zone = zone, .seq = 4, .chunks = {{{1, 1, 1}, 4, {4}}}}),
+               FencedError);
+  EXPECT_EQ(a.fenced(), 1u);
+  std::optional<ZoneCheckpoint> cp = b.read_checkpoint(zone, 10);
+  ASSERT_TRUE(cp);
+  EXPECT_EQ(cp->seq, 2u);
+  ASSERT_EQ(cp->chunks.size(), 1u);
+  EXPECT_EQ(cp->chunks[0].samples, (std::vector<uint8_t>{2}));
+  // The successor's checkpoint replaces it. A version past the zone's checkpoint_seq (a
+  // write refused after its chunks landed: here, past the log's end) is never read.
+  b.write_checkpoint(second, {.zone = zone, .seq = 5, .chunks = {{{1, 1, 1}, 5, {5}}}});
+  EXPECT_THROW(
+      b.write_checkpoint(second, {.zone = zone, .seq = 9, .chunks = {{{2, 2, 2}, 9, {9}}}}),
+      StoreError);
+  cp = b.read_checkpoint(zone, 10);
+  ASSERT_TRUE(cp);
+  EXPECT_EQ(cp->seq, 5u);
+  ASSERT_EQ(cp->chunks.size(), 1u);
+  EXPECT_EQ(cp->chunks[0].samples, (std::vector<uint8_t>{5}));
+}
+
+// A connection opened while another node's append holds a zone row's lock (a follower
+// starting beside a busy holder) must not wait for it: creating the schema when it is
+// there already locked the tables whole, and the new connection timed out.
+TEST_F(ZoneLeasesTest, AConnectionOpenedWhileAZoneRowIsLockedDoesNotWaitForIt) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000));
+  a.acquire({0, 0});
+  pqxx::connection holder(db);
+  pqxx::work t(holder);
+  t.exec("SELECT epoch FROM zones WHERE zone = 0 FOR UPDATE");  // an append in flight
+  const auto start = std::chrono::steady_clock::now();
+  ZoneLeases b(db, "b", milliseconds(400));  // its lock_timeout: 100 ms
+  EXPECT_TRUE(b.read({0, 0}).has_value());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, milliseconds(2000));
+  t.abort();
 }
 
 TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {

@@ -15,9 +15,6 @@ namespace vox::cluster {
 
 namespace {
 
-// Records one catch-up read applies at most: the pipeline goes on between reads.
-constexpr size_t kRecordsPerRead = 2000;
-
 std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
 }
@@ -29,8 +26,9 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
       nats_(config_.nats),
       append_db_(config_.database, config_.node, config_.lease),
       read_db_(config_.database, config_.node, config_.lease),
+      checkpoint_db_(config_.database, config_.node, config_.lease),
       publisher_(nats_, append_db_, config_.world),
-      store_(table_, publisher_, config_.zone_chunks, seed,
+      store_(table_, publisher_, checkpoint_db_, config_.zone_chunks, seed,
              "cluster world " + config_.world + " (" + store::redact_uri(config_.database) + ")"),
       replicas_(nats_,
                 {.world = config_.world,
@@ -40,6 +38,7 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
                 [this] {
                   if (wake_) wake_();
                 }),
+      records_(table_, replicas_, publisher_, read_db_, store_.name()),
       edit_id_base_((uint64_t{std::random_device{}()} << 32) ^ std::random_device{}()) {
   const store::WorldSettings mine{config_.world, seed, config_.zone_chunks};
   const store::WorldSettings theirs = read_db_.settle_world(mine);
@@ -125,6 +124,9 @@ ClusterNode::Figures ClusterNode::figures() const {
   }
   f.edits_split = edits_split_.load(std::memory_order_relaxed);
   if (const PartCompleter* pc = completer_.get()) f.parts_completed = pc->completed();
+  f.checkpoints_written = store_.checkpoints_written();
+  f.checkpoints_fenced = checkpoint_db_.fenced();
+  f.checkpoints_installed = records_.installed();
   return f;
 }
 
@@ -461,94 +463,20 @@ void ClusterNode::split(pipeline::EditTask& task, const std::vector<world::ZoneI
   }
 }
 
-std::optional<pipeline::ZoneRecords> ClusterNode::next_records() {
-  if (auto records = catch_up()) return records;
-  return followed_records();
-}
-
-// A held zone's log after what the world has (a zone just taken, or an append in doubt).
-std::optional<pipeline::ZoneRecords> ClusterNode::catch_up() {
-  for (;;) {
-    const std::optional<ZoneTable::CatchUp> c = table_.next_catch_up();
-    if (!c) return std::nullopt;
-    const std::optional<store::ZoneRow> row = read_db_.read(c->zone);
-    if (!row || row->epoch != c->epoch) {  // taken by another node meanwhile
-      table_.lost(c->zone, c->epoch);
-      continue;
-    }
-    targets_[c->zone] = row->last_seq;
-    pipeline::ZoneRecords out{
-        .zone = c->zone, .epoch = c->epoch, .edits = {}, .through = c->applied};
-    if (row->last_seq <= c->applied) return out;
-    for (const store::ZoneRecord& r : read_db_.read_log(c->zone, c->applied, kRecordsPerRead)) {
-      if (r.seq > row->last_seq) break;
-      std::string why;
-      std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
-      if (!e)
-        throw store::StoreError(store_.name() + ": " + describe(c->zone) + " record " +
-                                std::to_string(r.seq) + ": " + why);
-      out.edits.push_back(std::move(*e));
-      out.through = r.seq;
-    }
-    return out;
+pipeline::CheckpointScope ClusterNode::checkpoint_scope(uint64_t seq) {
+  std::vector<ZoneTable::CheckpointZone> zones = table_.start_checkpoint();
+  pipeline::CheckpointScope scope{.zone_chunks = config_.zone_chunks, .zones = {}, .whole = {}};
+  for (const ZoneTable::CheckpointZone& z : zones) {
+    scope.zones.push_back(z.zone);
+    if (z.whole) scope.whole.push_back(z.zone);
   }
-}
-
-// Records of a followed zone, as its owner committed them.
-std::optional<pipeline::ZoneRecords> ClusterNode::followed_records() {
-  std::optional<ZoneReplicas::Taken> taken = replicas_.take(
-      kRecordsPerRead, [this](world::ZoneId z) { return table_.held(z); },
-      [this](world::ZoneId z) { return table_.applied(z); });
-  if (!taken) return std::nullopt;
-  const world::ZoneId zone = taken->zone;
-  const uint64_t applied = table_.applied(zone);
-  if (taken->records.front().seq != applied + 1) {
-    // Not the next record (this node's world moved otherwise): the log has the ones between.
-    taken->records = read_db_.read_log(zone, applied, kRecordsPerRead);
-    if (taken->records.empty()) return std::nullopt;
-  }
-  pipeline::ZoneRecords out{.zone = zone, .epoch = 0, .edits = {}, .through = applied};
-  for (const store::ZoneRecord& r : taken->records) {
-    std::string why;
-    std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
-    if (!e) {
-      replicas_.give_back(zone, std::move(taken->records));
-      throw store::StoreError(store_.name() + ": " + describe(zone) + " record " +
-                              std::to_string(r.seq) + ": " + why);
-    }
-    out.edits.push_back(std::move(*e));
-    out.through = r.seq;
-  }
-  handed_ = std::move(taken->records);
-  return out;
+  store_.checkpoint_started(seq, std::move(zones));
+  return scope;
 }
 
 void ClusterNode::applied(const pipeline::ZoneRecords& records, uint64_t through) {
-  for (const store::LoggedEdit& e : records.edits) {
-    if (e.seq <= through) table_.note_edit(records.zone, e.edit_id);
-  }
-  if (records.epoch == 0) {  // a followed zone's
-    table_.committed(records.zone, through);
-    release_relays(false);
-    std::erase_if(handed_, [&](const store::ZoneRecord& r) { return r.seq <= through; });
-    if (!handed_.empty()) replicas_.give_back(records.zone, std::move(handed_));
-    handed_.clear();
-    return;
-  }
-  const auto it = targets_.find(records.zone);
-  const bool complete = it != targets_.end() && through >= it->second;
-  // A zone lost while its log was being applied is caught up afresh if taken again.
-  if (it != targets_.end() && !complete && !table_.held(records.zone)) targets_.erase(it);
-  if (complete) {
-    // Its records continue from here; then edits in it are taken.
-    publisher_.adopt(records.zone, through);
-    targets_.erase(it);
-  }
-  table_.caught_up(records.zone, records.epoch, through, complete);
-  if (complete && !table_.held(records.zone)) publisher_.forget(records.zone);
-  if (complete && table_.writable(records.zone))
-    spdlog::info("cluster: {} is writable here (its log applied through record {})",
-                 describe(records.zone), through);
+  records_.applied(records, through);
+  if (records.epoch == 0) release_relays(false);  // a followed zone's: its answers may go
 }
 
 }  // namespace vox::cluster

@@ -25,6 +25,7 @@
 #include "server/cluster/zone_keeper.hpp"
 #include "server/cluster/zone_log_store.hpp"
 #include "server/cluster/zone_publisher.hpp"
+#include "server/cluster/zone_record_source.hpp"
 #include "server/cluster/zone_replicas.hpp"
 #include "server/cluster/zone_table.hpp"
 #include "server/pipeline/edit_batch.hpp"
@@ -69,6 +70,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
     size_t zones_held = 0, zones_followed = 0;
     uint64_t appends_fenced = 0, edits_forwarded = 0, forwards_unheld = 0, forwards_timed_out = 0;
     uint64_t edits_split = 0, parts_completed = 0;
+    uint64_t checkpoints_written = 0, checkpoints_fenced = 0, checkpoints_installed = 0;
   };
   Figures figures() const;
 
@@ -79,9 +81,10 @@ class ClusterNode : public pipeline::ZoneAuthority {
                 std::vector<world::VoxelBox>& keep, std::string& why) override;
   void accepted(const pipeline::EditTask& task) override;
   void undone(const pipeline::EditTask& task) override;
+  pipeline::CheckpointScope checkpoint_scope(uint64_t seq) override;
   void viewing(world::ChunkCoord center, int radius) override;
-  bool records_waiting() override { return table_.catching_up() || replicas_.waiting(); }
-  std::optional<pipeline::ZoneRecords> next_records() override;
+  bool records_waiting() override { return records_.waiting(); }
+  std::optional<pipeline::ZoneRecords> next_records() override { return records_.next(); }
   void applied(const pipeline::ZoneRecords& records, uint64_t through) override;
 
  private:
@@ -102,25 +105,20 @@ class ClusterNode : public pipeline::ZoneAuthority {
              const world::VoxelBox& box);
   uint64_t new_edit_id();
   std::vector<world::ZoneId> zones_written(const pipeline::EditTask& task) const;
-  void release_relays(bool all);                            // any thread
-  void ask_to_take(world::ZoneId zone);                     // any thread
-  std::optional<pipeline::ZoneRecords> catch_up();          // the pipeline thread
-  std::optional<pipeline::ZoneRecords> followed_records();  // likewise
+  void release_relays(bool all);         // any thread
+  void ask_to_take(world::ZoneId zone);  // any thread
 
   const ClusterConfig config_;
   NatsLink nats_;
-  store::ZoneLeases append_db_;  // the appender thread's connection
-  store::ZoneLeases read_db_;    // the pipeline thread's: zone logs and rows
+  store::ZoneLeases append_db_;      // the appender thread's connection
+  store::ZoneLeases read_db_;        // the pipeline thread's: zone logs and rows
+  store::ZoneLeases checkpoint_db_;  // the checkpoint writer's (through store_)
   ZonePublisher publisher_;
   ZoneTable table_;
   ZoneLogStore store_;
   std::function<void()> wake_;  // set before start()
   ZoneReplicas replicas_;
-  // Pipeline thread: the followed records handed to the pipeline last (given back when it
-  // could not apply them all).
-  std::vector<store::ZoneRecord> handed_;
-  // Pipeline thread: per zone catching up, the log's last record when it began.
-  std::map<world::ZoneId, uint64_t> targets_;
+  ZoneRecordSource records_;    // what the world applies; the pipeline thread
   Submit submit_;               // set before start()
   MeshVersionOf mesh_version_;  // likewise
   std::unique_ptr<EditForwarder> forwarder_;

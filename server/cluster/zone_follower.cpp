@@ -90,6 +90,13 @@ ZoneFollower::Fill ZoneFollower::fill(uint64_t through) {
 }
 
 void ZoneFollower::run() {
+  try {
+    const std::optional<store::ZoneRow> row = log_.read(config_.zone);
+    if (row && checkpoint_first(applied(), row->checkpoint_seq))
+      applied_.store(row->checkpoint_seq, std::memory_order_release);
+  } catch (const store::StoreError&) {
+    // The log is read from what the replica holds.
+  }
   fill(UINT64_MAX);  // what the replica lacks, up to the log's end
   std::unique_lock lock(mutex_);
   while (!stopping_) {

@@ -3,7 +3,9 @@
 // replica already holds, and hands the caller every later record once, in sequence
 // order. A record that arrives ahead of its turn waits for the ones before it; a gap (a
 // record lost, or a heartbeat newer than what was applied) is filled from the log after
-// `gap_wait`, so a lost NATS message costs latency, never correctness. A message that
+// `gap_wait`, so a lost NATS message costs latency, never correctness. A replica that
+// should install the zone's checkpoint (checkpoint_first) starts after it: the first record
+// handed over is then not the next, and the caller installs the checkpoint. A message that
 // does not decode or names another zone is dropped and counted, and so is a claim of a
 // record the log does not have (records are published after commit). At most 10,000
 // records or 16 MiB wait for their turn; past that they are read from the log.
@@ -28,6 +30,14 @@
 #include "server/world/zone.hpp"
 
 namespace vox::cluster {
+
+// Whether a world that has a zone's records through `applied` installs the zone's
+// checkpoint through `checkpoint_seq` rather than apply the records between: when it has
+// none of them, or is far behind (docs/CLUSTER.md, "Zone checkpoints").
+inline bool checkpoint_first(uint64_t applied, uint64_t checkpoint_seq) {
+  constexpr uint64_t kFarBehind = 4096;  // records
+  return checkpoint_seq > applied && (applied == 0 || checkpoint_seq - applied > kFarBehind);
+}
 
 class ZoneFollower {
  public:

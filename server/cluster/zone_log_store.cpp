@@ -7,10 +7,12 @@
 
 namespace vox::cluster {
 
-ZoneLogStore::ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher, int zone_chunks,
-                           uint64_t seed, std::string name)
+ZoneLogStore::ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher,
+                           store::ZoneLeases& checkpoint_db, int zone_chunks, uint64_t seed,
+                           std::string name)
     : zones_(zones),
       publisher_(publisher),
+      checkpoint_db_(checkpoint_db),
       zone_chunks_(zone_chunks),
       seed_(seed),
       name_(std::move(name)) {}
@@ -91,8 +93,49 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   }
 }
 
-void ZoneLogStore::write_checkpoint(std::span<const store::ChunkRecord>, uint64_t, uint64_t) {
-  throw store::StoreError(name_ + ": zone checkpoints are not written yet");
+void ZoneLogStore::checkpoint_started(uint64_t seq, std::vector<ZoneTable::CheckpointZone> zones) {
+  std::lock_guard lock(mutex_);
+  started_.emplace(seq, std::move(zones));
+}
+
+void ZoneLogStore::write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
+                                    uint64_t /*trim_through: the zones' logs are kept*/) {
+  std::vector<ZoneTable::CheckpointZone> zones;
+  {
+    std::lock_guard lock(mutex_);
+    if (!started_ || started_->first != seq)
+      throw store::StoreError(name_ + ": a checkpoint through edit " + std::to_string(seq) +
+                              " that did not start");
+    zones = std::move(started_->second);
+    started_.reset();
+  }
+  std::map<world::ZoneId, store::ZoneCheckpoint> by_zone;
+  for (const ZoneTable::CheckpointZone& z : zones)
+    by_zone[z.zone] = {.zone = z.zone, .seq = z.applied, .chunks = {}, .edit_ids = {}};
+  for (const store::ChunkRecord& c : chunks) {
+    const auto it = by_zone.find(world::zone_of(c.coord, zone_chunks_));
+    if (it == by_zone.end())  // the pipeline writes only the zones it was given
+      throw store::StoreError(name_ + ": a checkpoint's chunk outside the zones it writes");
+    it->second.chunks.push_back({c.coord, it->second.seq, c.samples});
+  }
+  // Every zone tried; the first failure thrown (the pipeline writes the chunks again).
+  std::optional<std::string> failed;
+  for (const ZoneTable::CheckpointZone& z : zones) {
+    store::ZoneCheckpoint& cp = by_zone[z.zone];
+    const auto last = last_written_.find(z.zone);
+    if (cp.seq == 0 || (cp.chunks.empty() && last != last_written_.end() && last->second >= cp.seq))
+      continue;  // nothing new
+    try {
+      checkpoint_db_.write_checkpoint(z.epoch, cp);
+      last_written_[z.zone] = cp.seq;
+      written_.fetch_add(1, std::memory_order_relaxed);
+    } catch (const store::StoreError& e) {
+      if (!failed) failed = e.what();
+    }
+  }
+  // Zones no longer held are forgotten (a later holding writes them anew).
+  std::erase_if(last_written_, [&](const auto& entry) { return !by_zone.count(entry.first); });
+  if (failed) throw store::StoreError(*failed);
 }
 
 }  // namespace vox::cluster

@@ -6,27 +6,46 @@
 // zone's log with the other parts as pending (ZonePending): their holders complete them
 // should their own requests never come.
 // A fenced zone is lost at once; an append whose outcome is in doubt makes its zones catch
-// up from their logs again (whatever of it landed is applied; ZoneTable::doubt). Nothing
-// else of a single node's store is kept here yet: no protected regions, no checkpoints
-// (the pipeline writes none for a cluster node), and the world is read zone by zone as the
-// node takes zones, not at start.
+// up from their logs again (whatever of it landed is applied; ZoneTable::doubt).
+// Checkpoints (docs/CLUSTER.md, "Zone checkpoints"): the pipeline's checkpoint of the
+// chunks of the zones it holds is written zone by zone, each fenced by its epoch and at
+// the zone's own sequence number noted when the checkpoint started; the log is kept (no
+// trimming yet). Nothing else of a single node's store is kept here yet: no protected
+// regions, and the world is read zone by zone as the node takes or follows zones (their
+// checkpoints, then their logs), not at start nor chunk by chunk.
 //
-// Threads: the pipeline's appender calls append_edits; the rest is read once, by the
-// pipeline's constructor.
+// Threads: the pipeline's appender calls append_edits, the pipeline thread
+// checkpoint_started, the checkpoint writer's thread write_checkpoint (on its own
+// connection); the rest is read once, by the pipeline's constructor.
 #pragma once
 
+#include <atomic>
+#include <map>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "server/cluster/zone_publisher.hpp"
 #include "server/cluster/zone_table.hpp"
 #include "server/store/world_store.hpp"
+#include "server/store/zone_leases.hpp"
 
 namespace vox::cluster {
 
 class ZoneLogStore : public store::WorldStore {
  public:
-  ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher, int zone_chunks, uint64_t seed,
-               std::string name);
+  // `checkpoint_db`: the connection checkpoints are written on.
+  ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher, store::ZoneLeases& checkpoint_db,
+               int zone_chunks, uint64_t seed, std::string name);
+
+  // A checkpoint through the pipeline's edit `seq` starts: the zones it writes, each with
+  // its epoch and last record applied (ZoneTable::start_checkpoint).
+  void checkpoint_started(uint64_t seq, std::vector<ZoneTable::CheckpointZone> zones);
+  uint64_t checkpoints_written() const {  // zones' checkpoints; any thread
+    return written_.load(std::memory_order_relaxed);
+  }
 
   const std::string& name() const override { return name_; }
   store::WorldInfo info() override;
@@ -41,6 +60,13 @@ class ZoneLogStore : public store::WorldStore {
  private:
   ZoneTable& zones_;
   ZonePublisher& publisher_;
+  store::ZoneLeases& checkpoint_db_;
+  std::mutex mutex_;  // guards started_
+  std::optional<std::pair<uint64_t, std::vector<ZoneTable::CheckpointZone>>> started_;
+  // The checkpoint writer's thread: per zone, the last record a checkpoint was written
+  // through (a zone without new records or chunks is not written again).
+  std::map<world::ZoneId, uint64_t> last_written_;
+  std::atomic<uint64_t> written_{0};
   const int zone_chunks_;
   const uint64_t seed_;
   const std::string name_;

@@ -86,6 +86,11 @@ void ZoneReplicas::reconcile(const std::function<bool(world::ZoneId)>& held,
             lock.unlock();
             wake_();
           });
+      {
+        std::lock_guard lock(mutex_);
+        started_.insert(zone);
+      }
+      wake_();
     } catch (const std::exception& e) {
       if (now - warned_at_ >= std::chrono::seconds(10)) {  // at most one line per 10 s
         warned_at_ = now;
@@ -107,6 +112,19 @@ void ZoneReplicas::stop_follower(world::ZoneId zone) {
   std::lock_guard lock(mutex_);
   waiting_.erase(zone);  // following again reads from the last record applied
   stopping_.erase(zone);
+  started_.erase(zone);
+}
+
+std::vector<world::ZoneId> ZoneReplicas::take_started() {
+  std::lock_guard lock(mutex_);
+  std::vector<world::ZoneId> out(started_.begin(), started_.end());
+  started_.clear();
+  return out;
+}
+
+void ZoneReplicas::started_again(world::ZoneId zone) {
+  std::lock_guard lock(mutex_);
+  if (waiting_.count(zone)) started_.insert(zone);  // still followed
 }
 
 std::optional<ZoneReplicas::Taken> ZoneReplicas::take(
@@ -149,6 +167,7 @@ bool ZoneReplicas::following(world::ZoneId zone) const {
 
 bool ZoneReplicas::waiting() const {
   std::lock_guard lock(mutex_);
+  if (!started_.empty()) return true;
   for (const auto& [zone, q] : waiting_) {
     if (!q.empty()) return true;
   }

@@ -23,6 +23,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,11 @@ class ZoneReplicas {
                             const std::function<uint64_t(world::ZoneId)>& applied);
   // Hands back records the pipeline could not apply (memory), to be taken again first.
   void give_back(world::ZoneId zone, std::vector<store::ZoneRecord> records);
+  // The zones whose following started since the last call (the pipeline installs their
+  // checkpoints when its world should: a follower starts after it, see ZoneFollower), and
+  // one handed back when that could not be done now.
+  std::vector<world::ZoneId> take_started();
+  void started_again(world::ZoneId zone);
   bool waiting() const;
   bool following(world::ZoneId zone) const;  // any thread
   // Stops every follower, for good (reconcile's thread, or once that thread has ended):
@@ -79,11 +85,12 @@ class ZoneReplicas {
   NatsLink& nats_;
   const Config config_;
   const std::function<void()> wake_;
-  mutable std::mutex mutex_;  // guards viewed_, waiting_, stopping_ (leaf)
+  mutable std::mutex mutex_;  // guards viewed_, waiting_, stopping_, started_ (leaf)
   std::condition_variable taken_;
   std::map<world::ZoneId, Clock::time_point> viewed_;  // bounded: idle ones are dropped
   std::map<world::ZoneId, std::deque<store::ZoneRecord>> waiting_;
   std::map<world::ZoneId, bool> stopping_;  // a follower being stopped: its queue is not waited on
+  std::set<world::ZoneId> started_;         // followed since the pipeline last looked
   std::map<world::ZoneId, std::unique_ptr<ZoneFollower>> followers_;  // reconcile's thread
   std::atomic<size_t> followed_{0};
   bool stopped_ = false;         // reconcile's thread

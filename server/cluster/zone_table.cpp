@@ -8,6 +8,7 @@ void ZoneTable::taken(world::ZoneId zone, uint64_t epoch) {
   z.epoch = epoch;
   z.behind = true;
   z.leaving = false;
+  z.swept = false;
 }
 
 void ZoneTable::leave(world::ZoneId zone, uint64_t epoch) {
@@ -54,7 +55,20 @@ bool ZoneTable::held(world::ZoneId zone) const {
 void ZoneTable::doubt(world::ZoneId zone) {
   std::lock_guard lock(mutex_);
   const auto it = zones_.find(zone);
-  if (it != zones_.end() && it->second.epoch) it->second.behind = true;
+  if (it == zones_.end() || !it->second.epoch) return;
+  it->second.behind = true;
+  it->second.swept = false;
+}
+
+std::vector<ZoneTable::CheckpointZone> ZoneTable::start_checkpoint() {
+  std::lock_guard lock(mutex_);
+  std::vector<CheckpointZone> out;
+  for (auto& [zone, z] : zones_) {
+    if (!z.epoch || z.behind) continue;
+    out.push_back({zone, *z.epoch, z.applied, !z.swept});
+    z.swept = true;
+  }
+  return out;
 }
 
 void ZoneTable::committed(world::ZoneId zone, uint64_t last) {

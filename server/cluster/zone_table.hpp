@@ -54,6 +54,17 @@ class ZoneTable {
   // The zones edits are taken in now.
   std::vector<world::ZoneId> writable_zones() const;
 
+  // A checkpoint starts: the zones whose chunks it writes (held, their logs applied,
+  // being handed off or not), each with its epoch and last record applied, and whether it
+  // writes every changed chunk of the zone (the first since the zone was taken or caught
+  // up again: chunks it changed before were not this holder's to write).
+  struct CheckpointZone {
+    world::ZoneId zone;
+    uint64_t epoch = 0, applied = 0;
+    bool whole = false;
+  };
+  std::vector<CheckpointZone> start_checkpoint();
+
   // Edit ids (docs/CLUSTER.md, "Edits across a border"): whether the zone's world has the
   // edit `id`, among the last kRememberedEdits noted for the zone (the log is asked for
   // older ones). Noted when the pipeline applies an edit or its records; forgotten when
@@ -72,6 +83,7 @@ class ZoneTable {
     std::optional<uint64_t> epoch;  // held at
     bool behind = false;            // held, the world not caught up yet
     bool leaving = false;           // held, being handed off
+    bool swept = false;             // a checkpoint since it caught up wrote it whole
     uint64_t applied = 0;           // the last record the world has
     pipeline::EditIds edits{kRememberedEdits};
   };

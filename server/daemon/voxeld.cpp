@@ -100,7 +100,15 @@ metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node
          double(f.edits_split)},
         {"voxeld_cluster_parts_completed_total",
          "Parts of edits across zones this node completed after their requests never came", true,
-         double(f.parts_completed)}};
+         double(f.parts_completed)},
+        {"voxeld_cluster_checkpoints_written_total", "Zone checkpoints this node wrote", true,
+         double(f.checkpoints_written)},
+        {"voxeld_cluster_checkpoints_fenced_total",
+         "Zone checkpoints refused because another node took the zone", true,
+         double(f.checkpoints_fenced)},
+        {"voxeld_cluster_checkpoints_installed_total",
+         "Zone checkpoints installed instead of applying the records before them", true,
+         double(f.checkpoints_installed)}};
   };
 }
 
@@ -188,6 +196,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
       return 1;
     }
     c.world.store = &node->store();
+    c.world.checkpoint_store = &node->store();  // written on its own connection
     c.world.zones = node.get();
   } else if (c.in_memory) {
     spdlog::warn("--in-memory: no world on disk; every edit is lost when voxeld stops");

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <utility>
 #include <vector>
 
@@ -36,13 +37,12 @@ bool Checkpoints::log_full(uint64_t log_tail) {
 std::optional<CheckpointResult> Checkpoints::start(WorldState& st, uint64_t seq,
                                                    Clock::time_point now) {
   CheckpointJob job{.seq = seq, .trim_through = keep_log_ ? 0 : seq};
-  const std::vector<ChunkCoord> coords(unsaved_.begin(), unsaved_.end());
+  const std::vector<ChunkCoord> coords = take_unsaved(st, seq);
   for (const ChunkCoord& c : coords) {
     WorldState::ChunkInfo& info = st.info.at(c);  // unsaved chunks are never evicted
     info.unsaved = false;
     info.checkpointing = true;
   }
-  unsaved_.clear();
   // The writer reads the chunks themselves; a batch that changes one first preserves it,
   // so the checkpoint has every chunk as of `seq`.
   job.chunks.reserve(coords.size());
@@ -52,6 +52,33 @@ std::optional<CheckpointResult> Checkpoints::start(WorldState& st, uint64_t seq,
   writer_->submit(std::move(job));
   if (own_connection_) return std::nullopt;
   return writer_->take_result();  // written on this thread: ready now
+}
+
+std::vector<ChunkCoord> Checkpoints::take_unsaved(WorldState& st, uint64_t seq) {
+  if (!scope_) {
+    std::vector<ChunkCoord> all(unsaved_.begin(), unsaved_.end());
+    unsaved_.clear();
+    return all;
+  }
+  CheckpointScope scope = scope_(seq);
+  std::sort(scope.zones.begin(), scope.zones.end());
+  std::sort(scope.whole.begin(), scope.whole.end());
+  const auto in = [&](const std::vector<world::ZoneId>& zones, ChunkCoord c) {
+    return std::binary_search(zones.begin(), zones.end(), world::zone_of(c, scope.zone_chunks));
+  };
+  if (!scope.whole.empty()) {
+    for (auto& [c, info] : st.info) {
+      if (!info.modified || !in(scope.whole, c)) continue;
+      info.unsaved = true;
+      unsaved_.insert(c);
+    }
+  }
+  std::vector<ChunkCoord> out;
+  for (const ChunkCoord& c : unsaved_) {
+    if (in(scope.zones, c)) out.push_back(c);
+  }
+  unsaved_.clear();  // the rest: chunks of zones followed, or not writable now
+  return out;
 }
 
 void Checkpoints::finish(WorldState& st, const CheckpointResult& r, Clock::time_point now) {

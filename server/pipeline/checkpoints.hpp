@@ -20,10 +20,22 @@
 #include "server/pipeline/checkpoint_writer.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/chunk_coord.hpp"
+#include "server/world/zone.hpp"
 
 namespace vox::pipeline {
 
 struct WorldState;
+
+// A cluster node's checkpoints hold only the zones it may write (docs/CLUSTER.md, "Zone
+// checkpoints"): asked at each checkpoint's start.
+struct CheckpointScope {
+  int zone_chunks = 0;               // the zones' size
+  std::vector<world::ZoneId> zones;  // whose chunks this checkpoint writes
+  // Of them, those whose every modified chunk it writes, not only those changed since
+  // the last checkpoint (a zone taken since: its chunks changed before were not this
+  // node's to write).
+  std::vector<world::ZoneId> whole;
+};
 
 class Checkpoints {
  public:
@@ -34,6 +46,12 @@ class Checkpoints {
   // on the pipeline thread at start(). `keep_log`: checkpoints leave the log whole.
   Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits, bool keep_log,
               std::function<void()> wake, Clock::time_point now);
+
+  // A cluster node: each checkpoint writes only what `scope` (called at its start, with
+  // its sequence number) allows; chunks outside it stay unsaved and resident. Set once,
+  // before the first checkpoint.
+  using Scope = std::function<CheckpointScope(uint64_t seq)>;
+  void set_scope(Scope scope) { scope_ = std::move(scope); }
 
   // An edit changed resident chunk c (its info says unsaved).
   void changed(world::ChunkCoord c) { unsaved_.insert(c); }
@@ -84,8 +102,13 @@ class Checkpoints {
   size_t memory_bytes() const { return writer_->memory_bytes(); }  // any thread
 
  private:
+  // The chunks a checkpoint starting now writes (all unsaved ones, without a scope); the
+  // others leave unsaved_.
+  std::vector<world::ChunkCoord> take_unsaved(WorldState& state, uint64_t seq);
+
   const CheckpointLimits limits_;
   const bool own_connection_, keep_log_;
+  Scope scope_;
   CheckpointPolicy policy_;
   std::unique_ptr<CheckpointWriter> writer_;
   // Resident chunks with info.unsaved; edits logged since the last checkpoint started, and

@@ -50,11 +50,13 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
   if (config_.zones) config_.zones->set_wake([this] { inbox_.poke(); });
   if (config_.store) {
     state_->read_stored = [this](ChunkCoord c) { return reader_->read(c); };
-    store::WorldStore& cp = config_.checkpoint_store ? *config_.checkpoint_store : *config_.store;
-    if (!config_.zones)  // a cluster node keeps its zones' changed chunks resident, for now
-      checkpoints_ = std::make_unique<Checkpoints>(
-          cp, config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
-          [this] { inbox_.poke(); }, Clock::now());
+    checkpoints_ = std::make_unique<Checkpoints>(
+        config_.checkpoint_store ? *config_.checkpoint_store : *config_.store,
+        config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
+        [this] { inbox_.poke(); }, Clock::now());
+    if (config_.zones)  // a cluster node: only the zones it holds, and no eviction
+      checkpoints_->set_scope([this](uint64_t s) { return config_.zones->checkpoint_scope(s); });
+    state_->keep_modified = config_.zones != nullptr;
     commit_ = std::make_unique<DurableCommit>(
         *config_.store, config_.store_retry, [this] { inbox_.append_landed(); },
         DurableCommit::Hooks{.answer = [this](EditBatch& b, bool durable) { answer(b, durable); },

@@ -89,7 +89,8 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   for (size_t seen = 0; seen < buckets && scanned < max_scan; ++seen, b = (b + 1) % buckets) {
     for (auto it = info.begin(b); it != info.end(b); ++it, ++scanned) {
       const auto& [c, chunk_info] = *it;
-      if (chunk_info.unsaved || chunk_info.checkpointing || now - chunk_info.last_used < min_age ||
+      if (chunk_info.unsaved || chunk_info.checkpointing ||
+          (keep_modified && chunk_info.modified) || now - chunk_info.last_used < min_age ||
           views.viewed(c) || pins.count(c)) {
         continue;
       }

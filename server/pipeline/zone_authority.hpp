@@ -16,7 +16,9 @@
 #include <vector>
 
 #include "server/pipeline/batch_scheduler.hpp"
+#include "server/pipeline/checkpoints.hpp"
 #include "server/store/world_store.hpp"
+#include "server/store/zone_leases.hpp"
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/zone.hpp"
@@ -27,6 +29,10 @@ namespace vox::pipeline {
 struct ZoneRecords {
   world::ZoneId zone;
   uint64_t epoch = 0;  // the node's epoch of the zone when read; 0: a zone it follows
+  // First, the zone's checkpoint when the world is behind it (docs/CLUSTER.md, "Zone
+  // checkpoints"): every chunk its records changed through record `installed`, each
+  // replacing the world's copy (the zone's other chunks were never changed through it).
+  std::optional<store::ZoneCheckpoint> checkpoint;
   std::vector<store::LoggedEdit> edits;  // seq: the zone's sequence numbers
   uint64_t through = 0;                  // the last record read (the zone's log had no more)
 };
@@ -50,6 +56,10 @@ class ZoneAuthority {
   virtual void accepted(const EditTask& task) = 0;
   // An accepted edit was undone (its batch's append failed, or one before it did).
   virtual void undone(const EditTask& task) = 0;
+  // A checkpoint starts (every batch answered; `seq`: the pipeline's last edit): the zones
+  // whose chunks it writes now (the node notes each one's epoch and last record applied,
+  // for its store's write_checkpoint).
+  virtual CheckpointScope checkpoint_scope(uint64_t seq) = 0;
   // A player's view of chunks within `radius` of `center`: the node asks for its zones
   // (it shows a zone as its log has it only while it holds it, for now).
   virtual void viewing(world::ChunkCoord center, int radius) = 0;

@@ -4,15 +4,74 @@
 
 #include <optional>
 
+#include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/memory_keeper.hpp"
+#include "server/pipeline/world_state.hpp"
+#include "server/store/chunk_codec.hpp"
 #include "server/world/edit_apply.hpp"
 
 namespace vox::pipeline {
+
+namespace {
+
+// The zone's checkpoint replaces the world's copies of its chunks (a chunk a checkpoint in
+// flight holds is preserved first). False when one does not decode (nothing installed).
+bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock::time_point now,
+                        AppliedRecords& out) {
+  std::vector<world::Chunk> chunks;
+  chunks.reserve(cp.chunks.size());
+  for (const store::ChunkRecord& r : cp.chunks) {
+    std::string error;
+    std::optional<world::Chunk> chunk = store::decode_chunk(r.samples, &error);
+    if (!chunk) {
+      spdlog::error("zone ({}, {}): the checkpoint's chunk ({}, {}, {}) does not decode ({})",
+                    cp.zone.x, cp.zone.z, r.coord.x, r.coord.y, r.coord.z, error);
+      return false;
+    }
+    chunks.push_back(std::move(*chunk));
+  }
+  WorldState& st = world.state;
+  world::ChangedBox all;
+  all.add(0, 0, 0);
+  all.add(world::kChunkSize - 1, world::kChunkSize - 1, world::kChunkSize - 1);
+  std::vector<world::ChunkCoord> dirty;
+  for (size_t i = 0; i < chunks.size(); ++i) {
+    const world::ChunkCoord c = cp.chunks[i].coord;
+    WorldState::ChunkInfo& info = st.info[c];
+    if (const world::Chunk* live = st.chunks.find(c);
+        live && info.checkpointing && world.checkpoints)
+      world.checkpoints->preserve(c, *live);
+    st.chunks.insert(c, std::move(chunks[i]));
+    st.modified_count += info.modified ? 0 : 1;
+    info.modified = info.unsaved = true;
+    info.last_used = now;
+    if (world.checkpoints) world.checkpoints->changed(c);
+    world::append_dirty_chunks(c, all, dirty);
+    const int32_t n = world::kChunkSize;
+    out.touched.push_back(
+        {{c.x * n, c.y * n, c.z * n}, {c.x * n + n - 1, c.y * n + n - 1, c.z * n + n - 1}});
+  }
+  for (const world::ChunkCoord& c : dirty) {
+    if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
+      out.batch.dirty.push_back(c);
+      out.batch.edited_at.try_emplace(c, now);
+    }
+  }
+  out.batch.any_edit = !chunks.empty();
+  return true;
+}
+
+}  // namespace
 
 AppliedRecords apply_zone_records(EditWorld& world, const ZoneRecords& records,
                                   Clock::time_point now) {
   AppliedRecords out;
   out.through = records.edits.empty() ? records.through : records.edits.front().seq - 1;
+  if (records.checkpoint) {
+    out.through = 0;  // short of the checkpoint: nothing applied
+    if (!install_checkpoint(world, *records.checkpoint, now, out)) return out;
+    out.through = records.edits.empty() ? records.through : records.checkpoint->seq;
+  }
   world.memory.new_batch();
   for (const store::LoggedEdit& e : records.edits) {
     std::vector<world::ChunkCoord> dirtied;

@@ -16,8 +16,10 @@
 namespace vox::pipeline {
 
 struct AppliedRecords {
-  EditBatch batch;       // the chunks to re-mesh and publish (no tasks, nothing to append)
-  uint64_t through = 0;  // the last record applied (records.edits.front().seq - 1: none)
+  EditBatch batch;  // the chunks to re-mesh and publish (no tasks, nothing to append)
+  // The last record applied (records.edits.front().seq - 1: none; 0 when the checkpoint
+  // could not be installed).
+  uint64_t through = 0;
   std::vector<world::VoxelBox> touched;  // the applied records' boxes (the coarse levels')
 };
 

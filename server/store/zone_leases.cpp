@@ -28,7 +28,26 @@ CREATE TABLE IF NOT EXISTS zone_pending (zone BIGINT NOT NULL, edit_id BIGINT NO
                                          at_ms BIGINT NOT NULL, record BYTEA NOT NULL,
                                          since TIMESTAMPTZ NOT NULL DEFAULT now(),
                                          PRIMARY KEY (zone, edit_id));
+ALTER TABLE zones ADD COLUMN IF NOT EXISTS checkpoint_seq BIGINT NOT NULL DEFAULT 0;
+CREATE TABLE IF NOT EXISTS zone_chunks (zone BIGINT NOT NULL, cx INTEGER NOT NULL,
+                                        cy INTEGER NOT NULL, cz INTEGER NOT NULL,
+                                        seq BIGINT NOT NULL, epoch BIGINT NOT NULL,
+                                        samples BYTEA NOT NULL,
+                                        PRIMARY KEY (zone, cx, cy, cz, seq));
 )sql";
+
+// Whether kCreateTables has nothing left to do (its last table and columns are there).
+constexpr const char* kSchemaThere = R"sql(
+SELECT to_regclass('zone_chunks') IS NOT NULL AND to_regclass('zone_log_edit') IS NOT NULL
+       AND to_regclass('zone_pending') IS NOT NULL AND to_regclass('cluster_world') IS NOT NULL
+       AND to_regclass('nodes') IS NOT NULL
+       AND (SELECT count(*) FROM information_schema.columns WHERE table_schema = current_schema()
+            AND ((table_name = 'zones' AND column_name = 'checkpoint_seq')
+                 OR (table_name = 'zone_log' AND column_name = 'edit_id'))) = 2
+)sql";
+
+// Chunks written per transaction of a checkpoint.
+constexpr size_t kChunksPerTransaction = 32;
 
 // Rows key zones by ZoneId::key()'s bits as a signed BIGINT.
 int64_t row_key(world::ZoneId z) { return static_cast<int64_t>(z.key()); }
@@ -74,6 +93,10 @@ ZoneLeases::ZoneLeases(std::string uri, std::string node, std::chrono::milliseco
     throw StoreError(name_ + ": a lease must last at least 100 ms");
   run([](pqxx::connection& c) {
     pqxx::work t(c);
+    // Altering a table locks it whole, even when there is nothing to alter: a connection
+    // opened while others append (a follower starting) would wait behind their row locks,
+    // and every reader behind it. So only a database without the whole schema is altered.
+    if (t.exec1(kSchemaThere)[0].as<bool>()) return;
     t.exec("SELECT pg_advisory_xact_lock(7008)");  // one creator at a time
     t.exec(kCreateTables);
     t.commit();
@@ -290,12 +313,96 @@ std::optional<ZoneRow> ZoneLeases::read(world::ZoneId zone) {
     pqxx::read_transaction t(c);
     const pqxx::result r = t.exec_params(
         "SELECT epoch, COALESCE(owner, ''), "
-        "CAST(EXTRACT(EPOCH FROM (lease_until - now())) * 1000 AS BIGINT), last_seq "
-        "FROM zones WHERE zone = $1",
+        "CAST(EXTRACT(EPOCH FROM (lease_until - now())) * 1000 AS BIGINT), last_seq, "
+        "checkpoint_seq FROM zones WHERE zone = $1",
         row_key(zone));
     if (r.empty()) return std::nullopt;
     return ZoneRow{r[0][0].as<uint64_t>(), r[0][1].as<std::string>(), r[0][2].as<int64_t>(),
-                   r[0][3].as<uint64_t>()};
+                   r[0][3].as<uint64_t>(), r[0][4].as<uint64_t>()};
+  });
+}
+
+void ZoneLeases::write_checkpoint(uint64_t epoch, const ZoneCheckpoint& cp) {
+  const int64_t zone = row_key(cp.zone);
+  const auto fenced = [&](uint64_t current) {
+    ++fenced_;
+    return FencedError(name_ + ": " + describe(cp.zone) + " is at epoch " +
+                           std::to_string(current) + ", this checkpoint's is " +
+                           std::to_string(epoch) + ": another node took it; write refused",
+                       cp.zone);
+  };
+  for (const ChunkRecord& c : cp.chunks) {
+    if (c.seq > cp.seq || c.seq == 0)
+      throw StoreError(name_ + ": " + describe(cp.zone) + ": a chunk at record " +
+                       std::to_string(c.seq) + " in a checkpoint through record " +
+                       std::to_string(cp.seq));
+  }
+  // Not worth writing for a zone already taken (the fence below decides, though), nor when
+  // one as new is there (a retry).
+  const std::optional<ZoneRow> row = read(cp.zone);
+  if (!row || row->epoch != epoch) throw fenced(row ? row->epoch : 0);
+  if (cp.seq <= row->checkpoint_seq) return;
+  for (size_t first = 0; first < cp.chunks.size(); first += kChunksPerTransaction) {
+    const size_t last = std::min(cp.chunks.size(), first + kChunksPerTransaction);
+    run([&](pqxx::connection& c) {
+      pqxx::work t(c);
+      for (size_t i = first; i < last; ++i) {
+        const ChunkRecord& r = cp.chunks[i];
+        // The same version written again (a retry) holds the same samples: the log's.
+        t.exec_params(
+            "INSERT INTO zone_chunks (zone, cx, cy, cz, seq, epoch, samples) "
+            "VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT DO NOTHING",
+            zone, r.coord.x, r.coord.y, r.coord.z, static_cast<int64_t>(r.seq),
+            static_cast<int64_t>(epoch), pqxx::binarystring(r.samples.data(), r.samples.size()));
+      }
+      t.commit();
+    });
+  }
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    const pqxx::result r = t.exec_params(
+        "SELECT epoch, last_seq, checkpoint_seq FROM zones WHERE zone = $1 FOR UPDATE", zone);
+    const uint64_t current = r.empty() ? 0 : r[0][0].as<uint64_t>();
+    if (current != epoch) throw fenced(current);
+    if (cp.seq > r[0][1].as<uint64_t>())
+      throw StoreError(name_ + ": " + describe(cp.zone) + " ends at record " +
+                       r[0][1].as<std::string>() + "; a checkpoint through record " +
+                       std::to_string(cp.seq) + " refused");
+    if (cp.seq <= r[0][2].as<uint64_t>()) return;  // one as new is there (a retry)
+    t.exec_params("UPDATE zones SET checkpoint_seq = $2 WHERE zone = $1", zone,
+                  static_cast<int64_t>(cp.seq));
+    // The versions this checkpoint's replace: no reader needs them any more.
+    t.exec_params(
+        "DELETE FROM zone_chunks o USING zone_chunks n WHERE n.zone = $1 AND n.seq = $2 "
+        "AND o.zone = $1 AND o.cx = n.cx AND o.cy = n.cy AND o.cz = n.cz AND o.seq < n.seq",
+        zone, static_cast<int64_t>(cp.seq));
+    t.commit();
+  });
+}
+
+std::optional<ZoneCheckpoint> ZoneLeases::read_checkpoint(world::ZoneId zone, size_t max_edit_ids) {
+  return run([&](pqxx::connection& c) -> std::optional<ZoneCheckpoint> {
+    pqxx::transaction<pqxx::repeatable_read, pqxx::read_only> t(c);
+    const pqxx::result r =
+        t.exec_params("SELECT checkpoint_seq FROM zones WHERE zone = $1", row_key(zone));
+    if (r.empty() || r[0][0].as<uint64_t>() == 0) return std::nullopt;
+    ZoneCheckpoint out{.zone = zone, .seq = r[0][0].as<uint64_t>(), .chunks = {}, .edit_ids = {}};
+    const auto seq = static_cast<int64_t>(out.seq);
+    for (const auto& row :
+         t.exec_params("SELECT DISTINCT ON (cx, cy, cz) cx, cy, cz, seq, samples FROM zone_chunks "
+                       "WHERE zone = $1 AND seq <= $2 ORDER BY cx, cy, cz, seq DESC",
+                       row_key(zone), seq)) {
+      const pqxx::binarystring bytes(row[4]);
+      out.chunks.push_back({{row[0].as<int32_t>(), row[1].as<int32_t>(), row[2].as<int32_t>()},
+                            row[3].as<uint64_t>(),
+                            std::vector<uint8_t>(bytes.begin(), bytes.end())});
+    }
+    for (const auto& row : t.exec_params(
+             "SELECT edit_id FROM (SELECT seq, edit_id FROM zone_log WHERE zone = $1 "
+             "AND seq <= $2 AND edit_id <> 0 ORDER BY seq DESC LIMIT $3) AS l ORDER BY seq",
+             row_key(zone), seq, static_cast<int64_t>(max_edit_ids)))
+      out.edit_ids.push_back(static_cast<uint64_t>(row[0].as<int64_t>()));
+    return out;
   });
 }
 

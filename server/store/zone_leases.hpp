@@ -72,6 +72,22 @@ struct ZoneRow {
   std::string owner;          // empty: released
   int64_t lease_left_ms = 0;  // by the database's clock; <= 0: expired
   uint64_t last_seq = 0;
+  uint64_t checkpoint_seq = 0;  // the zone's checkpoint holds every record through this one
+};
+
+// A zone's checkpoint (docs/CLUSTER.md, "Zone checkpoints"): its chunks as of record `seq`
+// of its log. Written by its holder: the chunks its records changed since the holder's
+// last checkpoint (every chunk they ever changed, on its first after taking the zone).
+// Read: every changed chunk of the zone, each in its latest version through the zone's
+// checkpoint_seq; a chunk of the zone not among them was never changed by a record through
+// it.
+struct ZoneCheckpoint {
+  world::ZoneId zone;
+  uint64_t seq = 0;
+  std::vector<ChunkRecord> chunks;  // seq: the record each chunk is at (<= `seq`)
+  // Read only: the edit ids of the last records through `seq` (at most a ZoneTable's
+  // memory of them; the newest last).
+  std::vector<uint64_t> edit_ids;
 };
 
 // What every node of one cluster world must agree on (one world per database).
@@ -122,6 +138,18 @@ class ZoneLeases {
   std::vector<ZoneRecord> read_log(world::ZoneId zone, uint64_t after_seq, size_t max = 10000);
   std::optional<ZoneRow> read(world::ZoneId zone);
 
+  // Writes `checkpoint` of a zone held at `epoch`: its chunks in transactions of a few
+  // dozen (no lock held; each a new version of its chunk, invisible to readers until the
+  // zone's checkpoint_seq reaches it), then, in one short transaction fenced like an
+  // append, the zone's checkpoint_seq (it only grows; at most the zone's last record) and
+  // the removal of the versions these chunks replace. A write the fence refuses
+  // (FencedError) leaves versions past the zone's checkpoint_seq: each is the chunk as a
+  // prefix of the log left it, so a later checkpoint may keep it or replace it.
+  void write_checkpoint(uint64_t epoch, const ZoneCheckpoint& checkpoint);
+  // The zone's checkpoint, read in one snapshot (repeatable read): nullopt when it has none.
+  // At most `max_edit_ids` edit ids.
+  std::optional<ZoneCheckpoint> read_checkpoint(world::ZoneId zone, size_t max_edit_ids);
+
   // This node is alive for another lease; it leaves the live list at once (a graceful
   // stop); the nodes alive now (by id).
   void heartbeat(const std::string& address);
@@ -132,7 +160,7 @@ class ZoneLeases {
   // world), else those it has (the caller refuses to start when they differ).
   WorldSettings settle_world(const WorldSettings& mine);
 
-  // Writes this object refused by the fence so far.
+  // Writes (appends, checkpoints) this object refused by the fence so far.
   uint64_t fenced() const { return fenced_.load(std::memory_order_relaxed); }  // any thread
 
  private:

@@ -1,0 +1,166 @@
+#include "server/cluster/zone_record_source.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include "server/cluster/zone_follower.hpp"
+#include "server/cluster/zone_wire.hpp"
+
+namespace vox::cluster {
+namespace {
+
+// Records one read hands the pipeline at most: it goes on between reads.
+constexpr size_t kRecordsPerRead = 2000;
+
+std::string describe(world::ZoneId z) {
+  return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
+}
+
+}  // namespace
+
+ZoneRecordSource::ZoneRecordSource(ZoneTable& table, ZoneReplicas& replicas,
+                                   ZonePublisher& publisher, store::ZoneLeases& db,
+                                   std::string store_name)
+    : table_(table),
+      replicas_(replicas),
+      publisher_(publisher),
+      db_(db),
+      store_name_(std::move(store_name)) {}
+
+std::optional<pipeline::ZoneRecords> ZoneRecordSource::next() {
+  if (auto records = catch_up()) return records;
+  return followed_records();
+}
+
+// A held zone's log after what the world has (a zone just taken, or an append in doubt).
+std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
+  for (;;) {
+    const std::optional<ZoneTable::CatchUp> c = table_.next_catch_up();
+    if (!c) return std::nullopt;
+    const std::optional<store::ZoneRow> row = db_.read(c->zone);
+    if (!row || row->epoch != c->epoch) {  // taken by another node meanwhile
+      table_.lost(c->zone, c->epoch);
+      continue;
+    }
+    targets_[c->zone] = row->last_seq;
+    pipeline::ZoneRecords out{.zone = c->zone,
+                              .epoch = c->epoch,
+                              .checkpoint = std::nullopt,
+                              .edits = {},
+                              .through = c->applied};
+    if (row->last_seq <= c->applied) return out;
+    out.checkpoint = checkpoint_past(c->zone, c->applied, row->checkpoint_seq);
+    if (out.checkpoint) out.through = out.checkpoint->seq;
+    for (const store::ZoneRecord& r : db_.read_log(c->zone, out.through, kRecordsPerRead)) {
+      if (r.seq > row->last_seq) break;
+      std::string why;
+      std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
+      if (!e)
+        throw store::StoreError(store_name_ + ": " + describe(c->zone) + " record " +
+                                std::to_string(r.seq) + ": " + why);
+      out.edits.push_back(std::move(*e));
+      out.through = r.seq;
+    }
+    return out;
+  }
+}
+
+// Records of a followed zone, as its owner committed them.
+std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
+  // A zone followed anew whose checkpoint the world should install: before its records.
+  std::vector<world::ZoneId> started = replicas_.take_started();
+  for (size_t i = 0; i < started.size(); ++i) {
+    const world::ZoneId zone = started[i];
+    if (table_.held(zone)) continue;
+    try {
+      const uint64_t applied = table_.applied(zone);
+      const std::optional<store::ZoneRow> row = db_.read(zone);
+      std::optional<store::ZoneCheckpoint> cp =
+          row ? checkpoint_past(zone, applied, row->checkpoint_seq) : std::nullopt;
+      if (!cp) continue;
+      for (size_t j = i + 1; j < started.size(); ++j) replicas_.started_again(started[j]);
+      handed_.clear();
+      const uint64_t through = cp->seq;
+      return pipeline::ZoneRecords{
+          .zone = zone, .epoch = 0, .checkpoint = std::move(cp), .edits = {}, .through = through};
+    } catch (const store::StoreError&) {
+      for (size_t j = i; j < started.size(); ++j) replicas_.started_again(started[j]);
+      throw;
+    }
+  }
+  std::optional<ZoneReplicas::Taken> taken = replicas_.take(
+      kRecordsPerRead, [this](world::ZoneId z) { return table_.held(z); },
+      [this](world::ZoneId z) { return table_.applied(z); });
+  if (!taken) return std::nullopt;
+  const world::ZoneId zone = taken->zone;
+  const uint64_t applied = table_.applied(zone);
+  pipeline::ZoneRecords out{
+      .zone = zone, .epoch = 0, .checkpoint = std::nullopt, .edits = {}, .through = applied};
+  if (taken->records.front().seq != applied + 1) {
+    // Not the next record (this node's world moved otherwise, or its follower started
+    // after the zone's checkpoint): the checkpoint first if it should be installed, and
+    // the log has the records between.
+    if (const std::optional<store::ZoneRow> row = db_.read(zone))
+      out.checkpoint = checkpoint_past(zone, applied, row->checkpoint_seq);
+    if (out.checkpoint) out.through = out.checkpoint->seq;
+    taken->records = db_.read_log(zone, out.through, kRecordsPerRead);
+    if (taken->records.empty() && !out.checkpoint) return std::nullopt;
+  }
+  for (const store::ZoneRecord& r : taken->records) {
+    std::string why;
+    std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
+    if (!e) {
+      replicas_.give_back(zone, std::move(taken->records));
+      throw store::StoreError(store_name_ + ": " + describe(zone) + " record " +
+                              std::to_string(r.seq) + ": " + why);
+    }
+    out.edits.push_back(std::move(*e));
+    out.through = r.seq;
+  }
+  handed_ = std::move(taken->records);
+  return out;
+}
+
+std::optional<store::ZoneCheckpoint> ZoneRecordSource::checkpoint_past(world::ZoneId zone,
+                                                                       uint64_t applied,
+                                                                       uint64_t checkpoint_seq) {
+  if (!checkpoint_first(applied, checkpoint_seq)) return std::nullopt;
+  std::optional<store::ZoneCheckpoint> cp = db_.read_checkpoint(zone, ZoneTable::kRememberedEdits);
+  if (!cp || cp->seq <= applied) return std::nullopt;
+  return cp;
+}
+
+void ZoneRecordSource::applied(const pipeline::ZoneRecords& records, uint64_t through) {
+  if (records.checkpoint && through >= records.checkpoint->seq) {
+    for (const uint64_t id : records.checkpoint->edit_ids) table_.note_edit(records.zone, id);
+    installed_.fetch_add(1, std::memory_order_relaxed);
+    spdlog::info("cluster: {}: its checkpoint through record {} installed ({} chunks)",
+                 describe(records.zone), records.checkpoint->seq,
+                 records.checkpoint->chunks.size());
+  }
+  for (const store::LoggedEdit& e : records.edits) {
+    if (e.seq <= through) table_.note_edit(records.zone, e.edit_id);
+  }
+  if (records.epoch == 0) {  // a followed zone's
+    table_.committed(records.zone, through);
+    std::erase_if(handed_, [&](const store::ZoneRecord& r) { return r.seq <= through; });
+    if (!handed_.empty()) replicas_.give_back(records.zone, std::move(handed_));
+    handed_.clear();
+    return;
+  }
+  const auto it = targets_.find(records.zone);
+  const bool complete = it != targets_.end() && through >= it->second;
+  // A zone lost while its log was being applied is caught up afresh if taken again.
+  if (it != targets_.end() && !complete && !table_.held(records.zone)) targets_.erase(it);
+  if (complete) {
+    // Its records continue from here; then edits in it are taken.
+    publisher_.adopt(records.zone, through);
+    targets_.erase(it);
+  }
+  table_.caught_up(records.zone, records.epoch, through, complete);
+  if (complete && !table_.held(records.zone)) publisher_.forget(records.zone);
+  if (complete && table_.writable(records.zone))
+    spdlog::info("cluster: {} is writable here (its log applied through record {})",
+                 describe(records.zone), through);
+}
+
+}  // namespace vox::cluster

@@ -1,0 +1,61 @@
+// What a cluster node's world must apply (docs/CLUSTER.md), handed to its pipeline
+// (pipeline::ZoneAuthority::next_records and applied): the log of each zone it has just
+// taken, or whose append was in doubt, to the log's end (the zone is writable then); and
+// the records of the zones it follows, as their holders commit them. A zone's checkpoint
+// comes first when the world should install it rather than apply the records before it
+// (checkpoint_first): a zone taken or followed anew, or far behind.
+//
+// Threads: the pipeline thread, but installed() (any thread).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "server/cluster/zone_publisher.hpp"
+#include "server/cluster/zone_replicas.hpp"
+#include "server/cluster/zone_table.hpp"
+#include "server/pipeline/zone_authority.hpp"
+#include "server/store/zone_leases.hpp"
+
+namespace vox::cluster {
+
+class ZoneRecordSource {
+ public:
+  // `db`: the pipeline thread's connection; `store_name`: the store's, for messages.
+  ZoneRecordSource(ZoneTable& table, ZoneReplicas& replicas, ZonePublisher& publisher,
+                   store::ZoneLeases& db, std::string store_name);
+
+  bool waiting() const { return table_.catching_up() || replicas_.waiting(); }
+  // The next records to apply, or nullopt. Throws store::StoreError when a log cannot be read.
+  std::optional<pipeline::ZoneRecords> next();
+  // The pipeline applied `records` through `through` (short of their end: the rest is
+  // handed over again).
+  void applied(const pipeline::ZoneRecords& records, uint64_t through);
+  uint64_t installed() const { return installed_.load(std::memory_order_relaxed); }
+
+ private:
+  std::optional<pipeline::ZoneRecords> catch_up();
+  std::optional<pipeline::ZoneRecords> followed_records();
+  // The zone's checkpoint when a world with its records through `applied` should install
+  // it first (checkpoint_first).
+  std::optional<store::ZoneCheckpoint> checkpoint_past(world::ZoneId zone, uint64_t applied,
+                                                       uint64_t checkpoint_seq);
+
+  ZoneTable& table_;
+  ZoneReplicas& replicas_;
+  ZonePublisher& publisher_;
+  store::ZoneLeases& db_;
+  const std::string store_name_;
+  // The followed records handed to the pipeline last (given back when it could not apply
+  // them all).
+  std::vector<store::ZoneRecord> handed_;
+  // Per zone catching up, the log's last record when it began.
+  std::map<world::ZoneId, uint64_t> targets_;
+  std::atomic<uint64_t> installed_{0};  // checkpoints installed
+};
+
+}  // namespace vox::cluster
