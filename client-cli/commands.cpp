@@ -26,6 +26,7 @@ constexpr const char* kUsage =
     "  mesh INPUT --out FILE   mesh a volume offline (NIfTI, NRRD, raw float32 or text)\n"
     "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
     "  world info|log|verify WORLD   a world directory (or postgresql:// URI), read-only\n"
+    "  world migrate --from WORLD --to WORLD   a single node's world into a cluster's, or back\n"
     "  keygen --out NAME       an Ed25519 key pair for player tokens (NAME.key, NAME.pub)\n"
     "  token --key NAME.key --player ID --name NAME [--role R] [--ttl S]   a player token\n"
     "  region add|list|remove  manage protected regions (with an admin token)\n"

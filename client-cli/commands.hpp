@@ -19,8 +19,12 @@ int edit_command(const std::string& kind, const std::vector<std::string>& args, 
 int script_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int watch_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int export_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
-// world info|log|verify WORLD: the durable world, read-only.
+// world info|log|verify WORLD: the durable world, read-only; world migrate (world_migrate.cpp).
 int world_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int world_migrate(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// world info|verify of a cluster world's database (world_migrate.cpp).
+int cluster_world_command(const std::string& action, const std::string& uri, std::ostream& out,
+                          std::ostream& err);
 // keygen --out NAME: an Ed25519 key pair; token --key FILE ...: a signed player token.
 int keygen_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int token_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);

@@ -13,6 +13,7 @@
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/store/world_store.hpp"
+#include "server/store/zone_leases.hpp"
 #include "server/world/edit_replay.hpp"
 
 namespace vox::cli {
@@ -129,6 +130,8 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
 }  // namespace
 
 int world_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  if (!args.empty() && args[0] == "migrate")
+    return world_migrate({args.begin() + 1, args.end()}, out, err);
   po::options_description opts("voxel-cli world options");
   opts.add_options()("help,h", "show this help")("action", po::value<std::string>()->required(),
                                                  "info, log or verify")(
@@ -137,15 +140,19 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
   po::positional_options_description positional;
   positional.add("action", 1).add("world", 1);
   po::variables_map vm;
-  const int rc =
-      parse_options(args, opts, &positional,
-                    "usage: voxel-cli world info|log|verify WORLD [--since N]", vm, out, err);
+  const int rc = parse_options(args, opts, &positional,
+                               "usage: voxel-cli world info|log|verify WORLD [--since N]\n       "
+                               "voxel-cli world migrate --help",
+                               vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const std::string action = vm["action"].as<std::string>();
     if (action != "info" && action != "log" && action != "verify")
       throw std::invalid_argument("world: the action must be info, log or verify");
-    auto s = store::open_world_store(vm["world"].as<std::string>(), {.read_only = true});
+    const std::string where = vm["world"].as<std::string>();
+    if (action != "log" && store::is_postgres_uri(where) && store::is_cluster_world(where))
+      return cluster_world_command(action, where, out, err);
+    auto s = store::open_world_store(where, {.read_only = true});
     if (action == "info") return world_info(*s, out);
     if (action == "log") return world_log(*s, vm["since"].as<uint64_t>(), out);
     return world_verify(*s, out, err);

@@ -280,7 +280,7 @@ TEST(ClusterNode, AnOwnerStoppedPastItsLeaseIsFencedAndItsLateEditReachesNoOne) 
   std::map<std::string, int> logged;
   std::vector<wire::Envelope> replay;
   for (const store::ZoneRecord& r : reader.read_log(zone, 0)) {
-    const auto e = cluster::decode_zone_edit(r);
+    const auto e = store::decode_zone_edit(r);
     ASSERT_TRUE(e);
     const auto bytes = store::encode_edit(e->edit);
     const std::string key(bytes.begin(), bytes.end());

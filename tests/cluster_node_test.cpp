@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <sstream>
+#include <tuple>
+
+#include "client-cli/commands.hpp"
 #include "tests/cluster_test_util.hpp"
 #include "tests/metrics_scrape.hpp"
 
@@ -63,6 +67,55 @@ TEST(ClusterNode,
   EXPECT_TRUE(eventually_seen(c, expected_all) == expected_all) << "c, after b's checkpoints";
   EXPECT_GE(metric(c, "voxeld_cluster_checkpoints_installed_total"), 1);
   EXPECT_EQ(metric(b, "voxeld_cluster_checkpoints_fenced_total"), 0);
+}
+
+// Moving in (docs/CLUSTER.md): a single node's world (its log's tail not checkpointed: the
+// node was killed) migrated into an empty cluster database is what a cluster node shows;
+// after more edits there the cluster world verifies, and migrated back out it is a single
+// node's world showing what a single node shows after every edit.
+TEST(ClusterNode, AWorldMigratedIntoAClusterAndBackShowsWhatASingleNodeShows) {
+  const Cluster cluster;
+  const TempDir dir("migrate");
+  const std::string single = (dir.path() / "single").string(),
+                    back = (dir.path() / "back").string();
+  const std::vector<wire::Envelope> edits = border_edits();
+  std::vector<wire::Envelope> all = edits;
+  for (uint64_t i = 0; i < 3; ++i)
+    all.push_back(explosion(200 + i, 61.0f + 2.5f * i, 67.0f - 3.0f * i));
+  {
+    ServerProcess s({"--world", single});
+    apply_all(s, edits);
+  }  // kill -9
+  const auto cli = [](const std::vector<std::string>& args) {
+    std::ostringstream out, err;
+    const int code = cli::run_cli(args, out, err);
+    return std::make_tuple(code, out.str(), err.str());
+  };
+  const auto [in_code, in_out, in_err] =
+      cli({"world", "migrate", "--from", single, "--to", cluster.database, "--name", "test",
+           "--zone-chunks", std::to_string(kZoneChunks)});
+  ASSERT_EQ(in_code, 0) << in_out << in_err;
+  // Into a cluster world that has records: refused.
+  ServerProcess a({"--cluster", cluster.config("a")});
+  const Seen expected = single_node_after(edits);
+  EXPECT_TRUE(eventually_seen(a, expected) == expected) << "the migrated world on a cluster node";
+  apply_all(a, {all.begin() + static_cast<long>(edits.size()), all.end()});
+  EXPECT_EQ(a.terminate(), 0);
+  const auto [again_code, again_out, again_err] =
+      cli({"world", "migrate", "--from", single, "--to", cluster.database, "--name", "test",
+           "--zone-chunks", std::to_string(kZoneChunks)});
+  EXPECT_EQ(again_code, 1);
+  EXPECT_NE(again_err.find("has records already"), std::string::npos) << again_err;
+  const auto [v_code, v_out, v_err] = cli({"world", "verify", cluster.database});
+  EXPECT_EQ(v_code, 0) << v_out << v_err;
+  EXPECT_NE(v_out.find("all match"), std::string::npos) << v_out;
+  const auto [out_code, out_out, out_err] =
+      cli({"world", "migrate", "--from", cluster.database, "--to", back});
+  ASSERT_EQ(out_code, 0) << out_out << out_err;
+  const auto [bv_code, bv_out, bv_err] = cli({"world", "verify", back});
+  EXPECT_EQ(bv_code, 0) << bv_out << bv_err;
+  ServerProcess b({"--world", back});
+  EXPECT_TRUE(world_seen(b) == single_node_after(all)) << "the world migrated back out";
 }
 
 // Replicas: a viewer on another node sees the owner's edits as they are committed, and

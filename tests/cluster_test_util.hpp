@@ -270,7 +270,7 @@ class EditingLoad {
       uint64_t expect_seq = 1;
       for (const store::ZoneRecord& r : reader.read_log(zone, 0)) {
         EXPECT_EQ(r.seq, expect_seq++);
-        const auto e = cluster::decode_zone_edit(r);
+        const auto e = store::decode_zone_edit(r);
         EXPECT_TRUE(e);
         if (!e) continue;
         const auto bytes = store::encode_edit(e->edit);
@@ -391,7 +391,7 @@ inline std::map<std::pair<world::ZoneId, uint64_t>, int> edit_ids_logged(
   std::map<std::pair<world::ZoneId, uint64_t>, int> out;
   for (const world::ZoneId zone : zones) {
     for (const store::ZoneRecord& r : reader.read_log(zone, 0)) {
-      const auto e = cluster::decode_zone_edit(r);
+      const auto e = store::decode_zone_edit(r);
       EXPECT_TRUE(e);
       EXPECT_EQ(e ? e->edit_id : 0, r.edit_id) << "a record's edit id differs from its row's";
       if (r.edit_id != 0) ++out[{zone, r.edit_id}];

@@ -11,6 +11,10 @@
 # SPREAD=1: the players are spread over all the nodes (voxel-loadtest --more-servers).
 # Then the cluster's traffic over the run: NATS messages and bytes (the server's /varz),
 # PostgreSQL WAL bytes, the zone log's records, and the meshes each node published.
+# TAKEOVER=1: then, node a stopped (its last checkpoint written, its zones released), a
+# fresh node takes the zones around the origin twice, prompted by a voxel-cli brush in each: first
+# installing their checkpoints, then (checkpoint_seq set back to 0 in the database) applying
+# their whole logs; prints each zone's time from taken to writable, from the fresh node's log.
 # Everything is stopped at the end; files stay in /tmp/voxeld_bench/NAME.cluster.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
@@ -123,4 +127,35 @@ for o in "${others[@]}"; do
 done
 grep -h "fenced\|took zone\|lost zone" "$dir"/*.log /tmp/voxeld_bench/"$name".log 2>/dev/null | wc -l |
   xargs echo "zone events (took, lost, fenced) in the nodes' logs:"
+if [ "${TAKEOVER:-0}" = 1 ]; then
+  for mode in checkpoint log; do
+    [ "$mode" = log ] && sql "UPDATE zones SET checkpoint_seq = 0" > /dev/null
+    n=take_$mode
+    sed "s/^node = .*/node = $n/" "$dir/a.conf" > "$dir/$n.conf"; chmod 600 "$dir/$n.conf"
+    "$bin/voxeld" --cluster "$dir/$n.conf" --port 0 --port-file "$dir/$n.port" --max-memory 1G \
+      > "$dir/$n.log" 2>&1 &
+    takeover=$!
+    for _ in $(seq 100); do [ -s "$dir/$n.port" ] && break; sleep 0.1; done
+    # An edit in each zone around the origin: forwarded, nobody holds the zone, so the node
+    # (ranking first, the only one alive) takes it.
+    for at in 8,0,8 -8,0,8 8,0,-8 -8,0,-8; do
+      "$bin/voxel-cli" brush --server "127.0.0.1:$(cat "$dir/$n.port")" --at $at --radius 2 \
+        > /dev/null 2>&1 || true
+    done
+    sleep 3
+    kill -TERM $takeover; wait $takeover || true
+    /usr/bin/python3 - "$dir/$n.log" "$mode" <<'PY'
+import re, sys
+from datetime import datetime
+at = lambda l: datetime.strptime(l[1:24], "%Y-%m-%d %H:%M:%S.%f")
+took, out = {}, []
+for l in open(sys.argv[1]):
+    if m := re.search(r"took zone \((-?\d+), (-?\d+)\)", l): took[m.groups()] = at(l)
+    if m := re.search(r"zone \((-?\d+), (-?\d+)\) is writable here \(its log applied through record (\d+)", l):
+        if m.groups()[:2] in took:
+            out.append(f"({m[1]}, {m[2]}) {(at(l) - took[m.groups()[:2]]).total_seconds() * 1000:.0f} ms through record {m[3]}")
+print(f"take over by {sys.argv[2]}:", "; ".join(out) or "no zone taken")
+PY
+  done
+fi
 exit "$code"

@@ -39,10 +39,4 @@ struct ZoneMessage {
 // nullopt when the bytes are not a message of this version (too short, unknown kind).
 std::optional<ZoneMessage> decode_zone_message(std::span<const uint8_t> bytes);
 
-// A logged edit as a zone record's payload (its seq and time are the record's), and back:
-// nullopt, with `error` set, when the payload is not one.
-std::vector<uint8_t> encode_zone_edit(const store::LoggedEdit& edit);
-std::optional<store::LoggedEdit> decode_zone_edit(const store::ZoneRecord& record,
-                                                  std::string* error = nullptr);
-
 }  // namespace vox::cluster

@@ -5,7 +5,9 @@
 #include <string>
 #include <tuple>
 
+#include "server/store/edit_codec.hpp"
 #include "server/store/pq_errors.hpp"
+#include "server/world/byte_io.hpp"
 
 namespace vox::store {
 namespace {
@@ -57,6 +59,20 @@ std::string describe(world::ZoneId z) {
 }
 
 }  // namespace
+
+bool is_cluster_world(const std::string& uri) {
+  return translate_pq_errors(
+      "PostgreSQL " + redact_uri(uri), [] {},
+      [&] {
+        pqxx::connection c(uri);
+        pqxx::read_transaction t(c);
+        return t
+            .exec1(
+                "SELECT to_regclass('cluster_world') IS NOT NULL AND "
+                "to_regclass('zones') IS NOT NULL")[0]
+            .as<bool>();
+      });
+}
 
 struct ZoneLeases::Connection {
   explicit Connection(const std::string& uri) : c(uri) {}
@@ -406,6 +422,51 @@ std::optional<ZoneCheckpoint> ZoneLeases::read_checkpoint(world::ZoneId zone, si
   });
 }
 
+std::optional<WorldSettings> ZoneLeases::world_settings() {
+  return run([&](pqxx::connection& c) -> std::optional<WorldSettings> {
+    pqxx::read_transaction t(c);
+    const pqxx::result r = t.exec("SELECT name, seed, zone_chunks FROM cluster_world");
+    if (r.empty()) return std::nullopt;
+    return WorldSettings{r[0][0].as<std::string>(), static_cast<uint64_t>(r[0][1].as<int64_t>()),
+                         r[0][2].as<int>()};
+  });
+}
+
+std::vector<world::ZoneId> ZoneLeases::zones() {
+  return run([&](pqxx::connection& c) {
+    pqxx::read_transaction t(c);
+    std::vector<world::ZoneId> out;
+    for (const auto& row : t.exec("SELECT zone FROM zones ORDER BY zone"))
+      out.push_back(world::ZoneId::from_key(static_cast<uint64_t>(row[0].as<int64_t>())));
+    return out;
+  });
+}
+
+void ZoneLeases::seed_zone(world::ZoneId zone, uint64_t epoch,
+                           std::span<const ChunkRecord> chunks) {
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    const pqxx::result r = t.exec_params(
+        "SELECT epoch, last_seq, checkpoint_seq FROM zones WHERE zone = $1 FOR UPDATE",
+        row_key(zone));
+    if (r.empty() || r[0][0].as<uint64_t>() != epoch)
+      throw StoreError(name_ + ": " + describe(zone) + " is not held at epoch " +
+                       std::to_string(epoch));
+    if (r[0][1].as<uint64_t>() != 0 || r[0][2].as<uint64_t>() != 0)
+      throw StoreError(name_ + ": " + describe(zone) + " has records already");
+    for (const ChunkRecord& ch : chunks) {
+      t.exec_params(
+          "INSERT INTO zone_chunks (zone, cx, cy, cz, seq, epoch, samples) "
+          "VALUES ($1, $2, $3, $4, 1, $5, $6)",
+          row_key(zone), ch.coord.x, ch.coord.y, ch.coord.z, static_cast<int64_t>(epoch),
+          pqxx::binarystring(ch.samples.data(), ch.samples.size()));
+    }
+    t.exec_params("UPDATE zones SET last_seq = 1, checkpoint_seq = 1 WHERE zone = $1",
+                  row_key(zone));
+    t.commit();
+  });
+}
+
 void ZoneLeases::heartbeat(const std::string& address) {
   run([&](pqxx::connection& c) {
     pqxx::work t(c);
@@ -448,6 +509,52 @@ WorldSettings ZoneLeases::settle_world(const WorldSettings& mine) {
     return WorldSettings{r[0].as<std::string>(), static_cast<uint64_t>(r[1].as<int64_t>()),
                          r[2].as<int>()};
   });
+}
+
+namespace {
+// 1: no edit id (records written before edits across holders); 2: with it.
+constexpr uint8_t kEditPayloadVersion = 2;
+constexpr size_t kMaxAuthor = 1024;
+}  // namespace
+
+std::vector<uint8_t> encode_zone_edit(const LoggedEdit& edit) {
+  const std::string author = edit.author.substr(0, kMaxAuthor);
+  return world::ByteWriter({kEditPayloadVersion})
+      .u16(static_cast<uint16_t>(author.size()))
+      .text(author)
+      .u64(edit.edit_id)
+      .bytes(encode_edit(edit.edit, edit.keep))
+      .take();
+}
+
+std::optional<LoggedEdit> decode_zone_edit(const ZoneRecord& record, std::string* error) {
+  const auto fail = [error](const char* why) -> std::optional<LoggedEdit> {
+    if (error) *error = why;
+    return std::nullopt;
+  };
+  world::ByteReader r(record.payload);
+  const uint8_t version = r.u8();
+  const size_t length = r.u16();
+  if (!r.ok()) return fail("an edit record shorter than its header");
+  if (version != 1 && version != kEditPayloadVersion)
+    return fail("an edit record of an unknown version");
+  std::string author = length > kMaxAuthor ? std::string() : r.text(length);
+  const uint64_t edit_id = version >= 2 ? r.u64() : 0;
+  if (length > kMaxAuthor || !r.ok()) return fail("an edit record's author is cut");
+  std::string why;
+  auto decoded = decode_edit_record(r.rest(), &why);
+  if (!decoded) {
+    if (error) *error = "an edit record: " + why;
+    return std::nullopt;
+  }
+  LoggedEdit out;
+  out.seq = record.seq;
+  out.unix_ms = record.unix_ms;
+  out.author = std::move(author);
+  out.edit = std::move(decoded->edit);
+  out.keep = std::move(decoded->keep);
+  out.edit_id = edit_id;
+  return out;
 }
 
 }  // namespace vox::store

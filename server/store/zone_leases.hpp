@@ -48,6 +48,11 @@ struct ZoneRecord {
   uint64_t edit_id = 0;          // the edit's cluster-wide id (0: none)
 };
 
+// A logged edit as a zone record's payload (its seq and time are the record's), and back:
+// nullopt, with `error` set, when the payload is not one.
+std::vector<uint8_t> encode_zone_edit(const LoggedEdit& edit);
+std::optional<LoggedEdit> decode_zone_edit(const ZoneRecord& record, std::string* error = nullptr);
+
 // A part of an edit across zones that another zone's log must still get (docs/CLUSTER.md,
 // "Edits across a border"): written with the part the writer logged, in its
 // transaction, unless `zone`'s log has the edit already; removed when `zone`'s log gets
@@ -97,6 +102,9 @@ struct WorldSettings {
   int zone_chunks = 0;
   friend bool operator==(const WorldSettings&, const WorldSettings&) = default;
 };
+
+// Whether the database at `uri` holds a cluster world (its zones' tables); reads only.
+bool is_cluster_world(const std::string& uri);
 
 class ZoneLeases {
  public:
@@ -150,6 +158,14 @@ class ZoneLeases {
   // At most `max_edit_ids` edit ids.
   std::optional<ZoneCheckpoint> read_checkpoint(world::ZoneId zone, size_t max_edit_ids);
 
+  // Every zone the database has a row of.
+  std::vector<world::ZoneId> zones();
+  // Migration (voxel-cli world migrate): a zone with no record yet, held at `epoch`, gets
+  // `chunks` as its first checkpoint, through record 1, which its log never holds (its
+  // records start at 2; every reader installs the checkpoint first). All in one
+  // transaction, fenced; StoreError when the zone has records or a checkpoint already.
+  void seed_zone(world::ZoneId zone, uint64_t epoch, std::span<const ChunkRecord> chunks);
+
   // This node is alive for another lease; it leaves the live list at once (a graceful
   // stop); the nodes alive now (by id).
   void heartbeat(const std::string& address);
@@ -159,6 +175,7 @@ class ZoneLeases {
   // The world's settings: `mine` when the database has none yet (the first node made the
   // world), else those it has (the caller refuses to start when they differ).
   WorldSettings settle_world(const WorldSettings& mine);
+  std::optional<WorldSettings> world_settings();  // reads only; nullopt: no world yet
 
   // Writes (appends, checkpoints) this object refused by the fence so far.
   uint64_t fenced() const { return fenced_.load(std::memory_order_relaxed); }  // any thread

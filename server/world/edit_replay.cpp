@@ -7,7 +7,8 @@
 namespace vox::world {
 
 std::vector<ChunkCoord> replay_edit(ChunkMap& map, const TerrainGenerator& generator,
-                                    const Edit& edit, std::span<const VoxelBox> keep) {
+                                    const Edit& edit, std::span<const VoxelBox> keep,
+                                    int zone_chunks) {
   const std::vector<ChunkCoord> touched = chunks_overlapping(touched_box(edit));
   const auto* smooth = std::get_if<Smooth>(&edit);
   const std::vector<ChunkCoord> read =
@@ -15,7 +16,10 @@ std::vector<ChunkCoord> replay_edit(ChunkMap& map, const TerrainGenerator& gener
   for (const ChunkCoord& c : read)
     if (!map.find(c)) map.insert(c, generator.generate(c));
   std::optional<SampleSnapshot> snapshot;
-  if (smooth) snapshot = take_snapshot(map, smooth_read_box(*smooth));
+  if (smooth) {
+    snapshot = take_snapshot(map, smooth_read_box(*smooth));
+    snapshot->zone_chunks = zone_chunks;
+  }
   std::vector<ChunkCoord> changed;
   for (const ChunkCoord& c : touched) {
     Chunk& chunk = *map.find(c);
