@@ -188,9 +188,14 @@ void write_table(const LoadStats& s, std::ostream& out) {
                 static_cast<unsigned long long>(s.refused));
   out << buf;
   out << "  latency (ms)               p50      p95      p99    p99.9      max    count\n";
-  for (const auto& [name, p] : {std::pair{"edit -> EditResult   ", result},
-                                {"edit -> deltas decoded", delta},
-                                {"first full view      ", view}}) {
+  std::vector<std::pair<const char*, Percentiles>> rows = {{"edit -> EditResult   ", result},
+                                                           {"edit -> deltas decoded", delta},
+                                                           {"first full view      ", view}};
+  if (!s.reconnect_ms.empty()) {
+    rows.emplace_back("reconnected          ", percentiles(s.reconnect_ms));
+    rows.emplace_back("view after reconnect ", percentiles(s.reconnect_view_ms));
+  }
+  for (const auto& [name, p] : rows) {
     std::snprintf(buf, sizeof buf, "  %s %8.2f %8.2f %8.2f %8.2f %8.2f %8zu\n", name, p.p50, p.p95,
                   p.p99, p.p999, p.max, p.count);
     out << buf;
@@ -208,6 +213,9 @@ void write_table(const LoadStats& s, std::ostream& out) {
   out << "\n";
   for (const auto& [k, v] : s.errors) out << "    error " << k << ": " << v << "\n";
   for (const auto& [k, v] : s.disconnects) out << "    disconnect " << k << ": " << v << "\n";
+  if (s.edits_resent > 0)
+    out << "  edits resent after a reconnect: " << s.edits_resent << " ("
+        << s.resent_already_applied << " answered already_applied)\n";
   for (const auto& [k, v] : s.refused_by_status) out << "    refused " << k << ": " << v << "\n";
   if (!s.server_rss_kib.empty()) {
     std::snprintf(buf, sizeof buf,
@@ -236,6 +244,14 @@ void write_json(const LoadStats& s, std::ostream& out) {
   json_percentiles(out, "edit_to_delta_ms", percentiles(values(s.edit_to_delta)));
   out << ",";
   json_percentiles(out, "first_view_ms", percentiles(s.first_view_ms));
+  if (!s.reconnect_ms.empty()) {
+    out << ",";
+    json_percentiles(out, "reconnect_ms", percentiles(s.reconnect_ms));
+    out << ",";
+    json_percentiles(out, "reconnect_view_ms", percentiles(s.reconnect_view_ms));
+    out << ",\"edits_resent\":" << s.edits_resent
+        << ",\"resent_already_applied\":" << s.resent_already_applied;
+  }
   std::snprintf(buf, sizeof buf,
                 ",\"bytes_per_player_per_s\":%.1f,\"messages_per_player_per_s\":%.2f,\"chunks_"
                 "streamed\":%llu,"

@@ -36,6 +36,10 @@ struct LoadStats {
   int players_connected = 0;
   std::vector<LatencySample> edit_to_result, edit_to_delta;
   std::vector<double> first_view_ms;
+  // --reconnect: connection closed -> Welcome from the next server, and -> its first view
+  // complete; unanswered edits sent again, and of them answered already_applied.
+  std::vector<double> reconnect_ms, reconnect_view_ms;
+  uint64_t edits_resent = 0, resent_already_applied = 0;
   std::map<std::string, uint64_t> errors;       // by cause (Error code name, decode failure, ...)
   std::map<std::string, uint64_t> disconnects;  // by cause
   std::vector<double> bytes_per_second;         // received by all players, per second of the test

@@ -136,6 +136,26 @@ void LoadTest::record_first_view(double ms) {
   stats_.first_view_ms.push_back(ms);
 }
 
+void LoadTest::record_reconnect(double ms) {
+  std::lock_guard lock(mutex_);
+  stats_.reconnect_ms.push_back(ms);
+}
+
+void LoadTest::record_reconnect_view(double ms) {
+  std::lock_guard lock(mutex_);
+  stats_.reconnect_view_ms.push_back(ms);
+}
+
+void LoadTest::record_resent() {
+  std::lock_guard lock(mutex_);
+  ++stats_.edits_resent;
+}
+
+void LoadTest::record_already_applied() {
+  std::lock_guard lock(mutex_);
+  ++stats_.resent_already_applied;
+}
+
 void LoadTest::record_error(const std::string& cause) {
   std::lock_guard lock(mutex_);
   ++stats_.errors[cause];

@@ -48,6 +48,10 @@ struct LoadConfig {
   // --more-servers (nodes of one cluster world, over TCP): player i connects to the i mod
   // (1 + n)-th of host:port and these; the verifier and the attackers use host:port.
   std::vector<std::pair<std::string, uint16_t>> more_servers;
+  // --reconnect: a player whose connection closes connects to the next of host:port and
+  // more_servers, sends Hello and its view again, and resends its unanswered edits with
+  // their edit ids (PROTOCOL 4.4); edits carry edit ids.
+  bool reconnect = false;
   int players = 20;
   double duration_s = 10;
   double edit_rate = 0.5;  // edits per second per player
@@ -128,6 +132,12 @@ class LoadTest {
   void record_result(double sent_s, double now_s, const std::string& refusal);
   void record_delta(double sent_s, double now_s);
   void record_first_view(double ms);
+  // --reconnect: from the connection's close to the next Welcome, and to its first
+  // complete view; an unanswered edit sent again (answered already_applied or not).
+  void record_reconnect(double ms);
+  void record_reconnect_view(double ms);
+  void record_resent();
+  void record_already_applied();
   void record_error(const std::string& cause);
   void record_disconnect(const std::string& cause);
   void count_message() { messages_.fetch_add(1, std::memory_order_relaxed); }

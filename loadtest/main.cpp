@@ -67,6 +67,10 @@ void describe(po::options_description& opts, Options& o) {
       "decode-all", po::bool_switch(&o.config.decode_all),
       "every player decodes every mesh itself (by default a version already decoded "
       "byte-identically is not decoded again)")(
+      "reconnect", po::bool_switch(&o.config.reconnect),
+      "a player whose connection closes (its node died) connects to the next of --server and "
+      "--more-servers, sends its view again and resends unanswered edits with their edit ids; "
+      "reports the time to reconnect and to the view complete again")(
       "verify", po::bool_switch(&o.config.verify),
       "at the end, check every player's meshes against a fresh client")(
       "json", po::value<std::string>(&o.json), "write the results as JSON to this file")(

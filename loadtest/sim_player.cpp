@@ -38,11 +38,15 @@ std::vector<uint8_t> bytes_of(const wire::Envelope& m) {
   return out;
 }
 
-// Where player `id` connects: --websocket's HTTP port or the TCP port, from its own
-// loopback address with --spread-addresses.
-LinkTarget target_of(const LoadConfig& c, int id) {
+// Where player `id` connects first: the i mod (1 + n)-th of host:port and more_servers.
+size_t first_server(const LoadConfig& c, int id) {
+  return c.ws_port != 0 ? 0 : static_cast<size_t>(id) % (1 + c.more_servers.size());
+}
+
+// Where player `id` connects: --websocket's HTTP port or the TCP port of `server`, from its
+// own loopback address with --spread-addresses.
+LinkTarget target_of(const LoadConfig& c, int id, size_t server) {
   const bool ws = c.ws_port != 0;
-  const size_t server = ws ? 0 : static_cast<size_t>(id) % (1 + c.more_servers.size());
   return {.host = ws            ? c.ws_host
                   : server == 0 ? c.host
                                 : c.more_servers[server - 1].first,
@@ -59,8 +63,11 @@ SimPlayer::SimPlayer(LoadTest& test, int id, uint32_t seed)
       id_(id),
       rng_(seed),
       strand_(asio::make_strand(test.io())),
-      link_(make_player_link(strand_, target_of(test.config(), id))),
-      timer_(strand_) {
+      link_(
+          make_player_link(strand_, target_of(test.config(), id, first_server(test.config(), id)))),
+      timer_(strand_),
+      retry_timer_(strand_),
+      server_(first_server(test.config(), id)) {
   const auto half_width = static_cast<float>(test.half_width());
   std::uniform_real_distribution<float> spawn(-half_width, half_width);
   x_ = spawn(rng_);
@@ -87,7 +94,8 @@ void SimPlayer::start() {
 }
 
 void SimPlayer::connect() {
-  link_->connect([self = shared_from_this()](const std::string& error) {
+  link_->connect([self = shared_from_this(), gen = link_gen_](const std::string& error) {
+    if (gen != self->link_gen_) return;  // a link given up for another
     if (!error.empty()) {
       self->fail(error, true);
       return;
@@ -106,17 +114,44 @@ void SimPlayer::close() {
   closed_ = true;
   gone_.store(true, std::memory_order_release);
   timer_.cancel();
+  retry_timer_.cancel();
   link_->close();
 }
 
 void SimPlayer::fail(const std::string& cause, bool disconnect) {
   if (closed_) return;
-  if (disconnect) {
-    test_.record_disconnect(cause);
-    close();
-  } else {
+  if (!disconnect) {
     test_.record_error(cause);
+    return;
   }
+  test_.record_disconnect(cause);
+  if (test_.config().reconnect && !test_.stopping()) {
+    reconnect();
+  } else {
+    close();
+  }
+}
+
+// The connection closed (its node died, say): the next server, after a moment (one that
+// refuses at once must not make this spin), with a fresh link and nothing held (the server
+// sends full copies of the view again).
+void SimPlayer::reconnect() {
+  link_->close();
+  ++link_gen_;
+  welcomed_ = writing_ = false;
+  outbox_.clear();
+  cache_ = client::ChunkCache();
+  lod_cache_.clear();
+  // Edits answered but waiting for their deltas: those deltas come as full copies now.
+  std::erase_if(pending_, [](const auto& p) { return p.second.have_result; });
+  if (lost_s_ < 0) lost_s_ = test_.now_s();
+  server_ = (server_ + 1) % (1 + test_.config().more_servers.size());
+  link_ = make_player_link(strand_, target_of(test_.config(), id_, server_));
+  retry_timer_.expires_after(std::chrono::milliseconds(100));
+  retry_timer_.async_wait(
+      [self = shared_from_this(), gen = link_gen_](boost::system::error_code ec) {
+        if (!ec && gen == self->link_gen_ && !self->closed_) self->connect();
+      });
 }
 
 void SimPlayer::send(const wire::Envelope& m) {
@@ -128,19 +163,22 @@ void SimPlayer::send(const wire::Envelope& m) {
 void SimPlayer::write_more() {
   if (writing_ || outbox_.empty() || closed_) return;
   writing_ = true;
-  link_->write(outbox_.front(), [self = shared_from_this()](const std::string& error) {
-    self->writing_ = false;
-    if (!error.empty()) {
-      if (!self->test_.stopping()) self->fail(error, true);
-      return;
-    }
-    self->outbox_.pop_front();
-    self->write_more();
-  });
+  link_->write(outbox_.front(),
+               [self = shared_from_this(), gen = link_gen_](const std::string& error) {
+                 if (gen != self->link_gen_) return;
+                 self->writing_ = false;
+                 if (!error.empty()) {
+                   if (!self->test_.stopping()) self->fail(error, true);
+                   return;
+                 }
+                 self->outbox_.pop_front();
+                 self->write_more();
+               });
 }
 
 void SimPlayer::read_more() {
-  link_->read([self = shared_from_this()](const std::string& error, size_t n) {
+  link_->read([self = shared_from_this(), gen = link_gen_](const std::string& error, size_t n) {
+    if (gen != self->link_gen_) return;
     if (!error.empty()) {
       if (!self->closed_ && !self->test_.stopping()) self->fail(error, true);
       return;
@@ -177,16 +215,29 @@ void SimPlayer::on_message(const wire::Envelope& m) {
   switch (m.body_case()) {
     case wire::Envelope::kWelcome:
       welcomed_ = true;
-      test_.record_connected();
       if (!test_.set_world_seed(m.welcome().world_seed()))
         fail("Welcome with a different world seed", false);
+      if (lost_s_ >= 0) {  // connected again (--reconnect)
+        test_.record_reconnect((test_.now_s() - lost_s_) * 1000);
+        awaiting_view_ = true;
+        send_view();
+        for (auto& [request, p] : pending_) {  // unanswered: again, with its edit id
+          send(p.edit);
+          test_.record_resent();
+        }
+        break;
+      }
+      test_.record_connected();
       y_ = test_.terrain_height(x_, z_);
       publish_position();
       send_view();
       next_edit_s_ =
           test_.now_s() + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);
       last_tick_s_ = test_.now_s();
-      tick();
+      if (!ticking_) {
+        ticking_ = true;
+        tick();
+      }
       break;
     case wire::Envelope::kChunkMesh:
       on_chunk_mesh(m.chunk_mesh());
@@ -214,6 +265,7 @@ void SimPlayer::on_message(const wire::Envelope& m) {
           it->second.sent_s, test_.now_s(),
           r.status() == wire::EditResult::ACCEPTED ? std::string() : status_name(r.status()));
       it->second.have_result = true;
+      if (r.already_applied()) test_.record_already_applied();
       for (const auto& c : r.changed_chunks()) {
         const ChunkKey k = client::key_of(c);
         if (in_view(k)) it->second.waiting.insert(k);
@@ -227,6 +279,12 @@ void SimPlayer::on_message(const wire::Envelope& m) {
       break;
     case wire::Envelope::kViewReady:
       ready_view_.store(m.view_ready().view_id(), std::memory_order_release);
+      if (awaiting_view_ &&
+          m.view_ready().view_id() == views_sent_.load(std::memory_order_relaxed)) {
+        test_.record_reconnect_view((test_.now_s() - lost_s_) * 1000);
+        awaiting_view_ = false;
+        lost_s_ = -1;
+      }
       if (!first_view_done_) {  // the first view the server completed (the player may have moved)
         first_view_done_ = true;
         test_.record_first_view((test_.now_s() - view_sent_s_) * 1000);
@@ -309,6 +367,7 @@ void SimPlayer::send_edit() {
   auto* e = m.mutable_edit();
   const uint64_t request = next_request_++;
   e->set_request_id(request);
+  if (test_.config().reconnect) e->set_edit_id(request);  // the same id when sent again
   wire::Vec3* centre;
   if (unit(rng_) < 0.8f) {
     auto* b = e->mutable_brush();
@@ -325,7 +384,7 @@ void SimPlayer::send_edit() {
   centre->set_x(target[0]);
   centre->set_y(target[1]);
   centre->set_z(target[2]);
-  pending_[request] = {test_.now_s(), false, {}};
+  pending_[request] = {test_.now_s(), false, {}, test_.config().reconnect ? m : wire::Envelope()};
   test_.record_edit_sent();
   send(m);
 }
@@ -354,12 +413,12 @@ void SimPlayer::tick() {
   last_tick_s_ = now;
   // Once the editing stops, players stand still so that every view can complete for the
   // verification.
-  if (test_.editing()) walk(dt);
-  if (test_.editing() && now >= next_edit_s_) {
+  if (test_.editing() && welcomed_) walk(dt);
+  if (test_.editing() && welcomed_ && now >= next_edit_s_) {
     send_edit();
     next_edit_s_ = now + std::exponential_distribution<double>(test_.config().edit_rate)(rng_);
   }
-  if (now - last_ping_s_ > kPingEveryS) {
+  if (welcomed_ && now - last_ping_s_ > kPingEveryS) {
     wire::Envelope ping;
     ping.mutable_ping()->set_nonce(static_cast<uint64_t>(now * 1000));
     send(ping);

@@ -42,6 +42,7 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
     double sent_s;
     bool have_result = false;
     std::set<client::ChunkKey> waiting;  // changed chunks in view whose new mesh has not arrived
+    wire::Envelope edit;                 // --reconnect: sent again when unanswered
   };
 
   void connect();
@@ -56,6 +57,7 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   void send_view();
   void send_edit();
   void fail(const std::string& cause, bool disconnect);
+  void reconnect();  // --reconnect: a new link to the next server
   bool in_view(const client::ChunkKey& k) const;
   void publish_position();
 
@@ -64,9 +66,16 @@ class SimPlayer : public std::enable_shared_from_this<SimPlayer> {
   std::mt19937 rng_;
   PlayerStrand strand_;
   std::unique_ptr<PlayerLink> link_;
-  boost::asio::steady_timer timer_;
+  boost::asio::steady_timer timer_, retry_timer_;
   std::deque<std::vector<uint8_t>> outbox_;  // serialized Envelopes, the front one being written
-  bool writing_ = false, welcomed_ = false, closed_ = false;
+  bool writing_ = false, welcomed_ = false, closed_ = false, ticking_ = false;
+  // --reconnect: the server the link goes to (an index into host:port and more_servers),
+  // the link's generation (callbacks of an older link are ignored), when the connection
+  // was lost (-1: connected), and whether the first view after it is still incomplete.
+  size_t server_ = 0;
+  uint64_t link_gen_ = 0;
+  double lost_s_ = -1;
+  bool awaiting_view_ = false;
 
   float x_ = 0, y_ = 0, z_ = 0, heading_ = 0;
   std::array<std::atomic<float>, 3> published_{};  // x_, y_, z_ for other players

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -14,6 +15,7 @@
 #include <regex>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "client/asio.hpp"
 #include "loadtest/attack_mix.hpp"
@@ -83,6 +85,37 @@ TEST(LoadTest, TwentyPlayersFiveSecondsWithoutErrorsAndVerified) {
                                    "\"p99\":([0-9.]+),\"p999\":([0-9.]+),\"max\":([0-9.]+),"
                                    "\"count\":(\\d+)")));
   EXPECT_GT(std::stoul(m[6]), 0u) << "some edits' deltas were measured";
+}
+
+// --reconnect: the node a player is on dies (kill -9); the player connects to the next
+// server (--more-servers), gets its view again, and resends its unanswered edits with their
+// edit ids. The run reports the time to reconnect and to a complete view, and no error.
+TEST(LoadTest, PlayersWhoseServerDiesReconnectToTheNextAndGetTheirViewBack) {
+  auto a = std::make_unique<vox::test::ServerProcess>(std::vector<std::string>{"--in-memory"});
+  vox::test::ServerProcess b({"--in-memory"});
+  const pid_t a_pid = a->pid();
+  std::thread killer([a_pid] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+    ::kill(a_pid, SIGKILL);
+  });
+  const TesterRun run =
+      run_tester(*a,
+                 "--players 6 --duration 4 --ramp 0.5 --edit-rate 2 --view-radius 2 --reconnect "
+                 "--more-servers 127.0.0.1:" +
+                     std::to_string(b.port()));
+  killer.join();
+  const std::string& text = run.json;
+  EXPECT_NE(text.find("\"errors\":0"), std::string::npos) << text;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      text, m,
+      std::regex("\"reconnect_view_ms\":\\{\"p50\":[0-9.]+,\"p95\":[0-9.]+,"
+                 "\"p99\":[0-9.]+,\"p999\":[0-9.]+,\"max\":([0-9.]+),\"count\":(\\d+)")))
+      << text;
+  EXPECT_EQ(std::stoul(m[2]), 3u) << "the three players on the killed server got their views back";
+  EXPECT_LT(std::stod(m[1]), 10000.0);
+  ASSERT_TRUE(std::regex_search(text, m, std::regex("\"disconnects\":(\\d+)")));
+  EXPECT_GE(std::stoul(m[1]), 3u);
 }
 
 // voxeld's /metrics as name -> value (a blocking HTTP/1.0 GET on 127.0.0.1).

@@ -11,6 +11,10 @@
 # SPREAD=1: the players are spread over all the nodes (voxel-loadtest --more-servers).
 # Then the cluster's traffic over the run: NATS messages and bytes (the server's /varz),
 # PostgreSQL WAL bytes, the zone log's records, and the meshes each node published.
+# KILL_AT=S (with 3 nodes or more): node b is killed (kill -9) S seconds into the run; pass
+# `-- --reconnect` so that its players connect to the next node. Prints, from the
+# survivors' logs, each of b's zones' time from the kill to taken and to writable again;
+# the load tester reports the players' time to reconnect and to a complete view.
 # TAKEOVER=1: then, node a stopped (its last checkpoint written, its zones released), a
 # fresh node takes the zones around the origin twice, prompted by a voxel-cli brush in each: first
 # installing their checkpoints, then (checkpoint_seq set back to 0 in the database) applying
@@ -95,6 +99,10 @@ varz() { curl -s "http://127.0.0.1:${NATS_MONITOR_PORT:-58222}/varz"; }
 sql() { as_pg "$pgbin/psql -qtA -h $dir -p 55432 -U postgres -d vox -c \"$1\""; }
 varz > "$dir/varz.before"
 wal_before=$(sql "SELECT pg_current_wal_lsn()")
+if [ -n "${KILL_AT:-}" ] && [ "$nodes" -ge 3 ]; then
+  victim=${others[0]#*:}
+  (sleep "$KILL_AT"; date -u '+%Y-%m-%d %H:%M:%S.%3N' > "$dir/killed_at"; kill -9 "$victim") &
+fi
 set +e
 VOXELD_ARGS="--cluster $dir/a.conf ${VOXELD_ARGS:-}" "$root/bench/scripts/attack_run.sh" \
   "$name" "$players" "$duration" -- "${more[@]}" "$@"
@@ -127,6 +135,26 @@ for o in "${others[@]}"; do
 done
 grep -h "fenced\|took zone\|lost zone" "$dir"/*.log /tmp/voxeld_bench/"$name".log 2>/dev/null | wc -l |
   xargs echo "zone events (took, lost, fenced) in the nodes' logs:"
+if [ -s "$dir/killed_at" ]; then
+  /usr/bin/python3 - "$(cat "$dir/killed_at")" "$dir" /tmp/voxeld_bench/"$name".log <<'PY'
+import glob, re, sys
+from datetime import datetime
+at = lambda l: datetime.strptime(l[1:24], "%Y-%m-%d %H:%M:%S.%f")
+killed = datetime.strptime(sys.argv[1], "%Y-%m-%d %H:%M:%S.%f")
+logs = [p for p in glob.glob(sys.argv[2] + "/*.log") if not re.search(r"/(b|take_\w+|nats|pg|initdb)\.log$", p)]
+logs.append(sys.argv[3])
+took, writable = {}, {}
+for path in logs:
+    for l in open(path, errors="replace"):
+        if not l.startswith("[2") or at(l) < killed: continue
+        if m := re.search(r"took zone \((-?\d+), (-?\d+)\)", l): took.setdefault(m.groups(), at(l))
+        if m := re.search(r"zone \((-?\d+), (-?\d+)\) is writable here", l): writable.setdefault(m.groups(), at(l))
+ms = lambda t: f"{(t - killed).total_seconds() * 1000:.0f}"
+print("after the kill of node b:", "; ".join(
+    f"zone ({z[0]}, {z[1]}) taken {ms(t)} ms, writable {ms(writable[z]) if z in writable else '?'} ms"
+    for z, t in sorted(took.items())) or "no zone taken")
+PY
+fi
 if [ "${TAKEOVER:-0}" = 1 ]; then
   for mode in checkpoint log; do
     [ "$mode" = log ] && sql "UPDATE zones SET checkpoint_seq = 0" > /dev/null
