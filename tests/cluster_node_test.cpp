@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <pqxx/pqxx>
 #include <sstream>
 #include <tuple>
 
@@ -67,6 +68,32 @@ TEST(ClusterNode,
   EXPECT_TRUE(eventually_seen(c, expected_all) == expected_all) << "c, after b's checkpoints";
   EXPECT_GE(metric(c, "voxeld_cluster_checkpoints_installed_total"), 1);
   EXPECT_EQ(metric(b, "voxeld_cluster_checkpoints_fenced_total"), 0);
+}
+
+// A zone checkpoint whose chunks do not decode (a damaged row): the node taking the zone
+// applies the zone's log instead, and shows what a single node shows.
+TEST(ClusterNode, ANodeWhoseZoneCheckpointDoesNotDecodeAppliesTheLogInstead) {
+  const Cluster cluster;
+  const std::vector<wire::Envelope> edits = border_edits();
+  {
+    ServerProcess a(
+        {"--cluster", cluster.config("a"), "--metrics-port", "0", "--checkpoint-interval", "0.2"});
+    apply_all(a, edits);
+    ASSERT_TRUE(eventually(&a, [&] {
+      return scrape(a.metrics_port()).at("voxeld_cluster_checkpoints_written_total") >= 4;
+    }));
+  }  // kill -9
+  {
+    pqxx::connection c(cluster.database);
+    pqxx::work t(c);
+    EXPECT_GT(t.exec("UPDATE zone_chunks SET samples = '\\x0102'::bytea").affected_rows(), 0);
+    t.commit();
+  }
+  ServerProcess b({"--cluster", cluster.config("b"), "--metrics-port", "0"});
+  const Seen expected = single_node_after(edits);
+  EXPECT_TRUE(eventually_seen(b, expected) == expected);
+  // Only a zone whose records changed no chunk has a checkpoint left that installs.
+  EXPECT_LT(scrape(b.metrics_port()).at("voxeld_cluster_checkpoints_installed_total"), 4);
 }
 
 // Moving in (docs/CLUSTER.md): a single node's world (its log's tail not checkpointed: the

@@ -6,10 +6,12 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <mutex>
 #include <random>
 #include <thread>
 
 #include "server/cluster/zone_publisher.hpp"
+#include "server/cluster/zone_replicas.hpp"
 #include "server/cluster/zone_wire.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/world/edit_replay.hpp"
@@ -267,6 +269,60 @@ TEST_F(ZoneFollowerTest, AnOwnersCommitsReachAFollowerAcrossANatsRestartAndAFenc
   EXPECT_THROW(commit(1), store::FencedError);
   std::this_thread::sleep_for(milliseconds(200));
   EXPECT_EQ(follower.applied(), 21u) << "a fenced commit reached a follower";
+}
+
+// Records a node could not apply, given back while its follower queued later ones (and
+// the same ones, read again from the log), are taken again in sequence order, each once:
+// given back in front of the queue, they were taken twice (a zone's record applied twice).
+TEST_F(ZoneFollowerTest, RecordsGivenBackBesideLaterOnesAreTakenInOrderEachOnce) {
+  const std::string db = postgres.create_database("replicas");
+  NatsLink link(nats_config("replicas"));
+  const ZoneId zone{0, 0};
+  store::ZoneLeases(db, "setup", milliseconds(30000)).settle_world({"w", kSeed, kZoneChunks});
+  ZoneReplicas replicas(link, {.world = "w", .uri = db, .node = "replica"}, [] {});
+  replicas.viewing(zone);
+  const auto never = [](ZoneId) { return false; };
+  replicas.reconcile(never, [](ZoneId) { return uint64_t{0}; });
+  ASSERT_TRUE(replicas.following(zone));
+  const auto records = [](uint64_t first, uint64_t last) {
+    std::vector<store::ZoneRecord> out;
+    for (uint64_t seq = first; seq <= last; ++seq) out.push_back({seq, 0, {1}});
+    return out;
+  };
+  replicas.give_back(zone, records(11, 15));  // queued by the follower meanwhile
+  replicas.give_back(zone, records(6, 12));   // the pipeline could not apply these
+  const auto taken = replicas.take(100, never, [](ZoneId) { return uint64_t{7}; });
+  ASSERT_TRUE(taken);
+  std::vector<uint64_t> seqs;
+  for (const auto& r : taken->records) seqs.push_back(r.seq);
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{8, 9, 10, 11, 12, 13, 14, 15}));
+  replicas.stop();
+}
+
+// A zone with a checkpoint: a follower new to it starts after the checkpoint (the node
+// installs it), and a migrated zone, whose log starts at record 2, is followed too.
+TEST_F(ZoneFollowerTest, AFollowerNewToAZoneWithACheckpointStartsAfterIt) {
+  const std::string db = postgres.create_database("follow_cp");
+  NatsLink owner_link(nats_config("owner")), replica_link(nats_config("replica"));
+  const ZoneId zone{0, 0};
+  store::ZoneLeases seeder(db, "seeder", milliseconds(30000));
+  const uint64_t epoch = *seeder.acquire(zone);
+  seeder.seed_zones(std::vector<store::ZoneSeed>{{zone, epoch, {{{0, 0, 0}, 1, {7}}}}});
+  seeder.release(zone, epoch);
+  Owner owner(db, owner_link, zone);
+  owner.seq = 1;  // the migrated checkpoint is record 1
+  std::mt19937 rng(5);
+  for (int i = 0; i < 5; ++i) owner.edit(owner.random_edit(rng), false);
+  std::vector<uint64_t> seqs;
+  std::mutex mutex;
+  ZoneFollower follower(replica_link, {.world = "w", .zone = zone, .uri = db, .node = "replica"},
+                        [&](const store::ZoneRecord& r) {
+                          std::lock_guard lock(mutex);
+                          seqs.push_back(r.seq);
+                        });
+  ASSERT_TRUE(eventually([&] { return follower.applied() == 6; }));
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{2, 3, 4, 5, 6}));
 }
 
 }  // namespace

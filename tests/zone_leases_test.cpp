@@ -394,6 +394,24 @@ TEST_F(ZoneLeasesTest, AConnectionOpenedWhileAZoneRowIsLockedDoesNotWaitForIt) {
   t.abort();
 }
 
+// A migration seeds its zones whole or not at all: one zone with records already refuses
+// the lot, and the others are left empty (a half-seeded world could not be migrated again).
+TEST_F(ZoneLeasesTest, AMigrationRefusedForOneZoneSeedsNone) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000));
+  const ZoneId fresh{0, 0}, used{1, 0};
+  const uint64_t e1 = *a.acquire(fresh), e2 = *a.acquire(used);
+  a.append(used, e2, records(1, 1));
+  const std::vector<ZoneSeed> seeds = {{fresh, e1, {{{0, 0, 0}, 1, {1}}}},
+                                       {used, e2, {{{64, 0, 0}, 1, {2}}}}};
+  EXPECT_THROW(a.seed_zones(seeds), StoreError);
+  EXPECT_EQ(a.read(fresh)->last_seq, 0u);
+  EXPECT_FALSE(a.read_checkpoint(fresh, 0).has_value());
+  a.seed_zones(std::vector<ZoneSeed>{seeds[0]});
+  EXPECT_EQ(a.read(fresh)->checkpoint_seq, 1u);
+  EXPECT_EQ(a.read_checkpoint(fresh, 0)->chunks.size(), 1u);
+}
+
 TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {
   const std::string db = fresh_database();
   ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));

@@ -90,12 +90,19 @@ ZoneFollower::Fill ZoneFollower::fill(uint64_t through) {
 }
 
 void ZoneFollower::run() {
-  try {
-    const std::optional<store::ZoneRow> row = log_.read(config_.zone);
-    if (row && checkpoint_first(applied(), row->checkpoint_seq))
-      applied_.store(row->checkpoint_seq, std::memory_order_release);
-  } catch (const store::StoreError&) {
-    // The log is read from what the replica holds.
+  // Where to start: after the zone's checkpoint when the replica should install it. Asked
+  // until the database answers (from record 1 instead, a migrated zone, whose log starts
+  // at 2, would wait for a record 1 for ever).
+  for (;;) {
+    try {
+      const std::optional<store::ZoneRow> row = log_.read(config_.zone);
+      if (row && checkpoint_first(applied(), row->checkpoint_seq))
+        applied_.store(row->checkpoint_seq, std::memory_order_release);
+      break;
+    } catch (const store::StoreError&) {
+      std::unique_lock lock(mutex_);
+      if (wake_.wait_for(lock, std::chrono::seconds(1), [&] { return stopping_; })) return;
+    }
   }
   fill(UINT64_MAX);  // what the replica lacks, up to the log's end
   std::unique_lock lock(mutex_);

@@ -10,6 +10,8 @@ namespace {
 
 // Records one read hands the pipeline at most: it goes on between reads.
 constexpr size_t kRecordsPerRead = 2000;
+// Zones whose checkpoint could not be installed, remembered (a bound: forgotten all at once).
+constexpr size_t kMaxUnusable = 1024;
 
 std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
@@ -27,8 +29,45 @@ ZoneRecordSource::ZoneRecordSource(ZoneTable& table, ZoneReplicas& replicas,
       store_name_(std::move(store_name)) {}
 
 std::optional<pipeline::ZoneRecords> ZoneRecordSource::next() {
-  if (auto records = catch_up()) return records;
-  return followed_records();
+  // Taken zones' logs and followed zones' records in turn: a zone whose records cannot be
+  // applied now must not hold up the others.
+  catch_up_first_ = !catch_up_first_;
+  if (catch_up_first_) {
+    if (auto records = catch_up()) return records;
+    return followed_records();
+  }
+  if (auto records = followed_records()) return records;
+  return catch_up();
+}
+
+// Decodes `records` into out.edits while each follows the one before (out.through is the
+// last record before them); stops at a gap. Returns how many were used.
+size_t ZoneRecordSource::append_run(world::ZoneId zone,
+                                    const std::vector<store::ZoneRecord>& records,
+                                    pipeline::ZoneRecords& out, uint64_t last) const {
+  size_t used = 0;
+  for (const store::ZoneRecord& r : records) {
+    if (r.seq > last || r.seq != out.through + 1) break;
+    std::string why;
+    std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
+    if (!e)
+      throw store::StoreError(store_name_ + ": " + describe(zone) + " record " +
+                              std::to_string(r.seq) + ": " + why);
+    out.edits.push_back(std::move(*e));
+    out.through = r.seq;
+    ++used;
+  }
+  return used;
+}
+
+// The log read after what the world has must continue it: a record missing (a damaged
+// database, or a migrated zone whose checkpoint could not be installed) stops the zone here.
+void ZoneRecordSource::expect_next(world::ZoneId zone, const std::vector<store::ZoneRecord>& read,
+                                   uint64_t after) const {
+  if (!read.empty() && read.front().seq != after + 1)
+    throw store::StoreError(store_name_ + ": " + describe(zone) + ": its log has no record " +
+                            std::to_string(after + 1) + " (it goes on at " +
+                            std::to_string(read.front().seq) + ")");
 }
 
 // A held zone's log after what the world has (a zone just taken, or an append in doubt).
@@ -41,6 +80,10 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
       table_.lost(c->zone, c->epoch);
       continue;
     }
+    if (row->checkpoint_seq > row->last_seq)
+      throw store::StoreError(store_name_ + ": " + describe(c->zone) + ": its checkpoint (record " +
+                              std::to_string(row->checkpoint_seq) + ") is past its log's end (" +
+                              std::to_string(row->last_seq) + ")");
     targets_[c->zone] = row->last_seq;
     pipeline::ZoneRecords out{.zone = c->zone,
                               .epoch = c->epoch,
@@ -50,23 +93,18 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
     if (row->last_seq <= c->applied) return out;
     out.checkpoint = checkpoint_past(c->zone, c->applied, row->checkpoint_seq);
     if (out.checkpoint) out.through = out.checkpoint->seq;
-    for (const store::ZoneRecord& r : db_.read_log(c->zone, out.through, kRecordsPerRead)) {
-      if (r.seq > row->last_seq) break;
-      std::string why;
-      std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
-      if (!e)
-        throw store::StoreError(store_name_ + ": " + describe(c->zone) + " record " +
-                                std::to_string(r.seq) + ": " + why);
-      out.edits.push_back(std::move(*e));
-      out.through = r.seq;
-    }
+    const std::vector<store::ZoneRecord> read = db_.read_log(c->zone, out.through, kRecordsPerRead);
+    expect_next(c->zone, read, out.through);
+    append_run(c->zone, read, out, row->last_seq);
     return out;
   }
 }
 
 // Records of a followed zone, as its owner committed them.
 std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
-  // A zone followed anew whose checkpoint the world should install: before its records.
+  // A zone followed anew whose checkpoint the world should install (its follower starts
+  // after it): the checkpoint, or, when it cannot be installed, the log from what the
+  // world has.
   std::vector<world::ZoneId> started = replicas_.take_started();
   for (size_t i = 0; i < started.size(); ++i) {
     const world::ZoneId zone = started[i];
@@ -74,14 +112,18 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     try {
       const uint64_t applied = table_.applied(zone);
       const std::optional<store::ZoneRow> row = db_.read(zone);
-      std::optional<store::ZoneCheckpoint> cp =
-          row ? checkpoint_past(zone, applied, row->checkpoint_seq) : std::nullopt;
-      if (!cp) continue;
+      if (!row || !checkpoint_first(applied, row->checkpoint_seq)) continue;
+      pipeline::ZoneRecords out{
+          .zone = zone, .epoch = 0, .checkpoint = std::nullopt, .edits = {}, .through = applied};
+      out.checkpoint = checkpoint_past(zone, applied, row->checkpoint_seq);
+      if (out.checkpoint) out.through = out.checkpoint->seq;
+      const std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
+      expect_next(zone, read, out.through);
+      append_run(zone, read, out, UINT64_MAX);
+      if (!out.checkpoint && out.edits.empty()) continue;
       for (size_t j = i + 1; j < started.size(); ++j) replicas_.started_again(started[j]);
       handed_.clear();
-      const uint64_t through = cp->seq;
-      return pipeline::ZoneRecords{
-          .zone = zone, .epoch = 0, .checkpoint = std::move(cp), .edits = {}, .through = through};
+      return out;
     } catch (const store::StoreError&) {
       for (size_t j = i; j < started.size(); ++j) replicas_.started_again(started[j]);
       throw;
@@ -99,24 +141,34 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     // Not the next record (this node's world moved otherwise, or its follower started
     // after the zone's checkpoint): the checkpoint first if it should be installed, and
     // the log has the records between.
-    if (const std::optional<store::ZoneRow> row = db_.read(zone))
-      out.checkpoint = checkpoint_past(zone, applied, row->checkpoint_seq);
-    if (out.checkpoint) out.through = out.checkpoint->seq;
-    taken->records = db_.read_log(zone, out.through, kRecordsPerRead);
+    try {
+      if (const std::optional<store::ZoneRow> row = db_.read(zone))
+        out.checkpoint = checkpoint_past(zone, applied, row->checkpoint_seq);
+      if (out.checkpoint) out.through = out.checkpoint->seq;
+      std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
+      expect_next(zone, read, out.through);
+      taken->records = std::move(read);
+    } catch (const store::StoreError&) {
+      replicas_.give_back(zone, std::move(taken->records));
+      throw;
+    }
     if (taken->records.empty() && !out.checkpoint) return std::nullopt;
   }
-  for (const store::ZoneRecord& r : taken->records) {
-    std::string why;
-    std::optional<store::LoggedEdit> e = decode_zone_edit(r, &why);
-    if (!e) {
-      replicas_.give_back(zone, std::move(taken->records));
-      throw store::StoreError(store_name_ + ": " + describe(zone) + " record " +
-                              std::to_string(r.seq) + ": " + why);
-    }
-    out.edits.push_back(std::move(*e));
-    out.through = r.seq;
+  size_t used = 0;
+  try {
+    used = append_run(zone, taken->records, out, UINT64_MAX);
+  } catch (const store::StoreError&) {
+    replicas_.give_back(zone, std::move(taken->records));
+    throw;
+  }
+  // Past a gap (records queued twice, or out of turn): taken again, in order, next time.
+  if (used < taken->records.size()) {
+    replicas_.give_back(zone,
+                        {taken->records.begin() + static_cast<long>(used), taken->records.end()});
+    taken->records.resize(used);
   }
   handed_ = std::move(taken->records);
+  if (out.edits.empty() && !out.checkpoint) return std::nullopt;
   return out;
 }
 
@@ -124,12 +176,23 @@ std::optional<store::ZoneCheckpoint> ZoneRecordSource::checkpoint_past(world::Zo
                                                                        uint64_t applied,
                                                                        uint64_t checkpoint_seq) {
   if (!checkpoint_first(applied, checkpoint_seq)) return std::nullopt;
+  // One that could not be installed is not read again: the log is applied instead.
+  if (const auto bad = unusable_.find(zone);
+      bad != unusable_.end() && bad->second == checkpoint_seq)
+    return std::nullopt;
   std::optional<store::ZoneCheckpoint> cp = db_.read_checkpoint(zone, ZoneTable::kRememberedEdits);
   if (!cp || cp->seq <= applied) return std::nullopt;
   return cp;
 }
 
 void ZoneRecordSource::applied(const pipeline::ZoneRecords& records, uint64_t through) {
+  if (records.checkpoint && through < records.checkpoint->seq) {
+    // Not installed (a chunk that does not decode, or lies outside the zone: the pipeline
+    // said which): its log is applied instead, from what the world has.
+    if (unusable_.size() >= kMaxUnusable) unusable_.clear();
+    unusable_[records.zone] = records.checkpoint->seq;
+    if (records.epoch == 0) replicas_.started_again(records.zone);
+  }
   if (records.checkpoint && through >= records.checkpoint->seq) {
     for (const uint64_t id : records.checkpoint->edit_ids) table_.note_edit(records.zone, id);
     installed_.fetch_add(1, std::memory_order_relaxed);

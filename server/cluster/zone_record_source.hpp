@@ -44,6 +44,10 @@ class ZoneRecordSource {
   // it first (checkpoint_first).
   std::optional<store::ZoneCheckpoint> checkpoint_past(world::ZoneId zone, uint64_t applied,
                                                        uint64_t checkpoint_seq);
+  size_t append_run(world::ZoneId zone, const std::vector<store::ZoneRecord>& records,
+                    pipeline::ZoneRecords& out, uint64_t last) const;
+  void expect_next(world::ZoneId zone, const std::vector<store::ZoneRecord>& read,
+                   uint64_t after) const;
 
   ZoneTable& table_;
   ZoneReplicas& replicas_;
@@ -55,6 +59,9 @@ class ZoneRecordSource {
   std::vector<store::ZoneRecord> handed_;
   // Per zone catching up, the log's last record when it began.
   std::map<world::ZoneId, uint64_t> targets_;
+  // Per zone, a checkpoint that could not be installed (its log is applied instead).
+  std::map<world::ZoneId, uint64_t> unusable_;
+  bool catch_up_first_ = false;         // which kind of records the next call looks for first
   std::atomic<uint64_t> installed_{0};  // checkpoints installed
 };
 

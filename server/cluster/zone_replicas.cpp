@@ -137,7 +137,8 @@ std::optional<ZoneReplicas::Taken> ZoneReplicas::take(
       std::deque<store::ZoneRecord>& q = it->second;
       if (held(it->first)) q.clear();
       const uint64_t done = applied(it->first);
-      while (!q.empty() && q.front().seq <= done) q.pop_front();
+      // Anywhere in the queue (records given back sit before later ones): applied already.
+      std::erase_if(q, [done](const store::ZoneRecord& r) { return r.seq <= done; });
       if (q.empty()) continue;
       out.emplace();
       out->zone = it->first;
@@ -158,6 +159,16 @@ void ZoneReplicas::give_back(world::ZoneId zone, std::vector<store::ZoneRecord> 
   std::deque<store::ZoneRecord>& q = it->second;
   q.insert(q.begin(), std::make_move_iterator(records.begin()),
            std::make_move_iterator(records.end()));
+  // In sequence order, each once: the follower queued later ones (and maybe the same ones,
+  // when the pipeline had read them from the log) meanwhile.
+  std::stable_sort(q.begin(), q.end(), [](const store::ZoneRecord& a, const store::ZoneRecord& b) {
+    return a.seq < b.seq;
+  });
+  q.erase(std::unique(q.begin(), q.end(),
+                      [](const store::ZoneRecord& a, const store::ZoneRecord& b) {
+                        return a.seq == b.seq;
+                      }),
+          q.end());
 }
 
 bool ZoneReplicas::following(world::ZoneId zone) const {

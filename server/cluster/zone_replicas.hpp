@@ -65,7 +65,8 @@ class ZoneReplicas {
   };
   std::optional<Taken> take(size_t max, const std::function<bool(world::ZoneId)>& held,
                             const std::function<uint64_t(world::ZoneId)>& applied);
-  // Hands back records the pipeline could not apply (memory), to be taken again first.
+  // Hands back records the pipeline could not apply (memory), to be taken again first: the
+  // queue stays in sequence order, each record once.
   void give_back(world::ZoneId zone, std::vector<store::ZoneRecord> records);
   // The zones whose following started since the last call (the pipeline installs their
   // checkpoints when its world should: a follower starts after it, see ZoneFollower), and

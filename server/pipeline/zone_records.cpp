@@ -21,6 +21,11 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
   std::vector<world::Chunk> chunks;
   chunks.reserve(cp.chunks.size());
   for (const store::ChunkRecord& r : cp.chunks) {
+    if (world.zone_chunks > 0 && world::zone_of(r.coord, world.zone_chunks) != cp.zone) {
+      spdlog::error("zone ({}, {}): its checkpoint holds chunk ({}, {}, {}) of another zone",
+                    cp.zone.x, cp.zone.z, r.coord.x, r.coord.y, r.coord.z);
+      return false;
+    }
     std::string error;
     std::optional<world::Chunk> chunk = store::decode_chunk(r.samples, &error);
     if (!chunk) {

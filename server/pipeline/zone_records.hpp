@@ -23,6 +23,8 @@ struct AppliedRecords {
   std::vector<world::VoxelBox> touched;  // the applied records' boxes (the coarse levels')
 };
 
+// A checkpoint that cannot be installed (a chunk that does not decode or lies outside its
+// zone) is logged and nothing of the records is applied (through 0).
 AppliedRecords apply_zone_records(EditWorld& world, const ZoneRecords& records,
                                   Clock::time_point now);
 

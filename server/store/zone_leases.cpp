@@ -442,27 +442,27 @@ std::vector<world::ZoneId> ZoneLeases::zones() {
   });
 }
 
-void ZoneLeases::seed_zone(world::ZoneId zone, uint64_t epoch,
-                           std::span<const ChunkRecord> chunks) {
+void ZoneLeases::seed_zones(std::span<const ZoneSeed> zones) {
   run([&](pqxx::connection& c) {
     pqxx::work t(c);
-    const pqxx::result r = t.exec_params(
-        "SELECT epoch, last_seq, checkpoint_seq FROM zones WHERE zone = $1 FOR UPDATE",
-        row_key(zone));
-    if (r.empty() || r[0][0].as<uint64_t>() != epoch)
-      throw StoreError(name_ + ": " + describe(zone) + " is not held at epoch " +
-                       std::to_string(epoch));
-    if (r[0][1].as<uint64_t>() != 0 || r[0][2].as<uint64_t>() != 0)
-      throw StoreError(name_ + ": " + describe(zone) + " has records already");
-    for (const ChunkRecord& ch : chunks) {
-      t.exec_params(
-          "INSERT INTO zone_chunks (zone, cx, cy, cz, seq, epoch, samples) "
-          "VALUES ($1, $2, $3, $4, 1, $5, $6)",
-          row_key(zone), ch.coord.x, ch.coord.y, ch.coord.z, static_cast<int64_t>(epoch),
-          pqxx::binarystring(ch.samples.data(), ch.samples.size()));
+    for (const ZoneSeed& seed : zones) {
+      const int64_t zone = row_key(seed.zone);
+      const pqxx::result r = t.exec_params(
+          "SELECT epoch, last_seq, checkpoint_seq FROM zones WHERE zone = $1 FOR UPDATE", zone);
+      if (r.empty() || r[0][0].as<uint64_t>() != seed.epoch)
+        throw StoreError(name_ + ": " + describe(seed.zone) + " is not held at epoch " +
+                         std::to_string(seed.epoch));
+      if (r[0][1].as<uint64_t>() != 0 || r[0][2].as<uint64_t>() != 0)
+        throw StoreError(name_ + ": " + describe(seed.zone) + " has records already");
+      for (const ChunkRecord& ch : seed.chunks) {
+        t.exec_params(
+            "INSERT INTO zone_chunks (zone, cx, cy, cz, seq, epoch, samples) "
+            "VALUES ($1, $2, $3, $4, 1, $5, $6)",
+            zone, ch.coord.x, ch.coord.y, ch.coord.z, static_cast<int64_t>(seed.epoch),
+            pqxx::binarystring(ch.samples.data(), ch.samples.size()));
+      }
+      t.exec_params("UPDATE zones SET last_seq = 1, checkpoint_seq = 1 WHERE zone = $1", zone);
     }
-    t.exec_params("UPDATE zones SET last_seq = 1, checkpoint_seq = 1 WHERE zone = $1",
-                  row_key(zone));
     t.commit();
   });
 }

@@ -103,6 +103,12 @@ struct WorldSettings {
   friend bool operator==(const WorldSettings&, const WorldSettings&) = default;
 };
 
+struct ZoneSeed {
+  world::ZoneId zone;
+  uint64_t epoch = 0;
+  std::vector<ChunkRecord> chunks;
+};
+
 // Whether the database at `uri` holds a cluster world (its zones' tables); reads only.
 bool is_cluster_world(const std::string& uri);
 
@@ -160,11 +166,11 @@ class ZoneLeases {
 
   // Every zone the database has a row of.
   std::vector<world::ZoneId> zones();
-  // Migration (voxel-cli world migrate): a zone with no record yet, held at `epoch`, gets
-  // `chunks` as its first checkpoint, through record 1, which its log never holds (its
-  // records start at 2; every reader installs the checkpoint first). All in one
-  // transaction, fenced; StoreError when the zone has records or a checkpoint already.
-  void seed_zone(world::ZoneId zone, uint64_t epoch, std::span<const ChunkRecord> chunks);
+  // Migration (voxel-cli world migrate): each zone, with no record yet and held at its
+  // epoch, gets its chunks as its first checkpoint, through record 1, which its log never
+  // holds (its records start at 2; every reader installs the checkpoint first). All zones
+  // in one transaction, fenced; StoreError when one has records or a checkpoint already.
+  void seed_zones(std::span<const ZoneSeed> zones);
 
   // This node is alive for another lease; it leaves the live list at once (a graceful
   // stop); the nodes alive now (by id).

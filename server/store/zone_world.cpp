@@ -45,6 +45,9 @@ ZoneWorld read_zone_world(ZoneLeases& db, bool verify, std::ostream& err) {
                        std::to_string(first.front().seq) + " and it has no checkpoint");
     const auto install = [&](const ZoneCheckpoint& c) {
       for (const ChunkRecord& r : c.chunks) {
+        if (world::zone_of(r.coord, size) != zone)
+          throw StoreError(describe(zone) + ": its checkpoint holds " + describe(r.coord) +
+                           " of another zone");
         std::string why;
         std::optional<world::Chunk> chunk = decode_chunk(r.samples, &why);
         if (!chunk) throw StoreError(describe(zone) + ": " + describe(r.coord) + ": " + why);
@@ -129,12 +132,28 @@ size_t seed_zone_world(ZoneLeases& db, const WorldSettings& settings,
   for (const auto& [coord, chunk] : chunks)
     by_zone[world::zone_of(coord, settings.zone_chunks)].push_back(
         {coord, 1, encoder.encode(*chunk)});
-  for (const auto& [zone, records] : by_zone) {
-    const std::optional<uint64_t> epoch = db.acquire(zone);
-    if (!epoch) throw StoreError(describe(zone) + " is held by a running node: stop the cluster");
-    db.seed_zone(zone, *epoch, records);
-    db.release(zone, *epoch);
+  // Every zone taken first, then all seeded in one transaction: a migration lands whole or
+  // not at all (and can be run again).
+  std::vector<ZoneSeed> seeds;
+  const auto release_all = [&] {
+    for (const ZoneSeed& s : seeds) db.release(s.zone, s.epoch);
+  };
+  try {
+    for (const auto& [zone, records] : by_zone) {
+      const std::optional<uint64_t> epoch = db.acquire(zone);
+      if (!epoch) throw StoreError(describe(zone) + " is held by a running node: stop the cluster");
+      seeds.push_back({zone, *epoch, records});
+    }
+    db.seed_zones(seeds);
+  } catch (...) {
+    try {
+      release_all();
+    } catch (const StoreError&) {
+      // The leases run out by themselves.
+    }
+    throw;
   }
+  release_all();
   return by_zone.size();
 }
 
