@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <climits>
+#include <functional>
 #include <map>
 #include <pqxx/pqxx>
 #include <set>
@@ -94,6 +95,16 @@ class ZoneLeasesTest : public ::testing::Test {
       out.push_back({first + i, 1000 + i, {static_cast<uint8_t>(first + i), 7}});
     return out;
   }
+  // `a` (a 300 ms lease) takes `zone`, appends records 1 .. n, does `then`, and is
+  // "paused" past its lease; its epoch.
+  static uint64_t hold_then_pause(ZoneLeases& a, ZoneId zone, int n,
+                                  const std::function<void(uint64_t)>& then = {}) {
+    const uint64_t epoch = *a.acquire(zone);
+    a.append(zone, epoch, records(1, n));
+    if (then) then(epoch);
+    std::this_thread::sleep_for(milliseconds(400));
+    return epoch;
+  }
 };
 
 TEST_F(ZoneLeasesTest, ASecondNodeCannotTakeAZoneWhileTheFirstHoldsItsLease) {
@@ -117,9 +128,7 @@ TEST_F(ZoneLeasesTest, AnOwnerPausedPastItsLeaseIsFencedOnceTheZoneIsTaken) {
   const std::string db = fresh_database();
   ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(300));
   const ZoneId zone{0, 0};
-  const uint64_t first = *a.acquire(zone);
-  a.append(zone, first, records(1, 3));
-  std::this_thread::sleep_for(milliseconds(400));  // a is "paused" past its lease
+  const uint64_t first = hold_then_pause(a, zone, 3);
   const auto second = b.acquire(zone);
   ASSERT_TRUE(second.has_value());
   EXPECT_EQ(*second, first + 1);
@@ -350,10 +359,9 @@ TEST_F(ZoneLeasesTest, AStaleHoldersCheckpointIsFencedAndItsChunksAreNeverRead) 
   const std::string db = fresh_database();
   ZoneLeases a(db, "a", milliseconds(300)), b(db, "b", milliseconds(30000));
   const ZoneId zone{0, 0};
-  const uint64_t first = *a.acquire(zone);
-  a.append(zone, first, records(1, 4));
-  a.write_checkpoint(first, {.zone = zone, .seq = 2, .chunks = {{{1, 1, 1}, 2, {2}}}});
-  std::this_thread::sleep_for(milliseconds(400));  // a is "paused" past its lease
+  const uint64_t first = hold_then_pause(a, zone, 4, [&](uint64_t epoch) {
+    a.write_checkpoint(epoch, {.zone = zone, .seq = 2, .chunks = {{{1, 1, 1}, 2, {2}}}});
+  });
   const uint64_t second = *b.acquire(zone);
   b.append(zone, second, records(5, 1));
   EXPECT_THROW(a.write_checkpoint(first, {.zone = zone, .seq = 4, .chunks = {{{1, 1, 1}, 4, {4}}}}),
