@@ -25,6 +25,7 @@ root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${VOXEL_BIN:-$root/build/bin}"
 name="$1" players="$2" duration="$3" nodes="$4"
 shift 4
+[ "${1:-}" = "--" ] && shift  # the rest is voxel-loadtest's
 dir=/tmp/voxeld_bench/$name.cluster
 rm -rf "$dir"; mkdir -p "$dir"; chmod 755 "$dir"
 pids=()
@@ -115,7 +116,7 @@ split=$(sql "SELECT count(DISTINCT edit_id) FROM zone_log WHERE edit_id <> 0")
 meshes=""
 for i in $(seq 1 $((nodes - 1))); do
   n=${letters[$i]}
-  m=$(curl -s "http://127.0.0.1:$(cat "$dir/$n.mport")/metrics" | awk '/^voxeld_meshes_published_total /{print $2}')
+  m=$(curl -s "http://127.0.0.1:$(cat "$dir/$n.mport")/metrics" | awk '/^voxeld_meshes_published_total /{print $2}' || true)
   meshes="$meshes node $n ${m:-?},"
 done
 /usr/bin/python3 - "$dir/varz.before" "$dir/varz.after" "$records" "$wal_bytes" "$split" <<'PY'
