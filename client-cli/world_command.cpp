@@ -91,13 +91,7 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
     }
   };
   if (!whole_log) {
-    for (const auto& [c, seq] : stored) {
-      const auto record = s.read_chunk(c);
-      std::string why;
-      auto chunk = record ? store::decode_chunk(record->samples, &why) : std::nullopt;
-      if (!chunk) throw std::runtime_error("chunk record does not decode: " + why);
-      map.insert(c, std::move(*chunk));
-    }
+    for (const auto& [c, seq] : stored) map.insert(c, store::read_checkpointed_chunk(s, c));
   }
   uint64_t replayed = 0, previous = 0;
   const uint64_t from = whole_log ? 0 : info.checkpoint_seq;

@@ -26,11 +26,7 @@ void load_single_world(store::WorldStore& s, world::ChunkMap& map,
   std::vector<world::ChunkCoord> stored;
   s.for_each_chunk([&](world::ChunkCoord c, uint64_t) { stored.push_back(c); });
   for (const world::ChunkCoord& c : stored) {
-    const std::optional<store::ChunkRecord> r = s.read_chunk(c);
-    std::string why;
-    std::optional<world::Chunk> chunk = r ? store::decode_chunk(r->samples, &why) : std::nullopt;
-    if (!chunk) throw std::runtime_error("a checkpointed chunk does not read back: " + why);
-    map.insert(c, std::move(*chunk));
+    map.insert(c, store::read_checkpointed_chunk(s, c));
     modified.insert(c);
   }
   world::EditLimits limits;

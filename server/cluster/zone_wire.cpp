@@ -1,6 +1,5 @@
 #include "server/cluster/zone_wire.hpp"
 
-#include "server/store/edit_codec.hpp"
 #include "server/world/byte_io.hpp"
 
 namespace vox::cluster {

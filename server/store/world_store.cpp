@@ -2,6 +2,7 @@
 
 #include <set>
 
+#include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/store/postgres_store.hpp"
 #include "server/store/sqlite_store.hpp"
@@ -12,6 +13,17 @@ namespace vox::store {
 
 bool is_postgres_uri(const std::string& where) {
   return where.starts_with("postgresql://") || where.starts_with("postgres://");
+}
+
+world::Chunk read_checkpointed_chunk(WorldStore& s, world::ChunkCoord c) {
+  const std::optional<ChunkRecord> record = s.read_chunk(c);
+  std::string why = "no record of it";
+  std::optional<world::Chunk> chunk = record ? decode_chunk(record->samples, &why) : std::nullopt;
+  if (!chunk)
+    throw StoreError(s.name() + ": checkpointed chunk (" + std::to_string(c.x) + ", " +
+                     std::to_string(c.y) + ", " + std::to_string(c.z) +
+                     ") does not read back: " + why);
+  return std::move(*chunk);
 }
 
 std::unique_ptr<WorldStore> open_world_store(const std::string& where, const OpenOptions& options) {

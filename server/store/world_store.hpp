@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "server/world/chunk.hpp"
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/region.hpp"
@@ -129,6 +130,10 @@ class WorldStore {
   virtual void for_each_edit(uint64_t after_seq,
                              const std::function<bool(const LoggedEdit&)>& fn) = 0;
 };
+
+// Tools (verify, migrate): checkpointed chunk `c` read back and decoded; StoreError naming
+// it when the store has no record of it or the record does not decode.
+world::Chunk read_checkpointed_chunk(WorldStore& s, world::ChunkCoord c);
 
 // `where`: a world directory (SQLite, `world.sqlite` in it; created with the directory
 // when missing unless read_only) or a postgresql:// URI.
