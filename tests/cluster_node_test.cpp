@@ -274,6 +274,58 @@ TEST(ClusterNode, AnEditAcrossZonesHeldByDifferentNodesIsAppliedByEachHolder) {
                     << where.first.x << ", " << where.first.z << ")";
 }
 
+// The harness with all three nodes alive: players on a, b and c edit inside each
+// of four zones held by the three nodes, across the borders of two and at the corner of
+// all four; each node shows what a single node shows after the same edits (views across
+// the nodes' borders closed), and every edit's part is in its zone's log once.
+TEST(ClusterNode, EditsInOneAcrossTwoAndAcrossFourZonesOfThreeNodesShowWhatASingleNodeShows) {
+  const Cluster cluster;
+  const std::optional<CornerOfThree> corner = corner_of_three();
+  ASSERT_TRUE(corner.has_value());
+  const float cx = corner->corner(corner->low.x), cz = corner->corner(corner->low.z);
+  const float half = 0.5f * kZoneChunks * world::kChunkSize;  // a zone's middle from its edge
+  uint64_t id = 1;
+  std::vector<wire::Envelope> edits;
+  for (const float dx : {-half, half})  // inside each zone
+    for (const float dz : {-half, half}) edits.push_back(brush(id++, cx + dx, cz + dz, 3, 5.0f));
+  edits.push_back(brush(id++, cx, cz - half, 4, 5.0f));  // across two: the x border
+  edits.push_back(explosion(id++, cx + 1.0f, cz + half));
+  edits.push_back(brush(id++, cx - half, cz, 2, 5.0f));         // across two: the z border
+  edits.push_back(brush(id++, cx + 0.5f, cz - 0.5f, 5, 6.0f));  // across four
+  edits.push_back(explosion(id++, cx - 1.0f, cz + 1.5f));
+  ServerProcess a({"--cluster", cluster.config("a"), "--metrics-port", "0"});
+  ServerProcess b({"--cluster", cluster.config("b"), "--metrics-port", "0"});
+  ServerProcess c({"--cluster", cluster.config("c"), "--metrics-port", "0"});
+  std::vector<std::unique_ptr<client::Client>> players;
+  players.push_back(player(a, "editor-a"));
+  players.push_back(player(b, "editor-b"));
+  players.push_back(player(c, "editor-c"));
+  for (size_t i = 0; i < edits.size(); ++i) {
+    const wire::EditResult r = edit_until_accepted(*players[i % 3], edits[i]);
+    EXPECT_EQ(r.status(), wire::EditResult::ACCEPTED) << "edit " << i + 1 << ": " << r.reason();
+  }
+  ServerProcess fresh({"--in-memory"});
+  apply_all(fresh, edits);
+  const Seen expected = view_of(fresh, cx, cz);
+  for (const ServerProcess* node : {&a, &b, &c}) {
+    EXPECT_TRUE(eventually(node, [&] { return view_of(*node, cx, cz) == expected; }))
+        << "the corner differs on node "
+        << (node == &a   ? "a"
+            : node == &b ? "b"
+                         : "c");
+  }
+  double split = 0;
+  for (const ServerProcess* node : {&a, &b, &c})
+    split += scrape(node->metrics_port()).at("voxeld_cluster_edits_split_total");
+  EXPECT_GE(split, 3) << "the edits across borders were not split between holders";
+  const auto logged = edit_ids_logged(cluster.database, corner->zones());
+  EXPECT_FALSE(logged.empty()) << "no edit was forwarded or split";
+  for (const auto& [where, n] : logged) {
+    EXPECT_EQ(n, 1) << "edit " << where.second << " logged " << n << " times in zone ("
+                    << where.first.x << ", " << where.first.z << ")";
+  }
+}
+
 // A smooth across a zone border (docs/CLUSTER.md): each zone's part reads only its own
 // zone's samples, so it replays from that zone's log alone. Smooths split over two nodes,
 // and one applied whole by a node holding both zones, are seen alike on both nodes and by

@@ -14,6 +14,8 @@
 #include <functional>
 #include <map>
 #include <mutex>
+#include <optional>
+#include <set>
 #include <thread>
 
 #include "server/cluster/zone_wire.hpp"
@@ -382,6 +384,30 @@ inline ZonesApart zones_held_apart() {
       return here == 0 ? ZonesApart{{x, 0}, {x + 1, 0}} : ZonesApart{{x + 1, 0}, {x, 0}};
   }
   return {};
+}
+
+// Four zones around a corner that three nodes {a, b, c} hold between them, each node at
+// least one: where edits inside a zone, across two and across four have their parts on
+// different nodes.
+struct CornerOfThree {
+  world::ZoneId low;  // the zone below and left of the corner; the others are +x, +z, +xz
+  std::vector<world::ZoneId> zones() const {
+    return {low, {low.x + 1, low.z}, {low.x, low.z + 1}, {low.x + 1, low.z + 1}};
+  }
+  float corner(int32_t zone) const {  // the corner's voxel x (or z, given low.z)
+    return static_cast<float>((zone + 1) * kZoneChunks * world::kChunkSize);
+  }
+};
+inline std::optional<CornerOfThree> corner_of_three() {
+  const std::vector<std::string> nodes = {"a", "b", "c"};
+  for (int32_t x = 0; x < 32; ++x)
+    for (int32_t z = 0; z < 32; ++z) {
+      std::set<size_t> holders;
+      for (const world::ZoneId zone : CornerOfThree{{x, z}}.zones())
+        holders.insert(*world::first_ranked(zone, nodes));
+      if (holders.size() == 3) return CornerOfThree{{x, z}};
+    }
+  return std::nullopt;
 }
 
 // How often each edit id is in each of `zones`' logs (ids 0 left out).

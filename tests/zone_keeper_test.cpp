@@ -169,6 +169,45 @@ TEST_F(ZoneKeeperTest, ANodeThatJoinsTakesOverTheZonesItNowRanksFirstFor) {
   EXPECT_EQ(seen.lost["a"].size(), for_b);  // handed off, each told
 }
 
+// Two live processes given the same node id took the id's zones from each other in every
+// round (each take by "a" took anew, fencing the other "a"): every zone's epoch climbed
+// and edits were refused or waited a second. The second now holds nothing while the
+// first lives, and takes the zones once the first is gone.
+TEST_F(ZoneKeeperTest, TwoProcessesGivenOneNodeIdDoNotTakeZonesFromEachOther) {
+  const std::string db = fresh_database();
+  Seen seen, seen_twin;
+  auto a = keeper(db, "a", seen), b = keeper(db, "b", seen);
+  ask_both(*a, *b);
+  const std::vector<std::string> live{"a", "b"};
+  ASSERT_TRUE(eventually([&] {  // settled: each zone with its first-ranked node
+    for (const ZoneId z : zones()) {
+      const bool a_first = live[*world::first_ranked(z, live)] == "a";
+      if (a->epoch_of(z).has_value() != a_first || b->epoch_of(z).has_value() == a_first)
+        return false;
+    }
+    return true;
+  }));
+  auto twin = keeper(db, "a", seen_twin);
+  for (const ZoneId z : zones()) twin->want(z);
+  std::map<ZoneId, uint64_t> epochs;
+  for (const ZoneId z : zones()) {
+    auto e = a->epoch_of(z);
+    if (!e) e = b->epoch_of(z);
+    epochs[z] = *e;
+  }
+  std::this_thread::sleep_for(milliseconds(1500));  // several rounds of all three
+  EXPECT_EQ(twin->held_count(), 0u);
+  for (const ZoneId z : zones()) {
+    auto e = a->epoch_of(z);
+    if (!e) e = b->epoch_of(z);
+    ASSERT_TRUE(e.has_value());
+    EXPECT_EQ(*e, epochs[z]) << "zone " << z.x << "," << z.z << " was taken again";
+  }
+  const size_t a_held = a->held_count();
+  a->stop(false);  // the first "a" dies: the twin's heartbeat takes the id, then a's zones
+  ASSERT_TRUE(eventually([&] { return twin->held_count() == a_held; }, milliseconds(5000)));
+}
+
 TEST_F(ZoneKeeperTest, ZonesAskedForPastItsBoundAreRefused) {
   const std::string db = fresh_database();
   Seen seen;

@@ -432,6 +432,21 @@ TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {
   EXPECT_EQ(b.live_nodes(), (std::vector<std::string>{"a", "b"}));
 }
 
+// Two processes given one node id (a copied configuration, a restart racing its earlier
+// run): the first keeps the id while its heartbeat runs; the second is told where it is.
+TEST_F(ZoneLeasesTest, ANodeIdIsOneProcesssWhileItsHeartbeatRuns) {
+  const std::string db = fresh_database();
+  ZoneLeases first(db, "a", milliseconds(300)), second(db, "a", milliseconds(300));
+  EXPECT_FALSE(first.heartbeat("127.0.0.1:7777").has_value());
+  EXPECT_EQ(second.heartbeat("127.0.0.1:8888"), std::optional<std::string>("127.0.0.1:7777"));
+  EXPECT_FALSE(first.heartbeat("127.0.0.1:7777").has_value());  // still the first's
+  second.leave();                                               // leaves nothing of the first's
+  EXPECT_EQ(first.live_nodes(), (std::vector<std::string>{"a"}));
+  std::this_thread::sleep_for(milliseconds(400));  // the first stopped (kill -9)
+  EXPECT_FALSE(second.heartbeat("127.0.0.1:8888").has_value());
+  EXPECT_EQ(first.heartbeat("127.0.0.1:7777"), std::optional<std::string>("127.0.0.1:8888"));
+}
+
 TEST_F(ZoneLeasesTest, BadSettingsAndAnUnreachableDatabaseAreOneLineErrors) {
   const std::string db = fresh_database();
   EXPECT_THROW(ZoneLeases(db, "", milliseconds(1000)), StoreError);

@@ -9,37 +9,12 @@
 # kill, and what a fresh viewer on the survivor gets. Before the kill, remote visibility:
 # VISIBILITY_EDITS (40) brushes on the holder, timed to their result and to a delta at a
 # viewer on the other node.
-import os, re, signal, subprocess, sys, threading, time, glob
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-sys.path.insert(0, ROOT + "/clients/python")
-from voxelclient.client import Client
-D="/tmp/stranger_cluster"; subprocess.run(["rm","-rf",D]); os.makedirs(D+"/pg"); os.chmod(D,0o755)
-pgbin=sorted(glob.glob("/usr/lib/postgresql/*/bin"))[-1]
-subprocess.run(["chown","postgres",D,D+"/pg"])
-def pg(cmd): subprocess.run(["runuser","-u","postgres","--","sh","-c",cmd],check=True,stdout=subprocess.DEVNULL)
-pg(f"{pgbin}/initdb -D {D}/pg -U postgres -A trust")
-pg(f"{pgbin}/pg_ctl -D {D}/pg -l {D}/pg.log -w -o \"-k {D} -p 55433 -c listen_addresses=''\" start")
-pg(f"{pgbin}/psql -q -h {D} -p 55433 -U postgres -c 'CREATE DATABASE vox'")
-open(D+"/nats.conf","w").write('host: 127.0.0.1\nport: -1\nauthorization { user: "u", password: "p-secret" }\n')
-os.makedirs(D+"/ports")
-nats=subprocess.Popen(["nats-server","-c",D+"/nats.conf","--ports_file_dir",D+"/ports"],stdout=subprocess.DEVNULL,stderr=subprocess.DEVNULL)
-for _ in range(100):
-    f=glob.glob(D+"/ports/*")
-    if f: break
-    time.sleep(0.1)
-url=re.search(r'nats://[^"]*',open(f[0]).read()).group(0)
-procs={}
-def start(n):
-    conf=f"{D}/{n}.conf"
-    open(conf,"w").write(f"database = postgresql:///vox?host={D}&port=55433&user=postgres\nnats = {url}\nnats_user = u\nnats_password = p-secret\nnode = {n}\n")
-    os.chmod(conf,0o600)
-    pf=f"{D}/{n}.port"
-    p=subprocess.Popen([ROOT + "/build/bin/voxeld","--cluster",conf,"--port","0","--port-file",pf,"--http-port","0"],stdout=open(f"{D}/{n}.log","w"),stderr=subprocess.STDOUT)
-    for _ in range(100):
-        if os.path.exists(pf) and open(pf).read().strip(): break
-        time.sleep(0.1)
-    procs[n]=p; return int(open(pf).read())
-pa, pb = start("a"), start("b")
+import os, sys, threading, time
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from stranger_cluster import Client, Cluster
+D = "/tmp/stranger_cluster"
+cluster = Cluster(D, 55433)
+pa, pb = cluster.start("a"), cluster.start("b")
 viewer = Client("127.0.0.1", pb, decode=False); viewer.hello("viewer")
 vid = viewer.set_view((40, 10, 40), 3); viewer.wait_view_ready(vid, 60)
 editor = Client("127.0.0.1", pa, decode=False); editor.hello("editor")
@@ -60,7 +35,7 @@ time.sleep(1.0)
 try: viewer.pump(lambda: False, 1.0)
 except TimeoutError: pass
 print("viewer on b holds", len(viewer.chunks), "chunks")
-holder = "a" if "took zone (0, 0)" in open(D+"/a.log").read() else "b"
+holder = cluster.holders().get((0, 0), "b")
 other, oport = ("b", pb) if holder == "a" else ("a", pa)
 print("holder of zone (0, 0):", holder)
 
@@ -98,7 +73,7 @@ def visibility(n):
              other, q(to_delta, .5), q(to_delta, .95), len(to_delta)))
     editor.close(); viewer.close()
 visibility(int(os.environ.get("VISIBILITY_EDITS", "40")))
-os.kill(procs[holder].pid, signal.SIGKILL); procs[holder].wait(); t=time.time()
+cluster.kill(holder); t=time.time()
 editor = Client("127.0.0.1", oport, decode=False); editor.hello("editor2")
 first_ok.clear()
 s2=edits(10, 22)
@@ -108,8 +83,4 @@ v2 = Client("127.0.0.1", oport, decode=False); v2.hello("viewer2")
 vid = v2.set_view((40, 10, 40), 3); v2.wait_view_ready(vid, 60)
 print("a fresh viewer on %s holds %d chunks" % (other, len(v2.chunks)))
 print(other + "'s log tail:"); print("".join(open(D+"/"+other+".log").readlines()[-5:]))
-for name, p in procs.items():
-    if p.poll() is None:
-        p.send_signal(signal.SIGTERM)
-        print(name, "stopped with exit code", p.wait(timeout=15))
-nats.terminate(); pg(f"{pgbin}/pg_ctl -D {D}/pg -m fast -w stop")
+cluster.stop()

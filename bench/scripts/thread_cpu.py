@@ -37,15 +37,27 @@ def main():
     except FileNotFoundError:
         print(f"thread_cpu: process {pid} ended", file=sys.stderr)
         return 1
+    for name, count, percent in shares(first, second, elapsed):
+        print(f"{name} {count} {percent:.1f}")
+    return 0
+
+
+def shares(first, second, elapsed):
+    """[(thread name, threads, percent of a CPU)] between two samples, busiest first."""
     hz = os.sysconf("SC_CLK_TCK")
     by_name = {}
     for tid, (name, ticks) in second.items():
         used = ticks - first.get(tid, (name, 0))[1]
         count, total = by_name.get(name, (0, 0))
         by_name[name] = (count + 1, total + used)
-    for name, (count, ticks) in sorted(by_name.items(), key=lambda kv: -kv[1][1]):
-        print(f"{name} {count} {100.0 * ticks / hz / elapsed:.1f}")
-    return 0
+    return [(name, count, 100.0 * ticks / hz / elapsed)
+            for name, (count, ticks) in sorted(by_name.items(), key=lambda kv: -kv[1][1])]
+
+
+def steal_seconds():
+    """CPU time stolen by the hypervisor since boot, all CPUs (/proc/stat)."""
+    with open("/proc/stat") as f:
+        return int(f.readline().split()[8]) / os.sysconf("SC_CLK_TCK")
 
 
 if __name__ == "__main__":

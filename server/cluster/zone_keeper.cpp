@@ -112,7 +112,22 @@ void ZoneKeeper::round() {
   const Clock::time_point start = Clock::now();
   try {
     store::ZoneLeases& db = leases_->db;
-    db.heartbeat(config_.address);
+    if (const std::optional<std::string> other = db.heartbeat(config_.address)) {
+      // Another process runs as this node: it takes and renews the zones, this one holds
+      // none (edits here are forwarded) until that one's heartbeat runs out.
+      if (!shadowed_ || start - shadow_logged_ >= std::chrono::seconds(60)) {
+        spdlog::error(
+            "zones: another process runs as node {} (at {}); two processes must not share a "
+            "node id: this one takes no zones while that one lives",
+            config_.node, *other);
+        shadow_logged_ = start;
+      }
+      shadowed_ = true;
+      for (const auto& [zone, h] : held) lose(zone, h.epoch, "another process runs as this node");
+      return;
+    }
+    if (shadowed_) spdlog::info("zones: node {} is this process's again", config_.node);
+    shadowed_ = false;
     const ZonePlan plan = plan_zones(held_zones, interest, db.live_nodes(), config_.node);
     for (const world::ZoneId zone : plan.renew) {
       const uint64_t epoch = held.at(zone).epoch;

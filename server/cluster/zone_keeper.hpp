@@ -8,7 +8,9 @@
 // (another node took it after this one's lease ran out), a hand-off (before the
 // release), or no renewal for a whole lease by this node's clock (the database out of
 // reach: this node can no longer tell whether it still owns it). The caller stops
-// serving a lost zone at once; its late writes would be fenced anyway.
+// serving a lost zone at once; its late writes would be fenced anyway. While another
+// live process's heartbeat holds the node id (two given the same id, or this one paused
+// long enough for a restarted one to start), this one loses its zones and takes none.
 #pragma once
 
 #include <chrono>
@@ -32,7 +34,7 @@ class ZoneKeeper {
   using Clock = std::chrono::steady_clock;
   struct Config {
     std::string uri;      // the cluster's PostgreSQL
-    std::string node;     // this node's id (unique per process run is safest)
+    std::string node;     // this node's id: one live process's at a time
     std::string address;  // where players reach it, for the heartbeat row
     std::chrono::milliseconds lease{3000};
     size_t max_zones = size_t{1} << 16;  // zones asked for, remembered at once
@@ -84,6 +86,10 @@ class ZoneKeeper {
   std::map<world::ZoneId, Held> held_;
   std::set<world::ZoneId> interest_;
   bool stopping_ = false, release_ = false, asked_ = false;
+  // The keeper thread's: another process's heartbeat has this node id (and when that was
+  // last logged).
+  bool shadowed_ = false;
+  Clock::time_point shadow_logged_{};
   std::thread thread_;
 };
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <pqxx/pqxx>
+#include <random>
 #include <string>
 #include <tuple>
 
@@ -36,6 +37,7 @@ CREATE TABLE IF NOT EXISTS zone_chunks (zone BIGINT NOT NULL, cx INTEGER NOT NUL
                                         seq BIGINT NOT NULL, epoch BIGINT NOT NULL,
                                         samples BYTEA NOT NULL,
                                         PRIMARY KEY (zone, cx, cy, cz, seq));
+ALTER TABLE nodes ADD COLUMN IF NOT EXISTS instance BIGINT NOT NULL DEFAULT 0;
 )sql";
 
 // Whether kCreateTables has nothing left to do (its last table and columns are there).
@@ -45,7 +47,8 @@ SELECT to_regclass('zone_chunks') IS NOT NULL AND to_regclass('zone_log_edit') I
        AND to_regclass('nodes') IS NOT NULL
        AND (SELECT count(*) FROM information_schema.columns WHERE table_schema = current_schema()
             AND ((table_name = 'zones' AND column_name = 'checkpoint_seq')
-                 OR (table_name = 'zone_log' AND column_name = 'edit_id'))) = 2
+                 OR (table_name = 'zone_log' AND column_name = 'edit_id')
+                 OR (table_name = 'nodes' AND column_name = 'instance'))) = 3
 )sql";
 
 // Chunks written per transaction of a checkpoint.
@@ -53,6 +56,14 @@ constexpr size_t kChunksPerTransaction = 32;
 
 // Rows key zones by ZoneId::key()'s bits as a signed BIGINT.
 int64_t row_key(world::ZoneId z) { return static_cast<int64_t>(z.key()); }
+
+// This process's mark on its node's heartbeat row: never 0 (the column's default).
+int64_t random_instance() {
+  std::random_device device;
+  int64_t v = 0;
+  while (v == 0) v = static_cast<int64_t>((uint64_t{device()} << 32) ^ device());
+  return v;
+}
 
 std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
@@ -102,7 +113,8 @@ ZoneLeases::ZoneLeases(std::string uri, std::string node, std::chrono::milliseco
     : uri_(std::move(uri)),
       name_("PostgreSQL " + redact_uri(uri_)),
       node_(std::move(node)),
-      lease_(lease) {
+      lease_(lease),
+      instance_(random_instance()) {
   if (node_.empty() || node_.size() > 200)
     throw StoreError(name_ + ": a node id must have 1 to 200 bytes");
   if (lease_ < std::chrono::milliseconds(100))
@@ -467,22 +479,29 @@ void ZoneLeases::seed_zones(std::span<const ZoneSeed> zones) {
   });
 }
 
-void ZoneLeases::heartbeat(const std::string& address) {
-  run([&](pqxx::connection& c) {
+std::optional<std::string> ZoneLeases::heartbeat(const std::string& address) {
+  return run([&](pqxx::connection& c) -> std::optional<std::string> {
     pqxx::work t(c);
-    t.exec_params(
-        "INSERT INTO nodes (node, address, alive_until) "
-        "VALUES ($1, $2, now() + $3 * interval '1 millisecond') ON CONFLICT (node) DO UPDATE "
-        "SET address = excluded.address, alive_until = excluded.alive_until",
-        node_, address, static_cast<int64_t>(lease_.count()));
-    t.commit();
+    // The row is this process's, or free again once its last heartbeat ran out.
+    const pqxx::result r = t.exec_params(
+        "INSERT INTO nodes (node, address, alive_until, instance) "
+        "VALUES ($1, $2, now() + $3 * interval '1 millisecond', $4) ON CONFLICT (node) DO UPDATE "
+        "SET address = excluded.address, alive_until = excluded.alive_until, "
+        "instance = excluded.instance "
+        "WHERE nodes.instance = excluded.instance OR nodes.alive_until <= now()",
+        node_, address, static_cast<int64_t>(lease_.count()), instance_);
+    if (r.affected_rows() == 1) {
+      t.commit();
+      return std::nullopt;
+    }
+    return t.exec_params1("SELECT address FROM nodes WHERE node = $1", node_)[0].as<std::string>();
   });
 }
 
 void ZoneLeases::leave() {
   run([&](pqxx::connection& c) {
     pqxx::work t(c);
-    t.exec_params("DELETE FROM nodes WHERE node = $1", node_);
+    t.exec_params("DELETE FROM nodes WHERE node = $1 AND instance = $2", node_, instance_);
     t.commit();
   });
 }

@@ -172,9 +172,13 @@ class ZoneLeases {
   // in one transaction, fenced; StoreError when one has records or a checkpoint already.
   void seed_zones(std::span<const ZoneSeed> zones);
 
-  // This node is alive for another lease; it leaves the live list at once (a graceful
-  // stop); the nodes alive now (by id).
-  void heartbeat(const std::string& address);
+  // This node is alive for another lease: nullopt. A node id is one process's at a time
+  // (each ZoneLeases is its own process's instance): while another's heartbeat for the
+  // same id runs, refused, with that one's address (a restarted process waits for its
+  // earlier run's heartbeat to run out; a second process given the same id stays out).
+  // leave(): it leaves the live list at once (a graceful stop). live_nodes(): the nodes
+  // alive now (by id).
+  std::optional<std::string> heartbeat(const std::string& address);
   void leave();
   std::vector<std::string> live_nodes();
 
@@ -193,6 +197,7 @@ class ZoneLeases {
 
   std::string uri_, name_, node_;
   std::chrono::milliseconds lease_;
+  int64_t instance_;  // this process's mark on the node's heartbeat row
   std::unique_ptr<Connection> conn_;
   std::atomic<uint64_t> fenced_{0};
 };
