@@ -280,7 +280,8 @@ TEST_F(ZoneFollowerTest, RecordsGivenBackBesideLaterOnesAreTakenInOrderEachOnce)
   const ZoneId zone{0, 0};
   store::ZoneLeases(db, "setup", milliseconds(30000)).settle_world({"w", kSeed, kZoneChunks});
   ZoneReplicas replicas(link, {.world = "w", .uri = db, .node = "replica"}, [] {});
-  replicas.viewing(zone);
+  EXPECT_TRUE(replicas.viewing(zone));   // new: the node starts a reconcile at once
+  EXPECT_FALSE(replicas.viewing(zone));  // viewed and followed: nothing to start
   const auto never = [](ZoneId) { return false; };
   replicas.reconcile(never, [](ZoneId) { return uint64_t{0}; });
   ASSERT_TRUE(replicas.following(zone));

@@ -21,6 +21,7 @@ namespace vox::cluster {
 namespace {
 
 using std::chrono::milliseconds;
+using namespace std::chrono_literals;
 using test::eventually;
 using world::ZoneId;
 
@@ -206,6 +207,24 @@ TEST_F(ZoneKeeperTest, TwoProcessesGivenOneNodeIdDoNotTakeZonesFromEachOther) {
   const size_t a_held = a->held_count();
   a->stop(false);  // the first "a" dies: the twin's heartbeat takes the id, then a's zones
   ASSERT_TRUE(eventually([&] { return twin->held_count() == a_held; }, milliseconds(5000)));
+}
+
+// A zone newly viewed was followed only from the keeper's next round (a third of a
+// lease): the first edit a player made there waited about 0.9 s with the default lease.
+// A poke starts the round at once.
+TEST_F(ZoneKeeperTest, APokeStartsARoundAtOnce) {
+  const std::string db = fresh_database();
+  Seen seen;
+  std::atomic<int> rounds{0};
+  ZoneKeeper::Events events = seen.events("a");
+  events.round = [&] { ++rounds; };
+  ZoneKeeper k(ZoneKeeper::Config{.uri = db, .node = "a", .address = "a:1", .lease = 30s},
+               std::move(events));
+  ASSERT_TRUE(eventually([&] { return rounds.load() == 1; }));  // the first, at start
+  k.poke();
+  const auto poked = std::chrono::steady_clock::now();
+  ASSERT_TRUE(eventually([&] { return rounds.load() == 2; }));
+  EXPECT_LT(std::chrono::steady_clock::now() - poked, 5s);  // not the period's 10 s
 }
 
 TEST_F(ZoneKeeperTest, ZonesAskedForPastItsBoundAreRefused) {

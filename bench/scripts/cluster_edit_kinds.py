@@ -21,7 +21,8 @@ ZONE = 16 * 32  # voxels per zone side
 WARM_UP = 5  # edits per kind timed apart: the node starts following the place's zones
 per_kind = int(sys.argv[1]) if len(sys.argv) > 1 else 200
 cluster = Cluster("/tmp/edit_kinds", 55434, zone_chunks=16)
-ports = {n: cluster.start(n) for n in "abc"}
+load_args = ["--max-per-address", "0", "--max-clients", "4000"] if os.environ.get("LOAD") else []
+ports = {n: cluster.start(n, load_args) for n in "abc"}
 editor = Client("127.0.0.1", ports["a"], decode=False)
 editor.hello("kinds-editor")
 
@@ -73,7 +74,8 @@ if int(os.environ.get("LOAD", "0")):
     load = subprocess.Popen(
         [ROOT + "/build/bin/voxel-loadtest", "--server", f"127.0.0.1:{ports['a']}",
          "--more-servers", f"127.0.0.1:{ports['b']},127.0.0.1:{ports['c']}",
-         "--players", os.environ["LOAD"], "--duration", "600", "--server-pid", "-1"],
+         "--players", os.environ["LOAD"], "--duration", "600", "--server-pid", "-1",
+         "--spread-addresses"],
         stdout=open("/tmp/edit_kinds/loadtest.log", "w"), stderr=subprocess.STDOUT)
     time.sleep(8)
 

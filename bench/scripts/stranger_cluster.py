@@ -42,8 +42,8 @@ class Cluster:
             else ["sh", "-c", cmd]
         subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
 
-    def start(self, node):
-        """Starts node `node` (a, b, ...) and returns its TCP port."""
+    def start(self, node, args=()):
+        """Starts node `node` (a, b, ...) with voxeld `args` and returns its TCP port."""
         d = self.dir
         conf = f"{d}/{node}.conf"
         text = (f"database = postgresql:///vox?host={d}&port={self.pg_port}&user=postgres\n"
@@ -56,7 +56,7 @@ class Cluster:
         pf = f"{d}/{node}.port"
         self.procs[node] = subprocess.Popen(
             [ROOT + "/build/bin/voxeld", "--cluster", conf, "--port", "0", "--port-file", pf,
-             "--http-port", "0"], stdout=open(f"{d}/{node}.log", "w"), stderr=subprocess.STDOUT)
+             "--http-port", "0", *args], stdout=open(f"{d}/{node}.log", "w"), stderr=subprocess.STDOUT)
         for _ in range(100):
             if os.path.exists(pf) and open(pf).read().strip():
                 break

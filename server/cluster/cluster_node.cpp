@@ -293,8 +293,12 @@ void ClusterNode::viewing(world::ChunkCoord center, int radius) {
   const world::VoxelBox box{{voxel(center.x - r), 0, voxel(center.z - r)},
                             {voxel(center.x + r), 0, voxel(center.z + r)}};
   // Views are at most a few dozen chunks across; the replicas bound what they remember.
+  // A zone newly viewed is followed from the keeper's next round: started now, not in up
+  // to a third of a lease (its view showed the generated terrain meanwhile).
+  bool fresh = false;
   for (const world::ZoneId zone : world::zones_of(box, config_.zone_chunks))
-    replicas_.viewing(zone);
+    fresh = (replicas_.viewing(zone) && !table_.held(zone)) || fresh;
+  if (fresh && keeper_) keeper_->poke();
 }
 
 pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,

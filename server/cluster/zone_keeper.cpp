@@ -36,6 +36,12 @@ bool ZoneKeeper::want(world::ZoneId zone) {
   return true;
 }
 
+void ZoneKeeper::poke() {
+  std::lock_guard lock(mutex_);
+  asked_ = true;
+  wake_.notify_one();
+}
+
 std::optional<uint64_t> ZoneKeeper::epoch_of(world::ZoneId zone) const {
   std::lock_guard lock(mutex_);
   const auto it = held_.find(zone);

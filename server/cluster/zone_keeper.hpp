@@ -60,6 +60,8 @@ class ZoneKeeper {
   // starts a round at once (taken then when free). At most Config::max_zones are
   // remembered; asked for more, it refuses them (false).
   bool want(world::ZoneId zone);
+  // Any thread: the next round starts at once (the node has new zones to follow).
+  void poke();
   // Any thread: the epoch this node holds `zone` at; nullopt when it does not.
   std::optional<uint64_t> epoch_of(world::ZoneId zone) const;
   size_t held_count() const;  // any thread

@@ -26,15 +26,19 @@ void ZoneReplicas::stop() {
   followed_.store(0, std::memory_order_relaxed);
 }
 
-void ZoneReplicas::viewing(world::ZoneId zone) {
+bool ZoneReplicas::viewing(world::ZoneId zone) {
   std::lock_guard lock(mutex_);
-  viewed_[zone] = Clock::now();
+  const Clock::time_point now = Clock::now();
+  auto& seen = viewed_[zone];
+  const bool fresh = seen == Clock::time_point{} || now - seen >= config_.idle;
+  seen = now;
   const size_t bound = kViewedPerFollowed * config_.max_zones;
-  if (viewed_.size() <= bound) return;
+  if (viewed_.size() <= bound) return fresh;
   const auto oldest =
       std::min_element(viewed_.begin(), viewed_.end(),
                        [](const auto& a, const auto& b) { return a.second < b.second; });
   viewed_.erase(oldest);
+  return fresh;
 }
 
 void ZoneReplicas::reconcile(const std::function<bool(world::ZoneId)>& held,

@@ -49,8 +49,9 @@ class ZoneReplicas {
   ZoneReplicas(const ZoneReplicas&) = delete;
   ZoneReplicas& operator=(const ZoneReplicas&) = delete;
 
-  // A player views `zone` now.
-  void viewing(world::ZoneId zone);
+  // A player views `zone` now; true when it was not viewed within `idle` (not followed:
+  // the caller has reconcile run soon, since the view shows no records of it until then).
+  bool viewing(world::ZoneId zone);
   // Starts following the zones viewed lately and not held (`held`), from the record after
   // `applied(zone)`; stops following held ones and those idle. Followers that cannot start
   // (the database or NATS down) are tried again next time.
