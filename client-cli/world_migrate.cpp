@@ -2,7 +2,11 @@
 // world's database, or a cluster world out into a single node's world (docs/CLUSTER.md,
 // "Moving in"), and voxel-cli world verify|info of a cluster world. Offline: the source is
 // only read; the target must be empty and no node may run on it.
+#include <algorithm>
+#include <climits>
+#include <optional>
 #include <ostream>
+#include <stdexcept>
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
@@ -16,6 +20,26 @@ namespace vox::cli {
 namespace {
 
 constexpr std::chrono::milliseconds kToolLease{30000};
+
+// "X,Z": a zone's coordinates (zone units, each int32).
+world::ZoneId parse_zone(const std::string& text) {
+  const size_t comma = text.find(',');
+  const auto number = [&](const std::string& part) {
+    size_t used = 0;
+    long long v = 0;
+    try {
+      v = std::stoll(part, &used);
+    } catch (const std::logic_error&) {
+      used = 0;
+    }
+    if (used == 0 || used != part.size() || v < INT32_MIN || v > INT32_MAX)
+      throw std::invalid_argument("world migrate: --zone must be X,Z (two integers), got '" + text +
+                                  "'");
+    return static_cast<int32_t>(v);
+  };
+  if (comma == std::string::npos) number("");
+  return {number(text.substr(0, comma)), number(text.substr(comma + 1))};
+}
 
 // A single node's world as its store leaves it: its checkpointed chunks, then the log
 // after the checkpoint replayed. `modified`: every chunk either holds.
@@ -62,9 +86,16 @@ int migrate_in(const std::string& from, const std::string& to, const std::string
   return 0;
 }
 
-int migrate_out(const std::string& from, const std::string& to, std::ostream& out,
-                std::ostream& err) {
+// `only`: one zone's chunks alone (the rest of the target is the generated terrain).
+int migrate_out(const std::string& from, const std::string& to, std::optional<world::ZoneId> only,
+                std::ostream& out, std::ostream& err) {
   store::ZoneLeases db(from, "voxel-cli-migrate", kToolLease);
+  if (only) {
+    const std::vector<world::ZoneId> zones = db.zones();
+    if (std::find(zones.begin(), zones.end(), *only) == zones.end())
+      throw std::runtime_error("the cluster world has no zone (" + std::to_string(only->x) + ", " +
+                               std::to_string(only->z) + ")");
+  }
   const store::ZoneWorld zw = store::read_zone_world(db, false, err);
   auto target =
       store::open_world_store(to, {.seed = zw.settings.seed, .new_world_seed = zw.settings.seed});
@@ -73,12 +104,15 @@ int migrate_out(const std::string& from, const std::string& to, std::ostream& ou
     throw std::runtime_error(target->name() + " is not empty: migrate into a new world");
   std::vector<store::ChunkRecord> records;
   store::ChunkEncoder encoder;
-  for (const world::ChunkCoord& c : zw.modified)
-    records.push_back({c, 1, encoder.encode(*zw.chunks.find(c))});
+  for (const world::ChunkCoord& c : zw.modified) {
+    if (!only || world::zone_of(c, zw.settings.zone_chunks) == *only)
+      records.push_back({c, 1, encoder.encode(*zw.chunks.find(c))});
+  }
   target->write_checkpoint(records, 1, 0);
-  out << "migrate: cluster world " << zw.settings.name << " (" << zw.zones << " zones, "
-      << zw.records << " records replayed) into " << target->name() << ": " << records.size()
-      << " chunks\n";
+  out << "migrate: cluster world " << zw.settings.name;
+  if (only) out << ", zone (" << only->x << ", " << only->z << ") alone";
+  out << " (" << zw.zones << " zones, " << zw.records << " records replayed) into "
+      << target->name() << ": " << records.size() << " chunks\n";
   return 0;
 }
 
@@ -94,18 +128,25 @@ int world_migrate(const std::vector<std::string>& args, std::ostream& out, std::
                              "(from a single node's world), or a world directory")(
       "name", po::value<std::string>(), "into a cluster: the world's name (its nodes' `world`)")(
       "zone-chunks", po::value<int>()->default_value(16),
-      "into a cluster: the zones' size in chunks (its nodes' `zone_chunks`)");
+      "into a cluster: the zones' size in chunks (its nodes' `zone_chunks`)")(
+      "zone", po::value<std::string>(),
+      "out of a cluster: only the zone X,Z (its chunks; the rest is the generated terrain)");
   po::variables_map vm;
   const int rc = parse_options(
       args, opts, nullptr,
       "usage: voxel-cli world migrate --from WORLD --to postgresql://... --name NAME\n"
-      "       voxel-cli world migrate --from postgresql://... --to WORLD",
+      "       voxel-cli world migrate --from postgresql://... --to WORLD [--zone X,Z]",
       vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const std::string from = vm["from"].as<std::string>(), to = vm["to"].as<std::string>();
-    if (store::is_postgres_uri(from) && store::is_cluster_world(from))
-      return migrate_out(from, to, out, err);
+    if (store::is_postgres_uri(from) && store::is_cluster_world(from)) {
+      std::optional<world::ZoneId> only;
+      if (vm.count("zone")) only = parse_zone(vm["zone"].as<std::string>());
+      return migrate_out(from, to, only, out, err);
+    }
+    if (vm.count("zone"))
+      throw std::invalid_argument("world migrate: --zone takes one zone out of a cluster");
     if (!store::is_postgres_uri(to))
       throw std::invalid_argument("world migrate: --to must be a cluster's postgresql:// database");
     if (!vm.count("name"))

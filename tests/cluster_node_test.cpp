@@ -10,6 +10,7 @@
 #include <tuple>
 
 #include "client-cli/commands.hpp"
+#include "server/store/world_store.hpp"
 #include "tests/cluster_test_util.hpp"
 #include "tests/metrics_scrape.hpp"
 
@@ -143,6 +144,32 @@ TEST(ClusterNode, AWorldMigratedIntoAClusterAndBackShowsWhatASingleNodeShows) {
   EXPECT_EQ(bv_code, 0) << bv_out << bv_err;
   ServerProcess b({"--world", back});
   EXPECT_TRUE(world_seen(b) == single_node_after(all)) << "the world migrated back out";
+  // One zone alone: its chunks as the whole world has them, and nothing else.
+  const std::string one = (dir.path() / "one").string();
+  const world::ZoneId zone{1, 1};
+  const auto [one_code, one_out, one_err] =
+      cli({"world", "migrate", "--from", cluster.database, "--to", one, "--zone", "1,1"});
+  ASSERT_EQ(one_code, 0) << one_out << one_err;
+  EXPECT_EQ(std::get<0>(cli({"world", "migrate", "--from", cluster.database, "--to", one + "2",
+                             "--zone", "7,7"})),
+            1);  // no such zone
+  EXPECT_EQ(std::get<0>(cli({"world", "migrate", "--from", cluster.database, "--to", one + "3",
+                             "--zone", "1;1"})),
+            2);  // not X,Z
+  auto whole = store::open_world_store(back, {.read_only = true});
+  auto alone = store::open_world_store(one, {.read_only = true});
+  size_t in_zone = 0;
+  whole->for_each_chunk([&](world::ChunkCoord c, uint64_t) {
+    const auto copy = alone->read_chunk(c);
+    if (world::zone_of(c, kZoneChunks) != zone) {
+      EXPECT_FALSE(copy.has_value()) << "a chunk of another zone was migrated";
+      return;
+    }
+    ++in_zone;
+    EXPECT_TRUE(copy.has_value() && store::read_checkpointed_chunk(*alone, c) ==
+                                        store::read_checkpointed_chunk(*whole, c));
+  });
+  EXPECT_GT(in_zone, 0u);
 }
 
 // Replicas: a viewer on another node sees the owner's edits as they are committed, and
