@@ -436,15 +436,30 @@ TEST_F(ZoneLeasesTest, LiveNodesAreThoseWhoseHeartbeatIsWithinTheLease) {
 // run): the first keeps the id while its heartbeat runs; the second is told where it is.
 TEST_F(ZoneLeasesTest, ANodeIdIsOneProcesssWhileItsHeartbeatRuns) {
   const std::string db = fresh_database();
-  ZoneLeases first(db, "a", milliseconds(300)), second(db, "a", milliseconds(300));
+  const milliseconds lease(2000);
+  ZoneLeases first(db, "a", lease), second(db, "a", lease);
   EXPECT_FALSE(first.heartbeat("127.0.0.1:7777").has_value());
   EXPECT_EQ(second.heartbeat("127.0.0.1:8888"), std::optional<std::string>("127.0.0.1:7777"));
   EXPECT_FALSE(first.heartbeat("127.0.0.1:7777").has_value());  // still the first's
   second.leave();                                               // leaves nothing of the first's
   EXPECT_EQ(first.live_nodes(), (std::vector<std::string>{"a"}));
-  std::this_thread::sleep_for(milliseconds(400));  // the first stopped (kill -9)
+  // A row an earlier version wrote (no mark) is honoured the same way.
+  {
+    pqxx::connection c(db);
+    pqxx::work t(c);
+    t.exec(
+        "INSERT INTO nodes (node, address, alive_until) "
+        "VALUES ('old', '10.0.0.9:7777', now() + interval '2 seconds')");
+    t.commit();
+  }
+  ZoneLeases upgraded(db, "old", lease);
+  EXPECT_EQ(upgraded.heartbeat("127.0.0.1:9999"), std::optional<std::string>("10.0.0.9:7777"));
+  upgraded.leave();
+  EXPECT_EQ(first.live_nodes(), (std::vector<std::string>{"a", "old"}));
+  std::this_thread::sleep_for(lease + milliseconds(200));  // the first stopped (kill -9)
   EXPECT_FALSE(second.heartbeat("127.0.0.1:8888").has_value());
   EXPECT_EQ(first.heartbeat("127.0.0.1:7777"), std::optional<std::string>("127.0.0.1:8888"));
+  EXPECT_FALSE(upgraded.heartbeat("127.0.0.1:9999").has_value());
 }
 
 TEST_F(ZoneLeasesTest, BadSettingsAndAnUnreachableDatabaseAreOneLineErrors) {

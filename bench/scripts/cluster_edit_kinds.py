@@ -21,7 +21,8 @@ ZONE = 16 * 32  # voxels per zone side
 WARM_UP = 5  # edits per kind timed apart: the node starts following the place's zones
 per_kind = int(sys.argv[1]) if len(sys.argv) > 1 else 200
 cluster = Cluster("/tmp/edit_kinds", 55434, zone_chunks=16)
-load_args = ["--max-per-address", "0", "--max-clients", "4000"] if os.environ.get("LOAD") else []
+load_players = int(os.environ.get("LOAD", "0"))
+load_args = ["--max-per-address", "0", "--max-clients", "4000"] if load_players else []
 ports = {n: cluster.start(n, load_args) for n in "abc"}
 editor = Client("127.0.0.1", ports["a"], decode=False)
 editor.hello("kinds-editor")
@@ -70,13 +71,14 @@ def pick():
 
 
 load = None
-if int(os.environ.get("LOAD", "0")):
+if load_players:
     load = subprocess.Popen(
         [ROOT + "/build/bin/voxel-loadtest", "--server", f"127.0.0.1:{ports['a']}",
          "--more-servers", f"127.0.0.1:{ports['b']},127.0.0.1:{ports['c']}",
-         "--players", os.environ["LOAD"], "--duration", "600", "--server-pid", "-1",
+         "--players", str(load_players), "--duration", "600", "--server-pid", "-1",
          "--spread-addresses"],
         stdout=open("/tmp/edit_kinds/loadtest.log", "w"), stderr=subprocess.STDOUT)
+    cluster.procs["loadtest"] = load  # stopped with the nodes, or killed should we fail
     time.sleep(8)
 
 
@@ -92,7 +94,7 @@ for kind, ((bx, bz), zones) in pick().items():
     to_result, to_delta, refused, warm = [], [], 0, []
     for i in range(per_kind + WARM_UP):
         j = i // 10
-        x, y, z = bx + (j % 5) - 2, 40 + 7 * (i % 10), bz + (j // 5) - 2
+        x, y, z = bx + (j % 5) - 2, 40 + 7 * (i % 10), bz + (j // 5) % 5 - 2
         around = {(cx, cy, cz) for cx in range((x - 4) // 32, (x + 4) // 32 + 1)
                   for cy in range((y - 4) // 32, (y + 4) // 32 + 1)
                   for cz in range((z - 4) // 32, (z + 4) // 32 + 1)}
@@ -137,8 +139,10 @@ for kind, ((bx, bz), zones) in pick().items():
              q(to_delta, .99), len(to_result), refused, WARM_UP,
              " ".join("%.0f" % (1000 * w) for w in warm)), flush=True)
 elapsed = time.monotonic() - t_from
+model = [line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
+         if line.startswith("model name")]
 print("%s; stolen %.1f %% of the CPUs over %.0f s" % (
-    open("/proc/cpuinfo").read().split("model name")[1].split(":")[1].split("\n")[0].strip(),
+    model[0] if model else "CPU model unknown",
     100 * (thread_cpu.steal_seconds() - steal_from) / elapsed / os.cpu_count(), elapsed))
 for n, p in cluster.procs.items():
     cpu = thread_cpu.shares(cpu_from[n], thread_cpu.sample(p.pid), elapsed)

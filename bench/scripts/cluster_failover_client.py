@@ -35,7 +35,7 @@ time.sleep(1.0)
 try: viewer.pump(lambda: False, 1.0)
 except TimeoutError: pass
 print("viewer on b holds", len(viewer.chunks), "chunks")
-holder = cluster.holders().get((0, 0), "b")
+holder = cluster.holders()[(0, 0)]
 other, oport = ("b", pb) if holder == "a" else ("a", pa)
 print("holder of zone (0, 0):", holder)
 

@@ -65,14 +65,22 @@ class Cluster:
         return self.ports[node]
 
     def holders(self):
-        """{(zone x, zone z): node} from the nodes' logs ("took zone"), the latest take."""
-        taken = []
+        """{(zone x, zone z): node} from the nodes' logs: each zone's last take, unless its
+        taker lost it since."""
+        events = []
         for node in self.procs:
             for line in open(f"{self.dir}/{node}.log"):
-                m = re.search(r"^\[([^\]]+)\].*took zone \((-?\d+), (-?\d+)\)", line)
+                m = re.search(r"^\[([^\]]+)\].*(took|lost) zone \((-?\d+), (-?\d+)\)", line)
                 if m:
-                    taken.append((m.group(1), (int(m.group(2)), int(m.group(3))), node))
-        return {zone: node for _, zone, node in sorted(taken)}
+                    events.append((m.group(1), m.group(2) == "took", (int(m.group(3)),
+                                                                      int(m.group(4))), node))
+        out = {}
+        for _, took, zone, node in sorted(events):  # a loss before a take in one millisecond
+            if took:
+                out[zone] = node
+            elif out.get(zone) == node:
+                del out[zone]
+        return out
 
     def kill(self, node):
         self.procs[node].send_signal(signal.SIGKILL)
@@ -92,4 +100,5 @@ class Cluster:
                 p.send_signal(signal.SIGTERM)
                 print(name, "stopped with exit code", p.wait(timeout=15))
         self.nats.terminate()
+        self.nats.wait()
         self.pg(f"{self.pgbin}/pg_ctl -D {self.dir}/pg -m fast -w stop")

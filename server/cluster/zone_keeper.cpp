@@ -66,14 +66,21 @@ void ZoneKeeper::stop(bool release) {
 
 void ZoneKeeper::run() {
   const auto period = config_.lease / 3;
+  // Rounds asked for early (a zone wanted, a poke) come at most this often: a round
+  // renews every held zone in the database.
+  const auto least_gap = std::max<std::chrono::milliseconds>(config_.lease / 30, kLeastGap);
   std::unique_lock lock(mutex_);
   while (!stopping_) {
+    const Clock::time_point started = Clock::now();
     lock.unlock();
     round();
     if (events_.round) events_.round();
     lock.lock();
-    // Woken early by a stop or a zone asked for.
-    wake_.wait_for(lock, period, [&] { return stopping_ || asked_; });
+    // Woken early by a stop or a zone asked for. While another process holds the node id,
+    // sooner: a restarted node takes its id (and zones) back as soon as its earlier run's
+    // heartbeat has run out.
+    wake_.wait_for(lock, shadowed_ ? least_gap * 3 : period, [&] { return stopping_ || asked_; });
+    wake_.wait_until(lock, started + least_gap, [&] { return stopping_; });
     asked_ = false;
   }
   if (!release_) return;
@@ -120,8 +127,16 @@ void ZoneKeeper::round() {
     store::ZoneLeases& db = leases_->db;
     if (const std::optional<std::string> other = db.heartbeat(config_.address)) {
       // Another process runs as this node: it takes and renews the zones, this one holds
-      // none (edits here are forwarded) until that one's heartbeat runs out.
-      if (!shadowed_ || start - shadow_logged_ >= std::chrono::seconds(60)) {
+      // none (edits here are forwarded) until that one's heartbeat runs out. Within two
+      // leases that is most likely this node's earlier run (killed, restarted): no error.
+      if (!shadowed_) shadowed_since_ = start;
+      const bool long_ago = start - shadowed_since_ >= 2 * config_.lease;
+      if (!shadowed_) {
+        spdlog::warn(
+            "zones: node id {} is alive at {} (an earlier run of this node, or another process "
+            "given the same id): this one takes no zones until its heartbeat runs out",
+            config_.node, *other);
+      } else if (long_ago && (!shadow_logged_ || start - *shadow_logged_ >= kShadowLogEvery)) {
         spdlog::error(
             "zones: another process runs as node {} (at {}); two processes must not share a "
             "node id: this one takes no zones while that one lives",
@@ -132,8 +147,9 @@ void ZoneKeeper::round() {
       for (const auto& [zone, h] : held) lose(zone, h.epoch, "another process runs as this node");
       return;
     }
-    if (shadowed_) spdlog::info("zones: node {} is this process's again", config_.node);
+    if (shadowed_) spdlog::info("zones: node id {} is this process's now", config_.node);
     shadowed_ = false;
+    shadow_logged_.reset();
     const ZonePlan plan = plan_zones(held_zones, interest, db.live_nodes(), config_.node);
     for (const world::ZoneId zone : plan.renew) {
       const uint64_t epoch = held.at(zone).epoch;

@@ -88,10 +88,13 @@ class ZoneKeeper {
   std::map<world::ZoneId, Held> held_;
   std::set<world::ZoneId> interest_;
   bool stopping_ = false, release_ = false, asked_ = false;
-  // The keeper thread's: another process's heartbeat has this node id (and when that was
-  // last logged).
+  // The keeper thread's alone: another process's heartbeat has this node id, since when,
+  // and when that was last logged as an error.
+  static constexpr std::chrono::milliseconds kLeastGap{50};
+  static constexpr std::chrono::seconds kShadowLogEvery{60};
   bool shadowed_ = false;
-  Clock::time_point shadow_logged_{};
+  Clock::time_point shadowed_since_{};
+  std::optional<Clock::time_point> shadow_logged_;
   std::thread thread_;
 };
 

@@ -30,7 +30,9 @@ bool ZoneReplicas::viewing(world::ZoneId zone) {
   std::lock_guard lock(mutex_);
   const Clock::time_point now = Clock::now();
   auto& seen = viewed_[zone];
-  const bool fresh = seen == Clock::time_point{} || now - seen >= config_.idle;
+  // Not followed now (never viewed, or idle since), and a follower could start for it.
+  const bool fresh = (seen == Clock::time_point{} || now - seen >= config_.idle) &&
+                     followed_.load(std::memory_order_relaxed) < config_.max_zones;
   seen = now;
   const size_t bound = kViewedPerFollowed * config_.max_zones;
   if (viewed_.size() <= bound) return fresh;

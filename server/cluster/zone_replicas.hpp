@@ -49,8 +49,9 @@ class ZoneReplicas {
   ZoneReplicas(const ZoneReplicas&) = delete;
   ZoneReplicas& operator=(const ZoneReplicas&) = delete;
 
-  // A player views `zone` now; true when it was not viewed within `idle` (not followed:
-  // the caller has reconcile run soon, since the view shows no records of it until then).
+  // A player views `zone` now; true when it was not viewed within `idle` (not followed)
+  // and fewer than `max_zones` are followed: the caller has reconcile run soon, since the
+  // view shows no records of it until then.
   bool viewing(world::ZoneId zone);
   // Starts following the zones viewed lately and not held (`held`), from the record after
   // `applied(zone)`; stops following held ones and those idle. Followers that cannot start
