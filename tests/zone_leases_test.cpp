@@ -462,6 +462,30 @@ TEST_F(ZoneLeasesTest, ANodeIdIsOneProcesssWhileItsHeartbeatRuns) {
   EXPECT_FALSE(upgraded.heartbeat("127.0.0.1:9999").has_value());
 }
 
+// A database an earlier version made (no checkpoint_seq, edit ids or process marks) gets
+// the missing columns and index, its rows kept, and works.
+TEST_F(ZoneLeasesTest, AnOlderDatabaseGetsTheMissingColumnsAndKeepsItsRows) {
+  const std::string db = fresh_database();
+  {
+    pqxx::connection c(db);
+    pqxx::work t(c);
+    t.exec(
+        "CREATE TABLE zones (zone BIGINT PRIMARY KEY, epoch BIGINT NOT NULL, owner TEXT, "
+        "lease_until TIMESTAMPTZ NOT NULL, last_seq BIGINT NOT NULL DEFAULT 0);"
+        "CREATE TABLE zone_log (zone BIGINT NOT NULL, seq BIGINT NOT NULL, epoch BIGINT NOT NULL, "
+        "at_ms BIGINT NOT NULL, record BYTEA NOT NULL, PRIMARY KEY (zone, seq));"
+        "CREATE TABLE nodes (node TEXT PRIMARY KEY, address TEXT NOT NULL, "
+        "alive_until TIMESTAMPTZ NOT NULL);"
+        "INSERT INTO zones VALUES (5, 3, NULL, now(), 0);");
+    t.commit();
+  }
+  ZoneLeases a(db, "a", milliseconds(2000));
+  EXPECT_EQ(a.acquire(world::ZoneId::from_key(5)), std::optional<uint64_t>(4));
+  EXPECT_FALSE(a.heartbeat("127.0.0.1:7777").has_value());
+  ZoneLeases again(db, "b", milliseconds(2000));  // the schema is whole now: nothing altered
+  EXPECT_EQ(again.live_nodes(), (std::vector<std::string>{"a"}));
+}
+
 TEST_F(ZoneLeasesTest, BadSettingsAndAnUnreachableDatabaseAreOneLineErrors) {
   const std::string db = fresh_database();
   EXPECT_THROW(ZoneLeases(db, "", milliseconds(1000)), StoreError);

@@ -13,7 +13,16 @@
 namespace vox::store {
 namespace {
 
+// Each column and index is added only when missing: an ALTER with nothing to do would
+// still lock a busy table whole (a rolling upgrade of live nodes).
 constexpr const char* kCreateTables = R"sql(
+CREATE OR REPLACE FUNCTION pg_temp.vox_add_column(t TEXT, c TEXT, decl TEXT) RETURNS void
+LANGUAGE plpgsql AS $$ BEGIN
+  IF NOT EXISTS (SELECT 1 FROM information_schema.columns WHERE table_schema = current_schema()
+                 AND table_name = t AND column_name = c) THEN
+    EXECUTE format('ALTER TABLE %I ADD COLUMN %I %s', t, c, decl);
+  END IF;
+END $$;
 CREATE TABLE IF NOT EXISTS zones (zone BIGINT PRIMARY KEY, epoch BIGINT NOT NULL,
                                   owner TEXT, lease_until TIMESTAMPTZ NOT NULL,
                                   last_seq BIGINT NOT NULL DEFAULT 0);
@@ -25,11 +34,8 @@ CREATE TABLE IF NOT EXISTS nodes (node TEXT PRIMARY KEY, address TEXT NOT NULL,
 CREATE TABLE IF NOT EXISTS cluster_world (one BOOLEAN PRIMARY KEY DEFAULT TRUE CHECK (one),
                                           name TEXT NOT NULL, seed BIGINT NOT NULL,
                                           zone_chunks INTEGER NOT NULL);
+SELECT pg_temp.vox_add_column('zone_log', 'edit_id', 'BIGINT NOT NULL DEFAULT 0');
 DO $$ BEGIN
-  IF NOT EXISTS (SELECT 1 FROM information_schema.columns WHERE table_schema = current_schema()
-                 AND table_name = 'zone_log' AND column_name = 'edit_id') THEN
-    ALTER TABLE zone_log ADD COLUMN edit_id BIGINT NOT NULL DEFAULT 0;
-  END IF;
   IF to_regclass('zone_log_edit') IS NULL THEN
     CREATE INDEX zone_log_edit ON zone_log (zone, edit_id) WHERE edit_id <> 0;
   END IF;
@@ -38,23 +44,13 @@ CREATE TABLE IF NOT EXISTS zone_pending (zone BIGINT NOT NULL, edit_id BIGINT NO
                                          at_ms BIGINT NOT NULL, record BYTEA NOT NULL,
                                          since TIMESTAMPTZ NOT NULL DEFAULT now(),
                                          PRIMARY KEY (zone, edit_id));
-DO $$ BEGIN
-  IF NOT EXISTS (SELECT 1 FROM information_schema.columns WHERE table_schema = current_schema()
-                 AND table_name = 'zones' AND column_name = 'checkpoint_seq') THEN
-    ALTER TABLE zones ADD COLUMN checkpoint_seq BIGINT NOT NULL DEFAULT 0;
-  END IF;
-END $$;
+SELECT pg_temp.vox_add_column('zones', 'checkpoint_seq', 'BIGINT NOT NULL DEFAULT 0');
 CREATE TABLE IF NOT EXISTS zone_chunks (zone BIGINT NOT NULL, cx INTEGER NOT NULL,
                                         cy INTEGER NOT NULL, cz INTEGER NOT NULL,
                                         seq BIGINT NOT NULL, epoch BIGINT NOT NULL,
                                         samples BYTEA NOT NULL,
                                         PRIMARY KEY (zone, cx, cy, cz, seq));
-DO $$ BEGIN
-  IF NOT EXISTS (SELECT 1 FROM information_schema.columns WHERE table_schema = current_schema()
-                 AND table_name = 'nodes' AND column_name = 'instance') THEN
-    ALTER TABLE nodes ADD COLUMN instance BIGINT NOT NULL DEFAULT 0;
-  END IF;
-END $$;
+SELECT pg_temp.vox_add_column('nodes', 'instance', 'BIGINT NOT NULL DEFAULT 0');
 )sql";
 
 // Whether kCreateTables has nothing left to do (its last table and columns are there).
@@ -144,8 +140,6 @@ ZoneLeases::ZoneLeases(std::string uri, std::string node, std::chrono::milliseco
     if (t.exec1(kSchemaThere)[0].as<bool>()) return;
     t.exec("SELECT pg_advisory_xact_lock(7008)");     // one creator at a time
     if (t.exec1(kSchemaThere)[0].as<bool>()) return;  // the one before made it
-    // Each column and index is added only when missing: an ALTER that finds nothing to do
-    // would still lock a busy table whole (a rolling upgrade of live nodes).
     t.exec(kCreateTables);
     t.commit();
   });
