@@ -3,7 +3,8 @@
 // "Moving in"), and voxel-cli world verify|info of a cluster world. Offline: the source is
 // only read; the target must be empty and no node may run on it.
 #include <algorithm>
-#include <climits>
+#include <array>
+#include <cmath>
 #include <optional>
 #include <ostream>
 #include <stdexcept>
@@ -21,24 +22,14 @@ namespace {
 
 constexpr std::chrono::milliseconds kToolLease{30000};
 
-// "X,Z": a zone's coordinates (zone units, each int32).
+// "X,Z": a zone's coordinates (whole numbers, in zones).
 world::ZoneId parse_zone(const std::string& text) {
-  const size_t comma = text.find(',');
-  const auto number = [&](const std::string& part) {
-    size_t used = 0;
-    long long v = 0;
-    try {
-      v = std::stoll(part, &used);
-    } catch (const std::logic_error&) {
-      used = 0;
-    }
-    if (used == 0 || used != part.size() || v < INT32_MIN || v > INT32_MAX)
-      throw std::invalid_argument("world migrate: --zone must be X,Z (two integers), got '" + text +
-                                  "'");
-    return static_cast<int32_t>(v);
-  };
-  if (comma == std::string::npos) number("");
-  return {number(text.substr(0, comma)), number(text.substr(comma + 1))};
+  const std::array<float, 2> f = parse_vec2(text, "--zone");
+  for (const float v : f) {
+    if (v != std::floor(v) || std::fabs(v) > 1e7f)
+      throw std::invalid_argument("world migrate: --zone must be whole zone coordinates X,Z");
+  }
+  return {static_cast<int32_t>(f[0]), static_cast<int32_t>(f[1])};
 }
 
 // A single node's world as its store leaves it: its checkpointed chunks, then the log
@@ -140,13 +131,11 @@ int world_migrate(const std::vector<std::string>& args, std::ostream& out, std::
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const std::string from = vm["from"].as<std::string>(), to = vm["to"].as<std::string>();
-    if (store::is_postgres_uri(from) && store::is_cluster_world(from)) {
-      std::optional<world::ZoneId> only;
-      if (vm.count("zone")) only = parse_zone(vm["zone"].as<std::string>());
+    std::optional<world::ZoneId> only;  // a usage error before any connection
+    if (vm.count("zone")) only = parse_zone(vm["zone"].as<std::string>());
+    if (store::is_postgres_uri(from) && store::is_cluster_world(from))
       return migrate_out(from, to, only, out, err);
-    }
-    if (vm.count("zone"))
-      throw std::invalid_argument("world migrate: --zone takes one zone out of a cluster");
+    if (only) throw std::invalid_argument("world migrate: --zone takes one zone out of a cluster");
     if (!store::is_postgres_uri(to))
       throw std::invalid_argument("world migrate: --to must be a cluster's postgresql:// database");
     if (!vm.count("name"))
