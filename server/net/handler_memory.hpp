@@ -6,9 +6,13 @@
 // larger one).
 //
 // Lifetime: Asio may give an operation's memory back after its handler was destroyed (an
-// io_context shutting down with the operation pending), so the blocks cannot live in the
-// connection. The connection holds a HandlerMemory::Owner; the memory is freed when that
-// is gone and the last block is back. allocate and deallocate may run on any thread.
+// io_context shutting down with the operation pending), and a handler may allocate again
+// after its connection is gone (a timer's handler, cancelled by the connection's
+// destruction, is moved out of its operation, the operation's block given back, and the
+// handler then posted to its strand: a new operation). So the blocks cannot live in the
+// connection. The connection holds a HandlerMemory::Owner, each wrapped handler a
+// reference, and each block in use one more; the memory is freed when all are gone.
+// allocate and deallocate may run on any thread.
 #pragma once
 
 #include <array>
@@ -60,6 +64,25 @@ class HandlerMemory {
 
   static constexpr size_t bytes() { return sizeof(HandlerMemory); }
 
+  // A counted reference, held by each handler wrapped by `with_memory` (moves are free).
+  class Ref {
+   public:
+    explicit Ref(HandlerMemory* m) : m_(m) { m_->refs_.fetch_add(1, std::memory_order_relaxed); }
+    Ref(const Ref& o) : Ref(o.m_) {}
+    Ref(Ref&& o) noexcept : m_(std::exchange(o.m_, nullptr)) {}
+    Ref& operator=(Ref o) noexcept {
+      std::swap(m_, o.m_);
+      return *this;
+    }
+    ~Ref() {
+      if (m_) m_->unref();
+    }
+    HandlerMemory* get() const { return m_; }
+
+   private:
+    HandlerMemory* m_;
+  };
+
  private:
   HandlerMemory() = default;
   void unref() {
@@ -71,7 +94,7 @@ class HandlerMemory {
     std::atomic<bool> used{false};
   };
   std::array<Block, kBlocks> blocks_;
-  std::atomic<size_t> refs_{1};  // the owner and each block in use
+  std::atomic<size_t> refs_{1};  // the owner, each handler's Ref and each block in use
 };
 
 template <class T>
@@ -101,14 +124,14 @@ class WithMemory {
   using allocator_type = HandlerAllocator<void>;
   WithMemory(HandlerMemory* memory, Handler handler)
       : memory_(memory), handler_(std::move(handler)) {}
-  allocator_type get_allocator() const noexcept { return allocator_type(memory_); }
+  allocator_type get_allocator() const noexcept { return allocator_type(memory_.get()); }
   template <class... Args>
   void operator()(Args&&... args) {
     handler_(std::forward<Args>(args)...);
   }
 
  private:
-  HandlerMemory* memory_;
+  HandlerMemory::Ref memory_;  // alive while this handler is, whoever else let go of it
   Handler handler_;
 };
 
