@@ -71,6 +71,57 @@ TEST(ClusterNode,
   EXPECT_EQ(metric(b, "voxeld_cluster_checkpoints_fenced_total"), 0);
 }
 
+// Evicting a zone's chunks (docs/CLUSTER.md): a holder's changed chunks, once its zone
+// checkpoints hold them, leave memory and are read back alone when a view or an edit needs
+// them. After the node lost the zones (stopped past its lease while another took them,
+// edited and checkpointed them), chunks read back from the successor's checkpoints would
+// be ahead of its world: it installs the zones afresh instead, and shows what a single
+// node shows.
+TEST(ClusterNode, ChangedChunksEvictedFromHeldZonesAreReadBackAndInstalledAfreshAfterALoss) {
+  const Cluster cluster;
+  const auto args = [&](const std::string& node) {
+    return std::vector<std::string>{"--cluster",
+                                    cluster.config(node),
+                                    "--metrics-port",
+                                    "0",
+                                    "--evict-after",
+                                    "1",
+                                    "--checkpoint-interval",
+                                    "0.2"};
+  };
+  const auto metric = [](const ServerProcess& p, const char* name) {
+    return scrape(p.metrics_port()).at(name);
+  };
+  const std::vector<wire::Envelope> edits = border_edits();
+  std::vector<wire::Envelope> all = edits;
+  all.push_back(brush(100, 60.0f, 66.0f, 3, 4.0f));  // on a, on chunks read back
+  const size_t on_a = all.size();
+  for (uint64_t i = 0; i < 3; ++i) all.push_back(explosion(200 + i, 62.0f + 2.5f * i, 65.0f));
+  ServerProcess a(args("a"));
+  const auto all_evicted = [&] {
+    return eventually(&a, [&] {
+      return metric(a, "voxeld_chunks_modified") == 0 && metric(a, "voxeld_chunks_stored") > 0;
+    });
+  };
+  apply_all(a, edits);
+  ASSERT_TRUE(all_evicted()) << "a's changed chunks stayed in memory";
+  EXPECT_TRUE(world_seen(a) == single_node_after(edits)) << "a, its chunks read back";
+  apply_all(a, {all.begin() + static_cast<long>(edits.size()), all.begin() + on_a});
+  ASSERT_TRUE(all_evicted());
+  // a stops past its lease; b takes its zones, edits them and checkpoints them.
+  ::kill(a.pid(), SIGSTOP);
+  ServerProcess b(args("b"));
+  apply_all(b, {all.begin() + static_cast<long>(on_a), all.end()});
+  const double written = metric(b, "voxeld_cluster_checkpoints_written_total");
+  EXPECT_TRUE(eventually(
+      &b, [&] { return metric(b, "voxeld_cluster_checkpoints_written_total") >= written + 4; }));
+  ::kill(a.pid(), SIGCONT);
+  const Seen expected = single_node_after(all);
+  EXPECT_TRUE(eventually_seen(a, expected) == expected) << "a, after losing its zones";
+  EXPECT_GE(metric(a, "voxeld_cluster_checkpoints_installed_total"), 1);
+  EXPECT_TRUE(eventually_seen(b, expected) == expected) << "b";
+}
+
 // A zone checkpoint whose chunks do not decode (a damaged row): the node taking the zone
 // applies the zone's log instead, and shows what a single node shows.
 TEST(ClusterNode, ANodeWhoseZoneCheckpointDoesNotDecodeAppliesTheLogInstead) {

@@ -352,6 +352,28 @@ TEST_F(ZoneLeasesTest, AZoneCheckpointIsReadAsEachChunksLatestVersionThroughIt) 
   EXPECT_EQ(a.fenced(), 0u);
 }
 
+// A changed chunk a holder evicted is read back alone: its latest version through the
+// zone's checkpoint, and only by a world that applied the zone's records at least that far
+// (a world behind a successor's checkpoint would apply records twice on it).
+TEST_F(ZoneLeasesTest, AnEvictedChunkIsReadBackAtTheZonesCheckpointOnlyByAWorldThatFar) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000));
+  const ZoneId zone{0, 0};
+  EXPECT_FALSE(a.read_chunk(zone, {1, 1, 1}, 0).has_value());  // no zone row yet
+  const uint64_t epoch = *a.acquire(zone);
+  a.append(zone, epoch, records(1, 6));
+  EXPECT_FALSE(a.read_chunk(zone, {1, 1, 1}, 6).has_value());  // no checkpoint holds it
+  a.write_checkpoint(epoch, {.zone = zone, .seq = 3, .chunks = {{{1, 1, 1}, 3, {3}}}});
+  a.write_checkpoint(epoch, {.zone = zone, .seq = 5, .chunks = {{{2, 1, 1}, 5, {5}}}});
+  std::optional<ChunkRecord> c = a.read_chunk(zone, {1, 1, 1}, 6);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->seq, 3u);  // unchanged since 3
+  EXPECT_EQ(c->samples, (std::vector<uint8_t>{3}));
+  EXPECT_EQ(a.read_chunk(zone, {2, 1, 1}, 5)->samples, (std::vector<uint8_t>{5}));
+  EXPECT_FALSE(a.read_chunk(zone, {3, 1, 1}, 5).has_value());
+  EXPECT_THROW(a.read_chunk(zone, {1, 1, 1}, 4), StoreError);  // behind the checkpoint
+}
+
 // The safety rule for checkpoints: a holder paused past its lease cannot move the
 // zone's checkpoint after its successor took it, and what it wrote before the fence
 // refused it is never read.

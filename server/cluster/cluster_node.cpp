@@ -28,7 +28,7 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
       read_db_(config_.database, config_.node, config_.lease),
       checkpoint_db_(config_.database, config_.node, config_.lease),
       publisher_(nats_, append_db_, config_.world),
-      store_(table_, publisher_, checkpoint_db_, config_.zone_chunks, seed,
+      store_(table_, publisher_, checkpoint_db_, read_db_, config_.zone_chunks, seed,
              "cluster world " + config_.world + " (" + store::redact_uri(config_.database) + ")"),
       replicas_(nats_,
                 {.world = config_.world,

@@ -83,6 +83,9 @@ class ClusterNode : public pipeline::ZoneAuthority {
   void undone(const pipeline::EditTask& task) override;
   pipeline::CheckpointScope checkpoint_scope(uint64_t seq) override;
   void viewing(world::ChunkCoord center, int radius) override;
+  bool may_evict(world::ChunkCoord c) override {
+    return table_.may_evict(world::zone_of(c, config_.zone_chunks));
+  }
   bool records_waiting() override { return records_.waiting(); }
   std::optional<pipeline::ZoneRecords> next_records() override { return records_.next(); }
   void applied(const pipeline::ZoneRecords& records, uint64_t through) override;

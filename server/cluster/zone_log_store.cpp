@@ -8,11 +8,12 @@
 namespace vox::cluster {
 
 ZoneLogStore::ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher,
-                           store::ZoneLeases& checkpoint_db, int zone_chunks, uint64_t seed,
-                           std::string name)
+                           store::ZoneLeases& checkpoint_db, store::ZoneLeases& read_db,
+                           int zone_chunks, uint64_t seed, std::string name)
     : zones_(zones),
       publisher_(publisher),
       checkpoint_db_(checkpoint_db),
+      read_db_(read_db),
       zone_chunks_(zone_chunks),
       seed_(seed),
       name_(std::move(name)) {}

@@ -10,13 +10,15 @@
 // Checkpoints (docs/CLUSTER.md, "Zone checkpoints"): the pipeline's checkpoint of the
 // chunks of the zones it holds is written zone by zone, each fenced by its epoch and at
 // the zone's own sequence number noted when the checkpoint started; the log is kept (no
-// trimming yet). Nothing else of a single node's store is kept here yet: no protected
-// regions, and the world is read zone by zone as the node takes or follows zones (their
-// checkpoints, then their logs), not at start nor chunk by chunk.
+// trimming yet). The world is read zone by zone as the node takes or follows zones (their
+// checkpoints, then their logs), not at start; a changed chunk evicted from a zone held
+// here is read back alone from the zone's checkpoint (read_chunk). Nothing else of a
+// single node's store is kept here yet: no protected regions.
 //
 // Threads: the pipeline's appender calls append_edits, the pipeline thread
-// checkpoint_started, the checkpoint writer's thread write_checkpoint (on its own
-// connection); the rest is read once, by the pipeline's constructor.
+// checkpoint_started and read_chunk (on the pipeline thread's connection), the checkpoint
+// writer's thread write_checkpoint (on its own connection); the rest is read once, by the
+// pipeline's constructor.
 #pragma once
 
 #include <atomic>
@@ -36,9 +38,10 @@ namespace vox::cluster {
 
 class ZoneLogStore : public store::WorldStore {
  public:
-  // `checkpoint_db`: the connection checkpoints are written on.
+  // `checkpoint_db`: the connection checkpoints are written on; `read_db`: the pipeline
+  // thread's.
   ZoneLogStore(ZoneTable& zones, ZonePublisher& publisher, store::ZoneLeases& checkpoint_db,
-               int zone_chunks, uint64_t seed, std::string name);
+               store::ZoneLeases& read_db, int zone_chunks, uint64_t seed, std::string name);
 
   // A checkpoint through the pipeline's edit `seq` starts: the zones it writes, each with
   // its epoch and last record applied (ZoneTable::start_checkpoint).
@@ -53,7 +56,12 @@ class ZoneLogStore : public store::WorldStore {
                     const store::RegionWrite* regions) override;
   store::RegionTable read_regions() override { return {}; }
   void write_checkpoint(std::span<const store::ChunkRecord>, uint64_t, uint64_t) override;
-  std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord) override { return std::nullopt; }
+  // A changed chunk evicted from a zone held here (ZoneTable::may_evict), as the zone's
+  // checkpoint has it; StoreError when that is past what the world applied of the zone.
+  std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {
+    const world::ZoneId zone = world::zone_of(c, zone_chunks_);
+    return read_db_.read_chunk(zone, c, zones_.applied(zone));
+  }
   void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t)>&) override {}
   void for_each_edit(uint64_t, const std::function<bool(const store::LoggedEdit&)>&) override {}
 
@@ -61,6 +69,7 @@ class ZoneLogStore : public store::WorldStore {
   ZoneTable& zones_;
   ZonePublisher& publisher_;
   store::ZoneLeases& checkpoint_db_;
+  store::ZoneLeases& read_db_;
   std::mutex mutex_;  // guards started_
   std::optional<std::pair<uint64_t, std::vector<ZoneTable::CheckpointZone>>> started_;
   // The checkpoint writer's thread: per zone, the last record a checkpoint was written

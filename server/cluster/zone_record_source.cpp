@@ -29,6 +29,7 @@ ZoneRecordSource::ZoneRecordSource(ZoneTable& table, ZoneReplicas& replicas,
       store_name_(std::move(store_name)) {}
 
 std::optional<pipeline::ZoneRecords> ZoneRecordSource::next() {
+  if (const std::optional<world::ZoneId> zone = table_.next_fresh()) return fresh_records(*zone);
   // Taken zones' logs and followed zones' records in turn: a zone whose records cannot be
   // applied now must not hold up the others.
   catch_up_first_ = !catch_up_first_;
@@ -87,6 +88,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
     targets_[c->zone] = row->last_seq;
     pipeline::ZoneRecords out{.zone = c->zone,
                               .epoch = c->epoch,
+                              .fresh = c->fresh,
                               .checkpoint = std::nullopt,
                               .edits = {},
                               .through = c->applied};
@@ -100,6 +102,27 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
   }
 }
 
+pipeline::ZoneRecords ZoneRecordSource::fresh_records(world::ZoneId zone) {
+  handed_.clear();
+  pipeline::ZoneRecords out{.zone = zone,
+                            .epoch = 0,
+                            .fresh = true,
+                            .checkpoint = std::nullopt,
+                            .edits = {},
+                            .through = 0};
+  // Not followed: forgotten (its chunks would stay in memory, never evicted, never updated);
+  // installed when it is followed again.
+  if (!replicas_.following(zone)) return out;
+  if (const std::optional<store::ZoneRow> row = db_.read(zone)) {
+    out.checkpoint = checkpoint_past(zone, 0, row->checkpoint_seq);
+    if (out.checkpoint) out.through = out.checkpoint->seq;
+    const std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
+    expect_next(zone, read, out.through);
+    append_run(zone, read, out, UINT64_MAX);
+  }
+  return out;
+}
+
 // Records of a followed zone, as its owner committed them.
 std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
   // A zone followed anew whose checkpoint the world should install (its follower starts
@@ -110,17 +133,21 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     const world::ZoneId zone = started[i];
     if (table_.held(zone)) continue;
     try {
-      const uint64_t applied = table_.applied(zone);
+      const auto [applied, fresh] = table_.position(zone);
       const std::optional<store::ZoneRow> row = db_.read(zone);
       if (!row || !checkpoint_first(applied, row->checkpoint_seq)) continue;
-      pipeline::ZoneRecords out{
-          .zone = zone, .epoch = 0, .checkpoint = std::nullopt, .edits = {}, .through = applied};
+      pipeline::ZoneRecords out{.zone = zone,
+                                .epoch = 0,
+                                .fresh = fresh,
+                                .checkpoint = std::nullopt,
+                                .edits = {},
+                                .through = applied};
       out.checkpoint = checkpoint_past(zone, applied, row->checkpoint_seq);
       if (out.checkpoint) out.through = out.checkpoint->seq;
       const std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
       expect_next(zone, read, out.through);
       append_run(zone, read, out, UINT64_MAX);
-      if (!out.checkpoint && out.edits.empty()) continue;
+      if (!out.checkpoint && out.edits.empty() && !out.fresh) continue;
       for (size_t j = i + 1; j < started.size(); ++j) replicas_.started_again(started[j]);
       handed_.clear();
       return out;
@@ -134,9 +161,13 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
       [this](world::ZoneId z) { return table_.applied(z); });
   if (!taken) return std::nullopt;
   const world::ZoneId zone = taken->zone;
-  const uint64_t applied = table_.applied(zone);
-  pipeline::ZoneRecords out{
-      .zone = zone, .epoch = 0, .checkpoint = std::nullopt, .edits = {}, .through = applied};
+  const auto [applied, fresh] = table_.position(zone);
+  pipeline::ZoneRecords out{.zone = zone,
+                            .epoch = 0,
+                            .fresh = fresh,
+                            .checkpoint = std::nullopt,
+                            .edits = {},
+                            .through = applied};
   if (taken->records.front().seq != applied + 1) {
     // Not the next record (this node's world moved otherwise, or its follower started
     // after the zone's checkpoint): the checkpoint first if it should be installed, and
@@ -152,7 +183,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
       replicas_.give_back(zone, std::move(taken->records));
       throw;
     }
-    if (taken->records.empty() && !out.checkpoint) return std::nullopt;
+    if (taken->records.empty() && !out.checkpoint && !out.fresh) return std::nullopt;
   }
   size_t used = 0;
   try {
@@ -168,7 +199,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     taken->records.resize(used);
   }
   handed_ = std::move(taken->records);
-  if (out.edits.empty() && !out.checkpoint) return std::nullopt;
+  if (out.edits.empty() && !out.checkpoint && !out.fresh) return std::nullopt;
   return out;
 }
 
@@ -186,6 +217,8 @@ std::optional<store::ZoneCheckpoint> ZoneRecordSource::checkpoint_past(world::Zo
 }
 
 void ZoneRecordSource::applied(const pipeline::ZoneRecords& records, uint64_t through) {
+  // The world forgot what it had of the zone: it has the records through `through` now.
+  if (records.fresh) table_.reset(records.zone, through);
   if (records.checkpoint && through < records.checkpoint->seq) {
     // Not installed (a chunk that does not decode, or lies outside the zone: the pipeline
     // said which): its log is applied instead, from what the world has.

@@ -3,7 +3,9 @@
 // taken, or whose append was in doubt, to the log's end (the zone is writable then); and
 // the records of the zones it follows, as their holders commit them. A zone's checkpoint
 // comes first when the world should install it rather than apply the records before it
-// (checkpoint_first): a zone taken or followed anew, or far behind.
+// (checkpoint_first): a zone taken or followed anew, or far behind. A zone lost after the
+// node evicted a chunk of it is installed afresh (ZoneTable::fresh), or forgotten when it is
+// not followed.
 //
 // Threads: the pipeline thread, but installed() (any thread).
 #pragma once
@@ -29,7 +31,9 @@ class ZoneRecordSource {
   ZoneRecordSource(ZoneTable& table, ZoneReplicas& replicas, ZonePublisher& publisher,
                    store::ZoneLeases& db, std::string store_name);
 
-  bool waiting() const { return table_.catching_up() || replicas_.waiting(); }
+  bool waiting() const {
+    return table_.catching_up() || replicas_.waiting() || table_.next_fresh().has_value();
+  }
   // The next records to apply, or nullopt. Throws store::StoreError when a log cannot be read.
   std::optional<pipeline::ZoneRecords> next();
   // The pipeline applied `records` through `through` (short of their end: the rest is
@@ -39,6 +43,9 @@ class ZoneRecordSource {
 
  private:
   std::optional<pipeline::ZoneRecords> catch_up();
+  // A zone lost after this node evicted a chunk of it (ZoneTable::fresh): the world forgets
+  // what it has of it, and installs it again at once if it is followed.
+  pipeline::ZoneRecords fresh_records(world::ZoneId zone);
   std::optional<pipeline::ZoneRecords> followed_records();
   // The zone's checkpoint when a world with its records through `applied` should install
   // it first (checkpoint_first).

@@ -27,9 +27,47 @@ void ZoneTable::lost(world::ZoneId zone, uint64_t epoch) {
   std::lock_guard lock(mutex_);
   const auto it = zones_.find(zone);
   if (it == zones_.end() || it->second.epoch != epoch) return;
-  it->second.epoch.reset();
-  it->second.behind = false;
-  it->second.leaving = false;
+  Zone& z = it->second;
+  z.epoch.reset();
+  z.behind = false;
+  z.leaving = false;
+  if (z.evicted) {
+    z.evicted = false;
+    z.fresh = true;
+    z.applied = 0;
+  }
+}
+
+bool ZoneTable::may_evict(world::ZoneId zone) {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it == zones_.end() || !it->second.epoch || it->second.behind || it->second.leaving ||
+      it->second.fresh)
+    return false;
+  it->second.evicted = true;
+  return true;
+}
+
+ZoneTable::Position ZoneTable::position(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = zones_.find(zone);
+  if (it == zones_.end()) return {};
+  return {it->second.fresh ? 0 : it->second.applied, it->second.fresh};
+}
+
+std::optional<world::ZoneId> ZoneTable::next_fresh() const {
+  std::lock_guard lock(mutex_);
+  for (const auto& [zone, z] : zones_) {
+    if (z.fresh && !z.epoch) return zone;
+  }
+  return std::nullopt;
+}
+
+void ZoneTable::reset(world::ZoneId zone, uint64_t through) {
+  std::lock_guard lock(mutex_);
+  Zone& z = zones_[zone];
+  z.fresh = false;
+  z.applied = through;
 }
 
 std::optional<uint64_t> ZoneTable::writable(world::ZoneId zone) const {
@@ -74,13 +112,13 @@ std::vector<ZoneTable::CheckpointZone> ZoneTable::start_checkpoint() {
 void ZoneTable::committed(world::ZoneId zone, uint64_t last) {
   std::lock_guard lock(mutex_);
   Zone& z = zones_[zone];
-  if (last > z.applied) z.applied = last;
+  if (last > z.applied && !z.fresh) z.applied = last;  // fresh: read from the log again
 }
 
 std::optional<ZoneTable::CatchUp> ZoneTable::next_catch_up() const {
   std::lock_guard lock(mutex_);
   for (const auto& [zone, z] : zones_) {
-    if (z.epoch && z.behind) return CatchUp{zone, *z.epoch, z.applied};
+    if (z.epoch && z.behind) return CatchUp{zone, *z.epoch, z.fresh ? 0 : z.applied, z.fresh};
   }
   return std::nullopt;
 }
@@ -90,14 +128,14 @@ bool ZoneTable::catching_up() const { return next_catch_up().has_value(); }
 void ZoneTable::caught_up(world::ZoneId zone, uint64_t epoch, uint64_t through, bool complete) {
   std::lock_guard lock(mutex_);
   Zone& z = zones_[zone];
-  if (through > z.applied) z.applied = through;
-  if (complete && z.epoch == epoch) z.behind = false;
+  if (through > z.applied && !z.fresh) z.applied = through;
+  if (complete && z.epoch == epoch && !z.fresh) z.behind = false;
 }
 
 uint64_t ZoneTable::applied(world::ZoneId zone) const {
   std::lock_guard lock(mutex_);
   const auto it = zones_.find(zone);
-  return it == zones_.end() ? 0 : it->second.applied;
+  return it == zones_.end() || it->second.fresh ? 0 : it->second.applied;
 }
 
 std::vector<world::ZoneId> ZoneTable::writable_zones() const {

@@ -22,7 +22,9 @@ class ZoneTable {
  public:
   // The keeper took `zone` at `epoch`: its world catches up before edits are taken.
   void taken(world::ZoneId zone, uint64_t epoch);
-  // The zone is no longer held at `epoch` (a later epoch's take is left alone).
+  // The zone is no longer held at `epoch` (a later epoch's take is left alone). When a
+  // chunk of it was evicted meanwhile, its world is installed afresh when it is next
+  // followed or taken (fresh()).
   void lost(world::ZoneId zone, uint64_t epoch);
   // A graceful hand-off's first step: no edit is taken in it any more (they go to its next
   // holder), while the appends already made land under its epoch; lost() follows.
@@ -43,14 +45,33 @@ class ZoneTable {
   // A held zone whose world is behind: its epoch and the last record applied.
   struct CatchUp {
     world::ZoneId zone;
-    uint64_t epoch = 0, applied = 0;
+    uint64_t epoch = 0, applied = 0;  // applied: 0 when fresh
+    bool fresh = false;
   };
   std::optional<CatchUp> next_catch_up() const;
   bool catching_up() const;
   // The pipeline applied the zone's records through `through`; `complete`: the log has no
   // more (the zone becomes writable, if still held at `epoch`).
   void caught_up(world::ZoneId zone, uint64_t epoch, uint64_t through, bool complete);
+  // The last record its world has (0 while fresh: it has to be installed afresh).
   uint64_t applied(world::ZoneId zone) const;
+
+  // Evicting a zone's chunks (docs/CLUSTER.md, "Evicting a zone's chunks"). may_evict:
+  // whether a saved changed chunk of the zone may leave memory now (only while the zone
+  // is held and caught up: it is read back from the zone's checkpoint, which nobody else
+  // moves meanwhile); true notes that one did. fresh: the zone was lost since one did, so
+  // the chunks read back might be ahead of what the world has: its chunks go back to the
+  // generated terrain, its checkpoint and log are applied from there. reset: the pipeline
+  // did so, applying the zone's records through `through`.
+  bool may_evict(world::ZoneId zone);
+  struct Position {
+    uint64_t applied = 0;  // 0 when fresh
+    bool fresh = false;
+  };
+  Position position(world::ZoneId zone) const;  // applied() and fresh, read at once
+  // A fresh zone not held (a held one is caught up afresh instead).
+  std::optional<world::ZoneId> next_fresh() const;
+  void reset(world::ZoneId zone, uint64_t through);
   // The zones edits are taken in now.
   std::vector<world::ZoneId> writable_zones() const;
 
@@ -85,6 +106,8 @@ class ZoneTable {
     bool leaving = false;           // held, being handed off
     bool swept = false;             // a checkpoint since it caught up wrote it whole
     uint64_t applied = 0;           // the last record the world has
+    bool evicted = false;           // held, and a changed chunk of it was evicted
+    bool fresh = false;             // lost after evicted: to be installed afresh
     pipeline::EditIds edits{kRememberedEdits};
   };
   mutable std::mutex mutex_;

@@ -54,9 +54,10 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
         config_.checkpoint_store ? *config_.checkpoint_store : *config_.store,
         config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
         [this] { inbox_.poke(); }, Clock::now());
-    if (config_.zones)  // a cluster node: only the zones it holds, and no eviction
+    if (config_.zones) {  // a cluster node: only the zones it holds
       checkpoints_->set_scope([this](uint64_t s) { return config_.zones->checkpoint_scope(s); });
-    state_->keep_modified = config_.zones != nullptr;
+      state_->may_evict_modified = [this](ChunkCoord c) { return config_.zones->may_evict(c); };
+    }
     commit_ = std::make_unique<DurableCommit>(
         *config_.store, config_.store_retry, [this] { inbox_.append_landed(); },
         DurableCommit::Hooks{.answer = [this](EditBatch& b, bool durable) { answer(b, durable); },

@@ -89,8 +89,7 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   for (size_t seen = 0; seen < buckets && scanned < max_scan; ++seen, b = (b + 1) % buckets) {
     for (auto it = info.begin(b); it != info.end(b); ++it, ++scanned) {
       const auto& [c, chunk_info] = *it;
-      if (chunk_info.unsaved || chunk_info.checkpointing ||
-          (keep_modified && chunk_info.modified) || now - chunk_info.last_used < min_age ||
+      if (chunk_info.unsaved || chunk_info.checkpointing || now - chunk_info.last_used < min_age ||
           views.viewed(c) || pins.count(c)) {
         continue;
       }
@@ -107,8 +106,9 @@ size_t WorldState::evict(MeshStore& meshes, Clock::time_point now, std::chrono::
   for (const Candidate& victim : candidates) {
     const bool idle_long = now - victim.used >= idle;
     if (!idle_long && chunks.memory_bytes() + meshes.memory_bytes() <= target_bytes) break;
-    chunks.erase(victim.coord);
     auto it = info.find(victim.coord);
+    if (it->second.modified && may_evict_modified && !may_evict_modified(victim.coord)) continue;
+    chunks.erase(victim.coord);
     modified_count -= it->second.modified ? 1 : 0;
     info.erase(it);
     meshes.erase(victim.coord);

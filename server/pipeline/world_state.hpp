@@ -64,9 +64,10 @@ struct WorldState {
   std::function<world::Chunk(world::ChunkCoord)> read_stored;
   // Surface heights of the columns generated during one load pass.
   std::map<std::pair<int32_t, int32_t>, std::shared_ptr<const world::ColumnHeights>> column_heights;
-  // A cluster node keeps every modified chunk resident: its zones are read back zone by
-  // zone from their checkpoints, not chunk by chunk (docs/CLUSTER.md, "Zone checkpoints").
-  bool keep_modified = false;
+  // A cluster node's: whether saved modified chunk c may be evicted now (only while its
+  // zone is held and caught up: docs/CLUSTER.md, "Evicting a zone's chunks"); asked just
+  // before c goes. Null: every saved chunk may.
+  std::function<bool(world::ChunkCoord)> may_evict_modified;
   ViewIndex views;  // every session's current view: chunks in one are never evicted
   // Chunks a waiting mesh needs (the 3x3x3 around it), with how many need each: never
   // evicted, or a mesh waiting for its last neighbour could lose the others meanwhile.

@@ -29,6 +29,9 @@ namespace vox::pipeline {
 struct ZoneRecords {
   world::ZoneId zone;
   uint64_t epoch = 0;  // the node's epoch of the zone when read; 0: a zone it follows
+  // The world's chunks of the zone go back to the generated terrain first (it has none of
+  // the zone's records, or must forget what it has: a chunk it evicted may be ahead).
+  bool fresh = false;
   // First, the zone's checkpoint when the world is behind it (docs/CLUSTER.md, "Zone
   // checkpoints"): every chunk its records changed through record `installed`, each
   // replacing the world's copy (the zone's other chunks were never changed through it).
@@ -60,6 +63,9 @@ class ZoneAuthority {
   // whose chunks it writes now (the node notes each one's epoch and last record applied,
   // for its store's write_checkpoint).
   virtual CheckpointScope checkpoint_scope(uint64_t seq) = 0;
+  // Whether a saved changed chunk may be evicted now (read back from its zone's
+  // checkpoint later: only while its zone is held and caught up); true notes that it was.
+  virtual bool may_evict(world::ChunkCoord c) = 0;
   // A player's view of chunks within `radius` of `center`: the node asks for its zones
   // (it shows a zone as its log has it only while it holds it, for now).
   virtual void viewing(world::ChunkCoord center, int radius) = 0;

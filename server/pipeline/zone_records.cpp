@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <optional>
+#include <unordered_set>
 
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/memory_keeper.hpp"
@@ -13,6 +14,18 @@
 namespace vox::pipeline {
 
 namespace {
+
+world::VoxelBox voxels_of(world::ChunkCoord c) {
+  const int32_t n = world::kChunkSize;
+  return {{c.x * n, c.y * n, c.z * n}, {c.x * n + n - 1, c.y * n + n - 1, c.z * n + n - 1}};
+}
+
+world::ChangedBox whole_chunk() {
+  world::ChangedBox all;
+  all.add(0, 0, 0);
+  all.add(world::kChunkSize - 1, world::kChunkSize - 1, world::kChunkSize - 1);
+  return all;
+}
 
 // The zone's checkpoint replaces the world's copies of its chunks (a chunk a checkpoint in
 // flight holds is preserved first). False when one does not decode (nothing installed).
@@ -36,9 +49,7 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
     chunks.push_back(std::move(*chunk));
   }
   WorldState& st = world.state;
-  world::ChangedBox all;
-  all.add(0, 0, 0);
-  all.add(world::kChunkSize - 1, world::kChunkSize - 1, world::kChunkSize - 1);
+  const world::ChangedBox all = whole_chunk();
   std::vector<world::ChunkCoord> dirty;
   for (size_t i = 0; i < chunks.size(); ++i) {
     const world::ChunkCoord c = cp.chunks[i].coord;
@@ -52,9 +63,7 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
     info.last_used = now;
     if (world.checkpoints) world.checkpoints->changed(c);
     world::append_dirty_chunks(c, all, dirty);
-    const int32_t n = world::kChunkSize;
-    out.touched.push_back(
-        {{c.x * n, c.y * n, c.z * n}, {c.x * n + n - 1, c.y * n + n - 1, c.z * n + n - 1}});
+    out.touched.push_back(voxels_of(c));
   }
   for (const world::ChunkCoord& c : dirty) {
     if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
@@ -62,8 +71,57 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
       out.batch.edited_at.try_emplace(c, now);
     }
   }
-  out.batch.any_edit = !chunks.empty();
+  out.batch.any_edit = out.batch.any_edit || !chunks.empty();
   return true;
+}
+
+// The world forgets what it has of the zone (docs/CLUSTER.md, "Evicting a zone's
+// chunks"): its changed resident chunks go back to the generated terrain (re-meshed with
+// their neighbours), and none of its chunks is read back from the store any more. Those
+// `cp` lists are left to its install (which replaces them).
+void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoint* cp,
+                 Clock::time_point now, AppliedRecords& out) {
+  WorldState& st = world.state;
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> listed;
+  if (cp) {
+    for (const store::ChunkRecord& r : cp->chunks) listed.insert(r.coord);
+  }
+  const auto in_zone = [&](world::ChunkCoord c) {
+    return world.zone_chunks > 0 && world::zone_of(c, world.zone_chunks) == zone;
+  };
+  std::erase_if(st.stored, in_zone);
+  const world::ChangedBox all = whole_chunk();
+  std::vector<world::ChunkCoord> dirty;
+  size_t forgotten = 0;
+  for (auto& [c, info] : st.info) {
+    if (!info.modified || !in_zone(c) || listed.count(c)) continue;
+    if (const world::Chunk* live = st.chunks.find(c);
+        live && info.checkpointing && world.checkpoints)
+      world.checkpoints->preserve(c, *live);
+    st.chunks.insert(c, world.generator.generate(c));
+    info.modified = false;
+    --st.modified_count;
+    info.last_used = now;
+    // Generated terrain needs no saving (it may be evicted), unless a checkpoint in flight
+    // holds it: then it stays (the checkpoint marks it stored) until one writes it again.
+    info.unsaved = info.checkpointing;
+    if (info.checkpointing && world.checkpoints) world.checkpoints->changed(c);
+    world::append_dirty_chunks(c, all, dirty);
+    out.touched.push_back(voxels_of(c));
+    ++forgotten;
+  }
+  for (const world::ChunkCoord& c : dirty) {
+    if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
+      out.batch.dirty.push_back(c);
+      out.batch.edited_at.try_emplace(c, now);
+    }
+  }
+  out.batch.any_edit = out.batch.any_edit || forgotten > 0;
+  spdlog::info(
+      "zone ({}, {}): lost after chunks of it were evicted here; its {} other changed "
+      "chunks in memory go back to the generated terrain, and it is installed afresh "
+      "from its checkpoint and log when followed",
+      zone.x, zone.z, forgotten);
 }
 
 }  // namespace
@@ -71,10 +129,16 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
 AppliedRecords apply_zone_records(EditWorld& world, const ZoneRecords& records,
                                   Clock::time_point now) {
   AppliedRecords out;
+  if (records.fresh)
+    forget_zone(world, records.zone, records.checkpoint ? &*records.checkpoint : nullptr, now, out);
   out.through = records.edits.empty() ? records.through : records.edits.front().seq - 1;
   if (records.checkpoint) {
     out.through = 0;  // short of the checkpoint: nothing applied
-    if (!install_checkpoint(world, *records.checkpoint, now, out)) return out;
+    if (!install_checkpoint(world, *records.checkpoint, now, out)) {
+      // Its log is applied from nothing instead: the chunks it lists go back too.
+      if (records.fresh) forget_zone(world, records.zone, nullptr, now, out);
+      return out;
+    }
     out.through = records.edits.empty() ? records.through : records.checkpoint->seq;
   }
   world.memory.new_batch();

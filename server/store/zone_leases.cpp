@@ -8,61 +8,11 @@
 
 #include "server/store/edit_codec.hpp"
 #include "server/store/pq_errors.hpp"
+#include "server/store/zone_schema.hpp"
 #include "server/world/byte_io.hpp"
 
 namespace vox::store {
 namespace {
-
-// Each column and index is added only when missing: an ALTER with nothing to do would
-// still lock a busy table whole (a rolling upgrade of live nodes).
-constexpr const char* kCreateTables = R"sql(
-CREATE OR REPLACE FUNCTION pg_temp.vox_add_column(t TEXT, c TEXT, decl TEXT) RETURNS void
-LANGUAGE plpgsql AS $$ BEGIN
-  IF NOT EXISTS (SELECT 1 FROM information_schema.columns WHERE table_schema = current_schema()
-                 AND table_name = t AND column_name = c) THEN
-    EXECUTE format('ALTER TABLE %I ADD COLUMN %I %s', t, c, decl);
-  END IF;
-END $$;
-CREATE TABLE IF NOT EXISTS zones (zone BIGINT PRIMARY KEY, epoch BIGINT NOT NULL,
-                                  owner TEXT, lease_until TIMESTAMPTZ NOT NULL,
-                                  last_seq BIGINT NOT NULL DEFAULT 0);
-CREATE TABLE IF NOT EXISTS zone_log (zone BIGINT NOT NULL, seq BIGINT NOT NULL,
-                                     epoch BIGINT NOT NULL, at_ms BIGINT NOT NULL,
-                                     record BYTEA NOT NULL, PRIMARY KEY (zone, seq));
-CREATE TABLE IF NOT EXISTS nodes (node TEXT PRIMARY KEY, address TEXT NOT NULL,
-                                  alive_until TIMESTAMPTZ NOT NULL);
-CREATE TABLE IF NOT EXISTS cluster_world (one BOOLEAN PRIMARY KEY DEFAULT TRUE CHECK (one),
-                                          name TEXT NOT NULL, seed BIGINT NOT NULL,
-                                          zone_chunks INTEGER NOT NULL);
-SELECT pg_temp.vox_add_column('zone_log', 'edit_id', 'BIGINT NOT NULL DEFAULT 0');
-DO $$ BEGIN
-  IF to_regclass('zone_log_edit') IS NULL THEN
-    CREATE INDEX zone_log_edit ON zone_log (zone, edit_id) WHERE edit_id <> 0;
-  END IF;
-END $$;
-CREATE TABLE IF NOT EXISTS zone_pending (zone BIGINT NOT NULL, edit_id BIGINT NOT NULL,
-                                         at_ms BIGINT NOT NULL, record BYTEA NOT NULL,
-                                         since TIMESTAMPTZ NOT NULL DEFAULT now(),
-                                         PRIMARY KEY (zone, edit_id));
-SELECT pg_temp.vox_add_column('zones', 'checkpoint_seq', 'BIGINT NOT NULL DEFAULT 0');
-CREATE TABLE IF NOT EXISTS zone_chunks (zone BIGINT NOT NULL, cx INTEGER NOT NULL,
-                                        cy INTEGER NOT NULL, cz INTEGER NOT NULL,
-                                        seq BIGINT NOT NULL, epoch BIGINT NOT NULL,
-                                        samples BYTEA NOT NULL,
-                                        PRIMARY KEY (zone, cx, cy, cz, seq));
-SELECT pg_temp.vox_add_column('nodes', 'instance', 'BIGINT NOT NULL DEFAULT 0');
-)sql";
-
-// Whether kCreateTables has nothing left to do (its last table and columns are there).
-constexpr const char* kSchemaThere = R"sql(
-SELECT to_regclass('zone_chunks') IS NOT NULL AND to_regclass('zone_log_edit') IS NOT NULL
-       AND to_regclass('zone_pending') IS NOT NULL AND to_regclass('cluster_world') IS NOT NULL
-       AND to_regclass('nodes') IS NOT NULL
-       AND (SELECT count(*) FROM information_schema.columns WHERE table_schema = current_schema()
-            AND ((table_name = 'zones' AND column_name = 'checkpoint_seq')
-                 OR (table_name = 'zone_log' AND column_name = 'edit_id')
-                 OR (table_name = 'nodes' AND column_name = 'instance'))) = 3
-)sql";
 
 // Chunks written per transaction of a checkpoint.
 constexpr size_t kChunksPerTransaction = 32;
@@ -137,10 +87,10 @@ ZoneLeases::ZoneLeases(std::string uri, std::string node, std::chrono::milliseco
     // Altering a table locks it whole, even when there is nothing to alter: a connection
     // opened while others append (a follower starting) would wait behind their row locks,
     // and every reader behind it. So only a database without the whole schema is altered.
-    if (t.exec1(kSchemaThere)[0].as<bool>()) return;
-    t.exec("SELECT pg_advisory_xact_lock(7008)");     // one creator at a time
-    if (t.exec1(kSchemaThere)[0].as<bool>()) return;  // the one before made it
-    t.exec(kCreateTables);
+    if (t.exec1(kZoneTablesThere)[0].as<bool>()) return;
+    t.exec("SELECT pg_advisory_xact_lock(7008)");         // one creator at a time
+    if (t.exec1(kZoneTablesThere)[0].as<bool>()) return;  // the one before made it
+    t.exec(kZoneTables);
     t.commit();
   });
 }
@@ -445,6 +395,31 @@ std::optional<ZoneCheckpoint> ZoneLeases::read_checkpoint(world::ZoneId zone, si
              row_key(zone), seq, static_cast<int64_t>(max_edit_ids)))
       out.edit_ids.push_back(static_cast<uint64_t>(row[0].as<int64_t>()));
     return out;
+  });
+}
+
+std::optional<ChunkRecord> ZoneLeases::read_chunk(world::ZoneId zone, world::ChunkCoord chunk,
+                                                  uint64_t applied) {
+  return run([&](pqxx::connection& c) -> std::optional<ChunkRecord> {
+    pqxx::read_transaction t(c);
+    const pqxx::result r = t.exec_params(
+        "SELECT z.checkpoint_seq, v.seq, v.samples FROM zones z LEFT JOIN LATERAL "
+        "(SELECT seq, samples FROM zone_chunks WHERE zone = z.zone AND cx = $2 AND cy = $3 "
+        "AND cz = $4 AND seq <= z.checkpoint_seq ORDER BY seq DESC LIMIT 1) v ON TRUE "
+        "WHERE z.zone = $1",
+        row_key(zone), chunk.x, chunk.y, chunk.z);
+    if (r.empty()) return std::nullopt;
+    const auto checkpoint = r[0][0].as<uint64_t>();
+    if (checkpoint > applied)
+      throw StoreError(name_ + ": " + describe(zone) + ": its checkpoint (record " +
+                       std::to_string(checkpoint) + ") is past what this world applied (" +
+                       std::to_string(applied) + "); chunk (" + std::to_string(chunk.x) + ", " +
+                       std::to_string(chunk.y) + ", " + std::to_string(chunk.z) +
+                       ") is read again once the zone is installed afresh");
+    if (r[0][1].is_null()) return std::nullopt;
+    const pqxx::binarystring bytes(r[0][2]);
+    return ChunkRecord{chunk, r[0][1].as<uint64_t>(),
+                       std::vector<uint8_t>(bytes.begin(), bytes.end())};
   });
 }
 

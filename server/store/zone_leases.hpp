@@ -163,6 +163,14 @@ class ZoneLeases {
   // The zone's checkpoint, read in one snapshot (repeatable read): nullopt when it has none.
   // At most `max_edit_ids` edit ids.
   std::optional<ZoneCheckpoint> read_checkpoint(world::ZoneId zone, size_t max_edit_ids);
+  // One chunk of the zone's checkpoint (its latest version through the zone's
+  // checkpoint_seq): the chunk as the log through checkpoint_seq leaves it. A world that
+  // applied the zone's records through `applied`, and has not changed the chunk since a
+  // checkpoint that held it, may read it back so (docs/CLUSTER.md, "Evicting a zone's
+  // chunks"). StoreError when the checkpoint is past `applied` (the chunk may have changed
+  // since); nullopt when no checkpoint holds the chunk, or the zone has no row.
+  std::optional<ChunkRecord> read_chunk(world::ZoneId zone, world::ChunkCoord chunk,
+                                        uint64_t applied);
 
   // Every zone the database has a row of.
   std::vector<world::ZoneId> zones();
