@@ -36,7 +36,9 @@ constexpr const char* kGood =
     "world = main\n"
     "node = eu-1\n"
     "lease_ms = 2000\n"
-    "zone_chunks = 8\n";
+    "zone_chunks = 8\n"
+    "max_followed_zones = 12\n"
+    "follow_idle_s = 30\n";
 
 TEST(ClusterConfig, AFileSetsEveryKey) {
   const test::TempDir tmp("cluster_config");
@@ -49,12 +51,15 @@ TEST(ClusterConfig, AFileSetsEveryKey) {
   EXPECT_EQ(c.node, "eu-1");
   EXPECT_EQ(c.lease.count(), 2000);
   EXPECT_EQ(c.zone_chunks, 8);
+  EXPECT_EQ(c.max_followed_zones, 12);
+  EXPECT_EQ(c.follow_idle.count(), 30);
   // Without a node id, each run gets its own (a restart fences the run before it).
   const ClusterConfig d = read_cluster_config(
       write(tmp, "min.conf", "database = postgresql:///w\nnats = nats://127.0.0.1:4222\n"));
   EXPECT_FALSE(d.node.empty());
   EXPECT_EQ(d.zone_chunks, 16);
   EXPECT_EQ(d.lease.count(), 3000);
+  EXPECT_EQ(d.follow_idle.count(), 300);
 }
 
 TEST(ClusterConfig, BadFilesAreOneLineNamingTheFileAndTheKeyNeverAPassword) {
@@ -71,6 +76,9 @@ TEST(ClusterConfig, BadFilesAreOneLineNamingTheFileAndTheKeyNeverAPassword) {
             std::string::npos);
   EXPECT_NE(error_of(write(tmp, "zones.conf", std::string(kGood) + "zone_chunks = 0\n"))
                 .find("zone_chunks"),
+            std::string::npos);
+  EXPECT_NE(error_of(write(tmp, "idle.conf", std::string(kGood) + "follow_idle_s = 0\n"))
+                .find("follow_idle_s"),
             std::string::npos);
   EXPECT_NE(error_of(write(tmp, "world.conf", std::string(kGood) + "world = a.b\n")).find("world"),
             std::string::npos);

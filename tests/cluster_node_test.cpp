@@ -122,6 +122,31 @@ TEST(ClusterNode, ChangedChunksEvictedFromHeldZonesAreReadBackAndInstalledAfresh
   EXPECT_TRUE(eventually_seen(b, expected) == expected) << "b";
 }
 
+// A zone no player on a node viewed for `follow_idle_s` is no longer followed there, and
+// forgotten: its changed chunks leave that node's memory. Viewed again, it is installed
+// afresh and shows the edits made meanwhile.
+TEST(ClusterNode, AZoneNoLongerViewedIsForgottenAndInstalledAfreshWhenViewedAgain) {
+  const Cluster cluster;
+  const auto [x_, z_] = middle_of_a_zone_of("a");
+  const float x = x_, z = z_;
+  ServerProcess a({"--cluster", cluster.config("a"), "--checkpoint-interval", "0.2"});
+  ServerProcess b({"--cluster", cluster.config("b", "follow_idle_s = 1\n"), "--metrics-port", "0"});
+  const auto modified = [&] { return scrape(b.metrics_port()).at("voxeld_chunks_modified"); };
+  const std::vector<wire::Envelope> first = {brush(1, x, z, 4, 4.0f), explosion(2, x + 3, z)};
+  const std::vector<wire::Envelope> later = {brush(3, x - 3, z + 2, 5, 4.0f)};
+  apply_all(a, first);
+  const Seen before = view_of(a, x, z);
+  EXPECT_TRUE(eventually(&b, [&] { return view_of(b, x, z) == before; })) << "b following a's zone";
+  EXPECT_GT(modified(), 0);
+  EXPECT_TRUE(eventually(
+      &b, [&] { return modified() == 0; }, 20s))
+      << "b kept the changed chunks of a zone nobody views there";
+  apply_all(a, later);
+  const Seen expected = view_of(a, x, z);
+  EXPECT_TRUE(eventually(&b, [&] { return view_of(b, x, z) == expected; }))
+      << "b, viewing it again";
+}
+
 // A zone checkpoint whose chunks do not decode (a damaged row): the node taking the zone
 // applies the zone's log instead, and shows what a single node shows.
 TEST(ClusterNode, ANodeWhoseZoneCheckpointDoesNotDecodeAppliesTheLogInstead) {

@@ -37,7 +37,8 @@ inline constexpr int kZoneChunks = 2;
 
 // A node's configuration file, readable by its owner only (it holds passwords).
 inline std::string node_config(const TempDir& tmp, const std::string& node,
-                               const std::string& database, const NatsServer& nats) {
+                               const std::string& database, const NatsServer& nats,
+                               const std::string& more = "") {
   const fs::path path = tmp / (node + ".conf");
   std::ofstream(path) << "# a test node\n"
                       << "database = " << database << "\n"
@@ -47,7 +48,8 @@ inline std::string node_config(const TempDir& tmp, const std::string& node,
                       << "world = test\n"
                       << "node = " << node << "\n"
                       << "lease_ms = 1000\n"
-                      << "zone_chunks = " << kZoneChunks << "\n";
+                      << "zone_chunks = " << kZoneChunks << "\n"
+                      << more;
   ::chmod(path.c_str(), 0600);
   return path.string();
 }
@@ -185,8 +187,9 @@ struct Cluster {
   std::string database = fresh_shared_database("cluster_node");
   NatsServer nats;
   TempDir tmp{"cluster_node"};
-  std::string config(const std::string& node) const {
-    return node_config(tmp, node, database, nats);
+  // `more`: further `key = value` lines.
+  std::string config(const std::string& node, const std::string& more = "") const {
+    return node_config(tmp, node, database, nats, more);
   }
 };
 

@@ -30,13 +30,14 @@ ClusterConfig read_cluster_config(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw ClusterError("cluster configuration " + path + ": cannot be read");
   ClusterConfig c;
-  int64_t lease_ms = 3000;
+  int64_t lease_ms = 3000, follow_idle_s = 300;
   po::options_description keys;
   keys.add_options()("database", po::value(&c.database))("nats", po::value(&c.nats.url))(
       "nats_user", po::value(&c.nats.user))("nats_password", po::value(&c.nats.password))(
       "world", po::value(&c.world))("node", po::value(&c.node))("lease_ms", po::value(&lease_ms))(
-      "zone_chunks", po::value(&c.zone_chunks))("max_followed_zones",
-                                                po::value(&c.max_followed_zones));
+      "zone_chunks", po::value(&c.zone_chunks))(
+      "max_followed_zones", po::value(&c.max_followed_zones))("follow_idle_s",
+                                                              po::value(&follow_idle_s));
   try {
     po::variables_map vm;
     po::store(po::parse_config_file(in, keys, false), vm);
@@ -57,6 +58,8 @@ ClusterConfig read_cluster_config(const std::string& path) {
     throw bad("zone_chunks must be 1 .. " + std::to_string(world::kMaxZoneChunks));
   if (c.max_followed_zones < 1 || c.max_followed_zones > 1024)
     throw bad("max_followed_zones must be 1 .. 1024");
+  if (follow_idle_s < 1 || follow_idle_s > 86400) throw bad("follow_idle_s must be 1 .. 86400");
+  c.follow_idle = std::chrono::seconds(follow_idle_s);
   if (c.node.empty()) c.node = default_node();
   if (c.node.size() > 200) throw bad("node: at most 200 bytes");
   c.nats.name = "voxeld " + c.node;

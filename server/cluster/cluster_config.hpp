@@ -14,6 +14,8 @@
 //   zone_chunks = 16        # fixed when the world is made; every node must agree
 //   max_followed_zones = 32 # zones followed at once for players' views (each holds a
 //                           # database connection: max_connections >= nodes x (this + 4))
+//   follow_idle_s = 300     # a zone no player here viewed this long is no longer followed,
+//                           # and its changed chunks leave memory (installed again when viewed)
 //
 // Pure functions: any thread.
 #pragma once
@@ -33,6 +35,7 @@ struct ClusterConfig {
   std::chrono::milliseconds lease{3000};
   int zone_chunks = 16;
   int max_followed_zones = 32;
+  std::chrono::seconds follow_idle{300};
 };
 
 // Throws ClusterError naming the file (and the key) for a file that cannot be read, an

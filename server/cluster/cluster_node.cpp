@@ -34,7 +34,8 @@ ClusterNode::ClusterNode(ClusterConfig config, uint64_t seed)
                 {.world = config_.world,
                  .uri = config_.database,
                  .node = config_.node,
-                 .max_zones = static_cast<size_t>(config_.max_followed_zones)},
+                 .max_zones = static_cast<size_t>(config_.max_followed_zones),
+                 .idle = config_.follow_idle},
                 [this] {
                   if (wake_) wake_();
                 }),
@@ -277,10 +278,12 @@ void ClusterNode::round() {
   release_relays(false);
   replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
                       [this](world::ZoneId z) { return table_.applied(z); });
-  // Edit ids of zones neither held nor followed any more: the memory stays bounded.
-  for (const world::ZoneId zone : table_.zones_with_edits()) {
-    if (!table_.held(zone) && !replicas_.following(zone)) table_.forget_edits(zone);
+  // Zones neither held nor followed any more are forgotten: the memory stays bounded.
+  for (const world::ZoneId zone : table_.known_unheld()) {
+    if (!replicas_.following(zone)) table_.forget(zone);
   }
+  // Zones forgotten, or lost after an eviction: the pipeline forgets their chunks now.
+  if (table_.next_fresh() && wake_) wake_();
 }
 
 void ClusterNode::viewing(world::ChunkCoord center, int radius) {

@@ -89,6 +89,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
     pipeline::ZoneRecords out{.zone = c->zone,
                               .epoch = c->epoch,
                               .fresh = c->fresh,
+                              .drop = false,
                               .checkpoint = std::nullopt,
                               .edits = {},
                               .through = c->applied};
@@ -107,12 +108,16 @@ pipeline::ZoneRecords ZoneRecordSource::fresh_records(world::ZoneId zone) {
   pipeline::ZoneRecords out{.zone = zone,
                             .epoch = 0,
                             .fresh = true,
+                            .drop = false,
                             .checkpoint = std::nullopt,
                             .edits = {},
                             .through = 0};
   // Not followed: forgotten (its chunks would stay in memory, never evicted, never updated);
   // installed when it is followed again.
-  if (!replicas_.following(zone)) return out;
+  if (!replicas_.following(zone)) {
+    out.drop = true;
+    return out;
+  }
   if (const std::optional<store::ZoneRow> row = db_.read(zone)) {
     out.checkpoint = checkpoint_past(zone, 0, row->checkpoint_seq);
     if (out.checkpoint) out.through = out.checkpoint->seq;
@@ -139,6 +144,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
       pipeline::ZoneRecords out{.zone = zone,
                                 .epoch = 0,
                                 .fresh = fresh,
+                                .drop = false,
                                 .checkpoint = std::nullopt,
                                 .edits = {},
                                 .through = applied};
@@ -165,6 +171,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
   pipeline::ZoneRecords out{.zone = zone,
                             .epoch = 0,
                             .fresh = fresh,
+                            .drop = false,
                             .checkpoint = std::nullopt,
                             .edits = {},
                             .through = applied};

@@ -159,19 +159,25 @@ void ZoneTable::note_edit(world::ZoneId zone, uint64_t id) {
   zones_[zone].edits.note(id);
 }
 
-std::vector<world::ZoneId> ZoneTable::zones_with_edits() const {
+std::vector<world::ZoneId> ZoneTable::known_unheld() const {
   std::lock_guard lock(mutex_);
   std::vector<world::ZoneId> out;
   for (const auto& [zone, z] : zones_) {
-    if (z.edits.size() > 0) out.push_back(zone);
+    if (!z.epoch && (z.edits.size() > 0 || (z.applied > 0 && !z.fresh))) out.push_back(zone);
   }
   return out;
 }
 
-void ZoneTable::forget_edits(world::ZoneId zone) {
+void ZoneTable::forget(world::ZoneId zone) {
   std::lock_guard lock(mutex_);
-  if (const auto it = zones_.find(zone); it != zones_.end())
-    it->second.edits = pipeline::EditIds(kRememberedEdits);
+  const auto it = zones_.find(zone);
+  if (it == zones_.end() || it->second.epoch) return;
+  Zone& z = it->second;
+  z.edits = pipeline::EditIds(kRememberedEdits);
+  if (z.applied > 0) {
+    z.fresh = true;
+    z.applied = 0;
+  }
 }
 
 void ZoneTable::forget_edit(world::ZoneId zone, uint64_t id) {

@@ -94,10 +94,14 @@ class ZoneTable {
   bool has_edit(world::ZoneId zone, uint64_t id) const;
   void note_edit(world::ZoneId zone, uint64_t id);
   void forget_edit(world::ZoneId zone, uint64_t id);
-  // The zones whose edit ids are remembered; a zone neither held nor followed any more
-  // forgets them all (a later follow or take notes them again from its log).
-  std::vector<world::ZoneId> zones_with_edits() const;
-  void forget_edits(world::ZoneId zone);
+
+  // A zone neither held nor followed any more is forgotten whole, so that a node's memory
+  // stays bounded: its edit ids (a later follow or take notes them again from its log),
+  // and its world, which becomes fresh (its chunks leave memory; installed afresh when next
+  // followed or taken). known_unheld: the zones not held whose world or edit ids are
+  // remembered. forget: nothing when the zone is held.
+  std::vector<world::ZoneId> known_unheld() const;
+  void forget(world::ZoneId zone);
 
  private:
   struct Zone {

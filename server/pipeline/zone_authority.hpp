@@ -32,6 +32,9 @@ struct ZoneRecords {
   // The world's chunks of the zone go back to the generated terrain first (it has none of
   // the zone's records, or must forget what it has: a chunk it evicted may be ahead).
   bool fresh = false;
+  // With fresh: the zone is neither held nor followed here (no records come): its changed
+  // chunks leave memory (those in a view, pinned or being checkpointed are regenerated).
+  bool drop = false;
   // First, the zone's checkpoint when the world is behind it (docs/CLUSTER.md, "Zone
   // checkpoints"): every chunk its records changed through record `installed`, each
   // replacing the world's copy (the zone's other chunks were never changed through it).

@@ -77,9 +77,10 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
 
 // The world forgets what it has of the zone (docs/CLUSTER.md, "Evicting a zone's
 // chunks"): its changed resident chunks go back to the generated terrain (re-meshed with
-// their neighbours), and none of its chunks is read back from the store any more. Those
-// `cp` lists are left to its install (which replaces them).
-void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoint* cp,
+// their neighbours), or with `drop` leave memory (unless in a view, pinned or being
+// checkpointed), and none of its chunks is read back from the store any more. Those `cp`
+// lists are left to its install (which replaces them).
+void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoint* cp, bool drop,
                  Clock::time_point now, AppliedRecords& out) {
   WorldState& st = world.state;
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> listed;
@@ -92,9 +93,24 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
   std::erase_if(st.stored, in_zone);
   const world::ChangedBox all = whole_chunk();
   std::vector<world::ChunkCoord> dirty;
-  size_t forgotten = 0;
-  for (auto& [c, info] : st.info) {
-    if (!info.modified || !in_zone(c) || listed.count(c)) continue;
+  size_t forgotten = 0, dropped = 0;
+  for (auto it = st.info.begin(); it != st.info.end();) {
+    const world::ChunkCoord c = it->first;
+    WorldState::ChunkInfo& info = it->second;
+    if (!info.modified || !in_zone(c) || listed.count(c)) {
+      ++it;
+      continue;
+    }
+    if (drop && !info.checkpointing && !st.views.viewed(c) && !st.pins.count(c)) {
+      st.chunks.erase(c);
+      world.meshes.erase(c);
+      if (world.checkpoints) world.checkpoints->saved_again(c);  // no checkpoint looks for it
+      --st.modified_count;
+      it = st.info.erase(it);
+      ++dropped;
+      continue;
+    }
+    ++it;
     if (const world::Chunk* live = st.chunks.find(c);
         live && info.checkpointing && world.checkpoints)
       world.checkpoints->preserve(c, *live);
@@ -118,10 +134,11 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
   }
   out.batch.any_edit = out.batch.any_edit || forgotten > 0;
   spdlog::info(
-      "zone ({}, {}): lost after chunks of it were evicted here; its {} other changed "
-      "chunks in memory go back to the generated terrain, and it is installed afresh "
-      "from its checkpoint and log when followed",
-      zone.x, zone.z, forgotten);
+      "zone ({}, {}) forgotten ({}): {} changed chunks left memory, {} went back to the "
+      "generated terrain; it is installed afresh from its checkpoint and log when "
+      "followed or taken",
+      zone.x, zone.z, drop ? "neither held nor followed" : "lost after an eviction", dropped,
+      forgotten);
 }
 
 }  // namespace
@@ -130,13 +147,14 @@ AppliedRecords apply_zone_records(EditWorld& world, const ZoneRecords& records,
                                   Clock::time_point now) {
   AppliedRecords out;
   if (records.fresh)
-    forget_zone(world, records.zone, records.checkpoint ? &*records.checkpoint : nullptr, now, out);
+    forget_zone(world, records.zone, records.checkpoint ? &*records.checkpoint : nullptr,
+                records.drop, now, out);
   out.through = records.edits.empty() ? records.through : records.edits.front().seq - 1;
   if (records.checkpoint) {
     out.through = 0;  // short of the checkpoint: nothing applied
     if (!install_checkpoint(world, *records.checkpoint, now, out)) {
       // Its log is applied from nothing instead: the chunks it lists go back too.
-      if (records.fresh) forget_zone(world, records.zone, nullptr, now, out);
+      if (records.fresh) forget_zone(world, records.zone, nullptr, records.drop, now, out);
       return out;
     }
     out.through = records.edits.empty() ? records.through : records.checkpoint->seq;
