@@ -203,6 +203,35 @@ TEST(Checkpoints, AWrittenCheckpointStoresItsChunksAndTrimsTheLog) {
   EXPECT_EQ(store.chunks.count({2, 0, 0}), 1u);
 }
 
+// A cluster node forgets a zone (docs/CLUSTER.md, "Evicting a zone's chunks") while a
+// checkpoint holds one of its chunks: the chunk went back to the generated terrain, so the
+// checkpoint must not mark it stored (it would be read back from the store when evicted);
+// it was kept in memory for ever, unsaved, when it could not be marked.
+TEST(Checkpoints, AChunkForgottenWhileACheckpointHoldsItIsNotMarkedStoredAndMayLeave) {
+  ChunkStore store;
+  WorldState state(1);
+  const auto t0 = Checkpoints::Clock::now();
+  Checkpoints checkpoints(store, false, {.interval = std::chrono::seconds(1)}, true, nullptr, t0);
+  edited_chunk(state, checkpoints, {1, 0, 0});
+  edited_chunk(state, checkpoints, {2, 0, 0});
+  const auto at = t0 + std::chrono::seconds(1);
+  const auto r = checkpoints.start(state, 4, at);
+  ASSERT_TRUE(r.has_value() && r->ok);
+  state.info.at({2, 0, 0}) = {.modified = false, .unsaved = false, .checkpointing = true};
+  checkpoints.forget({2, 0, 0});
+  checkpoints.finish(state, *r, at);
+  EXPECT_EQ(state.stored.count({1, 0, 0}), 1u);
+  EXPECT_EQ(state.stored.count({2, 0, 0}), 0u);
+  EXPECT_FALSE(state.info.at({2, 0, 0}).unsaved);  // evictable
+  EXPECT_FALSE(state.info.at({2, 0, 0}).checkpointing);
+  // Changed again later, the next checkpoint stores it as usual.
+  edited_chunk(state, checkpoints, {2, 0, 0});
+  const auto next = checkpoints.start(state, 6, at + std::chrono::seconds(1));
+  ASSERT_TRUE(next.has_value() && next->ok);
+  checkpoints.finish(state, *next, at + std::chrono::seconds(1));
+  EXPECT_EQ(state.stored.count({2, 0, 0}), 1u);
+}
+
 TEST(Checkpoints, AFailedCheckpointLeavesItsChunksAndEditsUnsavedAndRestsBeforeTheNext) {
   ChunkStore store;
   store.fail_checkpoints = true;

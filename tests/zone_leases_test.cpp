@@ -372,6 +372,14 @@ TEST_F(ZoneLeasesTest, AnEvictedChunkIsReadBackAtTheZonesCheckpointOnlyByAWorldT
   EXPECT_EQ(a.read_chunk(zone, {2, 1, 1}, 5)->samples, (std::vector<uint8_t>{5}));
   EXPECT_FALSE(a.read_chunk(zone, {3, 1, 1}, 5).has_value());
   EXPECT_THROW(a.read_chunk(zone, {1, 1, 1}, 4), StoreError);  // behind the checkpoint
+  // A version past the zone's checkpoint (a write refused after its chunks landed: here,
+  // past the log's end) is never read back.
+  EXPECT_THROW(a.write_checkpoint(epoch, {.zone = zone, .seq = 9, .chunks = {{{1, 1, 1}, 9, {9}}}}),
+               StoreError);
+  c = a.read_chunk(zone, {1, 1, 1}, 6);
+  ASSERT_TRUE(c);
+  EXPECT_EQ(c->seq, 3u);
+  EXPECT_EQ(c->samples, (std::vector<uint8_t>{3}));
 }
 
 // The safety rule for checkpoints: a holder paused past its lease cannot move the

@@ -45,18 +45,19 @@ TEST(ZoneTable, AZoneLostAfterAChunkOfItWasEvictedIsInstalledAfresh) {
   EXPECT_EQ(t.next_fresh(), evicted);  // forgotten, or installed afresh if followed
   t.committed(evicted, 13);            // a late append's record: read from the log again
   EXPECT_EQ(t.applied(evicted), 0u);
-  // Taken again while fresh: it catches up from nothing, and is not writable before the
-  // pipeline forgot what it had.
+  // Taken again while fresh: the pipeline forgets what it had first, then it catches up
+  // from nothing, and only then is it writable.
   t.taken(evicted, 5);
-  EXPECT_FALSE(t.next_fresh());  // held: caught up afresh instead
+  EXPECT_EQ(t.next_fresh(), evicted);
+  EXPECT_FALSE(t.next_catch_up());
+  t.caught_up(evicted, 5, 13, true);
+  EXPECT_FALSE(t.writable(evicted));
+  t.reset(evicted, 0);
+  EXPECT_FALSE(t.next_fresh());
   const auto c = t.next_catch_up();
   ASSERT_TRUE(c);
   EXPECT_EQ(c->zone, evicted);
   EXPECT_EQ(c->applied, 0u);
-  EXPECT_TRUE(c->fresh);
-  t.caught_up(evicted, 5, 13, true);
-  EXPECT_FALSE(t.writable(evicted));
-  t.reset(evicted, 13);
   t.caught_up(evicted, 5, 13, true);
   EXPECT_EQ(t.writable(evicted), 5u);
   EXPECT_EQ(t.position(evicted).applied, 13u);

@@ -139,10 +139,8 @@ for kind, ((bx, bz), zones) in pick().items():
              q(to_delta, .99), len(to_result), refused, WARM_UP,
              " ".join("%.0f" % (1000 * w) for w in warm)), flush=True)
 elapsed = time.monotonic() - t_from
-model = [line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
-         if line.startswith("model name")]
 print("%s; stolen %.1f %% of the CPUs over %.0f s" % (
-    model[0] if model else "CPU model unknown",
+    thread_cpu.cpu_model(),
     100 * (thread_cpu.steal_seconds() - steal_from) / elapsed / os.cpu_count(), elapsed))
 for n, p in cluster.procs.items():
     cpu = thread_cpu.shares(cpu_from[n], thread_cpu.sample(p.pid), elapsed)

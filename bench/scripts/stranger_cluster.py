@@ -42,8 +42,9 @@ class Cluster:
             else ["sh", "-c", cmd]
         subprocess.run(argv, check=True, stdout=subprocess.DEVNULL)
 
-    def start(self, node, args=()):
-        """Starts node `node` (a, b, ...) with voxeld `args` and returns its TCP port."""
+    def start(self, node, args=(), more=""):
+        """Starts node `node` (a, b, ...) with voxeld `args` (and `more`: more lines of its
+        configuration file) and returns its TCP port."""
         d = self.dir
         conf = f"{d}/{node}.conf"
         text = (f"database = postgresql:///vox?host={d}&port={self.pg_port}&user=postgres\n"
@@ -51,6 +52,7 @@ class Cluster:
                 f"node = {node}\n")
         if self.zone_chunks:
             text += f"zone_chunks = {self.zone_chunks}\n"
+        text += more
         open(conf, "w").write(text)
         os.chmod(conf, 0o600)
         pf = f"{d}/{node}.port"

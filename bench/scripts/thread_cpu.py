@@ -60,5 +60,12 @@ def steal_seconds():
         return int(f.readline().split()[8]) / os.sysconf("SC_CLK_TCK")
 
 
+def cpu_model():
+    """The CPU model /proc/cpuinfo names."""
+    model = [line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
+             if line.startswith("model name")]
+    return model[0] if model else "CPU model unknown"
+
+
 if __name__ == "__main__":
     sys.exit(main())

@@ -88,8 +88,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
     targets_[c->zone] = row->last_seq;
     pipeline::ZoneRecords out{.zone = c->zone,
                               .epoch = c->epoch,
-                              .fresh = c->fresh,
-                              .drop = false,
+                              .fresh = false,
                               .checkpoint = std::nullopt,
                               .edits = {},
                               .through = c->applied};
@@ -108,23 +107,24 @@ pipeline::ZoneRecords ZoneRecordSource::fresh_records(world::ZoneId zone) {
   pipeline::ZoneRecords out{.zone = zone,
                             .epoch = 0,
                             .fresh = true,
-                            .drop = false,
                             .checkpoint = std::nullopt,
                             .edits = {},
                             .through = 0};
-  // Not followed: forgotten (its chunks would stay in memory, never evicted, never updated);
-  // installed when it is followed again.
-  if (!replicas_.following(zone)) {
-    out.drop = true;
-    return out;
+  // Held or followed: its checkpoint replaces the chunks it lists at once (its viewers do
+  // not see them generated meanwhile); its log follows by its catch-up or its follower.
+  // Neither, or the checkpoint cannot be read now (a zone that cannot be read must not
+  // hold up the others): the world has none of its records.
+  if (!table_.held(zone) && !replicas_.following(zone)) return out;
+  try {
+    if (const std::optional<store::ZoneRow> row = db_.read(zone))
+      out.checkpoint = checkpoint_past(zone, 0, row->checkpoint_seq);
+  } catch (const store::StoreError& e) {
+    spdlog::warn(
+        "cluster: {}: its checkpoint cannot be read ({}); its log is applied from the "
+        "start",
+        describe(zone), e.what());
   }
-  if (const std::optional<store::ZoneRow> row = db_.read(zone)) {
-    out.checkpoint = checkpoint_past(zone, 0, row->checkpoint_seq);
-    if (out.checkpoint) out.through = out.checkpoint->seq;
-    const std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
-    expect_next(zone, read, out.through);
-    append_run(zone, read, out, UINT64_MAX);
-  }
+  if (out.checkpoint) out.through = out.checkpoint->seq;
   return out;
 }
 
@@ -139,12 +139,15 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     if (table_.held(zone)) continue;
     try {
       const auto [applied, fresh] = table_.position(zone);
+      if (fresh) {  // forgotten first (next())
+        replicas_.started_again(zone);
+        continue;
+      }
       const std::optional<store::ZoneRow> row = db_.read(zone);
       if (!row || !checkpoint_first(applied, row->checkpoint_seq)) continue;
       pipeline::ZoneRecords out{.zone = zone,
                                 .epoch = 0,
-                                .fresh = fresh,
-                                .drop = false,
+                                .fresh = false,
                                 .checkpoint = std::nullopt,
                                 .edits = {},
                                 .through = applied};
@@ -153,7 +156,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
       const std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
       expect_next(zone, read, out.through);
       append_run(zone, read, out, UINT64_MAX);
-      if (!out.checkpoint && out.edits.empty() && !out.fresh) continue;
+      if (!out.checkpoint && out.edits.empty()) continue;
       for (size_t j = i + 1; j < started.size(); ++j) replicas_.started_again(started[j]);
       handed_.clear();
       return out;
@@ -168,10 +171,13 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
   if (!taken) return std::nullopt;
   const world::ZoneId zone = taken->zone;
   const auto [applied, fresh] = table_.position(zone);
+  if (fresh) {  // forgotten first (next())
+    replicas_.give_back(zone, std::move(taken->records));
+    return std::nullopt;
+  }
   pipeline::ZoneRecords out{.zone = zone,
                             .epoch = 0,
-                            .fresh = fresh,
-                            .drop = false,
+                            .fresh = false,
                             .checkpoint = std::nullopt,
                             .edits = {},
                             .through = applied};
@@ -190,7 +196,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
       replicas_.give_back(zone, std::move(taken->records));
       throw;
     }
-    if (taken->records.empty() && !out.checkpoint && !out.fresh) return std::nullopt;
+    if (taken->records.empty() && !out.checkpoint) return std::nullopt;
   }
   size_t used = 0;
   try {
@@ -206,7 +212,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     taken->records.resize(used);
   }
   handed_ = std::move(taken->records);
-  if (out.edits.empty() && !out.checkpoint && !out.fresh) return std::nullopt;
+  if (out.edits.empty() && !out.checkpoint) return std::nullopt;
   return out;
 }
 
@@ -224,8 +230,16 @@ std::optional<store::ZoneCheckpoint> ZoneRecordSource::checkpoint_past(world::Zo
 }
 
 void ZoneRecordSource::applied(const pipeline::ZoneRecords& records, uint64_t through) {
-  // The world forgot what it had of the zone: it has the records through `through` now.
-  if (records.fresh) table_.reset(records.zone, through);
+  if (records.fresh) {  // the world forgot what it had of the zone, then installed `through`
+    const bool installed = records.checkpoint && through >= records.checkpoint->seq;
+    table_.reset(records.zone, installed ? through : 0);
+    if (installed) {
+      for (const uint64_t id : records.checkpoint->edit_ids) table_.note_edit(records.zone, id);
+      installed_.fetch_add(1, std::memory_order_relaxed);
+    }
+    if (replicas_.following(records.zone)) replicas_.started_again(records.zone);
+    return;
+  }
   if (records.checkpoint && through < records.checkpoint->seq) {
     // Not installed (a chunk that does not decode, or lies outside the zone: the pipeline
     // said which): its log is applied instead, from what the world has.

@@ -43,8 +43,8 @@ class ZoneRecordSource {
 
  private:
   std::optional<pipeline::ZoneRecords> catch_up();
-  // A zone lost after this node evicted a chunk of it (ZoneTable::fresh): the world forgets
-  // what it has of it, and installs it again at once if it is followed.
+  // A zone lost after this node evicted a chunk of it, or neither held nor followed any
+  // more (ZoneTable::fresh): the world forgets what it has of it (nothing is read).
   pipeline::ZoneRecords fresh_records(world::ZoneId zone);
   std::optional<pipeline::ZoneRecords> followed_records();
   // The zone's checkpoint when a world with its records through `applied` should install

@@ -58,7 +58,7 @@ ZoneTable::Position ZoneTable::position(world::ZoneId zone) const {
 std::optional<world::ZoneId> ZoneTable::next_fresh() const {
   std::lock_guard lock(mutex_);
   for (const auto& [zone, z] : zones_) {
-    if (z.fresh && !z.epoch) return zone;
+    if (z.fresh) return zone;
   }
   return std::nullopt;
 }
@@ -118,7 +118,7 @@ void ZoneTable::committed(world::ZoneId zone, uint64_t last) {
 std::optional<ZoneTable::CatchUp> ZoneTable::next_catch_up() const {
   std::lock_guard lock(mutex_);
   for (const auto& [zone, z] : zones_) {
-    if (z.epoch && z.behind) return CatchUp{zone, *z.epoch, z.fresh ? 0 : z.applied, z.fresh};
+    if (z.epoch && z.behind && !z.fresh) return CatchUp{zone, *z.epoch, z.applied};
   }
   return std::nullopt;
 }

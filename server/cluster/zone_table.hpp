@@ -23,8 +23,7 @@ class ZoneTable {
   // The keeper took `zone` at `epoch`: its world catches up before edits are taken.
   void taken(world::ZoneId zone, uint64_t epoch);
   // The zone is no longer held at `epoch` (a later epoch's take is left alone). When a
-  // chunk of it was evicted meanwhile, its world is installed afresh when it is next
-  // followed or taken (fresh()).
+  // chunk of it was evicted meanwhile, it becomes fresh (see may_evict).
   void lost(world::ZoneId zone, uint64_t epoch);
   // A graceful hand-off's first step: no edit is taken in it any more (they go to its next
   // holder), while the appends already made land under its epoch; lost() follows.
@@ -42,11 +41,11 @@ class ZoneTable {
   // Records through `last` of `zone` are durable and applied.
   void committed(world::ZoneId zone, uint64_t last);
 
-  // A held zone whose world is behind: its epoch and the last record applied.
+  // A held zone whose world is behind (and not fresh): its epoch and the last record
+  // applied.
   struct CatchUp {
     world::ZoneId zone;
-    uint64_t epoch = 0, applied = 0;  // applied: 0 when fresh
-    bool fresh = false;
+    uint64_t epoch = 0, applied = 0;
   };
   std::optional<CatchUp> next_catch_up() const;
   bool catching_up() const;
@@ -69,7 +68,7 @@ class ZoneTable {
     bool fresh = false;
   };
   Position position(world::ZoneId zone) const;  // applied() and fresh, read at once
-  // A fresh zone not held (a held one is caught up afresh instead).
+  // A fresh zone (held or not: a held one catches up once its world forgot it).
   std::optional<world::ZoneId> next_fresh() const;
   void reset(world::ZoneId zone, uint64_t through);
   // The zones edits are taken in now.

@@ -87,6 +87,7 @@ void Checkpoints::finish(WorldState& st, const CheckpointResult& r, Clock::time_
     auto it = st.info.find(c);
     if (it == st.info.end()) continue;  // cannot happen: not evictable while written
     it->second.checkpointing = false;
+    if (forgotten_.count(c)) continue;  // generated terrain now, saved
     if (r.ok) {
       st.stored.insert(c);
     } else if (!it->second.unsaved) {
@@ -94,6 +95,7 @@ void Checkpoints::finish(WorldState& st, const CheckpointResult& r, Clock::time_
       unsaved_.insert(c);
     }
   }
+  forgotten_.clear();
   if (!r.ok) unsaved_edits_ += checkpoint_edits_;
   checkpoint_edits_ = 0;
   if (r.ok) {

@@ -57,6 +57,13 @@ class Checkpoints {
   void changed(world::ChunkCoord c) { unsaved_.insert(c); }
   // An undo gave chunk c back its state from before: saved, as it was.
   void saved_again(world::ChunkCoord c) { unsaved_.erase(c); }
+  // A cluster node forgot the zone of chunk c, which the checkpoint in flight holds (c
+  // went back to the generated terrain): saved, and that checkpoint does not mark it
+  // stored.
+  void forget(world::ChunkCoord c) {
+    unsaved_.erase(c);
+    forgotten_.insert(c);
+  }
   // Edits made durable (logged) since the last checkpoint started.
   void logged(uint64_t edits) { unsaved_edits_ += edits; }
   // Logged edits no finished checkpoint holds (`in_flight`: of batches being appended):
@@ -114,6 +121,8 @@ class Checkpoints {
   // Resident chunks with info.unsaved; edits logged since the last checkpoint started, and
   // those the one in flight holds (back to unsaved when it fails).
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> unsaved_;
+  // Chunks forgotten while the checkpoint in flight held them (emptied when it finishes).
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> forgotten_;
   uint64_t unsaved_edits_ = 0, checkpoint_edits_ = 0;
   bool failing_ = false;   // the last checkpoint failed (logged once)
   bool log_full_ = false;  // edits are held back

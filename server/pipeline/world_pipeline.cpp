@@ -40,11 +40,13 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       memory_(MemoryBudget(config_.max_memory), config_.evict_after, config_.evict_min_age,
               Clock::now()),
       state_(std::make_unique<WorldState>(config_.threads)),
-      // One connection for appends and reads: a read waits for the appends in flight.
-      reader_(config_.store
-                  ? std::make_unique<StoredChunkReader>(*config_.store, config_.store_retry,
-                                                        [this] { commit_->wait_for_appends(); })
-                  : nullptr),
+      // One connection for appends and reads: a read waits for the appends in flight (a
+      // cluster node's store reads on a connection of its own).
+      reader_(config_.store ? std::make_unique<StoredChunkReader>(
+                                  *config_.store, config_.store_retry,
+                                  config_.zones ? std::function<void()>()
+                                                : [this] { commit_->wait_for_appends(); })
+                            : nullptr),
       lod_(std::make_unique<LodStage>(generator_, *state_, config_.lod, reader_.get())),
       regions_(config_.limits) {
   if (config_.zones) config_.zones->set_wake([this] { inbox_.poke(); });

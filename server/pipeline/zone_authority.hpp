@@ -29,12 +29,11 @@ namespace vox::pipeline {
 struct ZoneRecords {
   world::ZoneId zone;
   uint64_t epoch = 0;  // the node's epoch of the zone when read; 0: a zone it follows
-  // The world's chunks of the zone go back to the generated terrain first (it has none of
-  // the zone's records, or must forget what it has: a chunk it evicted may be ahead).
+  // Nothing to apply: the world forgets what it has of the zone (its changed chunks leave
+  // memory or go back to the generated terrain; none is read back from the store), and
+  // then has none of its records. A zone neither held nor followed any more, or lost after
+  // a chunk of it was evicted (docs/CLUSTER.md, "Evicting a zone's chunks").
   bool fresh = false;
-  // With fresh: the zone is neither held nor followed here (no records come): its changed
-  // chunks leave memory (those in a view, pinned or being checkpointed are regenerated).
-  bool drop = false;
   // First, the zone's checkpoint when the world is behind it (docs/CLUSTER.md, "Zone
   // checkpoints"): every chunk its records changed through record `installed`, each
   // replacing the world's copy (the zone's other chunks were never changed through it).

@@ -76,11 +76,11 @@ bool install_checkpoint(EditWorld& world, const store::ZoneCheckpoint& cp, Clock
 }
 
 // The world forgets what it has of the zone (docs/CLUSTER.md, "Evicting a zone's
-// chunks"): its changed resident chunks go back to the generated terrain (re-meshed with
-// their neighbours), or with `drop` leave memory (unless in a view, pinned or being
-// checkpointed), and none of its chunks is read back from the store any more. Those `cp`
-// lists are left to its install (which replaces them).
-void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoint* cp, bool drop,
+// chunks"): its changed chunks leave memory, none is read back from the store any more,
+// and later loads generate them. One a view, a waiting mesh, the checkpoint in flight or a
+// neighbour's mesh needs goes back to the generated terrain in place instead (re-meshed
+// with its neighbours). Those `cp` lists are left to its install, which replaces them.
+void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoint* cp,
                  Clock::time_point now, AppliedRecords& out) {
   WorldState& st = world.state;
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> listed;
@@ -90,10 +90,20 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
   const auto in_zone = [&](world::ChunkCoord c) {
     return world.zone_chunks > 0 && world::zone_of(c, world.zone_chunks) == zone;
   };
+  const auto needed = [&](world::ChunkCoord c, const WorldState::ChunkInfo& info) {
+    if (info.checkpointing || st.views.viewed(c) || st.pins.count(c)) return true;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto n = st.info.find(c.offset(dx, dy, dz));
+          if ((dx | dy | dz) != 0 && n != st.info.end() && n->second.meshed) return true;
+        }
+    return false;
+  };
   std::erase_if(st.stored, in_zone);
   const world::ChangedBox all = whole_chunk();
   std::vector<world::ChunkCoord> dirty;
-  size_t forgotten = 0, dropped = 0;
+  size_t reverted = 0, dropped = 0;
   for (auto it = st.info.begin(); it != st.info.end();) {
     const world::ChunkCoord c = it->first;
     WorldState::ChunkInfo& info = it->second;
@@ -101,11 +111,11 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
       ++it;
       continue;
     }
-    if (drop && !info.checkpointing && !st.views.viewed(c) && !st.pins.count(c)) {
+    --st.modified_count;
+    if (!needed(c, info)) {
       st.chunks.erase(c);
       world.meshes.erase(c);
       if (world.checkpoints) world.checkpoints->saved_again(c);  // no checkpoint looks for it
-      --st.modified_count;
       it = st.info.erase(it);
       ++dropped;
       continue;
@@ -116,15 +126,13 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
       world.checkpoints->preserve(c, *live);
     st.chunks.insert(c, world.generator.generate(c));
     info.modified = false;
-    --st.modified_count;
     info.last_used = now;
-    // Generated terrain needs no saving (it may be evicted), unless a checkpoint in flight
-    // holds it: then it stays (the checkpoint marks it stored) until one writes it again.
-    info.unsaved = info.checkpointing;
-    if (info.checkpointing && world.checkpoints) world.checkpoints->changed(c);
+    info.unsaved = false;  // generated terrain needs no saving (it may be evicted)
+    if (world.checkpoints && info.checkpointing) world.checkpoints->forget(c);
+    if (world.checkpoints && !info.checkpointing) world.checkpoints->saved_again(c);
     world::append_dirty_chunks(c, all, dirty);
     out.touched.push_back(voxels_of(c));
-    ++forgotten;
+    ++reverted;
   }
   for (const world::ChunkCoord& c : dirty) {
     if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) {
@@ -132,13 +140,12 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
       out.batch.edited_at.try_emplace(c, now);
     }
   }
-  out.batch.any_edit = out.batch.any_edit || forgotten > 0;
+  out.batch.any_edit = out.batch.any_edit || reverted > 0;
   spdlog::info(
-      "zone ({}, {}) forgotten ({}): {} changed chunks left memory, {} went back to the "
-      "generated terrain; it is installed afresh from its checkpoint and log when "
-      "followed or taken",
-      zone.x, zone.z, drop ? "neither held nor followed" : "lost after an eviction", dropped,
-      forgotten);
+      "zone ({}, {}) forgotten (neither held nor followed, or lost after an eviction): {} "
+      "changed chunks left memory, {} went back to the generated terrain; installed afresh "
+      "from its checkpoint and log when followed or taken",
+      zone.x, zone.z, dropped, reverted);
 }
 
 }  // namespace
@@ -146,15 +153,13 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
 AppliedRecords apply_zone_records(EditWorld& world, const ZoneRecords& records,
                                   Clock::time_point now) {
   AppliedRecords out;
-  if (records.fresh)
-    forget_zone(world, records.zone, records.checkpoint ? &*records.checkpoint : nullptr,
-                records.drop, now, out);
+  const store::ZoneCheckpoint* cp = records.checkpoint ? &*records.checkpoint : nullptr;
+  if (records.fresh) forget_zone(world, records.zone, cp, now, out);
   out.through = records.edits.empty() ? records.through : records.edits.front().seq - 1;
   if (records.checkpoint) {
     out.through = 0;  // short of the checkpoint: nothing applied
     if (!install_checkpoint(world, *records.checkpoint, now, out)) {
-      // Its log is applied from nothing instead: the chunks it lists go back too.
-      if (records.fresh) forget_zone(world, records.zone, nullptr, records.drop, now, out);
+      if (records.fresh) forget_zone(world, records.zone, nullptr, now, out);  // those too
       return out;
     }
     out.through = records.edits.empty() ? records.through : records.checkpoint->seq;

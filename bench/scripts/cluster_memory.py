@@ -1,0 +1,89 @@
+#!/usr/bin/python3
+# A cluster node's memory under players who edit all over a wide world (docs/CLUSTER.md,
+# "Evicting a zone's chunks"): two nodes with a small --max-memory and short eviction and
+# follow timeouts, voxel-loadtest players spread over both, walking and editing within
+# +-SPAWN voxels. Every few seconds each node's resident changed chunks, chunks stored,
+# chunks evicted, accounted bytes and RSS are printed; at the end the CPU model, the steal,
+# and the edit -> delta latency from the tester.
+#
+#   /usr/bin/python3 bench/scripts/cluster_memory.py [SECONDS]
+#   env: PLAYERS (40), SPAWN (3000), MAX_MEMORY (160M), ZONE_CHUNKS (4), DIR, PG_PORT
+import json, os, re, subprocess, sys, time, urllib.request
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from stranger_cluster import ROOT, Cluster  # noqa: E402
+import thread_cpu  # noqa: E402
+
+SECONDS = int(sys.argv[1]) if len(sys.argv) > 1 else 90
+PLAYERS = int(os.environ.get("PLAYERS", "40"))
+SPAWN = int(os.environ.get("SPAWN", "3000"))
+MAX_MEMORY = os.environ.get("MAX_MEMORY", "160M")
+METRICS = {"a": 19391, "b": 19392}
+WATCH = ["voxeld_chunks_modified", "voxeld_chunks_stored", "voxeld_chunks_evicted_total",
+         "voxeld_chunks_loaded", "voxeld_memory_accounted_bytes",
+         "voxeld_cluster_checkpoints_installed_total"]
+
+
+def metrics(node):
+    text = urllib.request.urlopen(f"http://127.0.0.1:{METRICS[node]}/metrics", timeout=5).read()
+    out = {}
+    for line in text.decode().splitlines():
+        m = re.match(r"^([a-z_]+)(?:\{[^}]*\})? ([-0-9.e+]+)$", line)
+        if m and m.group(1) in WATCH:
+            out[m.group(1)] = out.get(m.group(1), 0.0) + float(m.group(2))
+    return out
+
+
+def rss_mib(pid):
+    for line in open(f"/proc/{pid}/status"):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    return 0.0
+
+
+def main():
+    d = os.environ.get("DIR", "/tmp/cluster_memory")
+    cluster = Cluster(d, int(os.environ.get("PG_PORT", "55481")),
+                      zone_chunks=int(os.environ.get("ZONE_CHUNKS", "4")))
+    ports = {}
+    for node in ("a", "b"):
+        ports[node] = cluster.start(node, ["--max-memory", MAX_MEMORY, "--evict-after", "10",
+                                           "--checkpoint-interval", "2", "--metrics-port",
+                                           str(METRICS[node])], more="follow_idle_s = 20\n")
+    pids = {n: cluster.procs[n].pid for n in ports}
+    print(f"cpu: {thread_cpu.cpu_model()}; players {PLAYERS} within +-{SPAWN} voxels, "
+          f"--max-memory {MAX_MEMORY}, zones of {cluster.zone_chunks} chunks")
+    steal0 = thread_cpu.steal_seconds()
+    tester = subprocess.Popen(
+        [ROOT + "/build/bin/voxel-loadtest", "--server", f"127.0.0.1:{ports['a']}",
+         "--more-servers", f"127.0.0.1:{ports['b']}", "--players", str(PLAYERS),
+         "--duration", str(SECONDS), "--spawn-area", str(SPAWN), "--edit-rate", "1",
+         "--json", f"{d}/load.json"], stdout=open(f"{d}/load.log", "w"),
+        stderr=subprocess.STDOUT)
+    start = time.time()
+    print("  s node modified stored evicted resident accounted_MiB RSS_MiB installed")
+    while tester.poll() is None:
+        time.sleep(10)
+        for node in ports:
+            try:
+                m = metrics(node)
+            except OSError as e:
+                print(node, "metrics:", e)
+                continue
+            print(f"{time.time() - start:4.0f} {node:>4} {m.get(WATCH[0], 0):8.0f} "
+                  f"{m.get(WATCH[1], 0):6.0f} {m.get(WATCH[2], 0):7.0f} {m.get(WATCH[3], 0):8.0f} "
+                  f"{m.get(WATCH[4], 0) / 2**20:13.0f} {rss_mib(pids[node]):7.0f} "
+                  f"{m.get(WATCH[5], 0):9.0f}")
+    steal = thread_cpu.steal_seconds() - steal0
+    print(f"steal: {steal:.1f} s over {time.time() - start:.0f} s")
+    try:
+        r = json.load(open(f"{d}/load.json"))
+        s = r.get("summary", r)
+        print("tester:", {k: s[k] for k in s if "p99" in k or "p50" in k or "refused" in k})
+    except (OSError, ValueError) as e:
+        print("tester json:", e)
+    cluster.stop()
+
+
+if __name__ == "__main__":
+    main()
