@@ -7,7 +7,9 @@
 # and the edit -> delta latency from the tester.
 #
 #   /usr/bin/python3 bench/scripts/cluster_memory.py [SECONDS]
-#   env: PLAYERS (40), SPAWN (3000), MAX_MEMORY (160M), ZONE_CHUNKS (4), DIR, PG_PORT
+#   env: PLAYERS (40), SPAWN (1500), MAX_MEMORY (512M), ZONE_CHUNKS (16), DIR, PG_PORT,
+#        VOXELD (a voxeld binary to compare, e.g. an older build's), FOLLOW_IDLE (20 s;
+#        empty: not set, for a build without follow_idle_s)
 import json, os, re, subprocess, sys, time, urllib.request
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -16,8 +18,8 @@ import thread_cpu  # noqa: E402
 
 SECONDS = int(sys.argv[1]) if len(sys.argv) > 1 else 90
 PLAYERS = int(os.environ.get("PLAYERS", "40"))
-SPAWN = int(os.environ.get("SPAWN", "3000"))
-MAX_MEMORY = os.environ.get("MAX_MEMORY", "160M")
+SPAWN = int(os.environ.get("SPAWN", "1500"))
+MAX_MEMORY = os.environ.get("MAX_MEMORY", "512M")
 METRICS = {"a": 19391, "b": 19392}
 WATCH = ["voxeld_chunks_modified", "voxeld_chunks_stored", "voxeld_chunks_evicted_total",
          "voxeld_chunks_loaded", "voxeld_memory_accounted_bytes",
@@ -44,12 +46,14 @@ def rss_mib(pid):
 def main():
     d = os.environ.get("DIR", "/tmp/cluster_memory")
     cluster = Cluster(d, int(os.environ.get("PG_PORT", "55481")),
-                      zone_chunks=int(os.environ.get("ZONE_CHUNKS", "4")))
+                      zone_chunks=int(os.environ.get("ZONE_CHUNKS", "16")))
     ports = {}
+    idle = os.environ.get("FOLLOW_IDLE", "20")
+    idle = f"follow_idle_s = {idle}\n" if idle else ""
     for node in ("a", "b"):
         ports[node] = cluster.start(node, ["--max-memory", MAX_MEMORY, "--evict-after", "10",
                                            "--checkpoint-interval", "2", "--metrics-port",
-                                           str(METRICS[node])], more="follow_idle_s = 20\n")
+                                           str(METRICS[node])], more=idle)
     pids = {n: cluster.procs[n].pid for n in ports}
     print(f"cpu: {thread_cpu.cpu_model()}; players {PLAYERS} within +-{SPAWN} voxels, "
           f"--max-memory {MAX_MEMORY}, zones of {cluster.zone_chunks} chunks")
@@ -58,6 +62,7 @@ def main():
         [ROOT + "/build/bin/voxel-loadtest", "--server", f"127.0.0.1:{ports['a']}",
          "--more-servers", f"127.0.0.1:{ports['b']}", "--players", str(PLAYERS),
          "--duration", str(SECONDS), "--spawn-area", str(SPAWN), "--edit-rate", "1",
+         "--spread-addresses",
          "--json", f"{d}/load.json"], stdout=open(f"{d}/load.log", "w"),
         stderr=subprocess.STDOUT)
     start = time.time()
@@ -79,7 +84,11 @@ def main():
     try:
         r = json.load(open(f"{d}/load.json"))
         s = r.get("summary", r)
-        print("tester:", {k: s[k] for k in s if "p99" in k or "p50" in k or "refused" in k})
+        print("tester: players connected %d of %d, edits %d, refused %s, errors %s" % (
+            r["players_connected"], r["players"], r["edits_sent"], r["refused_by_status"],
+            r["errors_by_cause"]))
+        for k in ("edit_to_result_ms", "edit_to_delta_ms", "first_view_ms"):
+            print("  %s: p50 %.1f p99 %.1f (%d)" % (k, r[k]["p50"], r[k]["p99"], r[k]["count"]))
     except (OSError, ValueError) as e:
         print("tester json:", e)
     cluster.stop()

@@ -57,8 +57,8 @@ class Cluster:
         os.chmod(conf, 0o600)
         pf = f"{d}/{node}.port"
         self.procs[node] = subprocess.Popen(
-            [ROOT + "/build/bin/voxeld", "--cluster", conf, "--port", "0", "--port-file", pf,
-             "--http-port", "0", *args], stdout=open(f"{d}/{node}.log", "w"), stderr=subprocess.STDOUT)
+            [os.environ.get("VOXELD", ROOT + "/build/bin/voxeld"), "--cluster", conf, "--port",
+             "0", "--port-file", pf, "--http-port", "0", *args], stdout=open(f"{d}/{node}.log", "w"), stderr=subprocess.STDOUT)
         for _ in range(100):
             if os.path.exists(pf) and open(pf).read().strip():
                 break
