@@ -17,6 +17,16 @@ std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
 }
 
+// Records of a zone this node does not hold, after record `applied`.
+pipeline::ZoneRecords followed(world::ZoneId zone, uint64_t applied) {
+  return {.zone = zone,
+          .epoch = 0,
+          .fresh = false,
+          .checkpoint = std::nullopt,
+          .edits = {},
+          .through = applied};
+}
+
 }  // namespace
 
 ZoneRecordSource::ZoneRecordSource(ZoneTable& table, ZoneReplicas& replicas,
@@ -104,12 +114,8 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
 
 pipeline::ZoneRecords ZoneRecordSource::fresh_records(world::ZoneId zone) {
   handed_.clear();
-  pipeline::ZoneRecords out{.zone = zone,
-                            .epoch = 0,
-                            .fresh = true,
-                            .checkpoint = std::nullopt,
-                            .edits = {},
-                            .through = 0};
+  pipeline::ZoneRecords out = followed(zone, 0);
+  out.fresh = true;
   // Held or followed: its checkpoint replaces the chunks it lists at once (its viewers do
   // not see them generated meanwhile); its log follows by its catch-up or its follower.
   // Neither, or the checkpoint cannot be read now (a zone that cannot be read must not
@@ -145,12 +151,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
       }
       const std::optional<store::ZoneRow> row = db_.read(zone);
       if (!row || !checkpoint_first(applied, row->checkpoint_seq)) continue;
-      pipeline::ZoneRecords out{.zone = zone,
-                                .epoch = 0,
-                                .fresh = false,
-                                .checkpoint = std::nullopt,
-                                .edits = {},
-                                .through = applied};
+      pipeline::ZoneRecords out = followed(zone, applied);
       out.checkpoint = checkpoint_past(zone, applied, row->checkpoint_seq);
       if (out.checkpoint) out.through = out.checkpoint->seq;
       const std::vector<store::ZoneRecord> read = db_.read_log(zone, out.through, kRecordsPerRead);
@@ -175,12 +176,7 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
     replicas_.give_back(zone, std::move(taken->records));
     return std::nullopt;
   }
-  pipeline::ZoneRecords out{.zone = zone,
-                            .epoch = 0,
-                            .fresh = false,
-                            .checkpoint = std::nullopt,
-                            .edits = {},
-                            .through = applied};
+  pipeline::ZoneRecords out = followed(zone, applied);
   if (taken->records.front().seq != applied + 1) {
     // Not the next record (this node's world moved otherwise, or its follower started
     // after the zone's checkpoint): the checkpoint first if it should be installed, and
