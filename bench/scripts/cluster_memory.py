@@ -8,6 +8,7 @@
 #
 #   /usr/bin/python3 bench/scripts/cluster_memory.py [SECONDS]
 #   env: PLAYERS (40), SPAWN (1500), MAX_MEMORY (512M), ZONE_CHUNKS (16), DIR, PG_PORT,
+#        SETTLE (8 s before the players come: the zones placed), GATEWAY=a (every player on node a: node b only holds zones, follows none),
 #        VOXELD (a voxeld binary to compare, e.g. an older build's), FOLLOW_IDLE (20 s;
 #        empty: not set, for a build without follow_idle_s)
 import json, os, re, subprocess, sys, time, urllib.request
@@ -55,12 +56,16 @@ def main():
                                            "--checkpoint-interval", "2", "--metrics-port",
                                            str(METRICS[node])], more=idle)
     pids = {n: cluster.procs[n].pid for n in ports}
+    time.sleep(float(os.environ.get("SETTLE", "8")))  # the zones placed over both nodes
     print(f"cpu: {thread_cpu.cpu_model()}; players {PLAYERS} within +-{SPAWN} voxels, "
           f"--max-memory {MAX_MEMORY}, zones of {cluster.zone_chunks} chunks")
     steal0 = thread_cpu.steal_seconds()
+    more = [] if os.environ.get("GATEWAY") == "a" else ["--more-servers",
+                                                         f"127.0.0.1:{ports['b']}"]
+    cpu_from = {n: thread_cpu.sample(pids[n]) for n in pids}
     tester = subprocess.Popen(
-        [ROOT + "/build/bin/voxel-loadtest", "--server", f"127.0.0.1:{ports['a']}",
-         "--more-servers", f"127.0.0.1:{ports['b']}", "--players", str(PLAYERS),
+        [ROOT + "/build/bin/voxel-loadtest", "--server", f"127.0.0.1:{ports['a']}", *more,
+         "--players", str(PLAYERS),
          "--duration", str(SECONDS), "--spawn-area", str(SPAWN), "--edit-rate", "1",
          "--spread-addresses",
          "--json", f"{d}/load.json"], stdout=open(f"{d}/load.log", "w"),
@@ -79,8 +84,14 @@ def main():
                   f"{m.get(WATCH[1], 0):6.0f} {m.get(WATCH[2], 0):7.0f} {m.get(WATCH[3], 0):8.0f} "
                   f"{m.get(WATCH[4], 0) / 2**20:13.0f} {rss_mib(pids[node]):7.0f} "
                   f"{m.get(WATCH[5], 0):9.0f}")
+    elapsed = time.time() - start
     steal = thread_cpu.steal_seconds() - steal0
-    print(f"steal: {steal:.1f} s over {time.time() - start:.0f} s")
+    print(f"steal: {100 * steal / elapsed / os.cpu_count():.1f} % of the CPUs over {elapsed:.0f} s")
+    for n in pids:
+        cpu = thread_cpu.shares(cpu_from[n], thread_cpu.sample(pids[n]), elapsed)
+        print("node %s CPU %.1f %% (%s)" % (n, sum(c[2] for c in cpu), ", ".join(
+            "%s%s %.1f" % (name, "x%d" % k if k > 1 else "", pct)
+            for name, k, pct in cpu if pct >= 0.5)))
     try:
         r = json.load(open(f"{d}/load.json"))
         s = r.get("summary", r)

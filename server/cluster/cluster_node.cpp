@@ -278,9 +278,10 @@ void ClusterNode::round() {
   release_relays(false);
   replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
                       [this](world::ZoneId z) { return table_.applied(z); });
-  // Zones neither held nor followed any more are forgotten: the memory stays bounded.
+  // Zones neither held nor followed nor viewed lately (one waiting for a follower keeps
+  // what it has meanwhile) are forgotten: the memory stays bounded.
   for (const world::ZoneId zone : table_.known_unheld()) {
-    if (!replicas_.following(zone)) table_.forget(zone);
+    if (!replicas_.following(zone) && !replicas_.viewed_lately(zone)) table_.forget(zone);
   }
   // Zones forgotten, or lost after an eviction: the pipeline forgets their chunks now.
   if (table_.next_fresh() && wake_) wake_();

@@ -182,6 +182,12 @@ bool ZoneReplicas::following(world::ZoneId zone) const {
   return waiting_.count(zone) > 0;
 }
 
+bool ZoneReplicas::viewed_lately(world::ZoneId zone) const {
+  std::lock_guard lock(mutex_);
+  const auto it = viewed_.find(zone);
+  return it != viewed_.end() && Clock::now() - it->second < config_.idle;
+}
+
 bool ZoneReplicas::waiting() const {
   std::lock_guard lock(mutex_);
   if (!started_.empty()) return true;

@@ -77,6 +77,8 @@ class ZoneReplicas {
   void started_again(world::ZoneId zone);
   bool waiting() const;
   bool following(world::ZoneId zone) const;  // any thread
+  // Viewed within `idle` (followed, or waiting for a follower to start): any thread.
+  bool viewed_lately(world::ZoneId zone) const;
   // Stops every follower, for good (reconcile's thread, or once that thread has ended):
   // after it no record arrives and `wake` is not called again.
   void stop();
