@@ -276,6 +276,15 @@ void ClusterNode::release_relays(bool all) {
 void ClusterNode::round() {
   publisher_.heartbeat();
   release_relays(false);
+  // Views still there are viewed now (a player standing still sends no new view): their
+  // zones stay followed, and are never forgotten under their eyes.
+  std::vector<std::pair<world::ChunkCoord, int>> views;
+  {
+    std::lock_guard lock(views_mutex_);
+    views.reserve(views_.size());
+    for (const auto& [owner, view] : views_) views.push_back(view);
+  }
+  for (const auto& [center, radius] : views) mark_viewed(center, radius);
   replicas_.reconcile([this](world::ZoneId z) { return table_.held(z); },
                       [this](world::ZoneId z) { return table_.applied(z); });
   // Zones neither held nor followed nor viewed lately (one waiting for a follower keeps
@@ -287,7 +296,22 @@ void ClusterNode::round() {
   if (table_.next_fresh() && wake_) wake_();
 }
 
-void ClusterNode::viewing(world::ChunkCoord center, int radius) {
+void ClusterNode::viewing(uint64_t owner, world::ChunkCoord center, int radius) {
+  {
+    std::lock_guard lock(views_mutex_);
+    if (radius < 0) {
+      views_.erase(owner);
+      return;
+    }
+    views_[owner] = {center, radius};
+  }
+  // A zone newly viewed is followed from the keeper's next round: started now, not in up
+  // to a third of a lease (its view showed the generated terrain meanwhile).
+  if (mark_viewed(center, radius) && keeper_) keeper_->poke();
+}
+
+// Whether a zone of the view was not followed and now may be.
+bool ClusterNode::mark_viewed(world::ChunkCoord center, int radius) {
   // Plus a chunk around: a mesh at the view's edge reads a voxel of its neighbours.
   const int64_t r = std::clamp(radius, 0, 1 << 16) + 1;
   const auto voxel = [](int64_t chunk) {
@@ -297,12 +321,10 @@ void ClusterNode::viewing(world::ChunkCoord center, int radius) {
   const world::VoxelBox box{{voxel(center.x - r), 0, voxel(center.z - r)},
                             {voxel(center.x + r), 0, voxel(center.z + r)}};
   // Views are at most a few dozen chunks across; the replicas bound what they remember.
-  // A zone newly viewed is followed from the keeper's next round: started now, not in up
-  // to a third of a lease (its view showed the generated terrain meanwhile).
   bool fresh = false;
   for (const world::ZoneId zone : world::zones_of(box, config_.zone_chunks))
     fresh = (replicas_.viewing(zone) && !table_.held(zone)) || fresh;
-  if (fresh && keeper_) keeper_->poke();
+  return fresh;
 }
 
 pipeline::ZoneAuthority::Verdict ClusterNode::admit(pipeline::EditTask& task,

@@ -82,7 +82,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
   void accepted(const pipeline::EditTask& task) override;
   void undone(const pipeline::EditTask& task) override;
   pipeline::CheckpointScope checkpoint_scope(uint64_t seq) override;
-  void viewing(world::ChunkCoord center, int radius) override;
+  void viewing(uint64_t owner, world::ChunkCoord center, int radius) override;
   bool may_evict(world::ChunkCoord c) override {
     return table_.may_evict(world::zone_of(c, config_.zone_chunks));
   }
@@ -108,8 +108,9 @@ class ClusterNode : public pipeline::ZoneAuthority {
              const world::VoxelBox& box);
   uint64_t new_edit_id();
   std::vector<world::ZoneId> zones_written(const pipeline::EditTask& task) const;
-  void release_relays(bool all);         // any thread
-  void ask_to_take(world::ZoneId zone);  // any thread
+  bool mark_viewed(world::ChunkCoord center, int radius);  // any thread
+  void release_relays(bool all);                           // any thread
+  void ask_to_take(world::ZoneId zone);                    // any thread
 
   const ClusterConfig config_;
   NatsLink nats_;
@@ -142,6 +143,10 @@ class ClusterNode : public pipeline::ZoneAuthority {
   // lock, never held across a callback.
   std::mutex relay_mutex_;
   std::vector<Relay> relays_;
+  // Each session's current view (one per session: bounded by the sessions), marked viewed
+  // again every round. A leaf lock.
+  std::mutex views_mutex_;
+  std::unordered_map<uint64_t, std::pair<world::ChunkCoord, int>> views_;
   std::unique_ptr<ZoneKeeper> keeper_;
 };
 

@@ -120,7 +120,8 @@ pipeline::ZoneRecords ZoneRecordSource::fresh_records(world::ZoneId zone) {
   // not see them generated meanwhile); its log follows by its catch-up or its follower.
   // Neither, or the checkpoint cannot be read now (a zone that cannot be read must not
   // hold up the others): the world has none of its records.
-  if (!table_.held(zone) && !replicas_.following(zone)) return out;
+  if (!table_.held(zone) && !replicas_.following(zone) && !replicas_.viewed_lately(zone))
+    return out;
   try {
     if (const std::optional<store::ZoneRow> row = db_.read(zone))
       out.checkpoint = checkpoint_past(zone, 0, row->checkpoint_seq);
@@ -228,6 +229,10 @@ std::optional<store::ZoneCheckpoint> ZoneRecordSource::checkpoint_past(world::Zo
 void ZoneRecordSource::applied(const pipeline::ZoneRecords& records, uint64_t through) {
   if (records.fresh) {  // the world forgot what it had of the zone, then installed `through`
     const bool installed = records.checkpoint && through >= records.checkpoint->seq;
+    if (records.checkpoint && !installed) {  // not read again (see below)
+      if (unusable_.size() >= kMaxUnusable) unusable_.clear();
+      unusable_[records.zone] = records.checkpoint->seq;
+    }
     table_.reset(records.zone, installed ? through : 0);
     if (installed) {
       for (const uint64_t id : records.checkpoint->edit_ids) table_.note_edit(records.zone, id);

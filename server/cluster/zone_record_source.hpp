@@ -44,7 +44,10 @@ class ZoneRecordSource {
  private:
   std::optional<pipeline::ZoneRecords> catch_up();
   // A zone lost after this node evicted a chunk of it, or neither held nor followed any
-  // more (ZoneTable::fresh): the world forgets what it has of it (nothing is read).
+  // more (ZoneTable::fresh): the world forgets what it has of it, and installs its
+  // checkpoint at once when the zone is held, followed or viewed (only its row and
+  // checkpoint are read, and a failure to read them is no error: the log is applied
+  // from its start then).
   pipeline::ZoneRecords fresh_records(world::ZoneId zone);
   std::optional<pipeline::ZoneRecords> followed_records();
   // The zone's checkpoint when a world with its records through `applied` should install

@@ -222,7 +222,7 @@ void WorldPipeline::take_view_updates(Inbox::State& in) {
   if (in.view_updates.empty()) return;
   for (const auto& [owner, view] : in.view_updates) {
     state_->views.set(owner, view.first, view.second);
-    if (config_.zones) config_.zones->viewing(view.first, view.second);
+    if (config_.zones) config_.zones->viewing(owner, view.first, view.second);
   }
   in.view_updates.clear();
   loads_->drop_unviewed();

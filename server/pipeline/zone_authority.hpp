@@ -68,9 +68,10 @@ class ZoneAuthority {
   // Whether a saved changed chunk may be evicted now (read back from its zone's
   // checkpoint later: only while its zone is held and caught up); true notes that it was.
   virtual bool may_evict(world::ChunkCoord c) = 0;
-  // A player's view of chunks within `radius` of `center`: the node asks for its zones
+  // Session `owner`'s view of chunks within `radius` of `center` (radius < 0: it has none
+  // any more): the node asks for its zones
   // (it shows a zone as its log has it only while it holds it, for now).
-  virtual void viewing(world::ChunkCoord center, int radius) = 0;
+  virtual void viewing(uint64_t owner, world::ChunkCoord center, int radius) = 0;
   // Whether records wait to be applied (the pipeline then lets its batches in flight land
   // first: a zone's records apply on the world as its durable edits left it).
   virtual bool records_waiting() = 0;

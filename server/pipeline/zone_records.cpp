@@ -117,6 +117,7 @@ void forget_zone(EditWorld& world, world::ZoneId zone, const store::ZoneCheckpoi
       world.meshes.erase(c);
       if (world.checkpoints) world.checkpoints->saved_again(c);  // no checkpoint looks for it
       it = st.info.erase(it);
+      out.touched.push_back(voxels_of(c));  // coarse levels built from it
       ++dropped;
       continue;
     }
