@@ -4,8 +4,8 @@
 // the records of the zones it follows, as their holders commit them. A zone's checkpoint
 // comes first when the world should install it rather than apply the records before it
 // (checkpoint_first): a zone taken or followed anew, or far behind. A zone lost after the
-// node evicted a chunk of it is installed afresh (ZoneTable::fresh), or forgotten when it is
-// not followed.
+// node evicted a chunk of it, or one no longer viewed, is forgotten first (ZoneTable's
+// fresh zones), then installed afresh when held, followed or viewed.
 //
 // Threads: the pipeline thread, but installed() (any thread).
 #pragma once

@@ -132,11 +132,7 @@ void ZoneTable::caught_up(world::ZoneId zone, uint64_t epoch, uint64_t through, 
   if (complete && z.epoch == epoch && !z.fresh) z.behind = false;
 }
 
-uint64_t ZoneTable::applied(world::ZoneId zone) const {
-  std::lock_guard lock(mutex_);
-  const auto it = zones_.find(zone);
-  return it == zones_.end() || it->second.fresh ? 0 : it->second.applied;
-}
+uint64_t ZoneTable::applied(world::ZoneId zone) const { return position(zone).applied; }
 
 std::vector<world::ZoneId> ZoneTable::writable_zones() const {
   std::lock_guard lock(mutex_);

@@ -110,7 +110,7 @@ class ZoneTable {
     bool swept = false;             // a checkpoint since it caught up wrote it whole
     uint64_t applied = 0;           // the last record the world has
     bool evicted = false;           // held, and a changed chunk of it was evicted
-    bool fresh = false;             // lost after evicted: to be installed afresh
+    bool fresh = false;             // lost after evicted, or forgotten: its world forgets it
     pipeline::EditIds edits{kRememberedEdits};
   };
   mutable std::mutex mutex_;

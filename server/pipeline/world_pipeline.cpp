@@ -40,8 +40,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
       memory_(MemoryBudget(config_.max_memory), config_.evict_after, config_.evict_min_age,
               Clock::now()),
       state_(std::make_unique<WorldState>(config_.threads)),
-      // One connection for appends and reads: a read waits for the appends in flight (a
-      // cluster node's store reads on a connection of its own).
+      // A read waits for the appends in flight on their connection (not a cluster node's).
       reader_(config_.store ? std::make_unique<StoredChunkReader>(
                                   *config_.store, config_.store_retry,
                                   config_.zones ? std::function<void()>()
@@ -56,7 +55,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
         config_.checkpoint_store ? *config_.checkpoint_store : *config_.store,
         config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
         [this] { inbox_.poke(); }, Clock::now());
-    if (config_.zones) {  // a cluster node: only the zones it holds
+    if (config_.zones) {  // a cluster node: only the zones it holds, evicted while held
       checkpoints_->set_scope([this](uint64_t s) { return config_.zones->checkpoint_scope(s); });
       state_->may_evict_modified = [this](ChunkCoord c) { return config_.zones->may_evict(c); };
     }
@@ -197,8 +196,7 @@ bool WorldPipeline::batch_ready(Inbox::State& in) {
          lod;
 }
 
-// Under the inbox's lock: how long the idle pipeline may sleep, until the soonest of its
-// parts is due (a wake-up ends it sooner).
+// Under the inbox's lock: how long the idle pipeline may sleep (a wake-up ends it sooner).
 std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const {
   using std::chrono::milliseconds;
   milliseconds wait = memory_.next_look(in.scheduler.has_loads());
@@ -246,9 +244,8 @@ void WorldPipeline::between_batches(Clock::time_point now) {
   }
 }
 
-// A batch: every queued edit and inspection first; then, on the world as the edits left
-// it, one load pass within what the work and memory budgets allow; then a level-of-detail
-// pass. Between batches the parts take their turns.
+// A batch: every queued edit and inspection; then, on the world as the edits left it, one
+// load pass within the work and memory budgets; then a level-of-detail pass.
 void WorldPipeline::run() {
   const auto ready = [this](Inbox::State& in) {
     return in.stopping || in.append_landed || batch_ready(in);
