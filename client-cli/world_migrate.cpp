@@ -59,10 +59,7 @@ void load_single_world(store::WorldStore& s, world::ChunkMap& map,
 int migrate_in(const std::string& from, const std::string& to, const std::string& name,
                int zone_chunks, std::ostream& out) {
   auto source = store::open_world_store(from, {.read_only = true});
-  if (const size_t regions = source->read_regions().regions.size(); regions > 0)
-    throw std::runtime_error(source->name() + " has " + std::to_string(regions) +
-                             " protected regions, which a cluster does not keep yet: remove "
-                             "them first (voxel-cli region remove)");
+  const store::RegionTable regions = source->read_regions();
   world::ChunkMap map;
   std::set<world::ChunkCoord> modified;
   load_single_world(*source, map, modified);
@@ -71,9 +68,10 @@ int migrate_in(const std::string& from, const std::string& to, const std::string
   store::ZoneLeases db(to, "voxel-cli-migrate", kToolLease);
   const size_t zones = store::seed_zone_world(
       db, {.name = name, .seed = source->info().seed, .zone_chunks = zone_chunks}, chunks);
+  if (!regions.regions.empty()) db.seed_regions(regions);
   out << "migrate: " << source->name() << " into cluster world " << name << " ("
       << store::redact_uri(to) << "): " << chunks.size() << " chunks in " << zones << " zones of "
-      << zone_chunks << " chunks\n";
+      << zone_chunks << " chunks, " << regions.regions.size() << " protected regions\n";
   return 0;
 }
 
@@ -100,10 +98,18 @@ int migrate_out(const std::string& from, const std::string& to, std::optional<wo
       records.push_back({c, 1, encoder.encode(*zw.chunks.find(c))});
   }
   target->write_checkpoint(records, 1, 0);
+  // The protected regions: all of them (a region may reach past the zone taken alone).
+  const store::ZoneRegions regions = db.read_regions();
+  const store::RegionWrite write{.whole = true,
+                                 .upsert = regions.table.regions,
+                                 .remove = {},
+                                 .next_id = regions.table.next_id};
+  target->append_edits({}, {}, &write);
   out << "migrate: cluster world " << zw.settings.name;
   if (only) out << ", zone (" << only->x << ", " << only->z << ") alone";
   out << " (" << zw.zones << " zones, " << zw.records << " records replayed) into "
-      << target->name() << ": " << records.size() << " chunks\n";
+      << target->name() << ": " << records.size() << " chunks, " << regions.table.regions.size()
+      << " protected regions\n";
   return 0;
 }
 
@@ -153,7 +159,8 @@ int cluster_world_command(const std::string& action, const std::string& uri, std
   const store::ZoneWorld zw = store::read_zone_world(db, action == "verify", err);
   out << "cluster world " << zw.settings.name << " (seed " << zw.settings.seed << ", zones of "
       << zw.settings.zone_chunks << " chunks): " << zw.zones << " zones, " << zw.records
-      << " records replayed, " << zw.modified.size() << " modified chunks";
+      << " records replayed, " << zw.modified.size() << " modified chunks, "
+      << db.read_regions().table.regions.size() << " protected regions";
   if (zw.seeded > 0) out << ", " << zw.seeded << " zones from their migrated checkpoints";
   if (action != "verify") {
     out << "\n";

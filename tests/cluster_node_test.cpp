@@ -205,8 +205,24 @@ TEST(ClusterNode, AWorldMigratedIntoAClusterAndBackShowsWhatASingleNodeShows) {
   for (uint64_t i = 0; i < 3; ++i)
     all.push_back(explosion(200 + i, 61.0f + 2.5f * i, 67.0f - 3.0f * i));
   {
-    ServerProcess s({"--world", single});
+    // An admin's world (--open-role admin) with a protected region, far from the edits.
+    ServerProcess s({"--world", single, "--open-role", "admin"});
     apply_all(s, edits);
+    auto admin = player(s, "admin");
+    wire::Envelope add;
+    add.mutable_region_command()->set_request_id(9);
+    auto* r = add.mutable_region_command()->mutable_add();
+    r->set_name("far");
+    auto* b = r->mutable_box();
+    b->set_min_x(1000), b->set_min_y(0), b->set_min_z(1000);
+    b->set_max_x(1010), b->set_max_y(10), b->set_max_z(1010);
+    r->set_protect_build(true);
+    admin->send(add);
+    const auto added =
+        wait_for(*admin, [](const wire::Envelope& m) { return m.has_region_result(); });
+    ASSERT_TRUE(added.has_value());
+    ASSERT_EQ(added->region_result().status(), wire::RegionResult::OK)
+        << added->region_result().reason();
   }  // kill -9
   const auto cli = [](const std::vector<std::string>& args) {
     std::ostringstream out, err;
@@ -217,6 +233,13 @@ TEST(ClusterNode, AWorldMigratedIntoAClusterAndBackShowsWhatASingleNodeShows) {
       cli({"world", "migrate", "--from", single, "--to", cluster.database, "--name", "test",
            "--zone-chunks", std::to_string(kZoneChunks)});
   ASSERT_EQ(in_code, 0) << in_out << in_err;
+  EXPECT_NE(in_out.find("1 protected regions"), std::string::npos) << in_out;
+  {
+    store::ZoneLeases db(cluster.database, "test-reader", 30s);
+    const store::ZoneRegions regions = db.read_regions();
+    ASSERT_EQ(regions.table.regions.size(), 1u);
+    EXPECT_EQ(regions.table.regions[0].name, "far");
+  }
   // Into a cluster world that has records: refused.
   ServerProcess a({"--cluster", cluster.config("a")});
   const Seen expected = single_node_after(edits);
@@ -236,6 +259,12 @@ TEST(ClusterNode, AWorldMigratedIntoAClusterAndBackShowsWhatASingleNodeShows) {
   ASSERT_EQ(out_code, 0) << out_out << out_err;
   const auto [bv_code, bv_out, bv_err] = cli({"world", "verify", back});
   EXPECT_EQ(bv_code, 0) << bv_out << bv_err;
+  {
+    const store::RegionTable regions =
+        store::open_world_store(back, {.read_only = true})->read_regions();
+    ASSERT_EQ(regions.regions.size(), 1u) << "the protected region did not come back out";
+    EXPECT_EQ(regions.regions[0].name, "far");
+  }
   ServerProcess b({"--world", back});
   EXPECT_TRUE(world_seen(b) == single_node_after(all)) << "the world migrated back out";
   // One zone alone: its chunks as the whole world has them, and nothing else.

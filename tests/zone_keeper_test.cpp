@@ -223,7 +223,7 @@ TEST_F(ZoneKeeperTest, APokeStartsARoundAtOnce) {
   Seen seen;
   std::atomic<int> rounds{0};
   ZoneKeeper::Events events = seen.events("a");
-  events.round = [&] { ++rounds; };
+  events.round = [&](store::ZoneLeases&) { ++rounds; };
   ZoneKeeper k(ZoneKeeper::Config{.uri = db, .node = "a", .address = "a:1", .lease = 30s},
                std::move(events));
   ASSERT_TRUE(eventually([&] { return rounds.load() == 1; }));  // the first, at start

@@ -197,6 +197,65 @@ TEST_F(ZoneLeasesTest, TheFirstNodeSettlesTheWorldsSettingsAndTheOthersReadThem)
   EXPECT_EQ(b.settle_world({"other", 8, 4}), first);  // the caller refuses to start
 }
 
+// Protected regions in a cluster (docs/CLUSTER.md, "Protected regions"): one table,
+// versioned; a change bumps the version in its append's transaction, an append whose edits
+// were clipped by an older table is refused and writes nothing (no zone is lost), and of
+// two changes made at the same version the second is refused.
+TEST_F(ZoneLeasesTest, AnAppendClippedByAnOlderRegionTableIsRefusedAndWritesNothing) {
+  const std::string db = fresh_database();
+  ZoneLeases a(db, "a", milliseconds(30000)), b(db, "b", milliseconds(30000));
+  a.settle_world({"main", 7, 16});
+  EXPECT_EQ(b.read_regions().version, 0u);
+  const ZoneId one{0, 0}, two{1, 0};
+  const uint64_t e1 = *a.acquire(one), e2 = *b.acquire(two);
+  world::Region keep;
+  keep.id = 1;
+  keep.name = "spawn";
+  keep.box = {{0, -10, 0}, {20, 10, 20}};
+  keep.owners = {"builder"};
+  keep.created_by = "admin";
+  const RegionWrite add{.whole = false, .upsert = {keep}, .remove = {}, .next_id = 2};
+  const RegionsAt with_add{0, &add};
+  const auto r1 = records(1, 1);
+  EXPECT_EQ(a.append(std::vector<ZoneAppend>{{one, e1, r1}}, &with_add), 1u);
+  const ZoneRegions seen = b.read_regions();
+  EXPECT_EQ(seen.version, 1u);
+  ASSERT_EQ(seen.table.regions.size(), 1u);
+  EXPECT_EQ(seen.table.regions[0].name, "spawn");
+  EXPECT_EQ(seen.table.regions[0].owners, std::vector<std::string>{"builder"});
+  EXPECT_EQ(seen.table.next_id, 2u);
+  // b's edits were clipped by the table before: refused, nothing written, nothing fenced.
+  const RegionsAt stale{0, nullptr}, current{1, nullptr};
+  try {
+    b.append(std::vector<ZoneAppend>{{two, e2, r1}}, &stale);
+    ADD_FAILURE() << "an append clipped by an older table landed";
+  } catch (const RegionsChangedError& e) {
+    EXPECT_EQ(e.version, 1u);
+  }
+  EXPECT_EQ(b.read(two)->last_seq, 0u);
+  EXPECT_EQ(b.fenced(), 0u);
+  EXPECT_EQ(b.append(std::vector<ZoneAppend>{{two, e2, r1}}, &current), 1u);
+  EXPECT_EQ(b.read(two)->last_seq, 1u);
+  // Two changes made at version 1: the first lands (alone, no records), the second not.
+  const RegionWrite remove{.whole = false, .upsert = {}, .remove = {1}, .next_id = 2};
+  world::Region other = keep;
+  other.id = 2;
+  const RegionWrite add_other{.whole = false, .upsert = {other}, .remove = {}, .next_id = 3};
+  const RegionsAt first{1, &remove}, second{1, &add_other};
+  EXPECT_EQ(a.append({}, &first), 2u);
+  EXPECT_THROW(b.append({}, &second), RegionsChangedError);
+  const ZoneRegions after = a.read_regions();
+  EXPECT_EQ(after.version, 2u);
+  EXPECT_TRUE(after.table.regions.empty());
+  EXPECT_EQ(after.table.next_id, 2u);  // ids are never given again
+  EXPECT_EQ(b.regions_version(), 2u);
+  // A migration seeds an empty table only.
+  a.seed_regions({.regions = {keep, other}, .next_id = 5});
+  EXPECT_EQ(a.read_regions().table.regions.size(), 2u);
+  EXPECT_EQ(a.read_regions().table.next_id, 5u);
+  EXPECT_THROW(a.seed_regions({.regions = {keep}, .next_id = 5}), StoreError);
+}
+
 TEST_F(ZoneLeasesTest, AReleasedZoneIsTakenAtOnceAndARestartedNodeFencesItsEarlierRun) {
   const std::string db = fresh_database();
   ZoneLeases a(db, "a", milliseconds(30000)), b(db, "b", milliseconds(30000));

@@ -76,7 +76,7 @@ void ClusterNode::start(const std::string& address) {
       ZoneKeeper::Events{
           .taken = [this](world::ZoneId z, uint64_t epoch) { taken(z, epoch); },
           .lost = [this](world::ZoneId z, uint64_t epoch) { lost(z, epoch); },
-          .round = [this] { round(); },
+          .round = [this](store::ZoneLeases& db) { round(db); },
           // The node now ranking first takes it at once, not at the next edit.
           .handed_off = [this](world::ZoneId z) { ask_to_take(z); },
           .leaving = [this](world::ZoneId z, uint64_t epoch) { table_.leave(z, epoch); }});
@@ -96,6 +96,13 @@ void ClusterNode::start(const std::string& address) {
     for (int i = 0; i < 8; ++i) key |= uint64_t{m.data[i]} << (8 * i);
     keeper_->want(world::ZoneId::from_key(key));
   });
+  // Another node changed the protected regions: the pipeline takes them before its next
+  // batch (an append clipped by the old table would be refused).
+  regions_subscription_ =
+      nats_.subscribe(regions_subject(config_.world), [this](const NatsMessage& m) {
+        if (const std::optional<uint64_t> version = decode_regions_version(m.data))
+          regions_heard(*version);
+      });
   spdlog::info("cluster: node {} of world {} (zones of {} chunks, lease {} ms), NATS {}",
                config_.node, config_.world, config_.zone_chunks, config_.lease.count(),
                nats_.server());
@@ -133,8 +140,10 @@ ClusterNode::Figures ClusterNode::figures() const {
 
 void ClusterNode::stop(bool release) {
   if (completer_) completer_->stop();  // submits nothing more
-  if (take_subscription_ != 0) nats_.unsubscribe(take_subscription_);
-  take_subscription_ = 0;
+  for (uint64_t* id : {&take_subscription_, &regions_subscription_}) {
+    if (*id != 0) nats_.unsubscribe(*id);
+    *id = 0;
+  }
   if (keeper_) keeper_->stop(release);  // its thread has ended: serving_ is ours now
   for (const auto& [zone, id] : serving_) nats_.unsubscribe(id);
   serving_.clear();
@@ -273,8 +282,17 @@ void ClusterNode::release_relays(bool all) {
   }
 }
 
-void ClusterNode::round() {
+void ClusterNode::regions_heard(uint64_t version) {
+  store_.heard_regions(version);
+  if (store_.regions_stale() && wake_) wake_();
+}
+
+void ClusterNode::round(store::ZoneLeases& db) {
   publisher_.heartbeat();
+  try {  // a regions message lost on the way (NATS down) is made up for here
+    regions_heard(db.regions_version());
+  } catch (const store::StoreError&) {  // the keeper's round says so
+  }
   release_relays(false);
   // Views still there are viewed now (a player standing still sends no new view): their
   // zones stay followed, and are never forgotten under their eyes.

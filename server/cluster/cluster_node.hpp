@@ -87,14 +87,17 @@ class ClusterNode : public pipeline::ZoneAuthority {
     return table_.may_evict(world::zone_of(c, config_.zone_chunks));
   }
   bool records_waiting() override { return records_.waiting(); }
+  bool regions_changed() override { return store_.regions_stale(); }
+  std::optional<store::RegionTable> take_regions() override { return store_.take_regions(); }
   std::optional<pipeline::ZoneRecords> next_records() override { return records_.next(); }
   void applied(const pipeline::ZoneRecords& records, uint64_t through) override;
 
  private:
   void taken(world::ZoneId zone, uint64_t epoch);  // the keeper's thread
   void lost(world::ZoneId zone, uint64_t epoch);   // likewise
-  void round();                                    // likewise, after each round
+  void round(store::ZoneLeases& db);               // likewise, after each round
   void serve(const NatsMessage& m);                // a NATS thread: a forwarded edit
+  void regions_heard(uint64_t version);            // any thread
   // A forwarded edit's answer, relayed to the player once this node's world shows it (or
   // a while later: the zone may not be followed here).
   using Versions = std::vector<std::pair<world::ChunkCoord, uint64_t>>;
@@ -130,7 +133,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
   const uint64_t edit_id_base_;  // random: ids of edits this node splits
   std::atomic<uint64_t> edits_split_{0};
   std::atomic<uint64_t> edit_counter_{0};
-  uint64_t take_subscription_ = 0;
+  uint64_t take_subscription_ = 0, regions_subscription_ = 0;
   std::map<world::ZoneId, uint64_t> serving_;  // the keeper's thread: edit subscriptions
   struct Relay {
     std::vector<std::pair<world::ZoneId, uint64_t>> zones;

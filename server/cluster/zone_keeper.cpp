@@ -74,7 +74,7 @@ void ZoneKeeper::run() {
     const Clock::time_point started = Clock::now();
     lock.unlock();
     round();
-    if (events_.round) events_.round();
+    if (events_.round) events_.round(leases_->db);
     lock.lock();
     // Woken early by a stop or a zone asked for. While another process holds the node id,
     // sooner: a restarted node takes its id (and zones) back as soon as its earlier run's

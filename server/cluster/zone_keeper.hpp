@@ -25,6 +25,7 @@
 #include <string>
 #include <thread>
 
+#include "server/store/zone_leases.hpp"
 #include "server/world/zone.hpp"
 
 namespace vox::cluster {
@@ -41,7 +42,9 @@ class ZoneKeeper {
   };
   struct Events {
     std::function<void(world::ZoneId, uint64_t epoch)> taken, lost;
-    std::function<void()> round;  // after each round (about every lease / 3)
+    // After each round (about every lease / 3), with the keeper's connection for what
+    // else the node reads then.
+    std::function<void(store::ZoneLeases&)> round;
     // Released for another node: one ranking first now, or any, at a graceful stop.
     std::function<void(world::ZoneId)> handed_off;
     // A hand-off's first step, a moment before `lost`: take no more edits in the zone

@@ -28,7 +28,6 @@ store::WorldInfo ZoneLogStore::info() {
 void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
                                 std::span<const SeqRange> /*forget: zones catch up instead*/,
                                 const store::RegionWrite* regions) {
-  if (regions) throw store::StoreError(name_ + ": protected regions are not kept in a cluster yet");
   std::map<world::ZoneId, ZonePublisher::Part> parts;
   for (const store::LoggedEdit& e : edits) {
     const world::VoxelBox box = world::touched_box(e.edit);
@@ -80,8 +79,17 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
       if (!part.records.empty()) zones_.committed(part.zone, part.records.back().seq);
     }
   };
+  // Edits clipped by the pipeline's table: refused should the cluster's have changed.
+  const store::RegionsAt at{regions_version_.load(), regions};
   try {
-    publisher_.commit(list, durable);
+    const uint64_t version = publisher_.commit(list, durable, &at);
+    if (regions) {
+      regions_version_ = version;
+      heard_regions(version);
+    }
+  } catch (const store::RegionsChangedError& e) {
+    heard_regions(e.version);  // nothing landed; the pipeline takes the table again
+    throw;
   } catch (const store::FencedError& e) {
     for (const auto& part : list) {
       if (part.zone == e.zone) zones_.lost(part.zone, part.epoch);  // the keeper hears it too
@@ -90,6 +98,38 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
     throw;
   } catch (const store::StoreError&) {
     for (const auto& part : list) zones_.doubt(part.zone);  // it may have landed
+    if (regions) regions_doubt_ = true;                     // likewise: read them again
+    throw;
+  }
+}
+
+void ZoneLogStore::heard_regions(uint64_t version) {
+  uint64_t heard = regions_heard_.load();
+  while (heard < version && !regions_heard_.compare_exchange_weak(heard, version)) {
+  }
+}
+
+bool ZoneLogStore::regions_stale() const {
+  return regions_doubt_.load() || regions_heard_.load() > regions_version_.load();
+}
+
+store::RegionTable ZoneLogStore::read_regions() {
+  store::ZoneRegions now = read_db_.read_regions();
+  regions_version_ = now.version;
+  heard_regions(now.version);
+  return std::move(now.table);
+}
+
+std::optional<store::RegionTable> ZoneLogStore::take_regions() {
+  const bool doubt = regions_doubt_.exchange(false);
+  try {
+    store::ZoneRegions now = read_db_.read_regions();
+    heard_regions(now.version);
+    if (!doubt && now.version == regions_version_.load()) return std::nullopt;
+    regions_version_ = now.version;
+    return std::move(now.table);
+  } catch (const store::StoreError&) {
+    if (doubt) regions_doubt_ = true;
     throw;
   }
 }

@@ -12,13 +12,17 @@
 // the zone's own sequence number noted when the checkpoint started; the log is kept (no
 // trimming yet). The world is read zone by zone as the node takes or follows zones (their
 // checkpoints, then their logs), not at start; a changed chunk evicted from a zone held
-// here is read back alone from the zone's checkpoint (read_chunk). Nothing else of a
-// single node's store is kept here yet: no protected regions.
+// here is read back alone from the zone's checkpoint (read_chunk).
+// Protected regions (docs/CLUSTER.md, "Protected regions"): one table for the cluster,
+// versioned. Every append is refused unless the table is still at the version the
+// pipeline's edits were clipped by (RegionsChangedError: no zone is lost, the edits are
+// refused and the pipeline takes the table again); a batch's region changes are written
+// in its append's transaction and their new version published.
 //
 // Threads: the pipeline's appender calls append_edits, the pipeline thread
-// checkpoint_started and read_chunk (on the pipeline thread's connection), the checkpoint
-// writer's thread write_checkpoint (on its own connection); the rest is read once, by the
-// pipeline's constructor.
+// checkpoint_started, read_chunk and take_regions (on the pipeline thread's connection),
+// the checkpoint writer's thread write_checkpoint (on its own connection); heard_regions
+// and regions_stale any thread; the rest is read once, by the pipeline's constructor.
 #pragma once
 
 #include <atomic>
@@ -54,7 +58,16 @@ class ZoneLogStore : public store::WorldStore {
   store::WorldInfo info() override;
   void append_edits(std::span<const store::LoggedEdit> edits, std::span<const SeqRange> forget,
                     const store::RegionWrite* regions) override;
-  store::RegionTable read_regions() override { return {}; }
+  store::RegionTable read_regions() override;
+  // Another node changed the protected regions to `version` (heard over NATS, read by the
+  // keeper's round, or an append refused).
+  void heard_regions(uint64_t version);
+  // Whether the cluster's regions may differ from the table the pipeline clips edits by.
+  bool regions_stale() const;
+  // With no append in flight: the cluster's regions now, the table the pipeline clips
+  // edits by from now on; nullopt when they are at the version it has (and not in doubt).
+  // Throws store::StoreError.
+  std::optional<store::RegionTable> take_regions();
   void write_checkpoint(std::span<const store::ChunkRecord>, uint64_t, uint64_t) override;
   // A changed chunk evicted from a zone held here (ZoneTable::may_evict), as the zone's
   // checkpoint has it; StoreError when that is past what the world applied of the zone.
@@ -76,6 +89,9 @@ class ZoneLogStore : public store::WorldStore {
   // through (a zone without new records or chunks is not written again).
   std::map<world::ZoneId, uint64_t> last_written_;
   std::atomic<uint64_t> written_{0};
+  std::atomic<uint64_t> regions_version_{0};  // the version of the pipeline's table
+  std::atomic<uint64_t> regions_heard_{0};    // the newest version heard of
+  std::atomic<bool> regions_doubt_{false};    // a change of them may have landed, or not
   const int zone_chunks_;
   const uint64_t seed_;
   const std::string name_;

@@ -42,7 +42,8 @@ std::pair<uint64_t, uint64_t> ZonePublisher::commit(world::ZoneId zone, uint64_t
   return {part.records.front().seq, part.records.back().seq};
 }
 
-void ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& durable) {
+uint64_t ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& durable,
+                               const store::RegionsAt* regions) {
   std::vector<store::ZoneAppend> appends;
   {
     std::lock_guard lock(mutex_);
@@ -59,7 +60,7 @@ void ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& d
   }
   for (const Part& part : parts)
     appends.push_back({part.zone, part.epoch, part.records, part.pending});
-  log_.append(appends);  // throws: nothing published
+  const uint64_t version = log_.append(appends, regions);  // throws: nothing published
   {
     std::lock_guard lock(mutex_);
     for (const Part& part : parts) {
@@ -74,6 +75,8 @@ void ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& d
     for (const store::ZoneRecord& r : part.records)
       publish(subject, encode_zone_record(part.zone, r));
   }
+  if (regions && regions->write) publish(regions_subject(world_), encode_regions_version(version));
+  return version;
 }
 
 void ZonePublisher::heartbeat() {

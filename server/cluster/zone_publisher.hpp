@@ -45,9 +45,14 @@ class ZonePublisher {
   };
   // Appends every part in one transaction (all zones adopted, each at its epoch), durable
   // when it returns; runs `durable` (the caller notes the records as its own before anyone
-  // can hear of them), then publishes them. Throws store::FencedError or
-  // store::StoreError, having published nothing.
-  void commit(std::span<Part> parts, const std::function<void()>& durable = {});
+  // can hear of them), then publishes them. With `regions`, the append is refused unless
+  // the protected regions are at regions->version, and changes them by regions->write
+  // (ZoneLeases::append), whose new version is then published on the regions' subject.
+  // Returns the regions' version after it (0 without `regions`). Throws
+  // store::FencedError (store::RegionsChangedError) or store::StoreError, having
+  // published nothing.
+  uint64_t commit(std::span<Part> parts, const std::function<void()>& durable = {},
+                  const store::RegionsAt* regions = nullptr);
 
   // Appends `payloads` as the zone's next records at `epoch` (the zone must be adopted),
   // durable when it returns, then publishes them; returns the first and last seq. Throws

@@ -8,6 +8,7 @@ namespace {
 constexpr uint8_t kVersion = 1;
 constexpr uint8_t kRecord = 1;
 constexpr uint8_t kHeartbeat = 2;
+constexpr uint8_t kRegions = 3;
 
 }  // namespace
 
@@ -23,6 +24,20 @@ bool valid_world_name(const std::string& world) {
 
 std::string zone_subject(const std::string& world, world::ZoneId zone, const char* what) {
   return "vox." + world + ".zone." + std::to_string(zone.key()) + "." + what;
+}
+
+std::string regions_subject(const std::string& world) { return "vox." + world + ".regions"; }
+
+std::vector<uint8_t> encode_regions_version(uint64_t version) {
+  return world::ByteWriter({kVersion, kRegions}).u64(version).take();
+}
+
+std::optional<uint64_t> decode_regions_version(std::span<const uint8_t> bytes) {
+  world::ByteReader r(bytes);
+  const bool ours = r.u8() == kVersion && r.u8() == kRegions;
+  const uint64_t version = r.u64();
+  if (!ours || !r.done()) return std::nullopt;
+  return version;
 }
 
 std::vector<uint8_t> encode_zone_record(world::ZoneId zone, const store::ZoneRecord& record) {

@@ -5,6 +5,8 @@
 // Layout (little-endian):
 //   record     u8 version (1), u8 kind (1), u64 zone key, u64 seq, i64 unix_ms, payload
 //   heartbeat  u8 version (1), u8 kind (2), u64 zone key, u64 last seq
+//   regions    u8 version (1), u8 kind (3), u64 the protected regions' version (a node
+//              changed them: the others read them again)
 //   a record's payload, an edit: u8 version (2), u16 author length, author, u64 edit id
 //   (0: none), the edit as the world store encodes it (store/edit_codec.hpp, with the
 //   samples it keeps); version 1 had no edit id
@@ -27,6 +29,11 @@ namespace vox::cluster {
 // (letters, digits, '-' and '_' only: it goes into a subject).
 std::string zone_subject(const std::string& world, world::ZoneId zone, const char* what);
 bool valid_world_name(const std::string& world);
+
+// "vox.<world>.regions": the protected regions' versions.
+std::string regions_subject(const std::string& world);
+std::vector<uint8_t> encode_regions_version(uint64_t version);
+std::optional<uint64_t> decode_regions_version(std::span<const uint8_t> bytes);
 
 std::vector<uint8_t> encode_zone_record(world::ZoneId zone, const store::ZoneRecord& record);
 std::vector<uint8_t> encode_zone_heartbeat(world::ZoneId zone, uint64_t last_seq);

@@ -23,9 +23,6 @@ constexpr const char* kLogFullMessage =
     "the world store is behind: its log holds as many edits as a checkpoint may leave "
     "unwritten; edits are taken again once the checkpoint in progress is written";
 
-constexpr const char* kClusterRegionsMessage =
-    "protected regions are not kept across a cluster's nodes yet; this world has none";
-
 // The samples an edit reads: a smooth reads around what it writes.
 world::VoxelBox read_box(const world::Edit& edit) {
   const auto* smooth = std::get_if<world::Smooth>(&edit);
@@ -59,9 +56,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     }
     if (auto* region = std::get_if<RegionTask>(&tasks[t])) {
       b.any_edit = true;  // answered with the batch
-      // A cluster keeps no protected regions yet: a change is refused like a store down.
-      regions.apply(*region, t, rules.store_resting || rules.zones, b.regions,
-                    rules.zones ? kClusterRegionsMessage : kStorageMessage);
+      regions.apply(*region, t, rules.store_resting, b.regions, kStorageMessage);
       continue;
     }
     EditTask& task = std::get<EditTask>(tasks[t]);

@@ -22,7 +22,8 @@ class ZoneAuthority;
 // What an edit refused because the store could not write is told.
 inline constexpr const char* kStorageMessage =
     "the world store could not make the edit durable (disk full, database unreachable, or, on "
-    "a cluster node, its zone was taken by another node); the edit was not applied";
+    "a cluster node, its zone was taken by another node or the protected regions changed "
+    "meanwhile); the edit was not applied";
 
 // The rules in force for one pass.
 struct EditRules {

@@ -1,5 +1,7 @@
 #include "server/pipeline/memory_keeper.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cstdint>
 
@@ -40,6 +42,15 @@ bool MemoryKeeper::update_blocked(size_t total) {
   const bool blocked = budget_.load_work(total, 1) == 0;
   if (blocked == blocked_.load(std::memory_order_relaxed)) return false;
   blocked_.store(blocked, std::memory_order_relaxed);
+  const size_t max = budget_.max_bytes();
+  if (blocked) {
+    spdlog::warn(
+        "memory budget: {} MiB accounted of {} MiB (--max-memory) and nothing left to evict; "
+        "new chunk loads wait",
+        total >> 20, max >> 20);
+  } else {
+    spdlog::info("memory budget: {} MiB accounted of {} MiB; loads resume", total >> 20, max >> 20);
+  }
   return true;
 }
 

@@ -54,7 +54,7 @@ class MemoryKeeper {
   void new_batch() { evicted_for_edits_ = false; }
 
   // Whether loads must wait at `total` accounted bytes (no room even once the terrain on
-  // its way has landed); true when that changed.
+  // its way has landed); true when that changed (and logged).
   bool update_blocked(size_t total);
   bool loads_blocked() const { return blocked_.load(std::memory_order_relaxed); }  // any thread
   // Bytes counted in the budget that eviction cannot free (any thread): sessions' state,

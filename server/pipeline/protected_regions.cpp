@@ -8,7 +8,8 @@ ProtectedRegions::ProtectedRegions(world::EditLimits limits) : limits_(limits) {
 
 void ProtectedRegions::restore(store::RegionTable table) {
   regions_ = std::move(table.regions);
-  next_id_ = table.next_id;
+  next_id_ = std::max(next_id_, table.next_id);  // ids are never given twice
+  doubtful_ = false;
   std::lock_guard lock(published_mutex_);
   published_ = std::make_shared<const Regions>(regions_);
 }

@@ -56,7 +56,8 @@ class ProtectedRegions {
 
   explicit ProtectedRegions(world::EditLimits limits);
 
-  // The store's table, at start (before the pipeline thread runs).
+  // The store's table: at start (before the pipeline thread runs), and on a cluster node
+  // whenever another node changed the cluster's (with no append in flight). Not in doubt.
   void restore(store::RegionTable table);
 
   // The regions in force, pending changes included: edits are clipped by these.

@@ -204,7 +204,7 @@ std::chrono::milliseconds WorldPipeline::idle_wait(const Inbox::State& in) const
   if (checkpoints_ && checkpoints_->has_unsaved()) wait = std::min(wait, checkpoints_->interval());
   // A chunk not read back, a region table in doubt, a zone's log unread: try again then.
   if (loads_->waiting_for_store() || regions_.doubtful() ||
-      (config_.zones && config_.zones->records_waiting()))
+      (config_.zones && (config_.zones->records_waiting() || config_.zones->regions_changed())))
     wait = std::min(wait, std::chrono::duration_cast<milliseconds>(config_.store_retry));
   // A coarse chunk's re-mesh falls due (while a pass put everything off for edits not
   // durable yet, an append's landing wakes us).
@@ -232,6 +232,7 @@ void WorldPipeline::take_view_updates(Inbox::State& in) {
 void WorldPipeline::between_batches(Clock::time_point now) {
   keep_memory(now);
   checkpoints_turn(now);
+  zone_regions_turn(now, false);
   repair_regions(now);
   finish_landed();
   if (config_.zones && config_.zones->records_waiting()) {
@@ -302,6 +303,10 @@ void WorldPipeline::run() {
 // Edits, region changes and inspections, in arrival order. Without a store the batch is
 // answered here; with one, once its append has landed.
 void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point now) {
+  const auto changes_regions = [](const OrderedTask& t) {
+    return std::holds_alternative<RegionTask>(t);
+  };
+  if (std::any_of(tasks.begin(), tasks.end(), changes_regions)) zone_regions_turn(now, true);
   const bool durable = commit_ != nullptr;
   const EditRules rules{
       .limits = config_.limits,
@@ -393,6 +398,15 @@ void WorldPipeline::finish_landed() {
 
 void WorldPipeline::drain_commits() {
   if (commit_) commit_->finish(0);
+}
+
+// On a cluster node, when another node changed the protected regions or (`anyway`) a batch
+// is about to change them: the cluster's table is read again, once the appends in flight
+// (clipped by the table before) have landed.
+void WorldPipeline::zone_regions_turn(Clock::time_point now, bool anyway) {
+  if (!config_.zones || !(anyway || config_.zones->regions_changed())) return;
+  drain_commits();
+  take_zone_regions(*config_.zones, regions_, now);
 }
 
 // After a failed append that carried region changes: an append of the whole region table
@@ -516,18 +530,8 @@ void WorldPipeline::keep_memory(Clock::time_point now) {
   }
   // Blocked: no room even once the terrain on its way has landed (while it is on its way,
   // load passes only wait for it: see batch_ready).
-  const size_t total = resident_bytes();
-  if (!memory_.update_blocked(total)) return;
-  const size_t max = memory_.budget().max_bytes();
-  if (memory_.loads_blocked()) {
-    spdlog::warn(
-        "memory budget: {} MiB accounted of {} MiB (--max-memory) and nothing left to evict; "
-        "new chunk loads wait",
-        total >> 20, max >> 20);
+  if (memory_.update_blocked(resident_bytes()) && memory_.loads_blocked())
     stats_.update([](PipelineStats& s) { ++s.memory_blocked; });
-  } else {
-    spdlog::info("memory budget: {} MiB accounted of {} MiB; loads resume", total >> 20, max >> 20);
-  }
 }
 
 void WorldPipeline::checkpoints_turn(Clock::time_point now) {

@@ -128,6 +128,7 @@ class WorldPipeline {
   void finish_landed();  // answers the batches whose appends landed, without waiting
   void drain_commits();  // answers every batch in flight, waiting for their appends
   void repair_regions(Clock::time_point now, bool now_anyway = false);
+  void zone_regions_turn(Clock::time_point now, bool anyway);
   size_t load_pass(Clock::time_point now);  // the chunks it planned to mesh
   void lod_pass(Clock::time_point now);
   void keep_memory(Clock::time_point now);

@@ -75,6 +75,14 @@ class ZoneAuthority {
   // Whether records wait to be applied (the pipeline then lets its batches in flight land
   // first: a zone's records apply on the world as its durable edits left it).
   virtual bool records_waiting() = 0;
+  // Whether another node changed the cluster's protected regions since the table the
+  // pipeline clips edits by (docs/CLUSTER.md, "Protected regions"): the pipeline then lets
+  // its appends in flight land (clipped by the old table) and takes the new one.
+  virtual bool regions_changed() = 0;
+  // With no append in flight: the cluster's protected regions now, by which the pipeline
+  // clips edits from now on; nullopt when they are still those it has. Throws
+  // store::StoreError (tried again later).
+  virtual std::optional<store::RegionTable> take_regions() = 0;
   // The next records to apply (at most a few thousand; call again for more), or nullopt.
   // Throws store::StoreError when the log cannot be read (tried again later).
   virtual std::optional<ZoneRecords> next_records() = 0;

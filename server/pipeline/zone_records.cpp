@@ -7,6 +7,7 @@
 
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/memory_keeper.hpp"
+#include "server/pipeline/protected_regions.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/store/chunk_codec.hpp"
 #include "server/world/edit_apply.hpp"
@@ -206,6 +207,21 @@ void zone_records_turn(ZoneAuthority& zones, EditWorld world, Clock::time_point 
     publish(out);
     zones.applied(*records, out.through);
     if (out.through < records->through) return;
+  }
+}
+
+void take_zone_regions(ZoneAuthority& zones, ProtectedRegions& regions, Clock::time_point now) {
+  static Clock::time_point logged_at{};  // pipeline thread only
+  try {
+    std::optional<store::RegionTable> table = zones.take_regions();
+    if (!table) return;
+    spdlog::info("zones: the protected regions changed: {} in force", table->regions.size());
+    regions.restore(std::move(*table));
+  } catch (const store::StoreError& e) {
+    if (now - logged_at >= std::chrono::seconds(10)) {
+      logged_at = now;
+      spdlog::warn("zones: {} (the protected regions are read again shortly)", e.what());
+    }
   }
 }
 

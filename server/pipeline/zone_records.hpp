@@ -15,6 +15,8 @@
 
 namespace vox::pipeline {
 
+class ProtectedRegions;
+
 struct AppliedRecords {
   EditBatch batch;  // the chunks to re-mesh and publish (no tasks, nothing to append)
   // The last record applied (records.edits.front().seq - 1: none; 0 when the checkpoint
@@ -33,5 +35,10 @@ AppliedRecords apply_zone_records(EditWorld& world, const ZoneRecords& records,
 // that cannot be read is logged (at most every 10 s) and left for a later turn.
 void zone_records_turn(ZoneAuthority& zones, EditWorld world, Clock::time_point now,
                        const std::function<void(AppliedRecords&)>& publish);
+
+// With no append in flight: the cluster's protected regions, when another node changed
+// them, become the table `regions` clips edits by. One that cannot be read is logged (at
+// most every 10 s) and read again later.
+void take_zone_regions(ZoneAuthority& zones, ProtectedRegions& regions, Clock::time_point now);
 
 }  // namespace vox::pipeline

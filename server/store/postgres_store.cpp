@@ -7,6 +7,7 @@
 
 #include "server/store/edit_codec.hpp"
 #include "server/store/pq_errors.hpp"
+#include "server/store/pq_regions.hpp"
 #include "server/store/store_schema.hpp"
 #include "server/store/world_store_checks.hpp"
 
@@ -222,21 +223,7 @@ class PostgresStore final : public WorldStore {
       const Meta meta = read_meta(t);
       if (auto it = meta.find(schema::kMetaNextRegionId); it != meta.end())
         next = parse_meta_u64(name_, schema::kMetaNextRegionId, it->second);
-      for (const auto& row : t.exec(schema::kSelectRegions)) {
-        world::Region r;
-        r.id = row[0].as<uint64_t>();
-        r.name = row[1].as<std::string>();
-        for (int a = 0; a < 3; ++a) {
-          r.box.lo[a] = row[2 + a].as<int32_t>();
-          r.box.hi[a] = row[5 + a].as<int32_t>();
-        }
-        const auto flags = row[8].as<int64_t>();
-        r.flags = flags >= 0 && flags <= 255 ? static_cast<uint8_t>(flags) : 0xff;
-        r.owners = split_owners(row[9].as<std::string>());
-        r.created_by = row[10].as<std::string>();
-        r.created_unix_ms = row[11].as<int64_t>();
-        out.push_back(check_stored_region(name_, std::move(r)));
-      }
+      out = read_region_rows(t, "regions", name_);
     });
     return check_region_table(name_, std::move(out), next);
   }
@@ -269,14 +256,7 @@ class PostgresStore final : public WorldStore {
  private:
   // Inside an append's transaction: one statement per change; a repair, the whole table.
   static void write_regions(pqxx::work& t, const RegionWrite& w) {
-    if (w.whole) t.exec("DELETE FROM regions");
-    for (const world::Region& r : w.upsert) {
-      t.exec_params(schema::kInsertRegion, static_cast<int64_t>(r.id), r.name, r.box.lo[0],
-                    r.box.lo[1], r.box.lo[2], r.box.hi[0], r.box.hi[1], r.box.hi[2], int{r.flags},
-                    join_owners(r.owners), r.created_by, r.created_unix_ms);
-    }
-    for (const uint64_t id : w.remove)
-      t.exec_params("DELETE FROM regions WHERE id = $1", static_cast<int64_t>(id));
+    write_region_rows(t, "regions", w);
     t.exec_params(kUpsertMeta, schema::kMetaNextRegionId, std::to_string(w.next_id));
   }
   // Runs fn on the connection (opened, or reopened after a failure); every libpqxx

@@ -27,19 +27,22 @@ namespace vox::store::schema {
 inline constexpr int kVersionedChunks = 2;  // the schema that made chunk rows versioned
 inline constexpr int kRegions = 3;          // the schema that added protected regions
 
+// A region table's columns (a cluster world keeps the same in `zone_regions`, zone_schema.hpp).
 // Portable as it is: SQLite gives BIGINT columns integer affinity.
-inline constexpr const char* kCreateRegions =
-    "CREATE TABLE IF NOT EXISTS regions (id BIGINT PRIMARY KEY, name TEXT NOT NULL, "
-    "x0 INTEGER NOT NULL, y0 INTEGER NOT NULL, z0 INTEGER NOT NULL, "
-    "x1 INTEGER NOT NULL, y1 INTEGER NOT NULL, z1 INTEGER NOT NULL, flags INTEGER NOT NULL, "
-    "owners TEXT NOT NULL, created_by TEXT NOT NULL, created_ms BIGINT NOT NULL);";
+#define VOX_REGION_TABLE                                                                    \
+  "(id BIGINT PRIMARY KEY, name TEXT NOT NULL, "                                            \
+  "x0 INTEGER NOT NULL, y0 INTEGER NOT NULL, z0 INTEGER NOT NULL, "                         \
+  "x1 INTEGER NOT NULL, y1 INTEGER NOT NULL, z1 INTEGER NOT NULL, flags INTEGER NOT NULL, " \
+  "owners TEXT NOT NULL, created_by TEXT NOT NULL, created_ms BIGINT NOT NULL)"
+#define VOX_REGION_COLUMNS "id, name, x0, y0, z0, x1, y1, z1, flags, owners, created_by, created_ms"
 // Both backends number parameters $1..$12 (SQLite binds them by position).
+#define VOX_REGION_VALUES "VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)"
+inline constexpr const char* kCreateRegions =
+    "CREATE TABLE IF NOT EXISTS regions " VOX_REGION_TABLE ";";
 inline constexpr const char* kInsertRegion =
-    "INSERT INTO regions (id, name, x0, y0, z0, x1, y1, z1, flags, owners, created_by, "
-    "created_ms) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12)";
+    "INSERT INTO regions (" VOX_REGION_COLUMNS ") " VOX_REGION_VALUES;
 inline constexpr const char* kSelectRegions =
-    "SELECT id, name, x0, y0, z0, x1, y1, z1, flags, owners, created_by, created_ms FROM regions "
-    "ORDER BY id";
+    "SELECT " VOX_REGION_COLUMNS " FROM regions ORDER BY id";
 // Chunk rows per transaction while a checkpoint writes (about 0.8 MB).
 inline constexpr size_t kCheckpointPart = 64;
 

@@ -8,8 +8,9 @@
 
 #include "server/store/edit_codec.hpp"
 #include "server/store/pq_errors.hpp"
+#include "server/store/pq_regions.hpp"
+#include "server/store/world_store_checks.hpp"
 #include "server/store/zone_schema.hpp"
-#include "server/world/byte_io.hpp"
 
 namespace vox::store {
 namespace {
@@ -30,6 +31,25 @@ int64_t random_instance() {
 
 std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
+}
+
+// Inside an append: the regions' version; RegionsChangedError unless `regions.version`.
+uint64_t check_regions(pqxx::work& t, const RegionsAt& regions, const std::string& name) {
+  const pqxx::result r =
+      t.exec(regions.write ? "SELECT regions_version FROM cluster_world FOR UPDATE"
+                           : "SELECT regions_version FROM cluster_world");
+  if (r.empty()) throw StoreError(name + ": the database holds no cluster world's settings");
+  const auto now = r[0][0].as<uint64_t>();
+  if (now != regions.version) {
+    std::string what = name;
+    what += ": the protected regions changed (now at version ";
+    what += std::to_string(now);
+    what += ", this write's edits were clipped at ";
+    what += std::to_string(regions.version);
+    what += "); write refused";
+    throw RegionsChangedError(what, now);
+  }
+  return now;
 }
 
 }  // namespace
@@ -144,12 +164,49 @@ void ZoneLeases::release(world::ZoneId zone, uint64_t epoch) {
   });
 }
 
+ZoneRegions ZoneLeases::read_regions() {
+  return run([&](pqxx::connection& c) {
+    pqxx::read_transaction t(c);  // one snapshot: the rows and their version agree
+    const pqxx::result r = t.exec("SELECT regions_version, next_region_id FROM cluster_world");
+    ZoneRegions out;
+    if (r.empty()) return out;
+    out.version = r[0][0].as<uint64_t>();
+    out.table = check_region_table(name_, read_region_rows(t, "zone_regions", name_),
+                                   r[0][1].as<uint64_t>());
+    return out;
+  });
+}
+
+uint64_t ZoneLeases::regions_version() {
+  return run([&](pqxx::connection& c) -> uint64_t {
+    pqxx::read_transaction t(c);
+    const pqxx::result r = t.exec("SELECT regions_version FROM cluster_world");
+    return r.empty() ? 0 : r[0][0].as<uint64_t>();
+  });
+}
+
+void ZoneLeases::seed_regions(const RegionTable& table) {
+  run([&](pqxx::connection& c) {
+    pqxx::work t(c);
+    const pqxx::result r = t.exec("SELECT regions_version FROM cluster_world FOR UPDATE");
+    if (r.empty()) throw StoreError(name_ + ": the database holds no cluster world's settings");
+    if (t.exec1("SELECT count(*) FROM zone_regions")[0].as<int64_t>() > 0)
+      throw StoreError(name_ + ": the cluster world has protected regions already");
+    write_region_rows(t, "zone_regions", {.whole = true, .upsert = table.regions});
+    t.exec_params(
+        "UPDATE cluster_world SET regions_version = regions_version + 1, "
+        "next_region_id = GREATEST(next_region_id, $1)",
+        static_cast<int64_t>(table.next_id));
+    t.commit();
+  });
+}
+
 void ZoneLeases::append(world::ZoneId zone, uint64_t epoch, std::span<const ZoneRecord> records) {
   const ZoneAppend one{zone, epoch, records};
   append(std::span<const ZoneAppend>(&one, 1));
 }
 
-void ZoneLeases::append(std::span<const ZoneAppend> appends) {
+uint64_t ZoneLeases::append(std::span<const ZoneAppend> appends, const RegionsAt* regions) {
   std::vector<const ZoneAppend*> order;
   for (const ZoneAppend& a : appends) {
     for (size_t i = 1; i < a.records.size(); ++i) {
@@ -160,7 +217,8 @@ void ZoneLeases::append(std::span<const ZoneAppend> appends) {
     }
     if (!a.records.empty()) order.push_back(&a);
   }
-  if (order.empty()) return;
+  const RegionWrite* region_write = regions ? regions->write : nullptr;
+  if (order.empty() && !region_write) return regions ? regions->version : 0;
   // Rows locked in one order by every writer: two writers of overlapping zones never
   // wait for each other in a circle.
   std::sort(order.begin(), order.end(),
@@ -170,8 +228,11 @@ void ZoneLeases::append(std::span<const ZoneAppend> appends) {
       throw StoreError(name_ + ": " + describe(order[i]->zone) + " twice in one append");
   }
   try {
-    run([&](pqxx::connection& c) {
+    return run([&](pqxx::connection& c) -> uint64_t {
       pqxx::work t(c);
+      // The regions first: a writer of them locks their row before any zone row, and the
+      // others do not lock it (a change committed before this read is seen).
+      uint64_t version = regions ? check_regions(t, *regions, name_) : 0;
       for (const ZoneAppend* a : order) {
         // The fence: the zone row locked for the rest of the transaction, so no
         // successor's take can slip between this check and the commit.
@@ -237,8 +298,18 @@ void ZoneLeases::append(std::span<const ZoneAppend> appends) {
             op.zone, static_cast<int64_t>(p.edit_id), p.unix_ms,
             pqxx::binarystring(p.payload.data(), p.payload.size()));
       }
+      if (region_write) {
+        write_region_rows(t, "zone_regions", *region_write);
+        t.exec_params(
+            "UPDATE cluster_world SET regions_version = $1, "
+            "next_region_id = GREATEST(next_region_id, $2)",
+            static_cast<int64_t>(++version), static_cast<int64_t>(region_write->next_id));
+      }
       t.commit();
+      return version;
     });
+  } catch (const RegionsChangedError&) {
+    throw;  // no zone was fenced
   } catch (const FencedError&) {
     ++fenced_;
     throw;
@@ -517,52 +588,6 @@ WorldSettings ZoneLeases::settle_world(const WorldSettings& mine) {
     return WorldSettings{r[0].as<std::string>(), static_cast<uint64_t>(r[1].as<int64_t>()),
                          r[2].as<int>()};
   });
-}
-
-namespace {
-// 1: no edit id (records written before edits across holders); 2: with it.
-constexpr uint8_t kEditPayloadVersion = 2;
-constexpr size_t kMaxAuthor = 1024;
-}  // namespace
-
-std::vector<uint8_t> encode_zone_edit(const LoggedEdit& edit) {
-  const std::string author = edit.author.substr(0, kMaxAuthor);
-  return world::ByteWriter({kEditPayloadVersion})
-      .u16(static_cast<uint16_t>(author.size()))
-      .text(author)
-      .u64(edit.edit_id)
-      .bytes(encode_edit(edit.edit, edit.keep))
-      .take();
-}
-
-std::optional<LoggedEdit> decode_zone_edit(const ZoneRecord& record, std::string* error) {
-  const auto fail = [error](const char* why) -> std::optional<LoggedEdit> {
-    if (error) *error = why;
-    return std::nullopt;
-  };
-  world::ByteReader r(record.payload);
-  const uint8_t version = r.u8();
-  const size_t length = r.u16();
-  if (!r.ok()) return fail("an edit record shorter than its header");
-  if (version != 1 && version != kEditPayloadVersion)
-    return fail("an edit record of an unknown version");
-  std::string author = length > kMaxAuthor ? std::string() : r.text(length);
-  const uint64_t edit_id = version >= 2 ? r.u64() : 0;
-  if (length > kMaxAuthor || !r.ok()) return fail("an edit record's author is cut");
-  std::string why;
-  auto decoded = decode_edit_record(r.rest(), &why);
-  if (!decoded) {
-    if (error) *error = "an edit record: " + why;
-    return std::nullopt;
-  }
-  LoggedEdit out;
-  out.seq = record.seq;
-  out.unix_ms = record.unix_ms;
-  out.author = std::move(author);
-  out.edit = std::move(decoded->edit);
-  out.keep = std::move(decoded->keep);
-  out.edit_id = edit_id;
-  return out;
 }
 
 }  // namespace vox::store

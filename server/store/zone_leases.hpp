@@ -41,6 +41,27 @@ struct FencedError : StoreError {
   world::ZoneId zone;  // the zone refused
 };
 
+// An append refused because the protected regions changed since the table its edits were
+// clipped by (another node changed them; docs/CLUSTER.md, "Protected regions"): nothing
+// was written and no zone is lost. `version`: the table's now.
+struct RegionsChangedError : FencedError {
+  RegionsChangedError(const std::string& what, uint64_t v) : FencedError(what, {}), version(v) {}
+  uint64_t version;
+};
+
+// The protected regions an append's edits were clipped by: the cluster's table at
+// `version`. With `write`, the append changes that table too (its version then + 1).
+struct RegionsAt {
+  uint64_t version = 0;
+  const RegionWrite* write = nullptr;
+};
+
+// The cluster's protected regions and the version of the table.
+struct ZoneRegions {
+  RegionTable table;
+  uint64_t version = 0;
+};
+
 struct ZoneRecord {
   uint64_t seq = 0;
   int64_t unix_ms = 0;
@@ -140,7 +161,16 @@ class ZoneLeases {
   void append(world::ZoneId zone, uint64_t epoch, std::span<const ZoneRecord> records);
   // Several zones' appends in one transaction, each fenced by its epoch and continuing
   // its zone's sequence: all land or none (FencedError names the first zone refused).
-  void append(std::span<const ZoneAppend> appends);
+  // With `regions`: refused (RegionsChangedError) unless the protected regions are still
+  // at regions->version, and changed by regions->write in the same transaction (which
+  // may hold no records). Returns the regions' version after it (0 without `regions`).
+  uint64_t append(std::span<const ZoneAppend> appends, const RegionsAt* regions = nullptr);
+  // The protected regions, in one snapshot; regions_version() alone (a cheap poll).
+  ZoneRegions read_regions();
+  uint64_t regions_version();
+  // Migration: the regions of an empty cluster world become `table` (StoreError when it
+  // has some already).
+  void seed_regions(const RegionTable& table);
   // The parts the logs of `zones` still miss, written at least `age` ago by the database's
   // clock (younger ones are likely on their way), at most `max`; pending rows whose zone's
   // log has the edit by now are removed on the way.
