@@ -74,6 +74,22 @@ wire::RegionResult ask_region(client::Client& c, const wire::Envelope& command) 
   return r ? r->region_result() : wire::RegionResult();
 }
 
+// Writes a region straight into the cluster's database (as another node's change whose
+// message never came): protecting x - 10 .. x + 10 around the ground at (x, 32), z 22 .. 42.
+void write_region_row(const std::string& database, uint64_t id, float x) {
+  pqxx::connection c(database);
+  pqxx::work t(c);
+  const int ix = static_cast<int>(x), iy = static_cast<int>(surface_y(x, 32));
+  t.exec_params(
+      "INSERT INTO zone_regions (id, name, x0, y0, z0, x1, y1, z1, flags, owners, created_by, "
+      "created_ms) VALUES ($1, 'quiet', $2, $3, 22, $4, $5, 42, 3, 'alice', 'root', 0)",
+      static_cast<int64_t>(id), ix - 10, iy - 8, ix + 10, iy + 4);
+  t.exec_params(
+      "UPDATE cluster_world SET regions_version = regions_version + 1, next_region_id = $1",
+      static_cast<int64_t>(id + 1));
+  t.commit();
+}
+
 class ClusterRegions : public ::testing::Test {
  protected:
   ClusterRegions() { std::ofstream(keys_ / "game.pub") << auth::key_to_text(key_.public_key); }
@@ -191,18 +207,7 @@ TEST_F(ClusterRegions, ARegionChangeANodeNeverHeardOfStillHoldsForItsEdits) {
   auto mallet = join(b, "mallet");
   const wire::EditResult taken = edit_until_accepted(*mallet, brush(1, border + 10, 32, 2, 3.0f));
   ASSERT_EQ(taken.status(), wire::EditResult::ACCEPTED) << taken.reason();
-  {
-    pqxx::connection c(cluster_.database);
-    pqxx::work t(c);
-    const int ix = static_cast<int>(at), iy = static_cast<int>(surface_y(at, 32));
-    t.exec_params(
-        "INSERT INTO zone_regions (id, name, x0, y0, z0, x1, y1, z1, flags, owners, "
-        "created_by, created_ms) VALUES (7, 'quiet', $1, $2, 22, $3, $4, 42, 3, 'alice', "
-        "'root', 0)",
-        ix - 10, iy - 8, ix + 10, iy + 4);
-    t.exec("UPDATE cluster_world SET regions_version = regions_version + 1, next_region_id = 8");
-    t.commit();
-  }
+  write_region_row(cluster_.database, 7, at);
   const auto first = edit_and_wait(*mallet, explosion(2, at - 14, 32));
   ASSERT_TRUE(first.has_value());
   if (first->edit_result().status() == wire::EditResult::ACCEPTED) {  // b polled first
@@ -220,6 +225,47 @@ TEST_F(ClusterRegions, ARegionChangeANodeNeverHeardOfStillHoldsForItsEdits) {
   const wire::RegionResult added = ask_region(*admin, add_region(4, border - 30));
   ASSERT_EQ(added.status(), wire::RegionResult::OK) << added.reason();
   EXPECT_EQ(added.regions(0).id(), 8u);
+}
+
+// A part of an edit across zones that another zone's holder logged, and left pending for
+// this zone (its own request never came), is completed as that holder clipped it: the
+// edit was accepted, so a region added since (here covering all of it, which would refuse
+// the edit now) neither refuses nor clips it again. (It was refused, and tried again
+// every 2 s for ever.)
+TEST_F(ClusterRegions, APendingPartIsCompletedAsItsLoggerClippedItThoughARegionNowCoversIt) {
+  ServerProcess b(node("b"));  // alone: it takes every zone it is asked for
+  auto mallet = join(b, "mallet");
+  const world::ZoneId mine{1, 0}, other{2, 0};  // the border between them at x = 128
+  const wire::EditResult taken = edit_until_accepted(*mallet, brush(1, 96, 32, 2, 3.0f));
+  ASSERT_EQ(taken.status(), wire::EditResult::ACCEPTED) << taken.reason();
+  // A "node" that holds the other zone logs its part of a dig across the border, with the
+  // part for b's zone pending.
+  store::ZoneLeases logger(cluster_.database, "logger", 30s);
+  const uint64_t epoch = *logger.acquire(other);
+  const wire::Envelope dig = dig_inside(2, 128);
+  store::LoggedEdit part;
+  part.edit = *net::edit_from_wire(dig.edit()).edit;
+  part.author = "mallory";
+  part.edit_id = 424242;
+  part.unix_ms = 1;
+  const world::VoxelBox box = world::touched_box(part.edit);
+  store::LoggedEdit own = part;
+  own.keep = world::outside_zone(box, other, kZoneChunks);
+  part.keep = world::outside_zone(box, mine, kZoneChunks);
+  const std::vector<store::ZoneRecord> record = {
+      {1, 1, store::encode_zone_edit(own), part.edit_id}};
+  const std::vector<store::ZonePending> pending = {
+      {mine, part.edit_id, 1, store::encode_zone_edit(part)}};
+  logger.append(std::vector<store::ZoneAppend>{{other, epoch, record, pending}});
+  write_region_row(cluster_.database, 1, 128);  // the dig lies wholly inside it now
+  const auto completed = [&] {
+    for (const store::ZoneRecord& r : logger.read_log(mine, 0))
+      if (r.edit_id == part.edit_id) return true;
+    return false;
+  };
+  EXPECT_TRUE(eventually(&b, completed, 20s)) << "the pending part was never completed";
+  const std::vector<world::ZoneId> zones = {mine};
+  EXPECT_TRUE(logger.read_pending(zones, 0ms).empty());
 }
 
 }  // namespace

@@ -75,6 +75,7 @@ void PartCompleter::sweep() {
     task.forwarded = true;
     task.edit_id = p.edit_id;
     task.part = p.zone;
+    task.recorded_keep = part->keep;  // as the holder that logged the edit clipped it
     task.done = [this, zone = p.zone, id = p.edit_id, where](const pipeline::EditResult& r) {
       {
         std::lock_guard lock(mutex_);

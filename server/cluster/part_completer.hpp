@@ -4,7 +4,10 @@
 // normally land soon after and remove them; one whose holder died, stalled or refused
 // it is left. Every couple of seconds this reads those of the zones the node holds that
 // are older than `age`, and submits each as a part of its edit (its edit id makes a
-// second arrival harmless: ZoneTable::has_edit, and the log's own check in read_pending).
+// second arrival harmless: ZoneTable::has_edit, and the log's own check in read_pending),
+// applied as the holder that logged the edit recorded it: the samples it kept (its
+// protected regions then), not validated or clipped again. The edit was accepted, so its
+// part must land: a region added since must not refuse it for ever.
 //
 // Threads: its own ("vox-parts"); construct and stop on one thread. `submit` and
 // `writable` are called on its thread; a submitted part's answer on the pipeline thread.

@@ -51,6 +51,9 @@ struct EditTask {
   // an edit across zones held by different nodes, the only zone whose samples it writes.
   uint64_t edit_id = 0;
   std::optional<world::ZoneId> part;
+  // A part another zone's holder logged as pending (completed here): applied as it
+  // recorded it, keeping these samples, not checked or clipped again (it was accepted).
+  std::optional<std::vector<world::VoxelBox>> recorded_keep;
 };
 // Adds a protected region (`add`, its id chosen by the pipeline) or removes one
 // (`remove_id`), in order with the edits around it; durable with their batch.

@@ -63,7 +63,8 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     const world::Edit& edit = task.edit;
     EditResult& result = b.results[t];
     b.any_edit = true;
-    if (auto refusal = world::validate(edit, rules.limits)) {
+    const auto refusal = task.recorded_keep ? std::nullopt : world::validate(edit, rules.limits);
+    if (refusal) {
       refuse(result, refusal->reason, refusal->message, delta);
       continue;
     }
@@ -98,7 +99,9 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       continue;
     }
     world::Protection protection;
-    if (!task.bypass_regions && !regions.in_force().empty())
+    if (task.recorded_keep)
+      protection.keep = *task.recorded_keep;  // clipped by the holder that logged its edit
+    else if (!task.bypass_regions && !regions.in_force().empty())
       protection = world::protection_for(regions.in_force(), edit, task.author);
     protection.keep.insert(protection.keep.end(), zone_keep.begin(), zone_keep.end());
     if (protection.forbidden_by) {
