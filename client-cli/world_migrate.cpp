@@ -66,9 +66,21 @@ int migrate_in(const std::string& from, const std::string& to, const std::string
   std::map<world::ChunkCoord, const world::Chunk*> chunks;
   for (const world::ChunkCoord& c : modified) chunks[c] = map.find(c);
   store::ZoneLeases db(to, "voxel-cli-migrate", kToolLease);
-  const size_t zones = store::seed_zone_world(
-      db, {.name = name, .seed = source->info().seed, .zone_chunks = zone_chunks}, chunks);
-  if (!regions.regions.empty()) db.seed_regions(regions);
+  // The regions before the zones (a target with other regions is refused before anything
+  // is written; one that has these already, from a migration cut short, keeps them).
+  const store::WorldSettings settings{
+      .name = name, .seed = source->info().seed, .zone_chunks = zone_chunks};
+  store::settle_zone_world(db, settings);
+  const std::vector<world::Region> there = db.read_regions().table.regions;
+  const auto ids = [](const std::vector<world::Region>& rs) {
+    std::vector<uint64_t> out;
+    for (const world::Region& r : rs) out.push_back(r.id);
+    return out;
+  };
+  if (!there.empty() && ids(there) != ids(regions.regions))
+    throw std::runtime_error("the cluster world has other protected regions already");
+  if (there.empty() && (!regions.regions.empty() || regions.next_id > 1)) db.seed_regions(regions);
+  const size_t zones = store::seed_zone_world(db, settings, chunks);
   out << "migrate: " << source->name() << " into cluster world " << name << " ("
       << store::redact_uri(to) << "): " << chunks.size() << " chunks in " << zones << " zones of "
       << zone_chunks << " chunks, " << regions.regions.size() << " protected regions\n";

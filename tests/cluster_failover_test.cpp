@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 
+#include <cstdlib>
+
 #include "tests/cluster_test_util.hpp"
 #include "tests/metrics_scrape.hpp"
 
@@ -15,14 +17,23 @@ namespace {
 // (their edits forwarded to it) while it is killed with SIGKILL; the others take its zones
 // over once its leases run out. Every edit a player saw ACCEPTED is in its zone's log
 // exactly once, and the nodes' worlds equal a single node replaying those logs.
+// With VOXEL_FAULT_EVICT=1 (bench/scripts/cluster_faults.sh), the nodes evict their zones'
+// changed chunks after a second and read them back from the checkpoints (taken every
+// 0.2 s) as the edits need them.
 TEST(ClusterNode, KillNineOfAHolderUnderEditingLosesNoAcceptedEditAndAppliesNoneTwice) {
   const Cluster cluster;
   const std::vector<world::ZoneId> zones = zones_ranked_first_by("c", {"a", "b", "c"}, 2);
   ASSERT_EQ(zones.size(), 2u);
-  ServerProcess a({"--cluster", cluster.config("a")});
-  ServerProcess b({"--cluster", cluster.config("b")});
-  auto c =
-      std::make_unique<ServerProcess>(std::vector<std::string>{"--cluster", cluster.config("c")});
+  const char* evict = std::getenv("VOXEL_FAULT_EVICT");
+  const auto args = [&](const std::string& node) {
+    std::vector<std::string> out = {"--cluster", cluster.config(node)};
+    if (evict && std::string(evict) == "1")
+      out.insert(out.end(), {"--evict-after", "1", "--checkpoint-interval", "0.2"});
+    return out;
+  };
+  ServerProcess a(args("a"));
+  ServerProcess b(args("b"));
+  auto c = std::make_unique<ServerProcess>(args("c"));
   EditingLoad load({&a, &b}, zones);  // through a and b: c holds the zones
   ASSERT_TRUE(eventually(
       nullptr, [&] { return load.accepted() >= 20; }, 20s))

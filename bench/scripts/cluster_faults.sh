@@ -7,7 +7,9 @@
 # round checks the zones' logs (every accepted edit exactly once, nothing unsent) and the
 # nodes' worlds against the logs replayed; this prints the rounds that passed, the edits
 # accepted, how soon edits were accepted again after each kill (median and worst), and in
-# how many stop rounds the fence refused the stale holder's append.
+# how many stop rounds the fence refused the stale holder's append. VOXEL_FAULT_EVICT=1:
+# the nodes of the kill rounds evict their zones' changed chunks after a second and read
+# them back from checkpoints taken every 0.2 s.
 set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 bin="${VOXEL_BIN:-$root/build/bin}"

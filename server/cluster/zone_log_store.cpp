@@ -74,21 +74,21 @@ void ZoneLogStore::append_edits(std::span<const store::LoggedEdit> edits,
   for (auto& [zone, part] : parts) list.push_back(std::move(part));
   // The records are this node's before anyone hears of them: a follower of a zone this
   // node has just lost then starts after them.
-  const auto durable = [&] {
+  const auto durable = [&](uint64_t regions_version) {
     for (const auto& part : list) {
       if (!part.records.empty()) zones_.committed(part.zone, part.records.back().seq);
     }
+    if (regions) regions_version_ = regions_version;  // the pipeline's table's now
   };
   // Edits clipped by the pipeline's table: refused should the cluster's have changed.
   const store::RegionsAt at{regions_version_.load(), regions};
   try {
-    const uint64_t version = publisher_.commit(list, durable, &at);
-    if (regions) {
-      regions_version_ = version;
-      heard_regions(version);
-    }
+    publisher_.commit(list, durable, &at);
   } catch (const store::RegionsChangedError& e) {
-    heard_regions(e.version);  // nothing landed; the pipeline takes the table again
+    // Nothing landed. The table is read again, even should the database's version be
+    // below this node's (a standby that lost a commit): else every append is refused.
+    heard_regions(e.version);
+    regions_doubt_ = true;
     throw;
   } catch (const store::FencedError& e) {
     for (const auto& part : list) {
@@ -122,8 +122,12 @@ store::RegionTable ZoneLogStore::read_regions() {
 
 std::optional<store::RegionTable> ZoneLogStore::take_regions() {
   const bool doubt = regions_doubt_.exchange(false);
+  uint64_t heard = regions_heard_.load();
   try {
     store::ZoneRegions now = read_db_.read_regions();
+    // A version heard before this read and above it was never committed (a node publishes
+    // only after its commit): a stray message, or a database gone back. It is forgotten.
+    if (heard > now.version) regions_heard_.compare_exchange_strong(heard, now.version);
     heard_regions(now.version);
     if (!doubt && now.version == regions_version_.load()) return std::nullopt;
     regions_version_ = now.version;

@@ -42,7 +42,7 @@ std::pair<uint64_t, uint64_t> ZonePublisher::commit(world::ZoneId zone, uint64_t
   return {part.records.front().seq, part.records.back().seq};
 }
 
-uint64_t ZonePublisher::commit(std::span<Part> parts, const std::function<void()>& durable,
+uint64_t ZonePublisher::commit(std::span<Part> parts, const std::function<void(uint64_t)>& durable,
                                const store::RegionsAt* regions) {
   std::vector<store::ZoneAppend> appends;
   {
@@ -69,7 +69,7 @@ uint64_t ZonePublisher::commit(std::span<Part> parts, const std::function<void()
         it->second = part.records.back().seq;
     }
   }
-  if (durable) durable();
+  if (durable) durable(version);
   for (const Part& part : parts) {
     const std::string subject = zone_subject(world_, part.zone, "rec");
     for (const store::ZoneRecord& r : part.records)

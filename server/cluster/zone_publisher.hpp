@@ -44,14 +44,15 @@ class ZonePublisher {
     std::vector<store::ZonePending> pending;  // other zones' parts of its edits
   };
   // Appends every part in one transaction (all zones adopted, each at its epoch), durable
-  // when it returns; runs `durable` (the caller notes the records as its own before anyone
-  // can hear of them), then publishes them. With `regions`, the append is refused unless
+  // when it returns; runs `durable` with the regions' version after it (the caller notes the
+  // records and the version as its own before anyone can hear of them), then publishes
+  // them. With `regions`, the append is refused unless
   // the protected regions are at regions->version, and changes them by regions->write
   // (ZoneLeases::append), whose new version is then published on the regions' subject.
   // Returns the regions' version after it (0 without `regions`). Throws
   // store::FencedError (store::RegionsChangedError) or store::StoreError, having
   // published nothing.
-  uint64_t commit(std::span<Part> parts, const std::function<void()>& durable = {},
+  uint64_t commit(std::span<Part> parts, const std::function<void(uint64_t)>& durable = {},
                   const store::RegionsAt* regions = nullptr);
 
   // Appends `payloads` as the zone's next records at `epoch` (the zone must be adopted),

@@ -405,6 +405,7 @@ void WorldPipeline::drain_commits() {
 // (clipped by the table before) have landed.
 void WorldPipeline::zone_regions_turn(Clock::time_point now, bool anyway) {
   if (!config_.zones || !(anyway || config_.zones->regions_changed())) return;
+  if (commit_->resting(now)) return;  // the store is down: tried once it may be again
   drain_commits();
   take_zone_regions(*config_.zones, regions_, now);
 }

@@ -52,6 +52,17 @@ uint64_t check_regions(pqxx::work& t, const RegionsAt& regions, const std::strin
   return now;
 }
 
+// The connection string with a connect timeout, unless it sets one: a database host gone
+// silent must not hold a caller (the pipeline thread reads chunks and regions) for the
+// system's TCP timeout.
+std::string with_connect_timeout(const std::string& uri, std::chrono::milliseconds lease) {
+  if (uri.find("connect_timeout") != std::string::npos) return uri;
+  const std::string seconds = std::to_string(std::max<int64_t>(2, lease.count() / 1000));
+  if (uri.rfind("postgres://", 0) == 0 || uri.rfind("postgresql://", 0) == 0)
+    return uri + (uri.find('?') == std::string::npos ? "?" : "&") + "connect_timeout=" + seconds;
+  return uri + " connect_timeout=" + seconds;  // key=value pairs
+}
+
 }  // namespace
 
 bool is_cluster_world(const std::string& uri) {
@@ -79,7 +90,7 @@ auto ZoneLeases::run(Fn&& fn) {
       name_, [&] { conn_.reset(); },
       [&] {
         if (!conn_ || !conn_->c.is_open()) {
-          conn_ = std::make_unique<Connection>(uri_);
+          conn_ = std::make_unique<Connection>(with_connect_timeout(uri_, lease_));
           // A node stalled inside a transaction (SIGSTOP, a VM pause) holds its zone rows'
           // locks: the server ends its transaction after a lease, and nobody waits for a
           // lock longer than a quarter lease (the keeper's round must go on; it retries).
@@ -166,7 +177,7 @@ void ZoneLeases::release(world::ZoneId zone, uint64_t epoch) {
 
 ZoneRegions ZoneLeases::read_regions() {
   return run([&](pqxx::connection& c) {
-    pqxx::read_transaction t(c);  // one snapshot: the rows and their version agree
+    pqxx::transaction<pqxx::repeatable_read, pqxx::read_only> t(c);  // the rows and version agree
     const pqxx::result r = t.exec("SELECT regions_version, next_region_id FROM cluster_world");
     ZoneRegions out;
     if (r.empty()) return out;

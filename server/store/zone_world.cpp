@@ -115,13 +115,17 @@ ZoneWorld read_zone_world(ZoneLeases& db, bool verify, std::ostream& err) {
   return out;
 }
 
-size_t seed_zone_world(ZoneLeases& db, const WorldSettings& settings,
-                       const std::map<world::ChunkCoord, const world::Chunk*>& chunks) {
+void settle_zone_world(ZoneLeases& db, const WorldSettings& settings) {
   const WorldSettings theirs = db.settle_world(settings);
   if (!(theirs == settings))
     throw StoreError("the database holds world " + theirs.name + " (seed " +
                      std::to_string(theirs.seed) + ", zones of " +
                      std::to_string(theirs.zone_chunks) + " chunks), not " + settings.name);
+}
+
+size_t seed_zone_world(ZoneLeases& db, const WorldSettings& settings,
+                       const std::map<world::ChunkCoord, const world::Chunk*>& chunks) {
+  settle_zone_world(db, settings);
   for (const world::ZoneId zone : db.zones()) {
     if (const std::optional<ZoneRow> row = db.read(zone); row && row->last_seq > 0)
       throw StoreError("the cluster world " + settings.name + " has records already (" +

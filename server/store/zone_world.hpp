@@ -30,6 +30,10 @@ struct ZoneWorld {
 // StoreError when a record does not decode, is not a valid edit, or the log has a gap.
 ZoneWorld read_zone_world(ZoneLeases& db, bool verify, std::ostream& err);
 
+// The database's world is `settings` (recorded now when it has none): StoreError naming
+// the world it holds otherwise.
+void settle_zone_world(ZoneLeases& db, const WorldSettings& settings);
+
 // Writes `chunks` (a single node's modified chunks, by coordinate) into an empty cluster
 // world: the world's settings settled (StoreError when the database holds another world),
 // each zone taken, given the chunks as its first checkpoint (ZoneLeases::seed_zone), and
