@@ -1,5 +1,6 @@
 // A cluster node's zones as its world sees them (server/cluster/zone_table.hpp): which
-// zones' changed chunks may leave memory, and what a loss after one did makes of the zone.
+// zones' changed chunks may leave memory, what a loss after one did makes of the zone, and
+// the order zones catch up in.
 #include "server/cluster/zone_table.hpp"
 
 #include <gtest/gtest.h>
@@ -65,6 +66,25 @@ TEST(ZoneTable, AZoneLostAfterAChunkOfItWasEvictedIsInstalledAfresh) {
   // A loss with nothing evicted since is not fresh again.
   t.lost(evicted, 5);
   EXPECT_FALSE(t.position(evicted).fresh);
+}
+
+// Zones catching up take turns: a zone whose log cannot be read or applied now (a damaged
+// record, its turn ending in an error) holds up no other. (The first zone in order was
+// asked for every time, and one that kept failing held up every zone taken after it.)
+TEST(ZoneTable, ZonesCatchingUpTakeTurnsSoThatOneThatKeepsFailingHoldsUpNoOther) {
+  ZoneTable t;
+  const ZoneId first{0, 0}, second{0, 1}, third{2, 0};
+  for (const ZoneId z : {first, second, third}) t.taken(z, 1);
+  EXPECT_EQ(t.next_catch_up()->zone, first);
+  EXPECT_EQ(t.next_catch_up(first)->zone, second);
+  EXPECT_EQ(t.next_catch_up(second)->zone, third);
+  EXPECT_EQ(t.next_catch_up(third)->zone, first);  // around
+  t.caught_up(second, 1, 5, true);
+  EXPECT_EQ(t.next_catch_up(first)->zone, third);  // the next still behind
+  t.caught_up(first, 1, 5, true);
+  t.caught_up(third, 1, 5, true);
+  EXPECT_FALSE(t.next_catch_up(third).has_value());
+  EXPECT_FALSE(t.next_catch_up().has_value());
 }
 
 }  // namespace

@@ -35,6 +35,10 @@ print(f"kill -9 rounds: {ok_k} passed, {bad_k} failed; {sum(acc)} edits accepted
 if ms:
     print(f"  edits accepted again after a kill: median {statistics.median(ms):.0f} ms, "
           f"worst {max(ms):.0f} ms (lease 1 s)")
+evicted = [int(m) for m in re.findall(r"a survivor evicted (\d+) chunks", kills)]
+if evicted:
+    print(f"  chunks the survivors evicted (and read back as edited): {sum(evicted)} in "
+          f"{len(evicted)} survivors' runs, {sum(1 for e in evicted if e > 0)} of them evicting")
 ok_s = len(re.findall(r"\[       OK \] .*AnOwnerStopped", stops))
 bad_s = len(re.findall(r"\[  FAILED  \] .*AnOwnerStopped.*\(", stops))
 fenced = re.findall(r"a's appends fenced: (\d+)", stops)

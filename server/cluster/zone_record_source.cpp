@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "server/cluster/zone_follower.hpp"
 #include "server/cluster/zone_wire.hpp"
 
@@ -84,8 +86,10 @@ void ZoneRecordSource::expect_next(world::ZoneId zone, const std::vector<store::
 // A held zone's log after what the world has (a zone just taken, or an append in doubt).
 std::optional<pipeline::ZoneRecords> ZoneRecordSource::catch_up() {
   for (;;) {
-    const std::optional<ZoneTable::CatchUp> c = table_.next_catch_up();
+    // Zones take turns (one whose log cannot be read or applied holds up no other).
+    const std::optional<ZoneTable::CatchUp> c = table_.next_catch_up(caught_up_last_);
     if (!c) return std::nullopt;
+    caught_up_last_ = c->zone;
     const std::optional<store::ZoneRow> row = db_.read(c->zone);
     if (!row || row->epoch != c->epoch) {  // taken by another node meanwhile
       table_.lost(c->zone, c->epoch);
@@ -141,9 +145,16 @@ std::optional<pipeline::ZoneRecords> ZoneRecordSource::followed_records() {
   // after it): the checkpoint, or, when it cannot be installed, the log from what the
   // world has.
   std::vector<world::ZoneId> started = replicas_.take_started();
+  // Zones take turns, from the one after the zone started last (one whose checkpoint or
+  // log cannot be read or applied now holds up no other).
+  if (started_last_) {
+    std::rotate(started.begin(), std::upper_bound(started.begin(), started.end(), *started_last_),
+                started.end());
+  }
   for (size_t i = 0; i < started.size(); ++i) {
     const world::ZoneId zone = started[i];
     if (table_.held(zone)) continue;
+    started_last_ = zone;
     try {
       const auto [applied, fresh] = table_.position(zone);
       if (fresh) {  // forgotten first (next())

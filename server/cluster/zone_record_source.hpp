@@ -71,7 +71,9 @@ class ZoneRecordSource {
   std::map<world::ZoneId, uint64_t> targets_;
   // Per zone, a checkpoint that could not be installed (its log is applied instead).
   std::map<world::ZoneId, uint64_t> unusable_;
-  bool catch_up_first_ = false;         // which kind of records the next call looks for first
+  bool catch_up_first_ = false;  // which kind of records the next call looks for first
+  // The zones caught up and started last: the next turns begin after them.
+  std::optional<world::ZoneId> caught_up_last_, started_last_;
   std::atomic<uint64_t> installed_{0};  // checkpoints installed
 };
 

@@ -139,7 +139,10 @@ std::optional<ZoneReplicas::Taken> ZoneReplicas::take(
   std::optional<Taken> out;
   {
     std::lock_guard lock(mutex_);
-    for (auto it = waiting_.begin(); it != waiting_.end() && !out; ++it) {
+    // Zones take turns: from the one after the zone taken last, around.
+    auto it = taken_last_ ? waiting_.upper_bound(*taken_last_) : waiting_.begin();
+    for (size_t n = waiting_.size(); n > 0 && !out; --n, ++it) {
+      if (it == waiting_.end()) it = waiting_.begin();
       std::deque<store::ZoneRecord>& q = it->second;
       if (held(it->first)) q.clear();
       const uint64_t done = applied(it->first);
@@ -148,6 +151,7 @@ std::optional<ZoneReplicas::Taken> ZoneReplicas::take(
       if (q.empty()) continue;
       out.emplace();
       out->zone = it->first;
+      taken_last_ = it->first;
       while (!q.empty() && out->records.size() < max) {
         out->records.push_back(std::move(q.front()));
         q.pop_front();

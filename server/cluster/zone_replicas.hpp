@@ -60,7 +60,9 @@ class ZoneReplicas {
                  const std::function<uint64_t(world::ZoneId)>& applied);
   // Up to `max` waiting records of one zone, in order, after `applied(zone)` (older ones
   // are dropped: the node applied them otherwise; so are those of zones `held` now, whose
-  // records the node writes itself); nullopt when none wait.
+  // records the node writes itself); nullopt when none wait. Zones take turns: the first
+  // waiting after the zone taken last (one whose records cannot be applied now, and are
+  // given back, holds up no other).
   struct Taken {
     world::ZoneId zone;
     std::vector<store::ZoneRecord> records;
@@ -94,8 +96,9 @@ class ZoneReplicas {
   std::condition_variable taken_;
   std::map<world::ZoneId, Clock::time_point> viewed_;  // bounded: idle ones are dropped
   std::map<world::ZoneId, std::deque<store::ZoneRecord>> waiting_;
-  std::map<world::ZoneId, bool> stopping_;  // a follower being stopped: its queue is not waited on
-  std::set<world::ZoneId> started_;         // followed since the pipeline last looked
+  std::map<world::ZoneId, bool> stopping_;   // a follower being stopped: its queue is not waited on
+  std::set<world::ZoneId> started_;          // followed since the pipeline last looked
+  std::optional<world::ZoneId> taken_last_;  // take's turns
   std::map<world::ZoneId, std::unique_ptr<ZoneFollower>> followers_;  // reconcile's thread
   std::atomic<size_t> followed_{0};
   bool stopped_ = false;         // reconcile's thread

@@ -1,5 +1,7 @@
 #include "server/cluster/zone_table.hpp"
 
+#include <algorithm>
+
 namespace vox::cluster {
 
 void ZoneTable::taken(world::ZoneId zone, uint64_t epoch) {
@@ -115,12 +117,20 @@ void ZoneTable::committed(world::ZoneId zone, uint64_t last) {
   if (last > z.applied && !z.fresh) z.applied = last;  // fresh: read from the log again
 }
 
-std::optional<ZoneTable::CatchUp> ZoneTable::next_catch_up() const {
+std::optional<ZoneTable::CatchUp> ZoneTable::next_catch_up(
+    std::optional<world::ZoneId> after) const {
   std::lock_guard lock(mutex_);
-  for (const auto& [zone, z] : zones_) {
-    if (z.epoch && z.behind && !z.fresh) return CatchUp{zone, *z.epoch, z.applied};
+  const auto from = after ? zones_.upper_bound(*after) : zones_.begin();
+  const auto behind = [](const auto& entry) {
+    const Zone& z = entry.second;
+    return z.epoch && z.behind && !z.fresh;
+  };
+  auto it = std::find_if(from, zones_.end(), behind);
+  if (it == zones_.end()) {
+    it = std::find_if(zones_.begin(), from, behind);
+    if (it == from) return std::nullopt;
   }
-  return std::nullopt;
+  return CatchUp{it->first, *it->second.epoch, it->second.applied};
 }
 
 bool ZoneTable::catching_up() const { return next_catch_up().has_value(); }

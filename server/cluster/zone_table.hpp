@@ -42,12 +42,13 @@ class ZoneTable {
   void committed(world::ZoneId zone, uint64_t last);
 
   // A held zone whose world is behind (and not fresh): its epoch and the last record
-  // applied.
+  // applied. The first after `after` (in zone order, around): a zone whose log cannot be
+  // read or applied now holds up no other.
   struct CatchUp {
     world::ZoneId zone;
     uint64_t epoch = 0, applied = 0;
   };
-  std::optional<CatchUp> next_catch_up() const;
+  std::optional<CatchUp> next_catch_up(std::optional<world::ZoneId> after = std::nullopt) const;
   bool catching_up() const;
   // The pipeline applied the zone's records through `through`; `complete`: the log has no
   // more (the zone becomes writable, if still held at `epoch`).
