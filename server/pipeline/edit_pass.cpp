@@ -1,5 +1,6 @@
 #include "server/pipeline/edit_pass.hpp"
 
+#include <algorithm>
 #include <string>
 #include <unordered_map>
 
@@ -38,6 +39,11 @@ void refuse(EditResult& result, world::RefusalReason reason, std::string message
 }
 
 }  // namespace
+
+bool changes_regions(const std::vector<OrderedTask>& tasks) {
+  return std::any_of(tasks.begin(), tasks.end(),
+                     [](const OrderedTask& t) { return std::holds_alternative<RegionTask>(t); });
+}
 
 EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, ProtectedRegions& regions,
                       const EditRules& rules, Clock::time_point now) {

@@ -36,6 +36,9 @@ struct EditRules {
   EditIds* edit_ids = nullptr;     // a single node's: the edit ids it has applied
 };
 
+// Whether `tasks` change the protected regions (a cluster node reads its table first).
+bool changes_regions(const std::vector<OrderedTask>& tasks);
+
 // Applies `tasks` (moved into the batch) and runs its inspections; returns the batch with
 // each task's result, the chunks to re-mesh and what undoes it.
 EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, ProtectedRegions& regions,

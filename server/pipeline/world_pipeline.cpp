@@ -303,10 +303,7 @@ void WorldPipeline::run() {
 // Edits, region changes and inspections, in arrival order. Without a store the batch is
 // answered here; with one, once its append has landed.
 void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point now) {
-  const auto changes_regions = [](const OrderedTask& t) {
-    return std::holds_alternative<RegionTask>(t);
-  };
-  if (std::any_of(tasks.begin(), tasks.end(), changes_regions)) zone_regions_turn(now, true);
+  if (changes_regions(tasks)) zone_regions_turn(now, true);
   const bool durable = commit_ != nullptr;
   const EditRules rules{
       .limits = config_.limits,
