@@ -4,10 +4,14 @@
 // the logs replayed (tests/cluster_test_util.hpp).
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/wait.h>
 
 #include <cstdlib>
+#include <fstream>
 #include <pqxx/pqxx>
+#include <sstream>
 
+#include "tests/child_process.hpp"
 #include "tests/cluster_test_util.hpp"
 #include "tests/metrics_scrape.hpp"
 
@@ -138,22 +142,30 @@ TEST(ClusterNode, AfterANatsRestartAReplicaFillsWhatItMissedFromTheLogs) {
 }
 
 // PostgreSQL unreachable for a few seconds: edits are refused STORAGE_UNAVAILABLE (none is
-// half applied), and taken again once it is back, without restarting anything.
+// half applied), /healthz says 503 once a lease has passed, and edits are taken again once
+// it is back, without restarting anything.
 TEST(ClusterNode, WhilePostgresqlIsDownEditsAreRefusedAndAfterwardsTakenAgain) {
   PostgresServer pg;
   const std::string database = pg.create_database("down");
   NatsServer nats;
   const TempDir tmp("cluster_pg_down");
-  ServerProcess a({"--cluster", node_config(tmp, "a", database, nats)});
+  ServerProcess a({"--cluster", node_config(tmp, "a", database, nats), "--http-port", "auto"});
+  const auto health = [&] { return http_get(a.http_port(), "/healthz"); };
   auto editor = player(a, "editor");
   std::vector<wire::Envelope> accepted = {brush(1, 40, 40, 4)};
   ASSERT_EQ(edit_until_accepted(*editor, accepted[0]).status(), wire::EditResult::ACCEPTED);
+  EXPECT_NE(health().find("200 OK"), std::string::npos) << health();
   pg.stop();
   const auto down = edit_and_wait(*editor, brush(2, 44, 40, 3));
   ASSERT_TRUE(down);
   EXPECT_EQ(down->edit_result().status(), wire::EditResult::STORAGE_UNAVAILABLE)
       << down->edit_result().reason();
   std::this_thread::sleep_for(2s);  // past the lease: the node no longer knows it holds it
+  // A load balancer sends it no new players meanwhile (docs/haproxy-cluster.cfg).
+  const std::string unhealthy = health();
+  EXPECT_NE(unhealthy.find("503"), std::string::npos) << unhealthy;
+  EXPECT_NE(unhealthy.find("has not reached the cluster's database"), std::string::npos)
+      << unhealthy;
   pg.start();
   accepted.push_back(brush(3, 36, 40, 2));
   const wire::EditResult back = edit_until_accepted(*editor, accepted[1], 30s);
@@ -161,6 +173,7 @@ TEST(ClusterNode, WhilePostgresqlIsDownEditsAreRefusedAndAfterwardsTakenAgain) {
   ServerProcess fresh({"--in-memory"});
   apply_all(fresh, accepted);
   EXPECT_TRUE(view_of(a, 40, 40) == view_of(fresh, 40, 40)) << "the refused edit left a trace";
+  EXPECT_NE(health().find("200 OK"), std::string::npos) << health();
 }
 
 // An owner stopped past its lease (SIGSTOP) while another node takes its zone: when it
@@ -362,6 +375,114 @@ TEST(ClusterNode, AFollowedZoneWithADamagedRecordHoldsUpNoOtherFollowedZone) {
   EXPECT_TRUE(eventually(
       &b, [&] { return view_of(b, sx, sz) == expected; }, 20s))
       << "the sound zone was never shown on b";
+}
+
+// A port nothing listens on now (for a program that cannot be given port 0).
+uint16_t free_port() {
+  namespace asio = boost::asio;
+  asio::io_context io;
+  asio::ip::tcp::acceptor a(io, {asio::ip::make_address("127.0.0.1"), 0});
+  return a.local_endpoint().port();
+}
+
+// The documented deployment (docs/haproxy-cluster.cfg, run as written but for its
+// addresses and the daemon lines): HAProxy in front of two nodes, checking each with
+// GET /healthz. A player connects through it and its node dies (kill -9): connecting again
+// through the same address it reaches the live node, where its edit is accepted once the
+// dead node's zone is taken, and the dead node gets no new players.
+TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
+  const std::string haproxy = "/usr/sbin/haproxy";
+  if (!fs::exists(haproxy)) GTEST_SKIP() << "haproxy is not installed (scripts/setup.sh)";
+  const Cluster cluster;
+  const auto node = [&](const std::string& id) {
+    return std::make_unique<ServerProcess>(std::vector<std::string>{
+        "--cluster", cluster.config(id), "--http-port", "auto", "--metrics-port", "0"});
+  };
+  std::map<std::string, std::unique_ptr<ServerProcess>> nodes;
+  nodes["a"] = node("a");
+  nodes["b"] = node("b");
+  for (const auto& [id, n] : nodes) {
+    EXPECT_TRUE(eventually(
+        n.get(),
+        [&] { return http_get(n->http_port(), "/healthz").find("200 OK") != std::string::npos; }))
+        << "node " << id << " never said it was healthy";
+  }
+  // The file as documented, with these nodes' addresses and ports and no daemon lines.
+  std::ifstream doc(std::string(VOXEL_SOURCE_DIR) + "/docs/haproxy-cluster.cfg");
+  ASSERT_TRUE(doc) << "docs/haproxy-cluster.cfg is missing";
+  const uint16_t players_port = free_port(), viewer_port = free_port();
+  std::ostringstream config;
+  for (std::string line; std::getline(doc, line);) {
+    const size_t lead = line.find_first_not_of(' ');
+    const std::string trimmed = lead == std::string::npos ? "" : line.substr(lead);
+    if (trimmed.rfind("log ", 0) == 0 || trimmed.rfind("chroot", 0) == 0 ||
+        trimmed.rfind("user ", 0) == 0 || trimmed.rfind("group ", 0) == 0 ||
+        trimmed.rfind("daemon", 0) == 0 || trimmed.rfind("server ", 0) == 0)
+      continue;
+    if (trimmed == "bind 0.0.0.0:7777") line = "    bind 127.0.0.1:" + std::to_string(players_port);
+    if (trimmed == "bind 0.0.0.0:7780") line = "    bind 127.0.0.1:" + std::to_string(viewer_port);
+    config << line << "\n";
+    for (const auto& [id, n] : nodes) {
+      if (trimmed == "backend nodes")
+        config << "    server " << id << " 127.0.0.1:" << n->port() << " check port "
+               << n->http_port() << "\n";
+      if (trimmed == "backend viewer_nodes")
+        config << "    server " << id << " 127.0.0.1:" << n->http_port() << " check\n";
+    }
+  }
+  const fs::path cfg = cluster.tmp / "haproxy.cfg";
+  std::ofstream(cfg) << config.str();
+  const pid_t proxy =
+      spawn_logged({haproxy, "-db", "-f", cfg.string()}, (cluster.tmp / "haproxy.log").string());
+  struct Reap {
+    pid_t pid;
+    ~Reap() {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, nullptr, 0);
+    }
+  } reap{proxy};
+  const auto through_proxy = [&] {
+    auto c = std::make_unique<client::Client>();
+    c->connect("127.0.0.1", players_port, 5s);
+    c->handshake("walker", 5s * kSlow);
+    return c;
+  };
+  std::unique_ptr<client::Client> player;
+  ASSERT_TRUE(eventually(nullptr, [&] {
+    try {
+      player = through_proxy();
+      return true;
+    } catch (const std::exception&) {  // the proxy starting
+      return false;
+    }
+  })) << "no player reached a node through HAProxy";
+  // The node it reached dies.
+  std::string on;
+  for (const auto& [id, n] : nodes)
+    if (scrape(n->metrics_port()).at("voxeld_players") == 1) on = id;
+  ASSERT_FALSE(on.empty()) << "the player is on no node";
+  const std::string other = on == "a" ? "b" : "a";
+  const auto [x, z] = middle_of_a_zone_of(on);
+  ASSERT_EQ(edit_until_accepted(*player, brush(1, x, z, 2, 4.0f)).status(),
+            wire::EditResult::ACCEPTED);
+  nodes.erase(on);  // kill -9
+  player.reset();
+  std::unique_ptr<client::Client> again;
+  ASSERT_TRUE(eventually(nullptr, [&] {
+    try {
+      again = through_proxy();
+      return true;
+    } catch (const std::exception&) {
+      return false;
+    }
+  })) << "no player reached the live node through HAProxy";
+  EXPECT_EQ(scrape(nodes[other]->metrics_port()).at("voxeld_players"), 1);
+  const wire::EditResult r = edit_until_accepted(*again, brush(2, x + 3, z, 3, 4.0f), 30s);
+  EXPECT_EQ(r.status(), wire::EditResult::ACCEPTED) << r.reason();
+  // The viewer's port reaches the live node too.
+  EXPECT_TRUE(eventually(nullptr, [&] {
+    return http_get(viewer_port, "/healthz").find("200 OK") != std::string::npos;
+  }));
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
-// GET /metrics from a voxeld the test started, parsed into "name{labels}" -> value.
+// GET /metrics from a voxeld the test started, parsed into "name{labels}" -> value; any
+// other GET whole.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -11,21 +12,28 @@
 
 namespace vox::test {
 
-inline std::map<std::string, double> scrape(uint16_t port) {
+// The whole response to GET `path` (HTTP/1.0: the server closes after it); empty when
+// nothing listens.
+inline std::string http_get(uint16_t port, const std::string& path) {
   namespace asio = boost::asio;
   asio::io_context io;
   asio::ip::tcp::socket s(io);
-  s.connect({asio::ip::make_address("127.0.0.1"), port});
-  const std::string request = "GET /metrics HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
-  asio::write(s, asio::buffer(request));
-  std::string response;
   boost::system::error_code ec;
+  s.connect({asio::ip::make_address("127.0.0.1"), port}, ec);
+  if (ec) return {};
+  const std::string request = "GET " + path + " HTTP/1.0\r\nHost: 127.0.0.1\r\n\r\n";
+  asio::write(s, asio::buffer(request), ec);
+  std::string response;
   std::array<char, 8192> buf;
-  for (;;) {
+  while (!ec) {
     const size_t n = s.read_some(asio::buffer(buf), ec);
     response.append(buf.data(), n);
-    if (ec) break;
   }
+  return response;
+}
+
+inline std::map<std::string, double> scrape(uint16_t port) {
+  const std::string response = http_get(port, "/metrics");
   std::map<std::string, double> out;
   const size_t body = response.find("\r\n\r\n");
   EXPECT_NE(body, std::string::npos);

@@ -370,6 +370,11 @@ TEST(Http, ServesTheViewerAndRefusesWhatLeavesItsRootWithAClearStatus) {
   EXPECT_NE(index.find("text/html"), std::string::npos);
   const std::string js = get("/assets/viewer.js");
   EXPECT_TRUE(js.starts_with("HTTP/1.1 200")) << js;
+  // A load balancer's health check: a single node takes players while it runs.
+  const std::string health = get("/healthz?probe=1");
+  EXPECT_TRUE(health.starts_with("HTTP/1.1 200")) << health;
+  EXPECT_TRUE(health.ends_with("\r\n\r\nok\n")) << health;
+  EXPECT_NE(health.find("no-store"), std::string::npos) << health;
   EXPECT_NE(js.find("text/javascript"), std::string::npos);
   const std::string head = get("/assets/viewer.js", "HEAD");
   EXPECT_TRUE(head.starts_with("HTTP/1.1 200")) << head;

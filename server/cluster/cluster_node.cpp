@@ -103,9 +103,16 @@ void ClusterNode::start(const std::string& address) {
         if (const std::optional<uint64_t> version = decode_regions_version(m.data))
           regions_heard(*version);
       });
+  started_.store(true, std::memory_order_release);
   spdlog::info("cluster: node {} of world {} (zones of {} chunks, lease {} ms), NATS {}",
                config_.node, config_.world, config_.zone_chunks, config_.lease.count(),
                nats_.server());
+}
+
+std::optional<std::string> ClusterNode::unhealthy() const {
+  if (!started_.load(std::memory_order_acquire)) return "node " + config_.node + " is starting";
+  if (!nats_.connected()) return "node " + config_.node + " has lost NATS";
+  return keeper_->unhealthy();
 }
 
 // Whoever ranks first among the live nodes takes the zone (every node hears this, this

@@ -62,6 +62,9 @@ class ClusterNode : public pipeline::ZoneAuthority {
   void stop(bool release);
 
   const std::string& node() const { return config_.node; }
+  // Any thread: why this node should not take players now (its health check's 503:
+  // docs/CLUSTER.md, "Clients"), or nullopt.
+  std::optional<std::string> unhealthy() const;
   size_t zones_held() const { return keeper_ ? keeper_->held_count() : 0; }
   size_t zones_followed() const { return replicas_.followed(); }
   uint64_t fenced() const { return append_db_.fenced(); }  // appends the fence refused
@@ -151,6 +154,7 @@ class ClusterNode : public pipeline::ZoneAuthority {
   std::mutex views_mutex_;
   std::unordered_map<uint64_t, std::pair<world::ChunkCoord, int>> views_;
   std::unique_ptr<ZoneKeeper> keeper_;
+  std::atomic<bool> started_{false};  // keeper_ is set (unhealthy() reads it)
 };
 
 }  // namespace vox::cluster

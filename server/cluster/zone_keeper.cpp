@@ -103,6 +103,22 @@ void ZoneKeeper::run() {
   }
 }
 
+std::optional<std::string> ZoneKeeper::unhealthy() const {
+  if (shadowed_now_) return "another live process runs as node " + config_.node;
+  const Clock::rep ok = round_ok_at_.load();
+  const auto since = Clock::now() - Clock::time_point(Clock::duration(ok));
+  if (ok == 0 || since > config_.lease) {
+    return "node " + config_.node + " has not reached the cluster's database" +
+           (ok == 0
+                ? std::string(" yet")
+                : " for " +
+                      std::to_string(
+                          std::chrono::duration_cast<std::chrono::milliseconds>(since).count()) +
+                      " ms");
+  }
+  return std::nullopt;
+}
+
 // One ownership round (the keeper thread). The database is called without the lock.
 void ZoneKeeper::round() {
   std::set<world::ZoneId> held_zones, interest;
@@ -144,9 +160,12 @@ void ZoneKeeper::round() {
         shadow_logged_ = start;
       }
       shadowed_ = true;
+      shadowed_now_ = true;
       for (const auto& [zone, h] : held) lose(zone, h.epoch, "another process runs as this node");
       return;
     }
+    shadowed_now_ = false;
+    round_ok_at_ = start.time_since_epoch().count();  // the heartbeat reached the database
     if (shadowed_) spdlog::info("zones: node id {} is this process's now", config_.node);
     shadowed_ = false;
     shadow_logged_.reset();

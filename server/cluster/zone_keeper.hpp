@@ -13,6 +13,7 @@
 // long enough for a restarted one to start), this one loses its zones and takes none.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -68,6 +69,10 @@ class ZoneKeeper {
   // Any thread: the epoch this node holds `zone` at; nullopt when it does not.
   std::optional<uint64_t> epoch_of(world::ZoneId zone) const;
   size_t held_count() const;  // any thread
+  // Any thread: why this node should not take players now (a load balancer's health check,
+  // docs/CLUSTER.md "Clients"), or nullopt: no round reached the database for a whole
+  // lease, or another live process holds the node id.
+  std::optional<std::string> unhealthy() const;
   // Stops the thread: `release` lets every held zone go and takes this node out of the
   // live list first (a graceful shutdown: the next owners take its zones in their next
   // round), else they expire with their leases (what a crash does). Any thread but a
@@ -96,6 +101,10 @@ class ZoneKeeper {
   static constexpr std::chrono::milliseconds kLeastGap{50};
   static constexpr std::chrono::seconds kShadowLogEvery{60};
   bool shadowed_ = false;
+  // For unhealthy(): the start of the last round that reached the database (steady clock
+  // ticks), and whether another process holds the node id.
+  std::atomic<Clock::rep> round_ok_at_{0};
+  std::atomic<bool> shadowed_now_{false};
   Clock::time_point shadowed_since_{};
   std::optional<Clock::time_point> shadow_logged_;
   std::thread thread_;

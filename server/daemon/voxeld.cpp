@@ -197,6 +197,8 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
     }
     c.world.store = &node->store();
     c.world.checkpoint_store = &node->store();  // written on its own connection
+    // The node outlives the server: GET /healthz asks it (a load balancer's check).
+    if (c.net.http) c.net.http->unhealthy = [n = node.get()] { return n->unhealthy(); };
     c.world.zones = node.get();
   } else if (c.in_memory) {
     spdlog::warn("--in-memory: no world on disk; every edit is lost when voxeld stops");

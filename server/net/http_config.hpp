@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,10 @@ struct HttpConfig {
   std::chrono::milliseconds request_timeout{5000};
   size_t max_header_bytes = 8 * 1024;
   size_t max_file_bytes = size_t{64} << 20;  // larger files are not served (404)
+  // Why this server should not take players now (a cluster node cut off from its database
+  // or NATS), for GET /healthz: 200 "ok", else 503 with the reason. Null: always ok. Called
+  // on the HTTP threads.
+  std::function<std::optional<std::string>()> unhealthy;
 };
 
 }  // namespace vox::net

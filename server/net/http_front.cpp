@@ -166,15 +166,26 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
     }
     const auto& req = parser_->get();
     const std::string_view target(req.target().data(), req.target().size());
-    if (target.substr(0, target.find('?')) == "/ws") return upgrade();
+    const std::string_view route = target.substr(0, target.find('?'));
+    if (route == "/ws") return upgrade();
     if (req.method() != http::verb::get && req.method() != http::verb::head)
       return respond_error(http::status::method_not_allowed, HttpRefusedBy::kBadMethod,
                            "only GET and HEAD are served", Header{http::field::allow, "GET, HEAD"});
+    if (route == "/healthz") return health();
     const std::string path = static_path(target);
     if (path.empty())
       return respond_error(http::status::bad_request, HttpRefusedBy::kBadRequest,
                            "the path must name a file by plain segments");
     serve_file(path);
+  }
+
+  // A load balancer's health check (docs/CLUSTER.md, "Clients"): 200 while this server
+  // should take players, 503 with the reason otherwise.
+  void health() {
+    const std::optional<std::string> why =
+        s_.config->unhealthy ? s_.config->unhealthy() : std::nullopt;
+    respond(why ? http::status::service_unavailable : http::status::ok, "text/plain; charset=utf-8",
+            why ? *why + "\n" : "ok\n", true, Header{http::field::cache_control, "no-store"});
   }
 
   void upgrade() {
