@@ -66,11 +66,13 @@ int migrate_in(const std::string& from, const std::string& to, const std::string
   std::map<world::ChunkCoord, const world::Chunk*> chunks;
   for (const world::ChunkCoord& c : modified) chunks[c] = map.find(c);
   store::ZoneLeases db(to, "voxel-cli-migrate", kToolLease);
-  // The regions before the zones (a target with other regions is refused before anything
-  // is written; one that has these already, from a migration cut short, keeps them).
+  // The regions before the zones: a target with records or other regions is refused
+  // before they are written (one that has these regions already, from a migration cut
+  // short, keeps them).
   const store::WorldSettings settings{
       .name = name, .seed = source->info().seed, .zone_chunks = zone_chunks};
   store::settle_zone_world(db, settings);
+  store::expect_no_records(db, settings);
   const std::vector<world::Region> there = db.read_regions().table.regions;
   const auto ids = [](const std::vector<world::Region>& rs) {
     std::vector<uint64_t> out;

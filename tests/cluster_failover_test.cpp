@@ -356,7 +356,8 @@ TEST(ClusterNode, AFollowedZoneWithADamagedRecordHoldsUpNoOtherFollowedZone) {
   const auto [sx, sz] = middle(sound);
   const std::vector<wire::Envelope> in_sound = {brush(1, sx, sz, 4, 5.0f),
                                                 explosion(2, sx + 3, sz)};
-  ServerProcess a({"--cluster", cluster.config("a")});
+  // No checkpoint: b reads the damaged record (a checkpoint past it would be installed).
+  ServerProcess a({"--cluster", cluster.config("a"), "--checkpoint-interval", "3600"});
   apply_all(a, {brush(3, dx, dz, 2, 5.0f)});
   apply_all(a, in_sound);
   {
@@ -396,7 +397,8 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
   const Cluster cluster;
   const auto node = [&](const std::string& id) {
     return std::make_unique<ServerProcess>(std::vector<std::string>{
-        "--cluster", cluster.config(id), "--http-port", "auto", "--metrics-port", "0"});
+        "--cluster", cluster.config(id), "--http-port", "auto", "--metrics-port", "0",
+        "--proxy-protocol-from", "127.0.0.1", "--http-trusted-proxy", "127.0.0.1"});
   };
   std::map<std::string, std::unique_ptr<ServerProcess>> nodes;
   nodes["a"] = node("a");
@@ -410,7 +412,9 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
   // The file as documented, with these nodes' addresses and ports and no daemon lines.
   std::ifstream doc(std::string(VOXEL_SOURCE_DIR) + "/docs/haproxy-cluster.cfg");
   ASSERT_TRUE(doc) << "docs/haproxy-cluster.cfg is missing";
-  const uint16_t players_port = free_port(), viewer_port = free_port();
+  const uint16_t players_port = free_port();
+  uint16_t viewer_port = free_port();
+  while (viewer_port == players_port) viewer_port = free_port();
   std::ostringstream config;
   for (std::string line; std::getline(doc, line);) {
     const size_t lead = line.find_first_not_of(' ');
@@ -422,12 +426,17 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
     if (trimmed == "bind 0.0.0.0:7777") line = "    bind 127.0.0.1:" + std::to_string(players_port);
     if (trimmed == "bind 0.0.0.0:7780") line = "    bind 127.0.0.1:" + std::to_string(viewer_port);
     config << line << "\n";
-    for (const auto& [id, n] : nodes) {
-      if (trimmed == "backend nodes")
-        config << "    server " << id << " 127.0.0.1:" << n->port() << " check port "
-               << n->http_port() << "\n";
-      if (trimmed == "backend viewer_nodes")
-        config << "    server " << id << " 127.0.0.1:" << n->http_port() << " check\n";
+    for (const auto& [id, n] : nodes) {  // as the file's: checked, and again as backups
+      if (trimmed == "backend nodes") {
+        config << "    server " << id << " 127.0.0.1:" << n->port() << " send-proxy-v2 check port "
+               << n->http_port() << "\n"
+               << "    server " << id << "-any 127.0.0.1:" << n->port()
+               << " send-proxy-v2 backup\n";
+      }
+      if (trimmed == "backend viewer_nodes") {
+        config << "    server " << id << " 127.0.0.1:" << n->http_port() << " check\n"
+               << "    server " << id << "-any 127.0.0.1:" << n->http_port() << " backup\n";
+      }
     }
   }
   const fs::path cfg = cluster.tmp / "haproxy.cfg";
@@ -441,6 +450,7 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
       ::waitpid(pid, nullptr, 0);
     }
   } reap{proxy};
+  const auto proxy_alive = [&] { return ::waitpid(proxy, nullptr, WNOHANG) == 0; };
   const auto through_proxy = [&] {
     auto c = std::make_unique<client::Client>();
     c->connect("127.0.0.1", players_port, 5s);
@@ -449,6 +459,7 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
   };
   std::unique_ptr<client::Client> player;
   ASSERT_TRUE(eventually(nullptr, [&] {
+    EXPECT_TRUE(proxy_alive()) << "HAProxy exited: see haproxy.log";
     try {
       player = through_proxy();
       return true;
@@ -477,6 +488,16 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
     }
   })) << "no player reached the live node through HAProxy";
   EXPECT_EQ(scrape(nodes[other]->metrics_port()).at("voxeld_players"), 1);
+  // Its health check took the dead node out (HAProxy says so on its output).
+  const fs::path log = cluster.tmp / "haproxy.log";
+  EXPECT_TRUE(eventually(nullptr,
+                         [&] {
+                           std::ifstream in(log);
+                           const std::string text((std::istreambuf_iterator<char>(in)),
+                                                  std::istreambuf_iterator<char>());
+                           return text.find("nodes/" + on + " is DOWN") != std::string::npos;
+                         }))
+      << "HAProxy never marked node " << on << " down";
   const wire::EditResult r = edit_until_accepted(*again, brush(2, x + 3, z, 3, 4.0f), 30s);
   EXPECT_EQ(r.status(), wire::EditResult::ACCEPTED) << r.reason();
   // The viewer's port reaches the live node too.

@@ -274,5 +274,29 @@ TEST_F(ClusterRegions, APendingPartIsCompletedAsItsLoggerClippedItThoughARegionN
   EXPECT_TRUE(logger.read_pending(zones, 0ms).empty());
 }
 
+// A pending part that can never be applied (a damaged row that still decodes, here into a
+// brush over the radius limit) is removed with an error, not tried every 2 s for ever.
+TEST_F(ClusterRegions, APendingPartThatCanNeverBeAppliedIsRemoved) {
+  ServerProcess b(node("b"));
+  auto mallet = join(b, "mallet");
+  const world::ZoneId mine{1, 0}, other{2, 0};
+  const wire::EditResult taken = edit_until_accepted(*mallet, brush(1, 96, 32, 2, 3.0f));
+  ASSERT_EQ(taken.status(), wire::EditResult::ACCEPTED) << taken.reason();
+  store::ZoneLeases logger(cluster_.database, "logger", 30s);
+  const uint64_t epoch = *logger.acquire(other);
+  store::LoggedEdit part;
+  part.edit = *net::edit_from_wire(brush(2, 126, 32, 2, 3.0f).edit()).edit;
+  std::get<world::Brush>(part.edit).radius = 1000;  // no server takes it
+  part.edit_id = 777;
+  const std::vector<store::ZoneRecord> record = {{1, 1, store::encode_zone_edit(part), 777}};
+  const std::vector<store::ZonePending> pending = {{mine, 777, 1, store::encode_zone_edit(part)}};
+  logger.append(std::vector<store::ZoneAppend>{{other, epoch, record, pending}});
+  const std::vector<world::ZoneId> zones = {mine};
+  EXPECT_TRUE(eventually(
+      &b, [&] { return logger.read_pending(zones, 0ms).empty(); }, 20s))
+      << "the part is still pending";
+  for (const store::ZoneRecord& r : logger.read_log(mine, 0)) EXPECT_NE(r.edit_id, 777u);
+}
+
 }  // namespace
 }  // namespace vox::test

@@ -49,6 +49,12 @@ void PartCompleter::sweep() {
     room = config_.max_in_flight - std::min(config_.max_in_flight, in_flight_.size());
   }
   if (room == 0) return;
+  std::set<std::pair<world::ZoneId, uint64_t>> drop;
+  {
+    std::lock_guard lock(mutex_);
+    drop.swap(to_drop_);
+  }
+  for (const auto& [zone, id] : drop) db_.drop_pending(zone, id);
   for (const store::ZonePending& p : db_.read_pending(zones, config_.age, room)) {
     std::string why;
     const std::optional<store::LoggedEdit> part =
@@ -81,10 +87,18 @@ void PartCompleter::sweep() {
         std::lock_guard lock(mutex_);
         in_flight_.erase({zone, id});
       }
+      using world::RefusalReason;
       if (r.accepted) {
         completed_.fetch_add(1, std::memory_order_relaxed);
-      } else {
+      } else if (r.reason == RefusalReason::kStorageUnavailable ||
+                 r.reason == RefusalReason::kServerBusy ||
+                 r.reason == RefusalReason::kShuttingDown) {
         spdlog::warn("cluster: edit {} in {} not completed yet: {}", id, where, r.message);
+      } else {  // never applicable (a damaged row that still decodes): not tried again
+        spdlog::error("cluster: the part of edit {} left for {} cannot be applied ({}); removed",
+                      id, where, r.message);
+        std::lock_guard lock(mutex_);
+        if (to_drop_.size() < config_.max_in_flight) to_drop_.emplace(zone, id);
       }
     };
     submit_(std::move(task));

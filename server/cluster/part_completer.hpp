@@ -6,8 +6,10 @@
 // are older than `age`, and submits each as a part of its edit (its edit id makes a
 // second arrival harmless: ZoneTable::has_edit, and the log's own check in read_pending),
 // applied as the holder that logged the edit recorded it: the samples it kept (its
-// protected regions then), not validated or clipped again. The edit was accepted, so its
-// part must land: a region added since must not refuse it for ever.
+// protected regions then), not clipped again. The edit was accepted, so its part must
+// land: a region added since must not refuse it for ever. A part refused as never
+// applicable (a damaged row that still decodes into an invalid edit) is removed, with an
+// error line; one refused for now (store, memory) is tried again.
 //
 // Threads: its own ("vox-parts"); construct and stop on one thread. `submit` and
 // `writable` are called on its thread; a submitted part's answer on the pipeline thread.
@@ -56,10 +58,13 @@ class PartCompleter {
   const Writable writable_;
   const Submit submit_;
   store::ZoneLeases db_;  // this thread's connection
-  std::mutex mutex_;      // guards stop_, in_flight_ (leaf)
+  std::mutex mutex_;      // guards stop_, in_flight_, to_drop_ (leaf)
   std::condition_variable wake_;
   bool stop_ = false;
   std::set<std::pair<world::ZoneId, uint64_t>> in_flight_;  // (zone, edit id) submitted
+  // Parts refused as never applicable: removed from zone_pending at the next sweep (on
+  // this thread's connection); at most max_in_flight.
+  std::set<std::pair<world::ZoneId, uint64_t>> to_drop_;
   std::atomic<uint64_t> completed_{0};
   std::thread thread_;
 };

@@ -107,7 +107,8 @@ std::optional<std::string> ZoneKeeper::unhealthy() const {
   if (shadowed_now_) return "another live process runs as node " + config_.node;
   const Clock::rep ok = round_ok_at_.load();
   const auto since = Clock::now() - Clock::time_point(Clock::duration(ok));
-  if (ok == 0 || since > config_.lease) {
+  // Rounds come every lease / 3: a lease and a half without one is an outage.
+  if (ok == 0 || since > config_.lease + config_.lease / 2) {
     return "node " + config_.node + " has not reached the cluster's database" +
            (ok == 0
                 ? std::string(" yet")
@@ -165,7 +166,7 @@ void ZoneKeeper::round() {
       return;
     }
     shadowed_now_ = false;
-    round_ok_at_ = start.time_since_epoch().count();  // the heartbeat reached the database
+    round_ok_at_ = Clock::now().time_since_epoch().count();  // the heartbeat reached it
     if (shadowed_) spdlog::info("zones: node id {} is this process's now", config_.node);
     shadowed_ = false;
     shadow_logged_.reset();

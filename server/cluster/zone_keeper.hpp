@@ -70,8 +70,8 @@ class ZoneKeeper {
   std::optional<uint64_t> epoch_of(world::ZoneId zone) const;
   size_t held_count() const;  // any thread
   // Any thread: why this node should not take players now (a load balancer's health check,
-  // docs/CLUSTER.md "Clients"), or nullopt: no round reached the database for a whole
-  // lease, or another live process holds the node id.
+  // docs/CLUSTER.md "Clients"), or nullopt: no round reached the database for a lease and
+  // a half, or another live process holds the node id.
   std::optional<std::string> unhealthy() const;
   // Stops the thread: `release` lets every held zone go and takes this node out of the
   // live list first (a graceful shutdown: the next owners take its zones in their next

@@ -27,7 +27,7 @@ struct RawFlags {
   int metrics_port = -1;
   std::string http_port = "7780", http_root;
   std::vector<std::string> http_origins;
-  std::vector<std::string> http_proxies;
+  std::vector<std::string> http_proxies, tcp_proxies;
 };
 
 po::options_description describe(VoxeldConfig& c, RawFlags& r) {
@@ -53,6 +53,10 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "the IP address of a proxy in front of the HTTP port (a TLS terminator): its "
       "WebSocket players are the clients its X-Forwarded-For names, each capped by its own "
       "address; repeat for more");
+  add("proxy-protocol-from", po::value<std::vector<std::string>>(&r.tcp_proxies)->composing(),
+      "the IP address of a proxy in front of the TCP port sending the PROXY protocol v2 "
+      "(HAProxy's send-proxy-v2): its connections' players are the clients it names, each "
+      "capped by its own address; repeat for more");
   add("metrics-port", po::value<int>(&r.metrics_port),
       "serve Prometheus metrics on /metrics at --bind:PORT (0: a free port)");
   add("metrics-port-file", po::value<std::string>(&c.metrics_port_file),
@@ -204,6 +208,13 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
     const auto address = boost::asio::ip::make_address(proxy, ec);
     rule(!ec, "--http-trusted-proxy must be an IP address such as 127.0.0.1 (got '" + proxy + "')");
     if (!ec) proxies.push_back(net::address_text(address));
+  }
+  for (const std::string& proxy : r.tcp_proxies) {
+    boost::system::error_code ec;
+    const auto address = boost::asio::ip::make_address(proxy, ec);
+    rule(!ec,
+         "--proxy-protocol-from must be an IP address such as 127.0.0.1 (got '" + proxy + "')");
+    if (!ec) net.tcp_proxies.push_back(net::address_text(address));
   }
   rule(r.checkpoint_s >= 0.01 && r.checkpoint_s <= 86400,
        fmt::format("--checkpoint-interval must be 0.01..86400 (got {})", r.checkpoint_s));

@@ -4,6 +4,7 @@
 
 #include "proto/framing.hpp"
 #include "server/net/address_key.hpp"
+#include "server/net/proxy_header.hpp"
 #include "server/net/tcp_connection.hpp"
 #include "server/net/ws_connection.hpp"
 
@@ -139,7 +140,66 @@ void Server::admit(StrandSocket socket) {
   boost::system::error_code ec;
   const auto peer = socket.remote_endpoint(ec);
   if (ec) return;  // already gone
-  const std::string address = address_key(peer.address());
+  const std::vector<std::string>& proxies = config_.tcp_proxies;
+  if (std::find(proxies.begin(), proxies.end(), address_text(peer.address())) != proxies.end())
+    return read_proxy_header(std::move(socket), peer.address());
+  admit_as(std::move(socket), address_key(peer.address()));
+}
+
+// The header first, within the handshake timeout, at most as many at once as handshakes;
+// a connection without a valid one is closed (logged, rate-limited).
+void Server::read_proxy_header(StrandSocket socket, asio::ip::address proxy) {
+  if (proxy_reads_.fetch_add(1) >= std::max<size_t>(config_.max_handshaking, 1)) {
+    proxy_reads_.fetch_sub(1);
+    return refuse(std::move(socket), AdmissionControl::Verdict::kHandshakesFull);
+  }
+  struct Read {
+    explicit Read(StrandSocket s) : socket(std::move(s)), timer(socket.get_executor()) {}
+    StrandSocket socket;
+    asio::steady_timer timer;
+    std::array<uint8_t, kProxyHeadBytes> head{};
+    std::vector<uint8_t> rest;
+  };
+  auto r = std::make_shared<Read>(std::move(socket));
+  const auto fail = [this, r](const std::string& why) {
+    proxy_reads_.fetch_sub(1);
+    r->timer.cancel();
+    boost::system::error_code ignored;
+    r->socket.close(ignored);
+    if (auto suppressed = logs_->allow("proxy_header")) {
+      spdlog::warn("a connection from a trusted proxy closed: {}{}", why,
+                   *suppressed ? fmt::format(" [{} more]", *suppressed) : std::string());
+    }
+  };
+  r->timer.expires_after(config_.handshake_timeout);
+  r->timer.async_wait([r](boost::system::error_code ec) {
+    boost::system::error_code ignored;
+    if (!ec) r->socket.close(ignored);  // the reads end with an error
+  });
+  asio::async_read(
+      r->socket, asio::buffer(r->head),
+      [this, r, proxy, fail](boost::system::error_code ec, size_t) {
+        std::string why;
+        const std::optional<size_t> rest = ec ? std::nullopt : proxy_v2_rest(r->head, why);
+        if (!rest) return fail(ec ? "no PROXY header in time (" + ec.message() + ")" : why);
+        r->rest.resize(*rest);
+        asio::async_read(
+            r->socket, asio::buffer(r->rest),
+            [this, r, proxy, fail](boost::system::error_code ec2, size_t) {
+              std::string why2;
+              const std::optional<ProxyClient> client =
+                  ec2 ? std::nullopt : parse_proxy_v2(r->head, r->rest, why2);
+              if (!client)
+                return fail(ec2 ? "a PROXY header cut short (" + ec2.message() + ")" : why2);
+              proxy_reads_.fetch_sub(1);
+              r->timer.cancel();
+              admit_as(std::move(r->socket), address_key(client->address.value_or(proxy)));
+            });
+      });
+}
+
+void Server::admit_as(StrandSocket socket, const std::string& address) {
+  boost::system::error_code ec;
   const auto verdict = admission_->connect(address);
   if (verdict != AdmissionControl::Verdict::kAdmit) {
     refuse(std::move(socket), verdict);

@@ -40,6 +40,9 @@ class Server {
   // All strand_ only.
   void accept();
   void admit(StrandSocket socket);
+  // A connection from a trusted proxy: its PROXY header, then admitted as its client.
+  void read_proxy_header(StrandSocket socket, boost::asio::ip::address proxy);
+  void admit_as(StrandSocket socket, const std::string& address);
   void refuse(StrandSocket socket, AdmissionControl::Verdict why);
   // A WebSocket connection's strand (not strand_): admitted like a TCP one.
   void admit_websocket(WsStream ws, std::string address);
@@ -70,6 +73,7 @@ class Server {
   uint64_t subscription_ = 0;
   uint64_t lod_subscription_ = 0;
   std::atomic<uint64_t> next_session_{1};
+  std::atomic<size_t> proxy_reads_{0};  // connections from proxies still sending their header
   std::unique_ptr<HttpFront> http_;
 
   // Leaf lock: guards sessions_; no call into a session while it is held.

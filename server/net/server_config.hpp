@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "server/auth/player_token.hpp"
 #include "server/net/http_config.hpp"
@@ -21,7 +22,12 @@ struct ServerConfig {
   size_t max_handshaking = 64;             // connections before Hello, not counted in max_clients
   size_t max_per_address = 16;             // connections from one address (0: no cap)
   size_t max_handshaking_per_address = 4;  // of them before Hello (0: no cap)
-  uint32_t max_view_radius = 12;           // chunks
+  // Addresses (address_text, matched exactly) of proxies in front of the TCP port (HAProxy
+  // with send-proxy-v2, docs/haproxy-cluster.cfg): a connection from one begins with a
+  // PROXY protocol v2 header (proxy_header.hpp) and its player is the client it names,
+  // capped by that client's address. A connection from one without the header is closed.
+  std::vector<std::string> tcp_proxies;
+  uint32_t max_view_radius = 12;  // chunks
   // Level of detail (SetView.lod_level, lod_distance): the coarsest level a view may ask
   // for (at most the pipeline's lod.levels - 1; 0: none) and the largest split distance.
   uint32_t max_lod_level = 6;

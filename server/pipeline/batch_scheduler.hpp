@@ -52,7 +52,8 @@ struct EditTask {
   uint64_t edit_id = 0;
   std::optional<world::ZoneId> part;
   // A part another zone's holder logged as pending (completed here): applied as it
-  // recorded it, keeping these samples, not checked or clipped again (it was accepted).
+  // recorded it, keeping these samples, not clipped again by the protected regions (its
+  // edit was accepted).
   std::optional<std::vector<world::VoxelBox>> recorded_keep;
 };
 // Adds a protected region (`add`, its id chosen by the pipeline) or removes one

@@ -69,8 +69,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
     const world::Edit& edit = task.edit;
     EditResult& result = b.results[t];
     b.any_edit = true;
-    const auto refusal = task.recorded_keep ? std::nullopt : world::validate(edit, rules.limits);
-    if (refusal) {
+    if (auto refusal = world::validate(edit, rules.limits)) {
       refuse(result, refusal->reason, refusal->message, delta);
       continue;
     }

@@ -123,14 +123,19 @@ void settle_zone_world(ZoneLeases& db, const WorldSettings& settings) {
                      std::to_string(theirs.zone_chunks) + " chunks), not " + settings.name);
 }
 
-size_t seed_zone_world(ZoneLeases& db, const WorldSettings& settings,
-                       const std::map<world::ChunkCoord, const world::Chunk*>& chunks) {
-  settle_zone_world(db, settings);
+void expect_no_records(ZoneLeases& db, const WorldSettings& settings) {
   for (const world::ZoneId zone : db.zones()) {
     if (const std::optional<ZoneRow> row = db.read(zone); row && row->last_seq > 0)
       throw StoreError("the cluster world " + settings.name + " has records already (" +
                        describe(zone) + "): migrate into an empty one");
   }
+}
+
+size_t seed_zone_world(ZoneLeases& db, const WorldSettings& settings,
+                       const std::map<world::ChunkCoord, const world::Chunk*>& chunks) {
+  settle_zone_world(db, settings);
+  expect_no_records(db, settings);
+
   std::map<world::ZoneId, std::vector<ChunkRecord>> by_zone;
   ChunkEncoder encoder;
   for (const auto& [coord, chunk] : chunks)

@@ -34,6 +34,9 @@ ZoneWorld read_zone_world(ZoneLeases& db, bool verify, std::ostream& err);
 // the world it holds otherwise.
 void settle_zone_world(ZoneLeases& db, const WorldSettings& settings);
 
+// StoreError unless no zone of the database's world has records yet (a migration's target).
+void expect_no_records(ZoneLeases& db, const WorldSettings& settings);
+
 // Writes `chunks` (a single node's modified chunks, by coordinate) into an empty cluster
 // world: the world's settings settled (StoreError when the database holds another world),
 // each zone taken, given the chunks as its first checkpoint (ZoneLeases::seed_zone), and
