@@ -14,7 +14,8 @@ set -euo pipefail
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 build="${VOXEL_FUZZ_BUILD_DIR:-$root/build-fuzz}"
 seconds="${FUZZ_SECONDS:-35}"
-all=(mesh_decode_fuzzer frame_decoder_fuzzer envelope_fuzzer volume_file_fuzzer token_fuzzer)
+all=(mesh_decode_fuzzer frame_decoder_fuzzer envelope_fuzzer volume_file_fuzzer token_fuzzer
+     proxy_header_fuzzer)
 
 targets=("${all[@]}")
 if [ $# -gt 0 ]; then
