@@ -353,7 +353,8 @@ TEST(ClusterNode, AFollowedZoneWithADamagedRecordHoldsUpNoOtherFollowedZone) {
                      (static_cast<float>(z.z) + 0.5f) * side};
   };
   const auto [dx, dz] = middle(damaged);
-  const auto [sx, sz] = middle(sound);
+  const std::pair<float, float> sound_middle = middle(sound);
+  const float sx = sound_middle.first, sz = sound_middle.second;  // captured below
   const std::vector<wire::Envelope> in_sound = {brush(1, sx, sz, 4, 5.0f),
                                                 explosion(2, sx + 3, sz)};
   // No checkpoint: b reads the damaged record (a checkpoint past it would be installed).
@@ -403,9 +404,11 @@ TEST(ClusterNode, APlayerBehindHaproxyReachesALiveNodeAfterItsNodesDeath) {
   std::map<std::string, std::unique_ptr<ServerProcess>> nodes;
   nodes["a"] = node("a");
   nodes["b"] = node("b");
-  for (const auto& [id, n] : nodes) {
+  for (const auto& entry : nodes) {  // (clang 14 does not capture structured bindings)
+    const std::string& id = entry.first;
+    const ServerProcess* n = entry.second.get();
     EXPECT_TRUE(eventually(
-        n.get(),
+        n,
         [&] { return http_get(n->http_port(), "/healthz").find("200 OK") != std::string::npos; }))
         << "node " << id << " never said it was healthy";
   }
