@@ -226,9 +226,8 @@ void WorldPipeline::take_view_updates(Inbox::State& in) {
   loads_->drop_unviewed();
 }
 
-// What the parts do between batches, and whenever the idle pipeline wakes: evict,
-// checkpoint, write a region table in doubt, and answer the batches whose appends landed
-// (now, not when the loop next waits: while loads keep it busy it may not wait for long).
+// Between batches and whenever the idle pipeline wakes: evict, checkpoint, the regions,
+// and answer the batches whose appends landed (now: busy with loads it may not wait long).
 void WorldPipeline::between_batches(Clock::time_point now) {
   keep_memory(now);
   checkpoints_turn(now);
@@ -397,12 +396,11 @@ void WorldPipeline::drain_commits() {
   if (commit_) commit_->finish(0);
 }
 
-// On a cluster node, when another node changed the protected regions or (`anyway`) a batch
-// is about to change them: the cluster's table is read again, once the appends in flight
-// (clipped by the table before) have landed.
+// A cluster node reads the protected regions again when another node changed them or a
+// batch changes some (`anyway`; not while the store rests), once the appends in flight land.
 void WorldPipeline::zone_regions_turn(Clock::time_point now, bool anyway) {
-  if (!config_.zones || !(anyway || config_.zones->regions_changed())) return;
-  if (commit_->resting(now)) return;  // the store is down: tried once it may be again
+  const bool due = config_.zones && (anyway || config_.zones->regions_changed());
+  if (!due || commit_->resting(now)) return;
   drain_commits();
   take_zone_regions(*config_.zones, regions_, now);
 }

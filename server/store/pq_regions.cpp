@@ -39,4 +39,22 @@ void write_region_rows(pqxx::work& t, const std::string& table, const RegionWrit
     t.exec_params("DELETE FROM " + table + " WHERE id = $1", static_cast<int64_t>(id));
 }
 
+uint64_t check_region_version(pqxx::work& t, const RegionsAt& regions, const std::string& name) {
+  const pqxx::result r =
+      t.exec(regions.write ? "SELECT regions_version FROM cluster_world FOR UPDATE"
+                           : "SELECT regions_version FROM cluster_world");
+  if (r.empty()) throw StoreError(name + ": the database holds no cluster world's settings");
+  const auto now = r[0][0].as<uint64_t>();
+  if (now != regions.version) {
+    std::string what = name;
+    what += ": the protected regions changed (now at version ";
+    what += std::to_string(now);
+    what += ", this write's edits were clipped at ";
+    what += std::to_string(regions.version);
+    what += "); write refused";
+    throw RegionsChangedError(what, now);
+  }
+  return now;
+}
+
 }  // namespace vox::store

@@ -33,34 +33,17 @@ std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
 }
 
-// Inside an append: the regions' version; RegionsChangedError unless `regions.version`.
-uint64_t check_regions(pqxx::work& t, const RegionsAt& regions, const std::string& name) {
-  const pqxx::result r =
-      t.exec(regions.write ? "SELECT regions_version FROM cluster_world FOR UPDATE"
-                           : "SELECT regions_version FROM cluster_world");
-  if (r.empty()) throw StoreError(name + ": the database holds no cluster world's settings");
-  const auto now = r[0][0].as<uint64_t>();
-  if (now != regions.version) {
-    std::string what = name;
-    what += ": the protected regions changed (now at version ";
-    what += std::to_string(now);
-    what += ", this write's edits were clipped at ";
-    what += std::to_string(regions.version);
-    what += "); write refused";
-    throw RegionsChangedError(what, now);
-  }
-  return now;
-}
-
 // The connection string with a connect timeout, unless it sets one: a database host gone
 // silent must not hold a caller (the pipeline thread reads chunks and regions) for the
 // system's TCP timeout.
 std::string with_connect_timeout(const std::string& uri, std::chrono::milliseconds lease) {
   if (uri.find("connect_timeout") != std::string::npos) return uri;
-  const std::string seconds = std::to_string(std::max<int64_t>(2, lease.count() / 1000));
-  if (uri.rfind("postgres://", 0) == 0 || uri.rfind("postgresql://", 0) == 0)
-    return uri + (uri.find('?') == std::string::npos ? "?" : "&") + "connect_timeout=" + seconds;
-  return uri + " connect_timeout=" + seconds;  // key=value pairs
+  const bool url = uri.rfind("postgres://", 0) == 0 || uri.rfind("postgresql://", 0) == 0;
+  std::string out = uri;
+  out += !url ? " " : uri.find('?') == std::string::npos ? "?" : "&";  // else key=value pairs
+  out += "connect_timeout=";
+  out += std::to_string(std::max<int64_t>(2, lease.count() / 1000));
+  return out;
 }
 
 }  // namespace
@@ -243,7 +226,7 @@ uint64_t ZoneLeases::append(std::span<const ZoneAppend> appends, const RegionsAt
       pqxx::work t(c);
       // The regions first: a writer of them locks their row before any zone row, and the
       // others do not lock it (a change committed before this read is seen).
-      uint64_t version = regions ? check_regions(t, *regions, name_) : 0;
+      uint64_t version = regions ? check_region_version(t, *regions, name_) : 0;
       for (const ZoneAppend* a : order) {
         // The fence: the zone row locked for the rest of the transaction, so no
         // successor's take can slip between this check and the commit.
@@ -331,8 +314,10 @@ std::vector<ZonePending> ZoneLeases::read_pending(std::span<const world::ZoneId>
                                                   std::chrono::milliseconds age, size_t max) {
   if (zones.empty()) return {};
   std::string keys = "{";
-  for (size_t i = 0; i < zones.size(); ++i)
-    keys += (i ? "," : "") + std::to_string(row_key(zones[i]));
+  for (size_t i = 0; i < zones.size(); ++i) {
+    if (i > 0) keys += ',';
+    keys += std::to_string(row_key(zones[i]));
+  }
   keys += "}";
   return run([&](pqxx::connection& c) {
     pqxx::work t(c);
