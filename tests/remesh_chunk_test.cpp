@@ -75,6 +75,42 @@ TEST(RemeshChunk, AReMeshMakesItsFullFrameOnlyWhenAskedAndOnce) {
   EXPECT_EQ(first->full().data(), first->full_frame.data()) << "made at publication";
 }
 
+// Issue 39: at 1,000 players the network thread spent a tenth of its time making deltas,
+// each for the first session asking. A re-mesh of a published chunk now carries its delta
+// from that version, made by the meshing worker, accounted once published; one from a
+// version still waiting for its append (no version number yet) is left to be asked for.
+TEST(RemeshChunk, AReMeshOfAPublishedChunkCarriesItsDeltaMadeBeforePublication) {
+  SurfaceChunk at;
+  MeshWorker w;
+  std::shared_ptr<MeshVersion> first = remesh_chunk(w, at.chunks, at.c, nullptr);
+  ASSERT_TRUE(first);
+  world::Density* d = at.chunks.find(at.c)->densities();
+  for (int i = 0; i < 4096; ++i) d[i] = static_cast<world::Density>(-d[i]);
+  std::shared_ptr<MeshVersion> unnumbered = remesh_chunk(w, at.chunks, at.c, first.get());
+  ASSERT_TRUE(unnumbered);
+  first->version = 1;
+  std::shared_ptr<MeshVersion> second = remesh_chunk(w, at.chunks, at.c, first.get());
+  ASSERT_TRUE(second);
+  second->version = 2;
+  MeshStore store;
+  store.publish(first);
+  const size_t before = store.memory_bytes();
+  store.publish(second);
+  // The old version's bytes leave, the new one's and its premade delta's come.
+  const size_t after = store.memory_bytes();  // before anyone asked for a delta
+  const auto delta = second->delta_from(*first);
+  EXPECT_EQ(after, before - first->memory_bytes() + second->memory_bytes() + delta->capacity());
+  EXPECT_EQ(second->delta_from(*first).get(), delta.get()) << "premade, not made again";
+  proto::ZstdCodec zstd;
+  const auto decoded = zstd.decompress(*delta, first->encoding, size_t{1} << 22);
+  ASSERT_TRUE(decoded);
+  EXPECT_EQ(*decoded, second->encoding);
+  EXPECT_EQ(delta->capacity(), delta->size()) << "kept at its size, not the codec's bound";
+  // Made from the unnumbered one on request: the same bytes.
+  const auto asked = unnumbered->delta_from(*first);
+  EXPECT_EQ(*zstd.decompress(*asked, first->encoding, size_t{1} << 22), unnumbered->encoding);
+}
+
 // 1,000 players' level-0 meshes took 220 MiB, four fifths of it the meshes' floats and
 // indices kept beside their encodings (used only to see whether a re-mesh changed
 // anything); the budget evicted and regenerated 18,000 chunks a minute for it. A version

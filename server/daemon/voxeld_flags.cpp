@@ -113,6 +113,9 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "samples an admin's edits may touch at once");
   add("set-view-rate", po::value<double>(&net.set_view_rate)->default_value(2),
       "SetViews per second per player; more are coalesced (0: unlimited)");
+  add("publish-at-once", po::bool_switch(&net.publish_at_once),
+      "tell every publication to the sessions at once, not gathered while the last is "
+      "unhandled (for comparison)");
   add("message-rate", po::value<double>(&net.message_rate)->default_value(200),
       "messages per second per connection before it is read slower (0: unlimited)");
   add("frame-timeout-ms", po::value<long>(&r.frame_ms)->default_value(10000),

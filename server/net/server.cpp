@@ -31,9 +31,14 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
           AdmissionLimits{config_.max_clients, config_.max_handshaking, config_.max_per_address,
                           config_.max_handshaking_per_address})),
       logs_(std::make_shared<SharedLogRateLimit>()),
-      players_(std::make_shared<PlayerRegistry<ClientSession>>()) {}
+      players_(std::make_shared<PlayerRegistry<ClientSession>>()),
+      publish_(std::make_shared<PublishGate>()) {}
 
 Server::~Server() {
+  {
+    std::lock_guard lock(publish_->mutex);
+    publish_->stopped = true;
+  }
   if (subscription_ != 0) pipeline_.unsubscribe(subscription_);
   if (lod_subscription_ != 0) pipeline_.unsubscribe(lod_subscription_);
 }
@@ -46,24 +51,14 @@ void Server::start() {
   acceptor_.listen();
   port_ = acceptor_.local_endpoint().port();
   subscription_ = pipeline_.subscribe([this](const std::vector<world::ChunkCoord>& changed) {
-    // Pipeline thread: hand the list to every session that may see one of the chunks; each
-    // filters exactly on its own strand.
-    auto shared = std::make_shared<const std::vector<world::ChunkCoord>>(changed);
-    std::vector<std::shared_ptr<ClientSession>> live;
+    // Pipeline thread: at once, or gathered while the last fan-out is unhandled.
+    std::vector<world::ChunkCoord> now;
     {
-      std::lock_guard lock(sessions_mutex_);
-      for (auto it = sessions_.begin(); it != sessions_.end();) {
-        if (auto s = it->second.lock()) {
-          live.push_back(std::move(s));
-          ++it;
-        } else {
-          it = sessions_.erase(it);
-        }
-      }
+      std::lock_guard lock(publish_->mutex);
+      if (!publish_->rules.add(changed) && !config_.publish_at_once) return;
+      now = publish_->rules.take();
     }
-    for (const auto& s : live) {
-      if (s->may_see(changed)) s->on_chunks_published(shared);
-    }
+    fan_out(std::move(now));
   });
   lod_subscription_ =
       pipeline_.subscribe_lod([this](const pipeline::WorldPipeline::LodPublication& publication) {
@@ -301,6 +296,47 @@ void Server::stop() {
   }
   for (const auto& s : live)
     s->close_with_error(wire::Error::SHUTTING_DOWN, "the server is shutting down");
+}
+
+// Hands `changed` to every session that may see one of the chunks; each filters exactly
+// on its own strand. When the last of them has handled it (or dropped it, closing), the
+// list's deleter lets the chunks gathered meanwhile go, from strand_. Any thread.
+void Server::fan_out(std::vector<world::ChunkCoord> changed) {
+  auto gate = publish_;
+  auto shared = std::shared_ptr<const std::vector<world::ChunkCoord>>(
+      new std::vector<world::ChunkCoord>(std::move(changed)),
+      [this, gate](const std::vector<world::ChunkCoord>* list) {
+        delete list;
+        std::lock_guard lock(gate->mutex);
+        // Once the Server is gone (handlers destroyed with the io_context) nothing goes.
+        if (!gate->stopped && gate->rules.handled())
+          asio::post(strand_, [this] { fan_out_gathered(); });
+      });
+  std::vector<std::shared_ptr<ClientSession>> live;
+  {
+    std::lock_guard lock(sessions_mutex_);
+    live.reserve(sessions_.size());
+    for (auto it = sessions_.begin(); it != sessions_.end();) {
+      if (auto s = it->second.lock()) {
+        live.push_back(std::move(s));
+        ++it;
+      } else {
+        it = sessions_.erase(it);
+      }
+    }
+  }
+  for (const auto& s : live) {
+    if (s->may_see(*shared)) s->on_chunks_published(shared);
+  }
+}
+
+void Server::fan_out_gathered() {  // strand_
+  std::vector<world::ChunkCoord> changed;
+  {
+    std::lock_guard lock(publish_->mutex);
+    changed = publish_->rules.take();
+  }
+  fan_out(std::move(changed));
 }
 
 size_t Server::session_count() const {

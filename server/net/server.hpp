@@ -13,6 +13,7 @@
 #include "server/net/client_session.hpp"
 #include "server/net/http_front.hpp"
 #include "server/net/log_hygiene.hpp"
+#include "server/net/publish_coalescer.hpp"
 #include "server/net/server_counters.hpp"
 
 namespace vox::net {
@@ -49,7 +50,9 @@ class Server {
   void start_http();
   // Connection or session members (any strand).
   void add_session(const std::shared_ptr<ClientSession>& session);
-  std::string refusal(AdmissionControl::Verdict why);  // counts it; the Error's bytes
+  std::string refusal(AdmissionControl::Verdict why);    // counts it; the Error's bytes
+  void fan_out(std::vector<world::ChunkCoord> changed);  // any thread
+  void fan_out_gathered();                               // strand_
   void housekeeping();  // every second: the sessions' memory into the pipeline's budget
   void log_stats();
   void arm_stats_timer();
@@ -75,6 +78,15 @@ class Server {
   std::atomic<uint64_t> next_session_{1};
   std::atomic<size_t> proxy_reads_{0};  // connections from proxies still sending their header
   std::unique_ptr<HttpFront> http_;
+
+  // Publications gathered while a fan-out is unhandled (publish_coalescer.hpp); shared
+  // with the fan-outs' lists, whose deleters may run after the Server is gone.
+  struct PublishGate {
+    std::mutex mutex;  // leaf lock
+    PublishCoalescer rules;
+    bool stopped = false;  // the Server is gone
+  };
+  std::shared_ptr<PublishGate> publish_;
 
   // Leaf lock: guards sessions_; no call into a session while it is held.
   mutable std::mutex sessions_mutex_;

@@ -50,6 +50,9 @@ struct ServerConfig {
   double edit_budget_burst = 600000;  // samples
   double admin_edit_budget_rate = 0;  // 0: unlimited
   double admin_edit_budget_burst = 0;
+  // Every publication told to the sessions at once, not gathered while the last fan-out is
+  // unhandled (publish_coalescer.hpp): for comparison.
+  bool publish_at_once = false;
   double set_view_rate = 2;  // per second; more are coalesced into the newest
   double set_view_burst = 4;
   double message_rate = 200;  // messages per second; over it the session stops reading

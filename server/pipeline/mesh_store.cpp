@@ -48,6 +48,14 @@ std::shared_ptr<const std::vector<uint8_t>> MeshVersion::delta_from(const MeshVe
   return delta;
 }
 
+void MeshVersion::premake_delta(const MeshVersion& base, proto::ZstdCodec& zstd) {
+  thread_local std::vector<uint8_t> frame;  // compress() sizes it for the worst case
+  zstd.compress(encoding, base.encoding, frame);
+  auto delta = std::make_shared<const std::vector<uint8_t>>(frame.begin(), frame.end());
+  std::lock_guard lock(deltas_mutex_);  // not published: nobody else holds it
+  deltas_.emplace_back(base.version, std::move(delta));
+}
+
 std::span<const uint8_t> MeshVersion::full() const {
   if (!full_frame.empty()) return full_frame;
   {
@@ -77,7 +85,13 @@ MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {
 
 void MeshStore::publish(MeshVersionPtr mesh) {
   const size_t added = mesh->memory_bytes();
-  mesh->delta_account_ = delta_bytes_;  // before any reader can see it: no delta exists yet
+  mesh->delta_account_ = delta_bytes_;  // before any reader can see it
+  {
+    std::lock_guard lock(mesh->deltas_mutex_);  // premade ones (premake_delta)
+    size_t premade = 0;
+    for (const auto& [from, delta] : mesh->deltas_) premade += delta->capacity();
+    if (premade > 0) delta_bytes_->fetch_add(premade, std::memory_order_relaxed);
+  }
   if (mesh->version > newest_.load(std::memory_order_relaxed))
     newest_.store(mesh->version, std::memory_order_release);
   MeshVersionPtr old;  // released after the lock, so a last reference is freed outside it

@@ -25,8 +25,13 @@ std::shared_ptr<MeshVersion> remesh_chunk(MeshWorker& w, const world::ChunkMap& 
   version->coord = c;
   version->triangles = static_cast<uint32_t>(w.mesh.triangle_count());
   version->encoding.assign(w.encoding.begin(), w.encoding.end());
-  // A re-mesh's clients take deltas: its full frame is made when someone asks for it.
-  if (!previous) w.zstd.compress(version->encoding, {}, version->full_frame);
+  // Its clients take deltas, most from the version before (made here, in parallel, not
+  // by the network thread for the first of them); a chunk that had none goes in full.
+  if (!previous) {
+    w.zstd.compress(version->encoding, {}, version->full_frame);
+  } else if (previous->version != 0) {  // 0: a batch still waiting for its append
+    version->premake_delta(*previous, w.zstd);
+  }
   return version;
 }
 
