@@ -123,9 +123,10 @@ def main():
           f"whole run {steal_s:.1f} s of CPU.{slowed} Load tester on the same machine "
           "(`--spread-addresses`, 0.5 edits/s per player); voxeld's CPU is the mean of its "
           "per-second samples while the players play, with each thread's share. A goal met "
-          "on one host is met only once it also holds on a slower one (the issue's 2-core AMD "
-          "EPYC VM measured 1.5–9× worse than this Intel one): take CPU away (`stress-ng` "
-          "beside the run, or `taskset`) before calling it met.", "",
+          "on one host is met only once it also holds on a slower one (the same 2-core size "
+          "measured 1.5–9× apart between hosts, and one AMD EPYC host 2× apart within a "
+          "day): take CPU away (`stress-ng` beside the run, or `taskset`) before calling it "
+          "met.", "",
           "| scenario | goal | measured | verdict | voxeld CPU (threads) |", "|---|---|---|---|---|"]
     md += [f"| {' | '.join(r)} |" for r in rows]
     md.append("")
