@@ -4,7 +4,10 @@
 #include "server/daemon/voxeld_flags.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <cstdio>
+#include <fstream>
 #include <sstream>
 
 namespace vox::daemon {
@@ -151,6 +154,108 @@ TEST(VoxeldFlags, AnUnknownFlagOrAMalformedNumberIsBadUsage) {
     EXPECT_EQ(p.err.rfind("voxeld: ", 0), 0u) << p.err;
     EXPECT_NE(p.err.find("(see --help)"), std::string::npos) << p.err;
   }
+}
+
+}  // namespace
+}  // namespace vox::daemon
+
+namespace vox::daemon {
+namespace {
+
+// A configuration file in a fresh temporary directory, removed with it.
+struct ConfigFileOnDisk {
+  std::string path;
+  explicit ConfigFileOnDisk(const std::string& text) {
+    char dir[] = "/tmp/voxeld_config_XXXXXX";
+    path = std::string(::mkdtemp(dir)) + "/voxeld.conf";
+    std::ofstream(path) << text;
+  }
+  ~ConfigFileOnDisk() {
+    std::remove(path.c_str());
+    std::remove(path.substr(0, path.rfind('/')).c_str());
+  }
+};
+
+TEST(VoxeldConfigFile, EveryFlagCanBeSetThereAndAFlagGivenWithItWins) {
+  const ConfigFileOnDisk file(
+      "# a studio's server\n"
+      "port = 7800   # the game port\n"
+      "max-clients = 900\n"
+      "\n"
+      "max-memory = 2G\n"
+      "in-memory = true\n"
+      "http-allow-origin = https://a.example\n"
+      "http-allow-origin = https://b.example\n"
+      "log-level = warn\n");
+  const Parsed p = parse({"--config", file.path, "--max-clients", "50"});
+  ASSERT_EQ(p.code, -1) << p.err;
+  EXPECT_EQ(p.config.net.port, 7800);
+  EXPECT_EQ(p.config.net.max_clients, 50u) << "the command line wins";
+  EXPECT_EQ(p.config.world.max_memory, size_t{2} << 30);
+  EXPECT_TRUE(p.config.in_memory);
+  EXPECT_EQ(p.config.log_level, "warn");
+  ASSERT_TRUE(p.config.net.http.has_value());
+  EXPECT_EQ(p.config.net.http->allow_origins,
+            (std::vector<std::string>{"https://a.example", "https://b.example"}));
+}
+
+TEST(VoxeldConfigFile, EachBadLineIsOneErrorNamingTheFileTheLineAndTheKey) {
+  const ConfigFileOnDisk file(
+      "port = 7800\n"
+      "max-clientz = 10\n"
+      "max-clients = many\n"
+      "[server]\n"
+      "just words\n"
+      "port = 7801\n"
+      "config = /etc/other.conf\n");
+  const Parsed p = parse({"--config", file.path});
+  EXPECT_EQ(p.code, 2);
+  EXPECT_EQ(lines(p.err), 6u) << p.err;
+  EXPECT_NE(p.err.find(file.path + ":2: key 'max-clientz': not an option"), std::string::npos)
+      << p.err;
+  EXPECT_NE(p.err.find(file.path + ":3: key 'max-clients':"), std::string::npos) << p.err;
+  EXPECT_NE(p.err.find(file.path + ":4: sections are not used"), std::string::npos) << p.err;
+  EXPECT_NE(p.err.find(file.path + ":5: expected key = value"), std::string::npos) << p.err;
+  EXPECT_NE(p.err.find(file.path + ":6: key 'port': set on line 1 already"), std::string::npos)
+      << p.err;
+  EXPECT_NE(p.err.find(file.path + ":7: key 'config': not allowed"), std::string::npos) << p.err;
+}
+
+TEST(VoxeldConfigFile, AValueBreakingItsRuleNamesWhereTheFileSetIt) {
+  const ConfigFileOnDisk file("io-threads = 1\nmax-view-radius = 99\n");
+  const Parsed p = parse({"--config", file.path});
+  EXPECT_EQ(p.code, 2);
+  EXPECT_NE(p.err.find("--max-view-radius must be 0..32 (got 99) (" + file.path + ":2)"),
+            std::string::npos)
+      << p.err;
+  const Parsed flag = parse({"--config", file.path, "--max-view-radius", "40"});
+  EXPECT_EQ(flag.err.find(file.path), std::string::npos) << "the flag broke it: " << flag.err;
+}
+
+TEST(VoxeldConfigFile, AMissingFileIsOneError) {
+  const Parsed p = parse({"--config", "/nonexistent/voxeld.conf"});
+  EXPECT_EQ(p.code, 2);
+  EXPECT_EQ(p.err, "voxeld: /nonexistent/voxeld.conf: cannot be read\n");
+}
+
+TEST(VoxeldConfigFile, PrintConfigWritesAFileThatReadsBackToTheSameConfiguration) {
+  const Parsed printed =
+      parse({"--print-config", "--port", "7900", "--max-memory", "3G", "--http-allow-origin",
+             "https://a.example", "--keep-log", "--max-lod-distance", "1.5"});
+  ASSERT_EQ(printed.code, 0) << printed.err;
+  EXPECT_NE(printed.out.find("\nport = 7900\n"), std::string::npos) << printed.out;
+  EXPECT_NE(printed.out.find("\n# seed =\n"), std::string::npos) << "no value: commented";
+  EXPECT_EQ(printed.out.find("print-config ="), std::string::npos);
+  const ConfigFileOnDisk file(printed.out);
+  const Parsed read = parse({"--config", file.path});
+  ASSERT_EQ(read.code, -1) << read.err;
+  EXPECT_EQ(read.config.net.port, 7900);
+  EXPECT_EQ(read.config.world.max_memory, size_t{3} << 30);
+  EXPECT_TRUE(read.config.world.keep_log);
+  EXPECT_FLOAT_EQ(read.config.net.max_lod_distance, 1.5f);
+  const Parsed again = parse({"--config", file.path, "--print-config"});
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_EQ(again.out, printed.out) << "a fixed point";
 }
 
 }  // namespace

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <fstream>
 #include <functional>
+#include <set>
 
+#include "options/config_file.hpp"
 #include "options/option_values.hpp"
 #include "server/auth/player_token.hpp"
 #include "server/net/address_key.hpp"
@@ -36,6 +38,10 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
   po::options_description opts("voxeld options");
   auto add = opts.add_options();
   add("help,h", "show this help");
+  add("config", po::value<std::string>(),
+      "read flags from this file: key = value lines, keys as the flags without --; flags "
+      "given here win (voxeld --print-config writes one to start from)");
+  add("print-config", "write the effective configuration as a file for --config, and exit");
   add("port", po::value<uint16_t>(&net.port)->default_value(7777), "TCP port (0: pick a free one)");
   add("bind", po::value<std::string>(&net.bind)->default_value("127.0.0.1"),
       "address to listen on");
@@ -303,9 +309,36 @@ int parse_voxeld_flags(const std::vector<std::string>& args, VoxeldConfig& confi
   const int code =
       options::parse_args("voxeld", args, opts, nullptr, "usage: voxeld [options]", vm, out, err);
   if (code >= 0) return code;
-  const std::vector<std::string> bad = check(vm, raw, config);
-  for (const std::string& line : bad) err << "voxeld: " << line << "\n";
-  return bad.empty() ? -1 : 2;
+  const std::set<std::string> not_in_file = {"help", "config", "print-config"};
+  options::ConfigFile file;
+  if (vm.count("config")) {
+    std::set<std::string> on_command_line;
+    for (const auto& [key, value] : vm)
+      if (!value.defaulted()) on_command_line.insert(key);
+    file = options::store_config_file(vm["config"].as<std::string>(), opts, not_in_file, vm);
+    for (const std::string& line : file.errors) err << "voxeld: " << line << "\n";
+    if (!file.errors.empty()) return 2;
+    po::notify(vm);  // the file's values into the configuration
+    for (const std::string& key : on_command_line) file.lines.erase(key);
+  }
+  std::vector<std::string> bad = check(vm, raw, config);
+  for (std::string& line : bad) {
+    // A rule broken by a value from the file names where it was set.
+    const size_t end = line.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789-", 2);
+    const auto it =
+        line.starts_with("--") ? file.lines.find(line.substr(2, end - 2)) : file.lines.end();
+    if (it != file.lines.end()) line += " (" + file.path + ":" + std::to_string(it->second) + ")";
+    err << "voxeld: " << line << "\n";
+  }
+  if (!bad.empty()) return 2;
+  if (vm.count("print-config")) {
+    out << "# voxeld configuration: voxeld --config FILE reads it; a flag given with it wins.\n"
+           "# A list (http-allow-origin, ...) takes one line per value. Written by "
+           "voxeld --print-config.\n";
+    options::write_config_file(out, opts, vm, not_in_file);
+    return 0;
+  }
+  return -1;
 }
 
 size_t default_max_memory() {
