@@ -24,10 +24,11 @@ packages=(
 
 # The web client and viewer (clients/web): node and npm, Debian's unless the machine has
 # them already; the test step also drives Debian's chromium, headless, and runs the
-# viewer behind haproxy with a certificate openssl makes.
+# viewer behind haproxy with a certificate openssl makes, and checks deploy/voxeld.service
+# with systemd's systemd-analyze (nothing is started).
 command -v node >/dev/null || packages+=(nodejs)
 command -v npm >/dev/null || packages+=(npm)
-[ "$mode" = test ] && packages+=(chromium haproxy openssl)
+[ "$mode" = test ] && packages+=(chromium haproxy openssl systemd)
 
 missing=()
 for p in "${packages[@]}"; do
