@@ -10,6 +10,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "server/daemon/json_log.hpp"
+
 namespace vox::daemon {
 namespace {
 
@@ -256,6 +258,38 @@ TEST(VoxeldConfigFile, PrintConfigWritesAFileThatReadsBackToTheSameConfiguration
   const Parsed again = parse({"--config", file.path, "--print-config"});
   ASSERT_EQ(again.code, 0) << again.err;
   EXPECT_EQ(again.out, printed.out) << "a fixed point";
+}
+
+}  // namespace
+}  // namespace vox::daemon
+
+namespace vox::daemon {
+namespace {
+
+std::string escaped(std::string_view text) {
+  std::string out;
+  append_json_escaped(text, out);
+  return out;
+}
+
+// --log-format json: a client's name or a damaged string in a message must not break the
+// line's JSON (a log shipper drops or misreads a line that is not).
+TEST(JsonLog, AMessageIsEscapedIntoOneValidJsonString) {
+  EXPECT_EQ(escaped("player 'a\"b' said \\ hi"), "player 'a\\\"b' said \\\\ hi");
+  EXPECT_EQ(escaped("two\nlines\tand \x01 \x7f"), "two\\nlines\\tand \\u0001 \\u007f");
+  EXPECT_EQ(escaped("caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80"),
+            "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80");
+  // A lone continuation byte, a truncated sequence, an overlong '/', a surrogate.
+  EXPECT_EQ(escaped("\x80 \xe2\x82 \xc0\xaf \xed\xa0\x80"),
+            "\\ufffd \\ufffd\\ufffd \\ufffd\\ufffd \\ufffd\\ufffd\\ufffd");
+}
+
+TEST(JsonLog, LogFormatIsTextOrJson) {
+  EXPECT_FALSE(parse({}).config.json_logs);
+  EXPECT_TRUE(parse({"--log-format", "json"}).config.json_logs);
+  const Parsed bad = parse({"--log-format", "xml"});
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--log-format must be text or json (got 'xml')"), std::string::npos);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 
 #include "server/cluster/cluster_config.hpp"
 #include "server/cluster/cluster_node.hpp"
+#include "server/daemon/json_log.hpp"
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
 #include "server/store/world_store.hpp"
@@ -117,8 +118,9 @@ metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node
 void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   net::ServerCounters counters;
   // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
-  // sessions they hold, which hold nothing of the Server), then the pipeline (sessions
-  // drop their views in it) and the counters.
+  // sessions they hold, which hold nothing of the Server but publication lists whose
+  // deleters check that it is gone), then the pipeline (sessions drop their views in it)
+  // and the counters.
   pipeline::WorldPipeline pipeline(c.world, observe_into(counters));
   asio::io_context io;
   net::Server server(io, c.net, pipeline, counters);
@@ -176,6 +178,7 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
 }  // namespace
 
 int run_voxeld(VoxeldConfig c, const char* allocator) {
+  if (c.json_logs) use_json_logs();
   spdlog::set_level(spdlog::level::from_str(c.log_level));
   if (c.net.http && c.net.http->root.empty()) c.net.http->root = default_http_root();
   log_start(c, allocator);

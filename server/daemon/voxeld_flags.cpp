@@ -22,7 +22,7 @@ namespace po = boost::program_options;
 // What the flags say before they are checked: the values that do not go straight into a
 // part's configuration.
 struct RawFlags {
-  std::string max_memory, auth_key_file, open_role = "player";
+  std::string max_memory, auth_key_file, open_role = "player", log_format = "text";
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000;
   long evict_after_s = 120, lod_remesh_ms = 750;
   double checkpoint_s = 10;
@@ -145,6 +145,8 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "disconnect clients that stop reading");
   add("stats-interval", po::value<int>(&c.stats_seconds)->default_value(10),
       "seconds between stats lines (0: none)");
+  add("log-format", po::value<std::string>(&r.log_format)->default_value("text"),
+      "text, or json: one JSON object per line (time, level, thread, msg) for log shippers");
   add("log-level", po::value<std::string>(&c.log_level)->default_value("info"),
       "trace, debug, info, warn, error, critical or off");
   add("auth-public-key", po::value<std::string>(&r.auth_key_file),
@@ -251,6 +253,8 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   rule(net.admin_edit_budget_rate <= 0 || net.admin_edit_budget_burst >= largest_edit,
        fmt::format("--admin-edit-burst must be at least {} samples (the largest edit)",
                    static_cast<uint64_t>(largest_edit)));
+  rule(r.log_format == "text" || r.log_format == "json",
+       "--log-format must be text or json (got '" + r.log_format + "')");
   const auto role = auth::parse_role(r.open_role);
   rule(role.has_value(), "--open-role must be viewer, player or admin (got '" + r.open_role + "')");
   if (!r.auth_key_file.empty()) {
@@ -269,6 +273,7 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   if (!bad.empty()) return bad;
 
   net.open_role = *role;
+  c.json_logs = r.log_format == "json";
   net.idle_timeout = std::chrono::milliseconds(r.idle_ms);
   net.handshake_timeout = std::chrono::milliseconds(r.handshake_ms);
   net.write_timeout = std::chrono::milliseconds(r.write_ms);

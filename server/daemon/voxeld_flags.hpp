@@ -28,6 +28,7 @@ struct VoxeldConfig {
   int io_threads = 1;
   int stats_seconds = 10;
   std::string log_level = "info";
+  bool json_logs = false;  // --log-format json (json_log.hpp)
 };
 
 // Parses voxeld's arguments (argv[1..]) into `config`. Returns -1 to go on, else the exit

@@ -300,7 +300,10 @@ void Server::stop() {
 
 // Hands `changed` to every session that may see one of the chunks; each filters exactly
 // on its own strand. When the last of them has handled it (or dropped it, closing), the
-// list's deleter lets the chunks gathered meanwhile go, from strand_. Any thread.
+// list's deleter lets the chunks gathered meanwhile go, from strand_: a gathered fan-out
+// runs on a network thread (the first of a quiet spell on the pipeline thread). Any
+// thread. The list's deleter and what it posts may outlive the Server: both check
+// PublishGate::stopped, set by ~Server, under the gate's mutex.
 void Server::fan_out(std::vector<world::ChunkCoord> changed) {
   auto gate = publish_;
   auto shared = std::shared_ptr<const std::vector<world::ChunkCoord>>(
@@ -310,7 +313,13 @@ void Server::fan_out(std::vector<world::ChunkCoord> changed) {
         std::lock_guard lock(gate->mutex);
         // Once the Server is gone (handlers destroyed with the io_context) nothing goes.
         if (!gate->stopped && gate->rules.handled())
-          asio::post(strand_, [this] { fan_out_gathered(); });
+          asio::post(strand_, [this, gate] {
+            {  // queued before the Server went: it must not run on a destroyed one
+              std::lock_guard lock(gate->mutex);
+              if (gate->stopped) return;
+            }
+            fan_out_gathered();
+          });
       });
   std::vector<std::shared_ptr<ClientSession>> live;
   {

@@ -9,7 +9,7 @@ MeshVersionPtr LodMeshStore::get(const LodKey& k) const {
 }
 
 void LodMeshStore::publish(const LodKey& k, MeshVersionPtr mesh) {
-  mesh->delta_account_ = delta_bytes_;
+  mesh->attach_account(delta_bytes_);
   const size_t bytes = mesh->memory_bytes();
   MeshVersionPtr old;  // released outside the lock
   {

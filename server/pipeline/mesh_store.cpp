@@ -56,6 +56,14 @@ void MeshVersion::premake_delta(const MeshVersion& base, proto::ZstdCodec& zstd)
   deltas_.emplace_back(base.version, std::move(delta));
 }
 
+void MeshVersion::attach_account(std::shared_ptr<std::atomic<size_t>> account) const {
+  std::lock_guard lock(deltas_mutex_);
+  size_t premade = 0;
+  for (const auto& [from, delta] : deltas_) premade += delta->capacity();
+  if (premade > 0) account->fetch_add(premade, std::memory_order_relaxed);
+  delta_account_ = std::move(account);
+}
+
 std::span<const uint8_t> MeshVersion::full() const {
   if (!full_frame.empty()) return full_frame;
   {
@@ -85,13 +93,7 @@ MeshVersionPtr MeshStore::get(world::ChunkCoord c) const {
 
 void MeshStore::publish(MeshVersionPtr mesh) {
   const size_t added = mesh->memory_bytes();
-  mesh->delta_account_ = delta_bytes_;  // before any reader can see it
-  {
-    std::lock_guard lock(mesh->deltas_mutex_);  // premade ones (premake_delta)
-    size_t premade = 0;
-    for (const auto& [from, delta] : mesh->deltas_) premade += delta->capacity();
-    if (premade > 0) delta_bytes_->fetch_add(premade, std::memory_order_relaxed);
-  }
+  mesh->attach_account(delta_bytes_);  // before any reader can see it
   if (mesh->version > newest_.load(std::memory_order_relaxed))
     newest_.store(mesh->version, std::memory_order_release);
   MeshVersionPtr old;  // released after the lock, so a last reference is freed outside it

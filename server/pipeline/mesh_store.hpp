@@ -39,8 +39,8 @@ struct MeshVersion {
   ~MeshVersion();  // gives the delta cache's bytes back to the store's account
 
   // The delta payload that turns `base` (an older version of this chunk) into this one:
-  // computed on first request, then shared by every client holding the same base.
-  // Any thread.
+  // premade (premake_delta) or computed on first request, then shared by every client
+  // holding the same base. Any thread.
   std::shared_ptr<const std::vector<uint8_t>> delta_from(const MeshVersion& base) const;
   // Before publication (the pipeline thread or its meshing workers): the delta from `base`
   // made now, so the network thread, which would make it for the first client asking,
@@ -62,6 +62,9 @@ struct MeshVersion {
   // The store's count of delta bytes (set when published; shared, as a version may
   // outlive the store in a session's hands).
   mutable std::shared_ptr<std::atomic<size_t>> delta_account_;
+  // On publication, by either store: the store's account, with the premade deltas' bytes
+  // added to it (the destructor takes every delta's bytes back off it).
+  void attach_account(std::shared_ptr<std::atomic<size_t>> account) const;
 };
 using MeshVersionPtr = std::shared_ptr<const MeshVersion>;
 

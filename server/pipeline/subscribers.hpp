@@ -4,10 +4,12 @@
 // notify: the pipeline thread, outside any of the pipeline's locks.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -31,14 +33,20 @@ class Subscribers {
   using Subscriber = std::function<void(const std::vector<world::ChunkCoord>&)>;
   using LodSubscriber = std::function<void(const LodPublication&)>;
 
-  uint64_t subscribe(Subscriber s);                                    // any thread
-  uint64_t subscribe_lod(LodSubscriber s);                             // any thread
-  void unsubscribe(uint64_t id);                                       // any thread; either kind
+  uint64_t subscribe(Subscriber s);         // any thread
+  uint64_t subscribe_lod(LodSubscriber s);  // any thread
+  // Any thread; either kind. Returns once no call of that subscriber is under way.
+  void unsubscribe(uint64_t id);
   void notify(const std::vector<world::ChunkCoord>& published) const;  // none: no call
   void notify_lod(const LodPublication& publication) const;
 
  private:
   mutable std::mutex mutex_;  // leaf lock; callbacks run on a copy, outside it
+  // Held while callbacks run (notify's thread), so that unsubscribe() returns only once
+  // no call of the subscriber it removed is under way (one on another thread: the
+  // subscriber may be destroyed next). Not waited for from within a callback.
+  mutable std::mutex calling_;
+  mutable std::atomic<std::thread::id> caller_{};
   std::vector<std::pair<uint64_t, Subscriber>> subscribers_;
   std::vector<std::pair<uint64_t, LodSubscriber>> lod_subscribers_;
   uint64_t next_id_ = 1;

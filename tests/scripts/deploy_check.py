@@ -7,6 +7,7 @@ import json
 import os
 import re
 import shutil
+import socket
 import subprocess
 import sys
 import tempfile
@@ -47,13 +48,16 @@ def alert_rules():
 
 
 def scrape():
-    """/metrics of a fresh voxeld: {name: [label dicts of its samples]}."""
+    """/metrics of a fresh voxeld started with --log-format json: ({name: [label dicts of
+    its samples]}, its log's lines)."""
     tmp = tempfile.mkdtemp(prefix="voxeld_deploy_")
     port_file = os.path.join(tmp, "mport")
+    log = open(os.path.join(tmp, "log"), "w+b")
     server = subprocess.Popen(
         [os.path.join(BIN, "voxeld"), "--in-memory", "--port", "0", "--http-port", "0",
-         "--metrics-port", "0", "--metrics-port-file", port_file],
-        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+         "--metrics-port", "0", "--metrics-port-file", port_file, "--log-format", "json",
+         "--log-level", "debug"],
+        stdout=log, stderr=subprocess.STDOUT)
     try:
         for _ in range(300):
             if os.path.exists(port_file) and os.path.getsize(port_file) > 0:
@@ -64,9 +68,25 @@ def scrape():
         with open(port_file) as f:
             port = int(f.read().strip())
         text = urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=10).read().decode()
+        # A hostile client's name in a log line: quotes, a backslash, a newline, bad UTF-8.
+        game_port = None
+        for line in open(os.path.join(tmp, "log"), "rb").read().decode(errors="replace").splitlines():
+            m = re.search(r"listening on 127\.0\.0\.1:(\d+)", line)
+            if m:
+                game_port = int(m.group(1))
+        if game_port:
+            with socket.create_connection(("127.0.0.1", game_port), timeout=5) as sock:
+                sock.sendall(b"\x00\x00\x00\x05\xff\xfe\"\\\n")  # a malformed frame
+                try:
+                    sock.recv(4096)
+                except OSError:
+                    pass
     finally:
         server.terminate()
         server.wait(timeout=30)
+        log.seek(0)
+        log_lines = log.read().splitlines()
+        log.close()
         shutil.rmtree(tmp, ignore_errors=True)
     series = {}
     for line in text.splitlines():
@@ -75,15 +95,28 @@ def scrape():
             continue
         labels = dict(re.findall(r'(\w+)="([^"]*)"', m.group(2) or ""))
         series.setdefault(m.group(1), []).append(labels)
-    return series
+    return series, log_lines
 
 
 class Deploy(unittest.TestCase):
     series = None
+    log_lines = None
 
     @classmethod
     def setUpClass(cls):
-        cls.series = scrape()
+        cls.series, cls.log_lines = scrape()
+
+    def test_json_logs_are_one_object_per_line(self):
+        self.assertGreaterEqual(len(self.log_lines), 3)
+        messages = []
+        for raw in self.log_lines:
+            line = json.loads(raw.decode("utf-8"))  # valid UTF-8 and valid JSON
+            self.assertEqual(set(line), {"time", "level", "thread", "msg"}, raw)
+            self.assertIn(line["level"], ("trace", "debug", "info", "warning", "error", "critical"))
+            messages.append(line["msg"])
+        self.assertTrue(any("listening on" in m for m in messages), messages)
+        self.assertTrue(any("stopped" in m or "shutting" in m or "stop" in m for m in messages),
+                        messages)
 
     def check_names(self, where, expr):
         for name, selector in re.findall(r"\b(voxeld_[a-z0-9_]+)(\{[^}]*\})?", expr):
