@@ -27,6 +27,8 @@ constexpr const char* kUsage =
     "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
     "  world info|log|verify WORLD   a world directory (or postgresql:// URI), read-only\n"
     "  world migrate --from WORLD --to WORLD   a single node's world into a cluster's, or back\n"
+    "  world backup WORLD --out FILE   a consistent copy while voxeld runs (SQLite worlds)\n"
+    "  world restore FILE --to DIR [--force]   a backup into place, then verified\n"
     "  keygen --out NAME       an Ed25519 key pair for player tokens (NAME.key, NAME.pub)\n"
     "  token --key NAME.key --player ID --name NAME [--role R] [--ttl S]   a player token\n"
     "  region add|list|remove  manage protected regions (with an admin token)\n"

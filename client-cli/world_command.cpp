@@ -12,6 +12,7 @@
 #include "client-cli/commands.hpp"
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
+#include "server/store/world_backup.hpp"
 #include "server/store/world_store.hpp"
 #include "server/store/zone_leases.hpp"
 #include "server/world/edit_replay.hpp"
@@ -123,9 +124,58 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
 
 }  // namespace
 
+// voxel-cli world backup WORLD --out FILE | restore FILE --to DIR [--force].
+int world_backup_restore(const std::vector<std::string>& args, std::ostream& out,
+                         std::ostream& err) {
+  const bool backup = args[0] == "backup";
+  po::options_description opts(backup ? "voxel-cli world backup options"
+                                      : "voxel-cli world restore options");
+  auto add = opts.add_options();
+  add("help,h", "show this help");
+  add("from", po::value<std::string>()->required(),
+      backup ? "the world directory (voxeld may be running on it)" : "the backup file");
+  if (backup) {
+    add("out", po::value<std::string>()->required(), "the backup file to write (must not exist)");
+  } else {
+    add("to", po::value<std::string>()->required(), "the world directory to restore into");
+    add("force", po::bool_switch(), "replace the world the directory holds");
+  }
+  po::positional_options_description positional;
+  positional.add("from", 1);
+  po::variables_map vm;
+  const int rc = parse_options(
+      {args.begin() + 1, args.end()}, opts, &positional,
+      backup ? "usage: voxel-cli world backup WORLD --out FILE"
+             : "usage: voxel-cli world restore FILE --to DIR [--force]   (then verified)",
+      vm, out, err);
+  if (rc >= 0) return rc;
+  return guarded(err, [&] {
+    const std::string from = vm["from"].as<std::string>();
+    if (store::is_postgres_uri(from))
+      throw std::invalid_argument(
+          "world backup: a PostgreSQL world is backed up with pg_dump (README, \"Backup and "
+          "restore\")");
+    if (backup) {
+      const std::string file = vm["out"].as<std::string>();
+      const store::BackupFigures f = store::backup_world(from, file);
+      out << "backup: " << file << ", " << f.bytes << " bytes in " << f.seconds
+          << " s (restore it with voxel-cli world restore " << file << " --to DIR)\n";
+      return 0;
+    }
+    const std::string dir = vm["to"].as<std::string>();
+    store::restore_world(from, dir, vm["force"].as<bool>());
+    out << "restore: " << from << " -> " << dir << "\n";
+    auto s = store::open_world_store(dir, {.read_only = true});
+    world_info(*s, out);
+    return world_verify(*s, out, err);
+  });
+}
+
 int world_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   if (!args.empty() && args[0] == "migrate")
     return world_migrate({args.begin() + 1, args.end()}, out, err);
+  if (!args.empty() && (args[0] == "backup" || args[0] == "restore"))
+    return world_backup_restore(args, out, err);
   po::options_description opts("voxel-cli world options");
   opts.add_options()("help,h", "show this help")("action", po::value<std::string>()->required(),
                                                  "info, log or verify")(
@@ -136,7 +186,7 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
   po::variables_map vm;
   const int rc = parse_options(args, opts, &positional,
                                "usage: voxel-cli world info|log|verify WORLD [--since N]\n       "
-                               "voxel-cli world migrate --help",
+                               "voxel-cli world backup|restore|migrate --help",
                                vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {

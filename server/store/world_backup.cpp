@@ -1,0 +1,145 @@
+#include "server/store/world_backup.hpp"
+
+#include <fcntl.h>
+#include <sqlite3.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+
+#include "server/store/sqlite_store.hpp"
+#include "server/store/world_store.hpp"
+
+namespace vox::store {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// One SQLite connection, closed with its scope.
+struct Db {
+  sqlite3* db = nullptr;
+  Db(const fs::path& file, int flags, const std::string& what) {
+    if (sqlite3_open_v2(file.c_str(), &db, flags, nullptr) != SQLITE_OK) {
+      const std::string why = db ? sqlite3_errmsg(db) : "out of memory";
+      sqlite3_close(db);
+      throw StoreError(what + ": " + file.string() + ": " + why);
+    }
+    sqlite3_busy_timeout(db, 5000);
+  }
+  ~Db() { sqlite3_close(db); }
+  Db(const Db&) = delete;
+  Db& operator=(const Db&) = delete;
+
+  // PRAGMA quick_check: every page read and its structure checked.
+  void check(const std::string& what) {
+    sqlite3_stmt* st = nullptr;
+    std::string result = "no answer";
+    if (sqlite3_prepare_v2(db, "PRAGMA quick_check", -1, &st, nullptr) == SQLITE_OK &&
+        sqlite3_step(st) == SQLITE_ROW) {
+      const auto* text = sqlite3_column_text(st, 0);
+      result = text ? reinterpret_cast<const char*>(text) : "";
+    } else {
+      result = sqlite3_errmsg(db);
+    }
+    sqlite3_finalize(st);
+    if (result != "ok") throw StoreError(what + ": not a whole world file (" + result + ")");
+  }
+};
+
+void sync_file(const fs::path& file) {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || ::fsync(fd) != 0) {
+    const int error = errno;
+    if (fd >= 0) ::close(fd);
+    throw StoreError(file.string() + ": " + std::strerror(error));
+  }
+  ::close(fd);
+}
+
+// Copies `from` to `to` (replaced) and syncs it.
+void copy_synced(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing, ec);
+  if (ec) throw StoreError(to.string() + ": " + ec.message());
+  sync_file(to);
+}
+
+}  // namespace
+
+BackupFigures backup_world(const std::string& world_dir, const std::string& out_file) {
+  const auto start = std::chrono::steady_clock::now();
+  const fs::path source = fs::path(world_dir) / kSqliteFileName, out = out_file;
+  if (!fs::exists(source))
+    throw StoreError(world_dir + ": no world here (" + source.string() + " is missing)");
+  if (fs::exists(out)) throw StoreError(out_file + ": exists; remove it or name another file");
+  const fs::path partial = out.string() + ".partial";
+  std::error_code ignored;
+  fs::remove(partial, ignored);
+  {
+    Db from(source, SQLITE_OPEN_READONLY, "backup");
+    Db to(partial, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE, "backup");
+    sqlite3_backup* b = sqlite3_backup_init(to.db, "main", from.db, "main");
+    if (b == nullptr) throw StoreError("backup: " + std::string(sqlite3_errmsg(to.db)));
+    // Every page in one step: one read transaction, so the copy is one consistent view
+    // (stepping page by page restarts whenever voxeld commits, which it always does).
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+    int rc = SQLITE_OK;
+    while ((rc = sqlite3_backup_step(b, -1)) == SQLITE_BUSY || rc == SQLITE_LOCKED) {
+      if (std::chrono::steady_clock::now() > give_up) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    sqlite3_backup_finish(b);
+    if (rc != SQLITE_DONE) {
+      const std::string why = sqlite3_errstr(rc);
+      fs::remove(partial, ignored);
+      throw StoreError("backup of " + world_dir + ": " + why);
+    }
+    // A self-contained file: no WAL beside it.
+    sqlite3_exec(to.db, "PRAGMA journal_mode=DELETE", nullptr, nullptr, nullptr);
+    to.check("backup " + partial.string());
+  }
+  sync_file(partial);
+  fs::rename(partial, out);
+  sync_file(out.has_parent_path() ? out.parent_path() : fs::path("."));
+  return {
+      .bytes = static_cast<uint64_t>(fs::file_size(out)),
+      .seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()};
+}
+
+void restore_world(const std::string& backup_file, const std::string& world_dir, bool replace) {
+  const fs::path from = backup_file, dir = world_dir, target = dir / kSqliteFileName;
+  if (!fs::is_regular_file(from)) throw StoreError(backup_file + ": no such backup file");
+  {
+    Db check(from, SQLITE_OPEN_READONLY, "restore");
+    check.check("restore " + backup_file);
+  }
+  fs::create_directories(dir);
+  // The world's writer lock: refused while a voxeld holds it, held while the file moves.
+  const fs::path lock_path = dir / "world.lock";
+  const int lock = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock < 0) throw StoreError(lock_path.string() + ": " + std::strerror(errno));
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{lock};
+  if (::flock(lock, LOCK_EX | LOCK_NB) != 0)
+    throw StoreError(world_dir + ": a voxeld is running on this world (" + lock_path.string() +
+                     " is locked); stop it first");
+  if (fs::exists(target) && !replace)
+    throw StoreError(world_dir + ": holds a world already; --force replaces it");
+  const fs::path partial = target.string() + ".partial";
+  copy_synced(from, partial);
+  // The old world's WAL must not be laid over the restored file.
+  std::error_code ignored;
+  fs::remove(target.string() + "-wal", ignored);
+  fs::remove(target.string() + "-shm", ignored);
+  fs::rename(partial, target);
+  sync_file(dir);
+}
+
+}  // namespace vox::store

@@ -1,0 +1,28 @@
+// A world directory's backup while voxeld runs, and its restore (voxel-cli world backup |
+// restore). The backup is SQLite's online backup API over the world's file: one read
+// transaction's consistent view (every edit committed before it began, none half), taken
+// beside voxeld, whose appends go on meanwhile (WAL: readers do not block writers). A
+// PostgreSQL world is backed up with pg_dump (README). Throws StoreError; any thread.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace vox::store {
+
+struct BackupFigures {
+  uint64_t bytes = 0;
+  double seconds = 0;
+};
+
+// Writes `out_file` (refused when it exists), a single SQLite file holding the world of
+// `world_dir` as one transaction saw it; written under a temporary name, synced, then
+// renamed, so a failed or interrupted backup leaves no file that looks whole.
+BackupFigures backup_world(const std::string& world_dir, const std::string& out_file);
+
+// Puts `backup_file` (checked: an SQLite file whose pages are whole) in place as the world
+// of `world_dir` (created when missing). A directory already holding a world is refused
+// unless `replace`; one a running voxeld holds (its world.lock) always is.
+void restore_world(const std::string& backup_file, const std::string& world_dir, bool replace);
+
+}  // namespace vox::store
