@@ -163,8 +163,9 @@ int world_backup_restore(const std::vector<std::string>& args, std::ostream& out
       return 0;
     }
     const std::string dir = vm["to"].as<std::string>();
-    store::restore_world(from, dir, vm["force"].as<bool>());
+    const std::string replaced = store::restore_world(from, dir, vm["force"].as<bool>());
     out << "restore: " << from << " -> " << dir << "\n";
+    if (!replaced.empty()) out << "the world it held was moved to " << replaced << "\n";
     auto s = store::open_world_store(dir, {.read_only = true});
     world_info(*s, out);
     return world_verify(*s, out, err);

@@ -1,5 +1,7 @@
 #include "options/config_file.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cstdint>
@@ -12,6 +14,9 @@ namespace vox::options {
 
 namespace {
 
+constexpr size_t kMaxBytes = 1 << 20;  // a configuration, not a data file
+constexpr size_t kMaxErrors = 20;
+
 std::string trim(const std::string& s) {
   const size_t a = s.find_first_not_of(" \t\r");
   if (a == std::string::npos) return {};
@@ -23,6 +28,70 @@ std::string shown(const std::string& s) {
   std::string out;
   for (const char ch : s.substr(0, 80)) out += ch >= 0x20 && ch < 0x7f ? ch : '?';
   return s.size() > 80 ? out + "..." : out;
+}
+
+// `text` without a comment: from a '#' at its start or after a space or tab.
+std::string without_comment(const std::string& text) {
+  for (size_t i = 0; i < text.size(); ++i) {
+    if (text[i] == '#' && (i == 0 || text[i - 1] == ' ' || text[i - 1] == '\t'))
+      return text.substr(0, i);
+  }
+  return text;
+}
+
+// The value after '=' (`raw`, untrimmed): quoted or bare. nullopt with `why` set when
+// malformed.
+std::optional<std::string> parse_value(const std::string& raw, std::string& why) {
+  const std::string t = trim(raw);
+  if (t.empty() || t.front() != '"') {
+    const std::string bare = trim(without_comment(raw));
+    if (bare.empty()) why = "no value (write \"\" for an empty text; a switch takes true or false)";
+    return bare.empty() ? std::nullopt : std::optional<std::string>(bare);
+  }
+  std::string value;
+  size_t i = 1;
+  for (; i < t.size() && t[i] != '"'; ++i) {
+    if (t[i] != '\\') {
+      value += t[i];
+      continue;
+    }
+    if (++i == t.size()) break;
+    if (t[i] == 'n') {
+      value += '\n';
+    } else if (t[i] == '"' || t[i] == '\\') {
+      value += t[i];
+    } else {
+      why = "unknown escape \\" + shown(std::string(1, t[i])) + " in a quoted value";
+      return std::nullopt;
+    }
+  }
+  if (i >= t.size()) {
+    why = "a quoted value without its closing \"";
+    return std::nullopt;
+  }
+  if (!trim(without_comment(" " + t.substr(i + 1))).empty()) {
+    why = "text after the quoted value";
+    return std::nullopt;
+  }
+  return value;
+}
+
+std::string quoted_if_needed(const std::string& v) {
+  const bool plain =
+      !v.empty() && v == trim(v) && v.find_first_of("#\"\\\n\r") == std::string::npos;
+  if (plain) return v;
+  std::string out = "\"";
+  for (const char ch : v) {
+    if (ch == '"' || ch == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (ch == '\n') {
+      out += "\\n";
+    } else {
+      out += ch;
+    }
+  }
+  return out + "\"";
 }
 
 template <class F>
@@ -49,49 +118,80 @@ std::optional<std::vector<std::string>> value_text(const boost::any& v) {
   return std::nullopt;
 }
 
+po::parsed_options one_option(const po::options_description& opts, const std::string& key,
+                              std::vector<std::string> values) {
+  po::parsed_options parsed(&opts);
+  po::option option(key, std::move(values));
+  parsed.options.push_back(std::move(option));
+  return parsed;
+}
+
 }  // namespace
 
 ConfigFile store_config_file(const std::string& path, const po::options_description& opts,
-                             const std::set<std::string>& refused, po::variables_map& vm) {
+                             const std::set<std::string>& refused,
+                             const std::set<std::string>& given, po::variables_map& vm) {
   ConfigFile file;
   file.path = path;
-  const auto error = [&file](int line, const std::string& key, const std::string& why) {
+  std::vector<std::pair<int, std::string>> errors;
+  const auto error = [&](int line, const std::string& key, const std::string& why) {
     std::string at = file.path + ":" + std::to_string(line) + ": ";
     if (!key.empty()) at += "key '" + shown(key) + "': ";
-    file.errors.push_back(at + why);
+    errors.emplace_back(line, at + why);
   };
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
+  const auto finish = [&] {
+    std::stable_sort(errors.begin(), errors.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (auto& [line, text] : errors) {
+      if (file.errors.size() == kMaxErrors) {
+        file.errors.push_back(file.path + ": " + std::to_string(errors.size() - kMaxErrors) +
+                              " more errors not shown");
+        break;
+      }
+      file.errors.push_back(std::move(text));
+    }
+    return file;
+  };
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
     file.errors.push_back(path + ": cannot be read");
     return file;
   }
+  if (!S_ISREG(st.st_mode) || static_cast<size_t>(st.st_size) > kMaxBytes) {
+    file.errors.push_back(path + ": not a configuration file (a regular file of at most 1 MiB)");
+    return file;
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::string all(kMaxBytes + 1, '\0');
+  in.read(all.data(), static_cast<std::streamsize>(all.size()));
+  all.resize(static_cast<size_t>(in.gcount()));
+  if (in.bad() || all.size() > kMaxBytes) {
+    file.errors.push_back(path + ": cannot be read whole");
+    return file;
+  }
+  if (all.starts_with("\xef\xbb\xbf")) all.erase(0, 3);  // a byte order mark (Notepad)
   // Each key's values in file order, with the line of each.
   std::vector<std::pair<std::string, std::vector<std::pair<std::string, int>>>> keys;
   std::map<std::string, size_t> index;
-  std::string text;
   int line = 0;
-  size_t bytes = 0;
-  constexpr size_t kMaxBytes = 1 << 20;  // a configuration, not a data file
-  while (std::getline(in, text)) {
+  size_t at = 0;
+  while (at <= all.size() && errors.size() <= kMaxErrors) {
+    const size_t end = std::min(all.find('\n', at), all.size());
+    const std::string raw = all.substr(at, end - at);
+    at = end + 1;
     ++line;
-    bytes += text.size() + 1;
-    if (bytes > kMaxBytes) {
-      error(line, {}, "the file is over 1 MiB: not a configuration file");
-      return file;
-    }
-    if (const size_t hash = text.find('#'); hash != std::string::npos) text.resize(hash);
-    text = trim(text);
+    const std::string text = trim(without_comment(raw));
     if (text.empty()) continue;
     if (text.front() == '[') {
       error(line, {}, "sections are not used: write key = value");
       continue;
     }
-    const size_t eq = text.find('=');
+    const size_t eq = without_comment(raw).find('=');  // a prefix of raw: the same index
     if (eq == std::string::npos) {
       error(line, {}, "expected key = value, got '" + shown(text) + "'");
       continue;
     }
-    const std::string key = trim(text.substr(0, eq)), value = trim(text.substr(eq + 1));
+    const std::string key = trim(raw.substr(0, eq));
     const po::option_description* option = opts.find_nothrow(key, false);
     if (key.empty() || option == nullptr) {
       error(line, key, "not an option (voxeld --help lists them, without their --)");
@@ -101,47 +201,41 @@ ConfigFile store_config_file(const std::string& path, const po::options_descript
       error(line, key, "not allowed in a configuration file");
       continue;
     }
-    auto [at, fresh] = index.try_emplace(key, keys.size());
+    std::string why;
+    const std::optional<std::string> value = parse_value(raw.substr(eq + 1), why);
+    if (!value) {
+      error(line, key, why);
+      continue;
+    }
+    auto [it, fresh] = index.try_emplace(key, keys.size());
     if (fresh) keys.push_back({key, {}});
-    keys[at->second].second.emplace_back(value, line);
+    keys[it->second].second.emplace_back(*value, line);
     file.lines.try_emplace(key, line);
   }
-  if (in.bad()) file.errors.push_back(path + ": read error");
-  // Every value through the table's own parser, one key at a time, into a scratch map
-  // first: nothing is stored unless every line is right.
-  po::variables_map scratch;
+  // Every value through the table's own parser (each of a list alone, so an error names
+  // its own line), into scratch maps: nothing is stored unless every line is right.
   for (const auto& [key, values] : keys) {
-    po::parsed_options parsed(&opts);
-    po::option option(key, {});
-    for (const auto& [value, at] : values) option.value.push_back(value);
-    parsed.options.push_back(std::move(option));
-    try {
-      const po::option_description& d = opts.find(key, false);
-      if (values.size() > 1 && !d.semantic()->is_composing() && d.semantic()->max_tokens() <= 1)
-        throw po::error("set on line " + std::to_string(values.front().second) + " already");
-      po::variables_map one;
-      po::store(parsed, one);
-    } catch (const po::error& e) {
-      error(values.back().second, key, e.what());
+    const po::option_description& d = opts.find(key, false);
+    const bool list = d.semantic()->is_composing() || d.semantic()->max_tokens() > 1;
+    if (values.size() > 1 && !list) {
+      error(values[1].second, key, "set on line " + std::to_string(values[0].second) + " already");
+      continue;
+    }
+    for (const auto& [value, where] : values) {
+      try {
+        po::variables_map one;
+        po::store(one_option(opts, key, {value}), one);
+      } catch (const po::error& e) {
+        error(where, key, e.what());
+      }
     }
   }
-  if (!file.errors.empty()) {
-    std::sort(file.errors.begin(), file.errors.end(),
-              [](const std::string& a, const std::string& b) {
-                const auto line_of = [](const std::string& s) {
-                  const size_t colon = s.find(':');
-                  return colon == std::string::npos ? 0 : std::atoi(s.c_str() + colon + 1);
-                };
-                return line_of(a) < line_of(b);
-              });
-    return file;
-  }
+  if (!errors.empty()) return finish();
   for (const auto& [key, values] : keys) {
-    po::parsed_options parsed(&opts);
-    po::option option(key, {});
-    for (const auto& [value, at] : values) option.value.push_back(value);
-    parsed.options.push_back(std::move(option));
-    po::store(parsed, vm);
+    if (given.count(key) != 0) continue;  // the command line's value wins, a list's too
+    std::vector<std::string> tokens;
+    for (const auto& [value, where] : values) tokens.push_back(value);
+    po::store(one_option(opts, key, std::move(tokens)), vm);
   }
   return file;
 }
@@ -159,7 +253,9 @@ void write_config_file(std::ostream& out, const po::options_description& opts,
       out << "# " << key << " =\n";
       continue;
     }
-    for (const std::string& v : *values) out << key << " = " << v << "\n";
+    const char* prefix = it->second.defaulted() ? "# " : "";  // read back, still a default
+    for (const std::string& v : *values)
+      out << prefix << key << " = " << quoted_if_needed(v) << "\n";
   }
 }
 

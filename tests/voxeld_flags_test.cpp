@@ -234,6 +234,53 @@ TEST(VoxeldConfigFile, AValueBreakingItsRuleNamesWhereTheFileSetIt) {
   EXPECT_EQ(flag.err.find(file.path), std::string::npos) << "the flag broke it: " << flag.err;
 }
 
+// Review findings: a '#' inside a value cut it short (voxeld then served another, empty
+// world), a list from the file joined the command line's instead of giving way to it, an
+// empty switch read as true, and a printed default read back as explicitly set.
+TEST(VoxeldConfigFile, ValuesKeepTheirHashesQuotesAndSpacesAndTheCommandLineReplacesAList) {
+  const ConfigFileOnDisk file(
+      "\xef\xbb\xbf# saved by Notepad, with a byte order mark\r\n"
+      "world = /srv/worlds/#1   # the first\r\n"
+      "http-root = \" /srv/web with spaces \"  # quoted\n"
+      "http-trusted-proxy = 10.0.0.5\n");
+  const Parsed p = parse({"--config", file.path, "--http-trusted-proxy", "10.0.0.9"});
+  ASSERT_EQ(p.code, -1) << p.err;
+  EXPECT_EQ(p.config.world_dir, "/srv/worlds/#1");
+  ASSERT_TRUE(p.config.net.http.has_value());
+  EXPECT_EQ(p.config.net.http->root, " /srv/web with spaces ");
+  EXPECT_EQ(p.config.net.http->trusted_proxies, (std::vector<std::string>{"10.0.0.9"}));
+  EXPECT_FALSE(p.config.net.http_port_required);
+
+  const Parsed printed = parse({"--config", file.path, "--print-config"});
+  ASSERT_EQ(printed.code, 0) << printed.err;
+  EXPECT_NE(printed.out.find("\nworld = \"/srv/worlds/#1\"\n"), std::string::npos) << printed.out;
+  EXPECT_NE(printed.out.find("\nhttp-root = \" /srv/web with spaces \"\n"), std::string::npos);
+  EXPECT_NE(printed.out.find("\n# http-port = 7780\n"), std::string::npos) << "a default stays one";
+  const ConfigFileOnDisk again(printed.out);
+  const Parsed read = parse({"--config", again.path});
+  ASSERT_EQ(read.code, -1) << read.err;
+  EXPECT_EQ(read.config.world_dir, "/srv/worlds/#1");
+  EXPECT_FALSE(read.config.net.http_port_required)
+      << "7780 busy must still only leave the viewer off";
+
+  const ConfigFileOnDisk empty("in-memory =\nport = \"7800\n");
+  const Parsed bad = parse({"--config", empty.path});
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find(":1: key 'in-memory': no value"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find(":2: key 'port': a quoted value without its closing"), std::string::npos)
+      << bad.err;
+}
+
+TEST(VoxeldConfigFile, AFileThatIsNoConfigurationIsRefusedWithoutReadingItAll) {
+  EXPECT_EQ(parse({"--config", "/dev/zero"}).code, 2);
+  std::string junk;
+  for (int i = 0; i < 1000; ++i) junk += "junk line " + std::to_string(i) + "\n";
+  const ConfigFileOnDisk file(junk);
+  const Parsed p = parse({"--config", file.path});
+  EXPECT_EQ(p.code, 2);
+  EXPECT_LE(lines(p.err), 21u) << "at most 20 errors and a count";
+}
+
 TEST(VoxeldConfigFile, AMissingFileIsOneError) {
   const Parsed p = parse({"--config", "/nonexistent/voxeld.conf"});
   EXPECT_EQ(p.code, 2);

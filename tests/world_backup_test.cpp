@@ -4,6 +4,7 @@
 #include "server/store/world_backup.hpp"
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include <atomic>
 #include <filesystem>
@@ -85,6 +86,40 @@ TEST(WorldBackup, ABackupTakenUnderEditsHoldsEveryEditAcknowledgedBeforeItAndVer
   s.reset();
   EXPECT_EQ(cli({"world", "restore", file.string(), "--to", restored.string(), "--force"}, out), 0)
       << out;
+  // The world it replaced was moved aside whole, not deleted.
+  const size_t at = out.find("moved to ");
+  ASSERT_NE(at, std::string::npos) << out;
+  const fs::path aside = out.substr(at + 9, out.find('\n', at) - at - 9);
+  EXPECT_TRUE(fs::exists(aside / "world.sqlite")) << aside;
+  EXPECT_FALSE(fs::exists(restored / ".restoring"));
+}
+
+// Review finding: --force deleted the world it replaced before the backup was known to be
+// a world at all (any SQLite file passed), and a death between two steps could part the
+// old world from its WAL.
+TEST(WorldBackup, AnSqliteFileThatIsNoWorldLeavesTheWorldItWouldReplaceUntouched) {
+  const TempDir tmp("world_backup_noworld");
+  const fs::path world = tmp / "world", other = tmp / "other.sqlite";
+  { ServerProcess server({"--world", world.string()}); }
+  const auto before = fs::file_size(world / "world.sqlite");
+  std::string out;
+  ASSERT_EQ(cli({"world", "backup", world.string(), "--out", (tmp / "good.sqlite").string()}, out),
+            0)
+      << out;
+  // Another SQLite database: whole pages, no world.
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(other.c_str(), &db), SQLITE_OK);
+    sqlite3_exec(db, "CREATE TABLE places(url TEXT); INSERT INTO places VALUES('x')", nullptr,
+                 nullptr, nullptr);
+    sqlite3_close(db);
+  }
+  EXPECT_NE(cli({"world", "restore", other.string(), "--to", world.string(), "--force"}, out), 0);
+  EXPECT_NE(out.find("not a world voxeld can open"), std::string::npos) << out;
+  EXPECT_EQ(fs::file_size(world / "world.sqlite"), before);
+  EXPECT_FALSE(fs::exists(world / ".restoring"));
+  EXPECT_NE(cli({"world", "restore", other.string(), "--to", "postgresql://h/db"}, out), 0);
+  EXPECT_NE(out.find("pg_restore"), std::string::npos) << out;
 }
 
 TEST(WorldBackup, ADamagedOrMissingBackupIsRefusedAndNothingIsWritten) {

@@ -175,6 +175,16 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   if (node) node->stop(true);  // the pipeline's appends landed: hand the zones off
 }
 
+// Why voxeld cannot start: on standard error as one plain line, or with --log-format json
+// as a critical log line (a log shipper would drop the plain one, the most needed).
+void start_failed(const VoxeldConfig& c, const std::string& why) {
+  if (c.json_logs) {
+    spdlog::critical("voxeld: {}", why);
+  } else {
+    std::cerr << "voxeld: " << why << "\n";
+  }
+}
+
 }  // namespace
 
 int run_voxeld(VoxeldConfig c, const char* allocator) {
@@ -195,7 +205,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
       c.world.edit_id_key = pipeline::EditIds::key_from_secret(cc.world + '\n' + cc.nats.password);
       node = std::make_unique<cluster::ClusterNode>(std::move(cc), c.world.seed);
     } catch (const std::exception& e) {
-      std::cerr << "voxeld: " << e.what() << "\n";
+      start_failed(c, e.what());
       return 1;
     }
     c.world.store = &node->store();
@@ -214,7 +224,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
       checkpoint_store =
           store::open_world_store(where, {.seed = c.world.seed, .record_start = false});
     } catch (const std::exception& e) {
-      std::cerr << "voxeld: " << e.what() << "\n";
+      start_failed(c, e.what());
       return 1;
     }
     c.world.store = store.get();

@@ -320,7 +320,8 @@ int parse_voxeld_flags(const std::vector<std::string>& args, VoxeldConfig& confi
     std::set<std::string> on_command_line;
     for (const auto& [key, value] : vm)
       if (!value.defaulted()) on_command_line.insert(key);
-    file = options::store_config_file(vm["config"].as<std::string>(), opts, not_in_file, vm);
+    file = options::store_config_file(vm["config"].as<std::string>(), opts, not_in_file,
+                                      on_command_line, vm);
     for (const std::string& line : file.errors) err << "voxeld: " << line << "\n";
     if (!file.errors.empty()) return 2;
     po::notify(vm);  // the file's values into the configuration

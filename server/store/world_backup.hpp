@@ -20,9 +20,14 @@ struct BackupFigures {
 // renamed, so a failed or interrupted backup leaves no file that looks whole.
 BackupFigures backup_world(const std::string& world_dir, const std::string& out_file);
 
-// Puts `backup_file` (checked: an SQLite file whose pages are whole) in place as the world
-// of `world_dir` (created when missing). A directory already holding a world is refused
-// unless `replace`; one a running voxeld holds (its world.lock) always is.
-void restore_world(const std::string& backup_file, const std::string& world_dir, bool replace);
+// Puts `backup_file` in place as the world of `world_dir` (created when missing), once a
+// copy of it beside the world has been opened as a world (its pages whole, its schema and
+// seed read). A directory already holding a world is refused unless `replace`; then the
+// world it held is moved aside, whole (its WAL with it), into world.replaced-TIME/, whose
+// path is returned (empty: there was none). One a running voxeld holds (its world.lock) is
+// always refused. Run as root, the files take the owner of the world they replace (or of
+// the directory), so that voxeld's own user can open them.
+std::string restore_world(const std::string& backup_file, const std::string& world_dir,
+                          bool replace);
 
 }  // namespace vox::store

@@ -139,7 +139,7 @@ class Deploy(unittest.TestCase):
         self.assertEqual({r["alert"] for r in rules},
                          {"VoxeldDown", "VoxeldEditLatencyHigh", "VoxeldMemoryNearBudget",
                           "VoxeldResidentOverBudget", "VoxeldStoreUnavailable",
-                          "VoxeldRefusedEditsRising"})
+                          "VoxeldRefusedEditsRising", "VoxeldCheckpointsFailing"})
         for r in rules:
             for field in ("expr", "for", "severity", "summary"):
                 self.assertIn(field, r, f"{r['alert']} has no {field}")
