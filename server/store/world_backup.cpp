@@ -37,10 +37,10 @@ struct Db {
   Db(const Db&) = delete;
   Db& operator=(const Db&) = delete;
 
-  // A statement whose one answer must be `want`.
-  void expect(const char* sql, const std::string& want, const std::string& what) {
+  // The first column of a statement's first row, or the error.
+  std::string answer(const char* sql) {
     sqlite3_stmt* st = nullptr;
-    std::string got = "no answer";
+    std::string got;
     if (sqlite3_prepare_v2(db, sql, -1, &st, nullptr) == SQLITE_OK &&
         sqlite3_step(st) == SQLITE_ROW) {
       const auto* text = sqlite3_column_text(st, 0);
@@ -49,21 +49,16 @@ struct Db {
       got = sqlite3_errmsg(db);
     }
     sqlite3_finalize(st);
+    return got;
+  }
+  // A statement whose one answer must be `want`.
+  void expect(const char* sql, const std::string& want, const std::string& what) {
+    const std::string got = answer(sql);
     if (got != want) throw StoreError(what + ": " + sql + " answered '" + got + "'");
   }
-
   // PRAGMA quick_check: every page read and its structure checked.
   void check(const std::string& what) {
-    sqlite3_stmt* st = nullptr;
-    std::string result = "no answer";
-    if (sqlite3_prepare_v2(db, "PRAGMA quick_check", -1, &st, nullptr) == SQLITE_OK &&
-        sqlite3_step(st) == SQLITE_ROW) {
-      const auto* text = sqlite3_column_text(st, 0);
-      result = text ? reinterpret_cast<const char*>(text) : "";
-    } else {
-      result = sqlite3_errmsg(db);
-    }
-    sqlite3_finalize(st);
+    const std::string result = answer("PRAGMA quick_check");
     if (result != "ok") throw StoreError(what + ": not a whole world file (" + result + ")");
   }
 };
