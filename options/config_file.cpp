@@ -140,8 +140,16 @@ ConfigFile store_config_file(const std::string& path, const po::options_descript
     errors.emplace_back(line, at + why);
   };
   const auto finish = [&] {
-    std::stable_sort(errors.begin(), errors.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    // By line, in the order found within one (std::sort on (line, order): stable_sort's
+    // temporary buffer trips AddressSanitizer's new/free check with clang 14's libstdc++).
+    std::vector<size_t> order(errors.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&errors](size_t a, size_t b) {
+      return std::pair(errors[a].first, a) < std::pair(errors[b].first, b);
+    });
+    std::vector<std::pair<int, std::string>> sorted;
+    for (const size_t i : order) sorted.push_back(std::move(errors[i]));
+    errors.swap(sorted);
     for (auto& [line, text] : errors) {
       if (file.errors.size() == kMaxErrors) {
         file.errors.push_back(file.path + ": " + std::to_string(errors.size() - kMaxErrors) +
