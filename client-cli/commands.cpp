@@ -32,6 +32,7 @@ constexpr const char* kUsage =
     "  keygen --out NAME       an Ed25519 key pair for player tokens (NAME.key, NAME.pub)\n"
     "  token --key NAME.key --player ID --name NAME [--role R] [--ttl S]   a player token\n"
     "  region add|list|remove  manage protected regions (with an admin token)\n"
+    "  players | kick | ban | unban | bans   who is on; keep a player or address out (admin)\n"
     "Network commands take --server HOST:PORT (default 127.0.0.1:7777).\n"
     "Run 'voxel-cli COMMAND --help' for a command's options.\n";
 
@@ -100,6 +101,9 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (args[0] == "keygen") return keygen_command(rest, out, err);
   if (args[0] == "token") return token_command(rest, out, err);
   if (args[0] == "region") return region_command(rest, out, err);
+  for (const char* action : {"players", "kick", "ban", "unban", "bans"}) {
+    if (args[0] == action) return admin_command(action, rest, out, err);
+  }
   for (const char* kind : {"brush", "explode", "smooth", "paint", "stamp"}) {
     if (args[0] == kind) return edit_command(kind, rest, out, err);
   }

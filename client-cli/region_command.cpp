@@ -6,13 +6,10 @@
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
-#include "client/voxel_client.hpp"
+#include "client-cli/server_request.hpp"
 
 namespace vox::cli {
 namespace {
-
-using namespace std::chrono_literals;
-using Clock = std::chrono::steady_clock;
 
 constexpr const char* kSynopsis =
     "usage: voxel-cli region add --min X,Y,Z --max X,Y,Z [--name N] [--owner ID]... "
@@ -35,23 +32,14 @@ std::array<int32_t, 3> parse_corner(const std::string& text, const char* what) {
 
 // Sends one command and waits for its RegionResult.
 wire::RegionResult run_command(const po::variables_map& vm, wire::Envelope command) {
-  const ServerAccess server = server_access(vm);
-  client::Client c;
-  c.connect(server.host, server.port, 3s);
-  c.handshake("voxel-cli", 10s, server.token);
   command.mutable_region_command()->set_request_id(1);
-  c.send(command);
-  const auto deadline = Clock::now() + 10s;
-  while (Clock::now() < deadline) {
-    auto m =
-        c.receive(std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()));
-    if (!m) break;
-    if (m->has_region_result() && m->region_result().request_id() == 1) return m->region_result();
-    if (m->has_error())
-      throw std::runtime_error("server error " + wire::Error::Code_Name(m->error().code()) + ": " +
-                               m->error().message());
-  }
-  throw std::runtime_error("no RegionResult within 10 s");
+  return server_request(
+             vm, command,
+             [](const wire::Envelope& m) {
+               return m.has_region_result() && m.region_result().request_id() == 1;
+             },
+             "RegionResult")
+      .region_result();
 }
 
 std::string describe(const wire::Region& r) {

@@ -14,6 +14,7 @@
 #include "server/daemon/json_log.hpp"
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
+#include "server/store/ban_store.hpp"
 #include "server/store/world_store.hpp"
 
 namespace vox::daemon {
@@ -115,7 +116,8 @@ metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node
 
 // Runs the opened world until a signal; throws what the server throws. `node`: a cluster
 // node's links (null: a single node).
-void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
+void serve(const VoxeldConfig& c, cluster::ClusterNode* node,
+           std::shared_ptr<net::BanKeeper> bans) {
   net::ServerCounters counters;
   // Destroyed in reverse: the Server, then the io_context (its queued handlers and the
   // sessions they hold, which hold nothing of the Server but publication lists whose
@@ -124,6 +126,7 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
   pipeline::WorldPipeline pipeline(c.world, observe_into(counters));
   asio::io_context io;
   net::Server server(io, c.net, pipeline, counters);
+  if (bans) server.set_bans(bans);
   // Left by an exception: the node stops calling into the pipeline (forwarded edits,
   // parts it completes) and the sessions before they go. Otherwise stopped below.
   struct StopNode {
@@ -157,11 +160,23 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node) {
     if (!c.http_port_file.empty()) write_port_file(c.http_port_file, server.http_port());
   }
   if (c.stats_seconds > 0) server.start_stats_log(std::chrono::seconds(c.stats_seconds));
+  // SIGHUP: the bans are read again now (the README, "Players, kicks and bans").
+  asio::signal_set hangups(io, SIGHUP);
+  std::function<void()> arm_hangup = [&] {
+    hangups.async_wait([&](boost::system::error_code ec, int) {
+      if (ec) return;
+      spdlog::info("SIGHUP: reading the bans again");
+      if (bans) bans->reload();
+      arm_hangup();
+    });
+  };
+  arm_hangup();
   asio::signal_set signals(io, SIGINT, SIGTERM);
   signals.async_wait([&](boost::system::error_code ec, int signal) {
     if (ec) return;
     spdlog::info("signal {}: shutting down", signal);
     server.stop();
+    hangups.cancel();
     // Finish the batch in flight, then let the sessions flush their SHUTTING_DOWN.
     pipeline.stop();
     auto deadline = std::make_shared<asio::steady_timer>(io, std::chrono::seconds(2));
@@ -195,10 +210,13 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
   // The durable world: opened (and checked) before anything listens.
   std::unique_ptr<store::WorldStore> store, checkpoint_store;
   std::unique_ptr<cluster::ClusterNode> node;
+  std::shared_ptr<net::BanKeeper> bans;  // none: in memory only
   if (!c.cluster_file.empty()) {
     try {
       c.world.seed = c.seed.value_or(1);
       cluster::ClusterConfig cc = cluster::read_cluster_config(c.cluster_file);
+      // The cluster's bans: one table in its database, one world's rows per node set.
+      bans = std::make_shared<net::BanKeeper>(store::open_ban_store(cc.database, cc.world));
       // Every node has the cluster's NATS password, no player has: the edit ids' key.
       if (cc.nats.password.empty())
         spdlog::warn("cluster: no nats_password: players could guess each other's edit ids");
@@ -223,6 +241,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
       // Checkpoints are written on their own connection while edits are appended.
       checkpoint_store =
           store::open_world_store(where, {.seed = c.world.seed, .record_start = false});
+      bans = std::make_shared<net::BanKeeper>(store::open_ban_store(where));
     } catch (const std::exception& e) {
       start_failed(c, e.what());
       return 1;
@@ -231,7 +250,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
     c.world.checkpoint_store = checkpoint_store.get();
   }
   try {
-    serve(c, node.get());
+    serve(c, node.get(), bans);
     spdlog::info("voxeld stopped");
   } catch (const std::exception& e) {
     spdlog::error("voxeld: {}", e.what());

@@ -134,7 +134,7 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     add(conns, value_of(c_.players), {{"state", "player"}});
     auto refused = family("voxeld_connections_refused_total", "Connections or Hellos refused",
                           MetricType::Counter);
-    const char* reasons[] = {"handshakes_full", "address_full", "server_full", "token"};
+    const char* reasons[] = {"handshakes_full", "address_full", "server_full", "token", "banned"};
     static_assert(std::size(reasons) == static_cast<size_t>(net::RefusedBy::kCount));
     for (size_t i = 0; i < c_.refused.size(); ++i)
       add(refused, value_of(c_.refused[i]), {{"reason", reasons[i]}});
@@ -144,8 +144,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
         {{"reason", "slow_reader"}});
     add(disconnects, value_of(c_.dropped[static_cast<size_t>(net::DroppedBy::kWriteTimeout)]),
         {{"reason", "write_timeout"}});
-    for (auto code :
-         {wire::Error::IDLE_TIMEOUT, wire::Error::HANDSHAKE_TIMEOUT, wire::Error::FRAME_TIMEOUT}) {
+    for (auto code : {wire::Error::IDLE_TIMEOUT, wire::Error::HANDSHAKE_TIMEOUT,
+                      wire::Error::FRAME_TIMEOUT, wire::Error::KICKED}) {
       add(disconnects, value_of(c_.errors_sent[code]),
           {{"reason", lower(wire::Error::Code_Name(code))}});
     }

@@ -125,8 +125,23 @@ void ClientSession::on_write_timeout() {
   drop_slow(DroppedBy::kWriteTimeout, "stopped reading (a write took too long)");
 }
 
+std::optional<PlayerCard> ClientSession::card() const {  // any thread
+  // The fields below are written once, on the strand, before player_ is set.
+  if (!player_.load(std::memory_order_acquire) || leaving_.load(std::memory_order_relaxed))
+    return std::nullopt;
+  return PlayerCard{id_,
+                    player_id_,
+                    name_,
+                    address_,
+                    role_,
+                    connected_unix_ms_,
+                    edits_accepted_.load(std::memory_order_relaxed),
+                    bytes_sent_.load(std::memory_order_relaxed)};
+}
+
 void ClientSession::on_written(size_t bytes) {
   counters_.bytes_sent.fetch_add(bytes, std::memory_order_relaxed);
+  bytes_sent_.fetch_add(bytes, std::memory_order_relaxed);
   if (closing_ && control_.empty()) {
     shutdown();
     return;
@@ -172,6 +187,9 @@ void ClientSession::on_frame(std::span<const uint8_t> body) {
     case wire::Envelope::kRegionCommand:
       handle_region_command(message.region_command());
       break;
+    case wire::Envelope::kAdminCommand:
+      handle_admin_command(message.admin_command());
+      break;
     case wire::Envelope::kPing: {
       wire::Envelope pong;
       pong.mutable_pong()->set_nonce(message.ping().nonce());
@@ -196,7 +214,8 @@ void ClientSession::queue_control(const wire::Envelope& message) {
 
 // Protocol errors: logged at most once per second per code (with a count of the others),
 // counted, sent; a client that keeps making kept-connection errors is closed.
-void ClientSession::send_error(wire::Error::Code code, const std::string& message, bool close) {
+void ClientSession::send_error(wire::Error::Code code, const std::string& message, bool close,
+                               int64_t banned_until_unix_ms) {
   if (closing_) return;
   if (!close && error_budget_.take(1, Clock::now()).count() > 0) close = true;
   const auto kind = static_cast<size_t>(code);
@@ -212,9 +231,11 @@ void ClientSession::send_error(wire::Error::Code code, const std::string& messag
   wire::Envelope error;
   error.mutable_error()->set_code(code);
   error.mutable_error()->set_message(message);
+  error.mutable_error()->set_banned_until_unix_ms(banned_until_unix_ms);
   queue_control(error);
   if (close) {
     closing_ = true;
+    leaving_.store(true, std::memory_order_relaxed);
     counters_.disconnects.fetch_add(1);
     // Give the Error a moment to leave, then close whatever happens.
     close_timer_.expires_after(std::chrono::seconds(1));
@@ -225,10 +246,13 @@ void ClientSession::send_error(wire::Error::Code code, const std::string& messag
   }
 }
 
-void ClientSession::close_with_error(wire::Error::Code code, std::string message) {
-  asio::post(strand_, [self = shared_from_this(), code, message = std::move(message)] {
-    self->send_error(code, message, true);
-  });
+void ClientSession::close_with_error(wire::Error::Code code, std::string message,
+                                     int64_t banned_until_unix_ms) {
+  leaving_.store(true, std::memory_order_relaxed);
+  asio::post(strand_,
+             [self = shared_from_this(), code, message = std::move(message), banned_until_unix_ms] {
+               self->send_error(code, message, true, banned_until_unix_ms);
+             });
 }
 
 void ClientSession::drop_slow(DroppedBy why, const char* what) {

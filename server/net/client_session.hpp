@@ -17,6 +17,7 @@
 #include "server/auth/player_token.hpp"
 #include "server/net/admission_control.hpp"
 #include "server/net/asio.hpp"
+#include "server/net/ban_keeper.hpp"
 #include "server/net/connection.hpp"
 #include "server/net/edit_gate.hpp"
 #include "server/net/log_hygiene.hpp"
@@ -24,6 +25,7 @@
 #include "server/net/result_order.hpp"
 #include "server/net/server_config.hpp"
 #include "server/net/server_counters.hpp"
+#include "server/net/session_directory.hpp"
 #include "server/net/view_feed.hpp"
 #include "server/pipeline/token_bucket.hpp"
 #include "server/pipeline/world_pipeline.hpp"
@@ -45,7 +47,18 @@ struct SessionServices {
   std::shared_ptr<const ServerConfig> config;
   std::shared_ptr<AdmissionGate> admission;
   std::shared_ptr<SharedLogRateLimit> logs;
-  std::shared_ptr<PlayerRegistry<ClientSession>> players;  // authenticated player ids
+  std::shared_ptr<PlayerRegistry<ClientSession>> players;     // authenticated player ids
+  std::shared_ptr<SessionDirectory<ClientSession>> sessions;  // every live session
+  std::shared_ptr<BanKeeper> bans;
+};
+
+// Who a session's player is (an admin's player list, kicks and bans). Any thread.
+struct PlayerCard {
+  uint64_t session = 0;
+  std::string player_id, name, address;
+  auth::Role role = auth::Role::kPlayer;
+  int64_t connected_unix_ms = 0;
+  uint64_t edits = 0, bytes_sent = 0;
 };
 
 class ClientSession : public std::enable_shared_from_this<ClientSession>,
@@ -67,9 +80,12 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void on_lod_published(std::shared_ptr<const std::vector<pipeline::LodKey>> keys);
   bool has_lod_view() const { return feed_.has_lod_view(); }  // any thread
   // Sends an Error and closes (SHUTTING_DOWN, SERVER_FULL); any thread.
-  void close_with_error(wire::Error::Code code, std::string message);
+  void close_with_error(wire::Error::Code code, std::string message,
+                        int64_t banned_until_unix_ms = 0);
   uint64_t id() const { return id_; }
   bool is_player() const { return player_.load(std::memory_order_relaxed); }
+  // Any thread: who the player is, once past Hello (nullopt before, and once told to close).
+  std::optional<PlayerCard> card() const;
   // Any thread: the session's accounted memory (view map, queues, buffers), refreshed on
   // its strand.
   size_t memory_bytes() const { return memory_bytes_.load(std::memory_order_relaxed); }
@@ -99,11 +115,21 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void handle_resync(const wire::Resync& resync);
   void handle_region_command(const wire::RegionCommand& command);  // region_commands.cpp
   void list_regions(uint64_t after_id, wire::Envelope& reply);
+  void handle_admin_command(const wire::AdminCommand& command);  // admin_commands.cpp
+  void list_players(uint64_t after_session, wire::Envelope& reply);
+  void kick(const wire::Kick& kick, wire::Envelope& reply);
+  void ban(const wire::Ban& ban, wire::Envelope& reply);
+  void unban(const wire::Ban& ban, wire::Envelope& reply);
+  void list_bans(const std::string& cursor, wire::Envelope& reply);
+  void log_admin(const std::string& what);
+  // A ban in force for this connection's player or address: it is told and closed.
+  bool refuse_if_banned();
   void handle_edit(const wire::Edit& edit);
   void on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks);
   void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
                     uint32_t retry_after_ms = 0);
-  void send_error(wire::Error::Code code, const std::string& message, bool close);
+  void send_error(wire::Error::Code code, const std::string& message, bool close,
+                  int64_t banned_until_unix_ms = 0);
   void log_refusal(wire::EditResult::Status status, const std::string& reason);
   void queue_control(const wire::Envelope& message);
   void pump();
@@ -124,6 +150,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   ServerCounters& counters_;
   std::atomic<bool> player_{false};
   std::atomic<size_t> memory_bytes_{0};
+  // The card's counters (written on the strand, read by any thread).
+  std::atomic<uint64_t> edits_accepted_{0}, bytes_sent_{0};
+  std::atomic<bool> leaving_{false};  // told to close: no card (listed, kicked) any more
+  int64_t connected_unix_ms_ = 0;  // set at Hello, before player_
 
   std::string name_;       // as the client sent it, or the token's display name
   std::string log_name_;   // escaped, for logs
@@ -133,6 +163,8 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   bool applying_view_ = false;  // apply_view() in progress: pump() waits for its end
   static constexpr size_t kMaxRegionCommandsInFlight = 16;
   size_t region_commands_in_flight_ = 0;  // sent to the pipeline, not yet answered
+  static constexpr size_t kMaxAdminCommandsInFlight = 16;
+  size_t admin_commands_in_flight_ = 0;  // bans sent to the BanKeeper, not yet answered
   EditGate edits_;  // role, validity, in-flight cap and budget of the client's edits
   pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
   ResultOrder results_;
@@ -141,5 +173,11 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   std::deque<std::vector<uint8_t>> control_;  // serialized messages sent before meshes
   size_t control_bytes_ = 0;
 };
+
+// Closes every player connection of `target` (a player id or an address) but
+// `except_session` with `code`; returns how many. Any thread.
+size_t close_matching(SessionDirectory<ClientSession>& sessions, store::Ban::Kind kind,
+                      const std::string& target, wire::Error::Code code, const std::string& message,
+                      int64_t banned_until_unix_ms, uint64_t except_session);
 
 }  // namespace vox::net

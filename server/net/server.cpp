@@ -32,13 +32,16 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
                           config_.max_handshaking_per_address})),
       logs_(std::make_shared<SharedLogRateLimit>()),
       players_(std::make_shared<PlayerRegistry<ClientSession>>()),
-      publish_(std::make_shared<PublishGate>()) {}
+      publish_(std::make_shared<PublishGate>()),
+      sessions_(std::make_shared<SessionDirectory<ClientSession>>()),
+      bans_(std::make_shared<BanKeeper>()) {}
 
 Server::~Server() {
   {
     std::lock_guard lock(publish_->mutex);
     publish_->stopped = true;
   }
+  bans_->stop();
   if (subscription_ != 0) pipeline_.unsubscribe(subscription_);
   if (lod_subscription_ != 0) pipeline_.unsubscribe(lod_subscription_);
 }
@@ -50,6 +53,16 @@ void Server::start() {
   acceptor_.bind(endpoint);
   acceptor_.listen();
   port_ = acceptor_.local_endpoint().port();
+  // Bans found on a reload (another node's, or the table edited): their players go.
+  bans_->start([sessions = sessions_](const std::vector<store::Ban>& added) {
+    for (const store::Ban& b : added) {
+      const size_t closed = close_matching(*sessions, b.kind, b.target, wire::Error::BANNED,
+                                           describe_ban(b), b.until_ms, 0);
+      if (closed)
+        spdlog::info("bans: {} {} banned elsewhere: {} connections closed",
+                     store::to_string(b.kind), escape_for_log(b.target), closed);
+    }
+  });
   subscription_ = pipeline_.subscribe([this](const std::vector<world::ChunkCoord>& changed) {
     // Pipeline thread: at once, or gathered while the last fan-out is unhandled.
     std::vector<world::ChunkCoord> now;
@@ -65,14 +78,9 @@ void Server::start() {
         // Pipeline thread: to each session whose layout wants some of the keys, those keys.
         std::vector<std::pair<std::shared_ptr<ClientSession>, pipeline::WorldPipeline::LodKeys>>
             live;
-        {
-          std::lock_guard lock(sessions_mutex_);
-          for (const auto& [owner, keys] : publication.by_owner) {
-            const auto it = sessions_.find(owner);
-            if (it == sessions_.end()) continue;
-            if (auto s = it->second.lock(); s && s->has_lod_view())
-              live.emplace_back(std::move(s), keys);
-          }
+        for (const auto& [owner, keys] : publication.by_owner) {
+          if (auto s = sessions_->find(owner); s && s->has_lod_view())
+            live.emplace_back(std::move(s), keys);
         }
         for (const auto& [s, keys] : live) s->on_lod_published(keys);
       });
@@ -205,16 +213,12 @@ void Server::admit_as(StrandSocket socket, const std::string& address) {
       std::make_unique<TcpConnection>(std::move(socket), shared_config_->max_frame_bytes,
                                       shared_config_->frame_timeout),
       address, next_session_++, pipeline_,
-      SessionServices{counters_, shared_config_, admission_, logs_, players_});
+      SessionServices{counters_, shared_config_, admission_, logs_, players_, sessions_, bans_});
   add_session(session);
 }
 
 void Server::add_session(const std::shared_ptr<ClientSession>& session) {
-  {
-    std::lock_guard lock(sessions_mutex_);
-    std::erase_if(sessions_, [](const auto& p) { return p.second.expired(); });
-    sessions_.emplace(session->id(), session);
-  }
+  sessions_->add(session->id(), session);
   session->start();
 }
 
@@ -238,7 +242,7 @@ void Server::admit_websocket(WsStream ws, std::string address) {
       std::make_unique<WsConnection>(std::move(ws), shared_config_->max_frame_bytes,
                                      shared_config_->frame_timeout, counters_),
       std::move(address), next_session_++, pipeline_,
-      SessionServices{counters_, shared_config_, admission_, logs_, players_});
+      SessionServices{counters_, shared_config_, admission_, logs_, players_, sessions_, bans_});
   add_session(session);
 }
 
@@ -288,13 +292,7 @@ void Server::stop() {
     housekeeping_timer_.cancel();
   });
   if (http_) http_->stop();
-  std::vector<std::shared_ptr<ClientSession>> live;
-  {
-    std::lock_guard lock(sessions_mutex_);
-    for (auto& [id, weak] : sessions_)
-      if (auto s = weak.lock()) live.push_back(std::move(s));
-  }
-  for (const auto& s : live)
+  for (const auto& s : sessions_->live())
     s->close_with_error(wire::Error::SHUTTING_DOWN, "the server is shutting down");
 }
 
@@ -321,20 +319,7 @@ void Server::fan_out(std::vector<world::ChunkCoord> changed) {
             fan_out_gathered();
           });
       });
-  std::vector<std::shared_ptr<ClientSession>> live;
-  {
-    std::lock_guard lock(sessions_mutex_);
-    live.reserve(sessions_.size());
-    for (auto it = sessions_.begin(); it != sessions_.end();) {
-      if (auto s = it->second.lock()) {
-        live.push_back(std::move(s));
-        ++it;
-      } else {
-        it = sessions_.erase(it);
-      }
-    }
-  }
-  for (const auto& s : live) {
+  for (const auto& s : sessions_->live()) {
     if (s->may_see(*shared)) s->on_chunks_published(shared);
   }
 }
@@ -348,12 +333,7 @@ void Server::fan_out_gathered() {  // strand_
   fan_out(std::move(changed));
 }
 
-size_t Server::session_count() const {
-  std::lock_guard lock(sessions_mutex_);
-  size_t n = 0;
-  for (const auto& [id, weak] : sessions_) n += weak.expired() ? 0 : 1;
-  return n;
-}
+size_t Server::session_count() const { return sessions_->count(); }
 
 void Server::start_stats_log(std::chrono::seconds interval) {
   stats_interval_ = interval;

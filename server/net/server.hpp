@@ -36,6 +36,9 @@ class Server {
   size_t session_count() const;  // any thread
   const ServerCounters& counters() const { return counters_; }
   void start_stats_log(std::chrono::seconds interval);  // before the io_context runs
+  // The world's bans (voxeld's, read from its store); before start. Without: bans in
+  // memory only. Stopped by ~Server (its callbacks post to the sessions' strands).
+  void set_bans(std::shared_ptr<BanKeeper> bans) { bans_ = std::move(bans); }
 
  private:
   // All strand_ only.
@@ -88,9 +91,8 @@ class Server {
   };
   std::shared_ptr<PublishGate> publish_;
 
-  // Leaf lock: guards sessions_; no call into a session while it is held.
-  mutable std::mutex sessions_mutex_;
-  std::unordered_map<uint64_t, std::weak_ptr<ClientSession>> sessions_;
+  std::shared_ptr<SessionDirectory<ClientSession>> sessions_;  // shared with the sessions
+  std::shared_ptr<BanKeeper> bans_;                            // shared with the sessions
 
   struct Snapshot {
     uint64_t edits = 0, meshes = 0, bytes = 0;

@@ -10,7 +10,14 @@
 
 namespace vox::net {
 
-enum class RefusedBy : uint8_t { kHandshakesFull, kAddressFull, kServerFull, kToken, kCount };
+enum class RefusedBy : uint8_t {
+  kHandshakesFull,
+  kAddressFull,
+  kServerFull,
+  kToken,
+  kBanned,
+  kCount
+};
 enum class DroppedBy : uint8_t { kSlowReader, kWriteTimeout, kCount };
 // WebSocket connections closed for breaking the transport's rules (ws_connection.hpp).
 enum class WsClosedBy : uint8_t { kTooBig, kText, kPingFlood, kFrameTimeout, kProtocol, kCount };
@@ -30,7 +37,7 @@ enum class HttpRefusedBy : uint8_t {
 struct ServerCounters {
   using Counter = std::atomic<uint64_t>;
   static constexpr size_t kStatuses = 16;    // EditResult.Status values
-  static constexpr size_t kErrorCodes = 20;  // Error.Code values
+  static constexpr size_t kErrorCodes = 22;  // Error.Code values
 
   Counter players{0};      // gauge: sessions past Hello
   Counter handshaking{0};  // gauge: connections before Hello

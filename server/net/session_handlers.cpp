@@ -44,6 +44,16 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
     send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
     return;
   }
+  if (auto ban = services_.bans->match(claims ? claims->player_id : "", address_)) {
+    ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kBanned)]);
+    if (auto suppressed = services_.logs->allow("banned", 10)) {
+      spdlog::info("session {}: {} {} is banned: refused{}", id_, store::to_string(ban->kind),
+                   escape_for_log(ban->target),
+                   *suppressed ? fmt::format(" [{} more refused]", *suppressed) : std::string());
+    }
+    send_error(wire::Error::BANNED, describe_ban(*ban), true, ban->until_ms);
+    return;
+  }
   if (services_.admission->promote(address_) != AdmissionControl::Verdict::kAdmit) {
     ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kServerFull)]);
     send_error(wire::Error::SERVER_FULL,
@@ -57,7 +67,8 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
     join_as(*claims);
   else
     edits_.join(role_, std::make_shared<SharedEditBudget>(edit_limits(nullptr)));
-  player_ = true;
+  connected_unix_ms_ = BanKeeper::now_ms();
+  player_.store(true, std::memory_order_release);
   counters_.handshaking.fetch_sub(1);
   const uint64_t players = counters_.players.fetch_add(1) + 1;
   handshake_timer_.cancel();
@@ -277,6 +288,8 @@ void ClientSession::on_edit_result(uint64_t ticket, wire::Envelope result, size_
   const auto now = Clock::now();
   edits_.answered(work_chunks, now);
   auto* r = result.mutable_edit_result();
+  if (r->status() == wire::EditResult::ACCEPTED && !r->already_applied())
+    edits_accepted_.fetch_add(1, std::memory_order_relaxed);
   if (r->status() == wire::EditResult::RATE_LIMITED)
     r->set_retry_after_ms(edits_.rate_limited_retry_ms(now));
   ServerCounters::bump(

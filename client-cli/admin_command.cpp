@@ -1,0 +1,180 @@
+// voxel-cli players | kick | ban | unban | bans: an admin's view of who is on, and keeping
+// griefers out, over the protocol (docs/PROTOCOL.md 4.11), with an admin token (--token or
+// VOXEL_TOKEN).
+#include <charconv>
+#include <ctime>
+#include <ostream>
+
+#include "client-cli/commands.hpp"
+#include "client-cli/server_request.hpp"
+
+namespace vox::cli {
+namespace {
+
+constexpr const char* kSynopsis =
+    "usage: voxel-cli players\n"
+    "       voxel-cli kick PLAYER_ID|ADDRESS [--reason TEXT]\n"
+    "       voxel-cli ban PLAYER_ID|ADDRESS [--for DURATION] [--reason TEXT]\n"
+    "       voxel-cli unban PLAYER_ID|ADDRESS\n"
+    "       voxel-cli bans\n"
+    "(with an admin token: --token or VOXEL_TOKEN; a target that parses as an IP address is "
+    "an address, an IPv6 one bans its /64; --address or --player say which)";
+
+wire::AdminResult ask(const po::variables_map& vm, wire::Envelope command) {
+  command.mutable_admin_command()->set_request_id(1);
+  return server_request(
+             vm, command,
+             [](const wire::Envelope& m) {
+               return m.has_admin_result() && m.admin_result().request_id() == 1;
+             },
+             "AdminResult")
+      .admin_result();
+}
+
+// "90", "90s", "30m", "12h", "7d", "2w": seconds.
+uint64_t parse_duration(const std::string& text) {
+  uint64_t n = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
+  const std::string unit(end, text.data() + text.size());
+  uint64_t scale = 0;
+  if (unit.empty() || unit == "s") scale = 1;
+  if (unit == "m") scale = 60;
+  if (unit == "h") scale = 3600;
+  if (unit == "d") scale = 86400;
+  if (unit == "w") scale = 7 * 86400;
+  if (ec != std::errc() || end == text.data() || scale == 0 || n > (1ull << 40))
+    throw std::invalid_argument("--for: '" + text +
+                                "' is not a duration (a number with s, m, h, d or w)");
+  return n * scale;
+}
+
+std::string utc(int64_t unix_ms) {
+  const std::time_t t = static_cast<std::time_t>(unix_ms / 1000);
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char s[32];
+  std::strftime(s, sizeof s, "%Y-%m-%d %H:%M:%S", &tm);
+  return s;
+}
+
+bool looks_like_address(const std::string& t) {
+  return !t.empty() && t.find_first_not_of("0123456789abcdefABCDEF.:") == std::string::npos &&
+         (std::count(t.begin(), t.end(), '.') == 3 || t.find(':') != std::string::npos);
+}
+
+// The target of kick, ban and unban into a Kick's or Ban's player_id / address.
+template <typename Message>
+void set_target(const po::variables_map& vm, Message& m) {
+  const std::string target = vm["target"].as<std::string>();
+  const bool address =
+      vm["address"].as<bool>() || (!vm["player"].as<bool>() && looks_like_address(target));
+  (address ? *m.mutable_address() : *m.mutable_player_id()) = target;
+}
+
+std::string describe(const wire::Ban& b) {
+  std::string s = b.player_id().empty() ? "address " + b.address() : "player " + b.player_id();
+  s += b.until_unix_ms() == 0 ? "  forever" : "  until " + utc(b.until_unix_ms()) + " UTC";
+  s += "  by " + (b.created_by().empty() ? std::string("?") : b.created_by());
+  s += " at " + utc(b.created_unix_ms()) + " UTC";
+  if (!b.reason().empty()) s += "  reason: " + b.reason();
+  return s;
+}
+
+int refused(const wire::AdminResult& r, std::ostream& err) {
+  err << "voxel-cli: refused: " << wire::AdminResult::Status_Name(r.status()) << ": " << r.reason()
+      << "\n";
+  return 1;
+}
+
+int list_players(const po::variables_map& vm, std::ostream& out, std::ostream& err) {
+  wire::Envelope m;
+  uint64_t after = 0;
+  size_t count = 0;
+  out << "session  player id  name  role  address  connected (UTC)  edits  bytes sent\n";
+  for (;;) {
+    m.mutable_admin_command()->mutable_players()->set_after_session(after);
+    const wire::AdminResult r = ask(vm, m);
+    if (r.status() != wire::AdminResult::OK) return refused(r, err);
+    for (const wire::PlayerInfo& p : r.players()) {
+      out << p.session() << "  " << (p.player_id().empty() ? "-" : p.player_id()) << "  '"
+          << p.name() << "'  " << p.role() << "  " << p.address() << "  "
+          << utc(p.connected_unix_ms()) << "  " << p.edits() << "  " << p.bytes_sent() << "\n";
+      after = p.session();
+    }
+    count += static_cast<size_t>(r.players_size());
+    if (!r.more() || r.players_size() == 0) break;
+  }
+  out << count << " connected (this command's own connection included)\n";
+  return 0;
+}
+
+int list_bans(const po::variables_map& vm, std::ostream& out, std::ostream& err) {
+  wire::Envelope m;
+  std::string cursor;
+  size_t count = 0;
+  for (;;) {
+    m.mutable_admin_command()->mutable_bans()->set_cursor(cursor);
+    const wire::AdminResult r = ask(vm, m);
+    if (r.status() != wire::AdminResult::OK) return refused(r, err);
+    for (const wire::Ban& b : r.bans()) out << describe(b) << "\n";
+    count += static_cast<size_t>(r.bans_size());
+    if (!r.more() || r.cursor().empty()) break;
+    cursor = r.cursor();
+  }
+  out << count << " ban" << (count == 1 ? "" : "s") << " in force\n";
+  return 0;
+}
+
+}  // namespace
+
+int admin_command(const std::string& action, const std::vector<std::string>& args,
+                  std::ostream& out, std::ostream& err) {
+  po::options_description opts = network_options(action);
+  const bool targeted = action == "kick" || action == "ban" || action == "unban";
+  if (targeted) {
+    opts.add_options()("target", po::value<std::string>()->required(),
+                       "a player id, or an IP address")(
+        "player", po::bool_switch(),
+        "the target is a player id (even if it looks like an address)")(
+        "address", po::bool_switch(), "the target is an address");
+  }
+  if (action == "kick" || action == "ban")
+    opts.add_options()("reason", po::value<std::string>()->default_value(""),
+                       "told to the player and kept with the ban (at most 200 bytes)");
+  if (action == "ban")
+    opts.add_options()("for", po::value<std::string>(),
+                       "how long: 90s, 30m, 12h, 7d, 2w (default: until unbanned)");
+  po::positional_options_description positional;
+  if (targeted) positional.add("target", 1);
+  po::variables_map vm;
+  const int rc = parse_options(args, opts, &positional, kSynopsis, vm, out, err);
+  if (rc >= 0) return rc;
+  return guarded(err, [&]() -> int {
+    if (targeted && vm["player"].as<bool>() && vm["address"].as<bool>())
+      throw std::invalid_argument("--player and --address exclude each other");
+    if (action == "players") return list_players(vm, out, err);
+    if (action == "bans") return list_bans(vm, out, err);
+    wire::Envelope m;
+    auto* command = m.mutable_admin_command();
+    if (action == "kick") {
+      set_target(vm, *command->mutable_kick());
+      command->mutable_kick()->set_reason(vm["reason"].as<std::string>());
+    } else if (action == "ban") {
+      set_target(vm, *command->mutable_ban());
+      command->mutable_ban()->set_reason(vm["reason"].as<std::string>());
+      if (vm.count("for"))
+        command->mutable_ban()->set_duration_seconds(parse_duration(vm["for"].as<std::string>()));
+    } else {
+      set_target(vm, *command->mutable_unban());
+    }
+    const wire::AdminResult r = ask(vm, m);
+    if (r.status() != wire::AdminResult::OK) return refused(r, err);
+    if (action == "kick") out << "kicked " << r.kicked() << " connection(s)\n";
+    for (const wire::Ban& b : r.bans())
+      out << (action == "ban" ? "banned " : "unbanned ") << describe(b) << "\n";
+    if (action == "ban") out << r.kicked() << " connection(s) closed\n";
+    return 0;
+  });
+}
+
+}  // namespace vox::cli

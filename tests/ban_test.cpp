@@ -1,0 +1,277 @@
+// Players, kicks and bans (docs/PROTOCOL.md 4.11). The BanBook's rules; then a real voxeld
+// with tokens: an admin lists the players, kicks one, bans one (closed BANNED at once,
+// refused at Hello with the reason and the end, still after a restart) and unbans it; a
+// player may do none of it; an address ban ends on time; a ban written to the world by
+// another process takes effect on SIGHUP. voxel-cli's commands drive the same messages.
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "client-cli/commands.hpp"
+#include "client/voxel_client.hpp"
+#include "server/auth/player_token.hpp"
+#include "server/net/ban_book.hpp"
+#include "server/store/ban_store.hpp"
+#include "tests/server_process.hpp"
+#include "tests/temp_dir.hpp"
+
+namespace vox {
+namespace {
+
+using namespace std::chrono_literals;
+using client::Client;
+using store::Ban;
+
+Ban ban(Ban::Kind kind, const std::string& target, int64_t until_ms = 0) {
+  Ban b;
+  b.kind = kind;
+  b.target = target;
+  b.until_ms = until_ms;
+  return b;
+}
+
+TEST(BanBook, APlayersBanComesBeforeItsAddressesAndAnEndedBanHoldsNobody) {
+  net::BanBook book;
+  EXPECT_TRUE(book.put(ban(Ban::Kind::kAddress, "10.0.0.1", 500)));
+  EXPECT_FALSE(book.match("alice", "10.0.0.2", 0));
+  ASSERT_TRUE(book.match("alice", "10.0.0.1", 0));
+  EXPECT_EQ(book.match("alice", "10.0.0.1", 0)->kind, Ban::Kind::kAddress);
+  EXPECT_FALSE(book.match("alice", "10.0.0.1", 500));  // ended
+  EXPECT_TRUE(book.put(ban(Ban::Kind::kPlayer, "alice")));
+  EXPECT_EQ(book.match("alice", "10.0.0.1", 0)->kind, Ban::Kind::kPlayer);
+  EXPECT_FALSE(book.match("", "10.0.0.9", 0));  // no id: the address only
+  EXPECT_EQ(book.remove(Ban::Kind::kPlayer, "alice")->target, "alice");
+  EXPECT_FALSE(book.remove(Ban::Kind::kPlayer, "alice"));
+  book.drop_ended(1000);
+  EXPECT_EQ(book.size(), 0u);
+}
+
+TEST(BanBook, AReplacementTellsWhichBansAreNew) {
+  net::BanBook book;
+  book.put(ban(Ban::Kind::kPlayer, "a"));
+  book.put(ban(Ban::Kind::kPlayer, "b", 100));
+  const auto added = book.replace({ban(Ban::Kind::kPlayer, "a"), ban(Ban::Kind::kPlayer, "b"),
+                                   ban(Ban::Kind::kPlayer, "c"), ban(Ban::Kind::kPlayer, "d", 50)},
+                                  200);
+  // b's old ban had ended at 100: it is new again; d's ends before now.
+  ASSERT_EQ(added.size(), 2u);
+  EXPECT_EQ(added[0].target, "b");
+  EXPECT_EQ(added[1].target, "c");
+  EXPECT_EQ(book.size(), 3u);
+}
+
+TEST(BanBook, PagesFollowTheirCursorsAndTheBookHasABound) {
+  net::BanBook book;
+  for (int i = 0; i < 250; ++i) {
+    std::string id = "p";  // (+= : GCC 12 sees a false overlap in "p" + to_string)
+    id += std::to_string(1000 + i);
+    book.put(ban(Ban::Kind::kPlayer, id));
+  }
+  book.put(ban(Ban::Kind::kAddress, "10.0.0.1"));
+  std::string cursor;
+  size_t seen = 0, pages = 0;
+  do {
+    const net::BanBook::Page page = book.page(cursor, 100, 0);
+    seen += page.bans.size();
+    ++pages;
+    cursor = page.next;
+  } while (!cursor.empty());
+  EXPECT_EQ(seen, 251u);
+  EXPECT_EQ(pages, 3u);
+  EXPECT_TRUE(book.page("not a cursor", 10, 0).bans.size() <= 10);  // no throw, a page
+  for (size_t i = book.size(); i < store::kMaxBans; ++i)
+    ASSERT_TRUE(book.put(ban(Ban::Kind::kAddress, std::to_string(i))));
+  EXPECT_FALSE(book.put(ban(Ban::Kind::kPlayer, "one more")));
+  EXPECT_TRUE(book.put(ban(Ban::Kind::kPlayer, "p1000", 7)));  // a replacement still goes
+  EXPECT_EQ(book.size(), store::kMaxBans);
+}
+
+int64_t unix_now() {
+  return std::chrono::duration_cast<std::chrono::seconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+class Bans : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    key_ = auth::generate_key_pair();
+    std::ofstream(dir_ / "game.pub") << auth::key_to_text(key_.public_key);
+  }
+  std::vector<std::string> server_args() const {
+    return {"--auth-public-key", (dir_ / "game.pub").string(), "--world",
+            (dir_ / "world").string()};
+  }
+  std::string token(const std::string& id, auth::Role role = auth::Role::kPlayer) const {
+    return auth::mint_token({.player_id = id,
+                             .display_name = "Name of " + id,
+                             .role = role,
+                             .expires_at = unix_now() + 600},
+                            key_.seed);
+  }
+  // The Welcome or Error a Hello with `token` gets.
+  static wire::Envelope hello(Client& c, const std::string& token) {
+    c.send(client::make_hello("ignored", 1, token));
+    for (;;) {
+      auto m = c.receive(10s);
+      if (!m) return {};
+      if (m->has_welcome() || m->has_error()) return *m;
+    }
+  }
+  std::unique_ptr<Client> join(uint16_t port, const std::string& token) {
+    auto c = std::make_unique<Client>();
+    c->connect("127.0.0.1", port, 5s);
+    EXPECT_TRUE(hello(*c, token).has_welcome());
+    return c;
+  }
+  // The Error a connection is closed with (skipping what came before).
+  static wire::Error closed_with(Client& c) {
+    for (;;) {
+      auto m = c.receive(10s);
+      if (!m) return {};
+      if (m->has_error()) return m->error();
+    }
+  }
+  static wire::AdminResult ask(Client& c, wire::Envelope m) {
+    m.mutable_admin_command()->set_request_id(42);
+    c.send(m);
+    for (;;) {
+      auto r = c.receive(10s);
+      if (!r) return {};
+      if (r->has_admin_result()) return r->admin_result();
+    }
+  }
+  int cli(std::vector<std::string> args, uint16_t port, const std::string& token,
+          std::string* out = nullptr) {
+    args.push_back("--server=127.0.0.1:" + std::to_string(port));
+    args.push_back("--token=" + token);
+    std::ostringstream o, e;
+    const int rc = cli::run_cli(args, o, e);
+    if (out) *out = o.str() + e.str();
+    return rc;
+  }
+
+  test::TempDir dir_{"bans"};
+  auth::KeyPair key_;
+};
+
+TEST_F(Bans, OnlyAnAdminListsKicksAndBansAndABanHoldsAcrossARestartUntilUnbanned) {
+  {
+    test::ServerProcess server(server_args());
+    auto admin = join(server.port(), token("root", auth::Role::kAdmin));
+    auto alice = join(server.port(), token("alice"));
+    auto mallory = join(server.port(), token("mallory"));
+
+    wire::Envelope players;
+    players.mutable_admin_command()->mutable_players();
+    EXPECT_EQ(ask(*mallory, players).status(), wire::AdminResult::FORBIDDEN);
+    const wire::AdminResult list = ask(*admin, players);
+    ASSERT_EQ(list.status(), wire::AdminResult::OK);
+    ASSERT_EQ(list.players_size(), 3);
+    EXPECT_EQ(list.players(1).player_id(), "alice");
+    EXPECT_EQ(list.players(1).name(), "Name of alice");
+    EXPECT_EQ(list.players(1).role(), "player");
+    EXPECT_EQ(list.players(1).address(), "127.0.0.1");
+    EXPECT_GT(list.players(1).connected_unix_ms(), 0);
+    EXPECT_FALSE(list.more());
+
+    wire::Envelope kick;
+    kick.mutable_admin_command()->mutable_kick()->set_player_id("alice");
+    kick.mutable_admin_command()->mutable_kick()->set_reason("take a break");
+    EXPECT_EQ(ask(*mallory, kick).status(), wire::AdminResult::FORBIDDEN);
+    const wire::AdminResult kicked = ask(*admin, kick);
+    EXPECT_EQ(kicked.status(), wire::AdminResult::OK);
+    EXPECT_EQ(kicked.kicked(), 1u);
+    const wire::Error told = closed_with(*alice);
+    EXPECT_EQ(told.code(), wire::Error::KICKED);
+    EXPECT_NE(told.message().find("take a break"), std::string::npos) << told.message();
+    EXPECT_EQ(ask(*admin, kick).status(), wire::AdminResult::NOT_FOUND);  // gone now
+    join(server.port(), token("alice"));                                  // a kick is no ban
+
+    wire::Envelope b;
+    b.mutable_admin_command()->mutable_ban()->set_player_id("mallory");
+    b.mutable_admin_command()->mutable_ban()->set_reason("griefing spawn");
+    const wire::AdminResult banned = ask(*admin, b);
+    ASSERT_EQ(banned.status(), wire::AdminResult::OK) << banned.reason();
+    EXPECT_EQ(banned.kicked(), 1u);
+    ASSERT_EQ(banned.bans_size(), 1);
+    EXPECT_EQ(banned.bans(0).created_by(), "root");
+    EXPECT_EQ(banned.bans(0).until_unix_ms(), 0);
+    EXPECT_EQ(closed_with(*mallory).code(), wire::Error::BANNED);
+    EXPECT_EQ(server.terminate(), 0);
+  }
+  test::ServerProcess server(server_args());
+  Client again;
+  again.connect("127.0.0.1", server.port(), 5s);
+  const wire::Envelope refused = hello(again, token("mallory"));
+  ASSERT_TRUE(refused.has_error());
+  EXPECT_EQ(refused.error().code(), wire::Error::BANNED);
+  EXPECT_NE(refused.error().message().find("griefing spawn"), std::string::npos);
+  EXPECT_EQ(refused.error().banned_until_unix_ms(), 0);
+
+  std::string out;
+  const std::string root = token("root", auth::Role::kAdmin);
+  EXPECT_EQ(cli({"bans"}, server.port(), root, &out), 0) << out;
+  EXPECT_NE(out.find("player mallory  forever  by root"), std::string::npos) << out;
+  EXPECT_NE(out.find("1 ban in force"), std::string::npos) << out;
+  EXPECT_EQ(cli({"unban", "mallory"}, server.port(), token("alice"), &out), 1);
+  EXPECT_NE(out.find("FORBIDDEN"), std::string::npos) << out;
+  EXPECT_EQ(cli({"unban", "mallory"}, server.port(), root, &out), 0) << out;
+  EXPECT_EQ(cli({"unban", "mallory"}, server.port(), root, &out), 1) << out;
+  EXPECT_NE(out.find("NOT_FOUND"), std::string::npos) << out;
+  auto back = join(server.port(), token("mallory"));
+  EXPECT_EQ(cli({"players"}, server.port(), root, &out), 0) << out;
+  EXPECT_NE(out.find("mallory  'Name of mallory'  player  127.0.0.1"), std::string::npos) << out;
+}
+
+TEST_F(Bans, AnAddressBanKeepsEveryoneFromItOutUntilItEnds) {
+  test::ServerProcess server(server_args());
+  auto admin = join(server.port(), token("root", auth::Role::kAdmin));
+  auto alice = join(server.port(), token("alice"));
+  std::string out;
+  EXPECT_EQ(cli({"ban", "127.0.0.1", "--for", "bad"}, server.port(),
+                token("root", auth::Role::kAdmin), &out),
+            2);  // bad usage
+  EXPECT_NE(out.find("is not a duration"), std::string::npos) << out;
+  wire::Envelope b;
+  b.mutable_admin_command()->mutable_ban()->set_address("not an address");
+  EXPECT_EQ(ask(*admin, b).status(), wire::AdminResult::BAD_VALUE);
+  b.mutable_admin_command()->mutable_ban()->set_address("127.0.0.1");
+  b.mutable_admin_command()->mutable_ban()->set_player_id("alice");
+  EXPECT_EQ(ask(*admin, b).status(), wire::AdminResult::BAD_VALUE);  // both named
+  b.mutable_admin_command()->mutable_ban()->clear_player_id();
+  b.mutable_admin_command()->mutable_ban()->set_duration_seconds(2);
+  const wire::AdminResult banned = ask(*admin, b);
+  ASSERT_EQ(banned.status(), wire::AdminResult::OK) << banned.reason();
+  EXPECT_EQ(banned.kicked(), 1u);  // alice; never the admin's own connection
+  EXPECT_EQ(closed_with(*alice).code(), wire::Error::BANNED);
+  Client during;
+  during.connect("127.0.0.1", server.port(), 5s);
+  const wire::Envelope refused = hello(during, token("bob"));
+  ASSERT_TRUE(refused.has_error());
+  EXPECT_EQ(refused.error().code(), wire::Error::BANNED);
+  EXPECT_GT(refused.error().banned_until_unix_ms(), 0);
+  EXPECT_NE(refused.error().message().find(" until "), std::string::npos);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2100));
+  join(server.port(), token("bob"));
+}
+
+TEST_F(Bans, ABanWrittenByAnotherProcessTakesEffectOnSighup) {
+  test::ServerProcess server(server_args());
+  auto alice = join(server.port(), token("alice"));
+  store::Ban b = ban(Ban::Kind::kPlayer, "alice");
+  b.reason = "from the web panel";
+  store::open_ban_store((dir_ / "world").string())->put(b);
+  ::kill(server.pid(), SIGHUP);
+  const wire::Error told = closed_with(*alice);
+  EXPECT_EQ(told.code(), wire::Error::BANNED);
+  EXPECT_NE(told.message().find("from the web panel"), std::string::npos) << told.message();
+}
+
+}  // namespace
+}  // namespace vox
