@@ -1,7 +1,9 @@
 // voxel-cli players | kick | ban | unban | bans: an admin's view of who is on, and keeping
 // griefers out, over the protocol (docs/PROTOCOL.md 4.11), with an admin token (--token or
 // VOXEL_TOKEN).
+#include <algorithm>
 #include <charconv>
+#include <cstdio>
 #include <ctime>
 #include <ostream>
 
@@ -31,23 +33,6 @@ wire::AdminResult ask(const po::variables_map& vm, wire::Envelope command) {
       .admin_result();
 }
 
-// "90", "90s", "30m", "12h", "7d", "2w": seconds.
-uint64_t parse_duration(const std::string& text) {
-  uint64_t n = 0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
-  const std::string unit(end, text.data() + text.size());
-  uint64_t scale = 0;
-  if (unit.empty() || unit == "s") scale = 1;
-  if (unit == "m") scale = 60;
-  if (unit == "h") scale = 3600;
-  if (unit == "d") scale = 86400;
-  if (unit == "w") scale = 7 * 86400;
-  if (ec != std::errc() || end == text.data() || scale == 0 || n > (1ull << 40))
-    throw std::invalid_argument("--for: '" + text +
-                                "' is not a duration (a number with s, m, h, d or w)");
-  return n * scale;
-}
-
 std::string utc(int64_t unix_ms) {
   const std::time_t t = static_cast<std::time_t>(unix_ms / 1000);
   std::tm tm{};
@@ -57,9 +42,27 @@ std::string utc(int64_t unix_ms) {
   return s;
 }
 
+// "203.0.113.7", "2001:db8::5", "2001:db8::/64" (as `bans` and `players` print an IPv6
+// client): a player id has letters beyond these, or no dots and colons.
 bool looks_like_address(const std::string& t) {
-  return !t.empty() && t.find_first_not_of("0123456789abcdefABCDEF.:") == std::string::npos &&
+  return !t.empty() && t.find_first_not_of("0123456789abcdefABCDEF.:/") == std::string::npos &&
          (std::count(t.begin(), t.end(), '.') == 3 || t.find(':') != std::string::npos);
+}
+
+// A player's name as the terminal should show it: control characters as \xNN (an open
+// server takes any name; it must not drive the admin's terminal).
+std::string printable(const std::string& s) {
+  std::string out;
+  for (unsigned char c : s) {
+    if (c < 0x20 || c == 0x7f || c == '\\') {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", c);
+      out += hex;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out;
 }
 
 // The target of kick, ban and unban into a Kick's or Ban's player_id / address.
@@ -96,8 +99,8 @@ int list_players(const po::variables_map& vm, std::ostream& out, std::ostream& e
     const wire::AdminResult r = ask(vm, m);
     if (r.status() != wire::AdminResult::OK) return refused(r, err);
     for (const wire::PlayerInfo& p : r.players()) {
-      out << p.session() << "  " << (p.player_id().empty() ? "-" : p.player_id()) << "  '"
-          << p.name() << "'  " << p.role() << "  " << p.address() << "  "
+      out << p.session() << "  " << (p.player_id().empty() ? "-" : printable(p.player_id()))
+          << "  '" << printable(p.name()) << "'  " << p.role() << "  " << p.address() << "  "
           << utc(p.connected_unix_ms()) << "  " << p.edits() << "  " << p.bytes_sent() << "\n";
       after = p.session();
     }
@@ -163,7 +166,8 @@ int admin_command(const std::string& action, const std::vector<std::string>& arg
       set_target(vm, *command->mutable_ban());
       command->mutable_ban()->set_reason(vm["reason"].as<std::string>());
       if (vm.count("for"))
-        command->mutable_ban()->set_duration_seconds(parse_duration(vm["for"].as<std::string>()));
+        command->mutable_ban()->set_duration_seconds(
+            options::parse_duration_s(vm["for"].as<std::string>(), "--for"));
     } else {
       set_target(vm, *command->mutable_unban());
     }

@@ -25,7 +25,7 @@ constexpr const char* kUsage =
     "  slice --y H --at X,Z --out map.svg   a top-down contour map of the terrain\n"
     "  mesh INPUT --out FILE   mesh a volume offline (NIfTI, NRRD, raw float32 or text)\n"
     "  demo --out FILE         generate terrain around the origin and mesh it offline\n"
-    "  world info|log|verify WORLD   a world directory (or postgresql:// URI), read-only\n"
+    "  world info|log|history|verify WORLD   a world directory (or postgresql:// URI), read-only\n"
     "  world migrate --from WORLD --to WORLD   a single node's world into a cluster's, or back\n"
     "  world backup WORLD --out FILE   a consistent copy while voxeld runs (SQLite worlds)\n"
     "  world restore FILE --to DIR [--force]   a backup into place, then verified\n"

@@ -5,7 +5,7 @@
 #include <functional>
 
 #include "client-cli/cli_options.hpp"
-#include "voxel.pb.h"
+#include "client/voxel_client.hpp"
 
 namespace vox::cli {
 

@@ -1,10 +1,14 @@
 // voxel-cli world info|log|verify WORLD: the durable world as an operator inspects it. Opens
 // the store read-only (a world directory or a postgresql:// URI), so it works beside a
 // running voxeld.
+#include <charconv>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <iomanip>
+#include <limits>
 #include <map>
+#include <optional>
 #include <ostream>
 #include <sstream>
 
@@ -54,6 +58,52 @@ int world_log(store::WorldStore& s, uint64_t since, std::ostream& out) {
     out << "\n";
     return static_cast<bool>(out);
   });
+  return 0;
+}
+
+// What `world history` lists: the edits of one player, touching a box, in a time span.
+struct HistoryFilter {
+  std::optional<std::string> player;  // "-" for edits without an author (an open server)
+  std::optional<world::VoxelBox> box;
+  int64_t since_ms = std::numeric_limits<int64_t>::min();
+  int64_t until_ms = std::numeric_limits<int64_t>::max();
+  bool matches(const store::LoggedEdit& e) const {
+    if (e.unix_ms < since_ms || e.unix_ms > until_ms) return false;
+    if (player && *player != (e.author.empty() ? "-" : e.author)) return false;
+    if (!box) return true;
+    const world::VoxelBox t = world::touched_box(e.edit);
+    for (int a = 0; a < 3; ++a)
+      if (t.hi[a] < box->lo[a] || t.lo[a] > box->hi[a]) return false;
+    return true;
+  }
+};
+
+// The logged edits that match, oldest first, and how far back the log reaches (older
+// edits were trimmed by checkpoints: voxeld --history-days, --keep-log).
+int world_history(store::WorldStore& s, const HistoryFilter& filter, std::ostream& out) {
+  uint64_t first_seq = 0, listed = 0;
+  int64_t first_ms = 0;
+  std::map<std::string, uint64_t> by_author;
+  s.for_each_edit(0, [&](const store::LoggedEdit& e) {
+    if (first_seq == 0) first_seq = e.seq, first_ms = e.unix_ms;
+    if (!filter.matches(e)) return true;
+    ++listed;
+    ++by_author[e.author.empty() ? "-" : e.author];
+    out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
+        << "  " << store::describe_edit(e.edit) << "\n";
+    return static_cast<bool>(out);
+  });
+  out << listed << " edit" << (listed == 1 ? "" : "s");
+  for (const auto& [author, n] : by_author)
+    out << (author == by_author.begin()->first ? ": " : ", ") << author << " " << n;
+  out << "\n";
+  const store::WorldInfo info = s.info();
+  if (first_seq == 0)
+    out << "the log holds no edit (" << info.checkpoint_seq
+        << " are in the checkpoints: keep history with voxeld --history-days or --keep-log)\n";
+  else
+    out << "the log reaches back to edit " << first_seq << " (" << utc_time(first_ms) << ")"
+        << (first_seq > 1 ? "; older ones were trimmed" : ", the world's first") << "\n";
   return 0;
 }
 
@@ -179,27 +229,70 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
     return world_backup_restore(args, out, err);
   po::options_description opts("voxel-cli world options");
   opts.add_options()("help,h", "show this help")("action", po::value<std::string>()->required(),
-                                                 "info, log or verify")(
+                                                 "info, log, history or verify")(
       "world", po::value<std::string>()->required(), "the world directory, or a postgresql:// URI")(
-      "since", po::value<uint64_t>()->default_value(0), "log: edits after this sequence number");
+      "since", po::value<std::string>(),
+      "log: edits after this sequence number; history: edits accepted at or after this time "
+      "(2026-12-07T10:30:00, UTC) or this long ago (30m, 2h, 7d)")(
+      "until", po::value<std::string>(), "history: edits accepted at or before this time")(
+      "player", po::value<std::string>(), "history: this player id's edits ('-': no author)")(
+      "min", po::value<std::string>(), "history: X,Y,Z, the box's lowest sample")(
+      "max", po::value<std::string>(),
+      "history: X,Y,Z, the box's highest sample: edits "
+      "touching the box");
   po::positional_options_description positional;
   positional.add("action", 1).add("world", 1);
   po::variables_map vm;
   const int rc = parse_options(args, opts, &positional,
                                "usage: voxel-cli world info|log|verify WORLD [--since N]\n       "
+                               "voxel-cli world history WORLD [--player ID] [--min X,Y,Z "
+                               "--max X,Y,Z] [--since T] [--until T]\n       "
                                "voxel-cli world backup|restore|migrate --help",
                                vm, out, err);
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const std::string action = vm["action"].as<std::string>();
-    if (action != "info" && action != "log" && action != "verify")
-      throw std::invalid_argument("world: the action must be info, log or verify");
+    if (action != "info" && action != "log" && action != "verify" && action != "history")
+      throw std::invalid_argument("world: the action must be info, log, history or verify");
+    HistoryFilter filter;
+    uint64_t since_seq = 0;
+    if (action == "history") {
+      const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
+                              std::chrono::system_clock::now().time_since_epoch())
+                              .count();
+      if (vm.count("since"))
+        filter.since_ms = options::parse_time_ms(vm["since"].as<std::string>(), "--since", now);
+      if (vm.count("until"))
+        filter.until_ms = options::parse_time_ms(vm["until"].as<std::string>(), "--until", now);
+      if (vm.count("player")) filter.player = vm["player"].as<std::string>();
+      if (vm.count("min") != vm.count("max"))
+        throw std::invalid_argument("history: --min and --max name a box together");
+      if (vm.count("min")) {
+        const auto lo = parse_vec3(vm["min"].as<std::string>(), "--min");
+        const auto hi = parse_vec3(vm["max"].as<std::string>(), "--max");
+        world::VoxelBox b;
+        for (int a = 0; a < 3; ++a) {
+          if (std::fabs(lo[a]) > 1e9f || std::fabs(hi[a]) > 1e9f || lo[a] > hi[a])
+            throw std::invalid_argument("history: --min must be at most --max on every axis");
+          b.lo[a] = static_cast<int32_t>(std::floor(lo[a]));
+          b.hi[a] = static_cast<int32_t>(std::ceil(hi[a]));
+        }
+        filter.box = b;
+      }
+    } else if (vm.count("since")) {
+      const std::string text = vm["since"].as<std::string>();
+      const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), since_seq);
+      if (ec != std::errc() || end != text.data() + text.size())
+        throw std::invalid_argument("--since: a log's sequence number, got '" + text + "'");
+    }
     const std::string where = vm["world"].as<std::string>();
-    if (action != "log" && store::is_postgres_uri(where) && store::is_cluster_world(where))
+    if (action != "log" && action != "history" && store::is_postgres_uri(where) &&
+        store::is_cluster_world(where))
       return cluster_world_command(action, where, out, err);
     auto s = store::open_world_store(where, {.read_only = true});
     if (action == "info") return world_info(*s, out);
-    if (action == "log") return world_log(*s, vm["since"].as<uint64_t>(), out);
+    if (action == "log") return world_log(*s, since_seq, out);
+    if (action == "history") return world_history(*s, filter, out);
     return world_verify(*s, out, err);
   });
 }

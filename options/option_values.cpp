@@ -3,6 +3,8 @@
 #include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
+#include <ctime>
 #include <stdexcept>
 
 namespace vox::options {
@@ -97,6 +99,48 @@ std::optional<size_t> parse_bytes(const std::string& text) {
     return std::nullopt;
   if (value > (SIZE_MAX >> shift)) return std::nullopt;
   return static_cast<size_t>(value) << shift;
+}
+
+uint64_t parse_duration_s(const std::string& text, const char* what) {
+  uint64_t n = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), n);
+  const std::string unit(end, text.data() + text.size());
+  uint64_t scale = 0;
+  if (unit.empty() || unit == "s") scale = 1;
+  if (unit == "m") scale = 60;
+  if (unit == "h") scale = 3600;
+  if (unit == "d") scale = 86400;
+  if (unit == "w") scale = 7 * 86400;
+  if (ec != std::errc() || end == text.data() || scale == 0 || n > (1ull << 40) / scale)
+    throw std::invalid_argument(std::string(what) + ": '" + text +
+                                "' is not a duration (a number with s, m, h, d or w)");
+  return n * scale;
+}
+
+int64_t parse_time_ms(const std::string& text, const char* what, int64_t now_ms) {
+  int y = 0, mo = 0, d = 0, h = 0, mi = 0, s = 0;
+  char tail = 0;
+  std::string t = text;
+  if (!t.empty() && (t.back() == 'Z' || t.back() == 'z')) t.pop_back();
+  const int n =
+      std::sscanf(t.c_str(), "%4d-%2d-%2dT%2d:%2d:%2d%c", &y, &mo, &d, &h, &mi, &s, &tail);
+  if (t.size() >= 10 && t[4] == '-' && (n == 3 || n == 5 || n == 6) && mo >= 1 && mo <= 12 &&
+      d >= 1 && d <= 31 && h < 24 && mi < 60 && s < 61 && y >= 1970 &&
+      t.size() == (n == 3   ? 10u
+                   : n == 5 ? 16u
+                            : 19u)) {
+    std::tm tm{};
+    tm.tm_year = y - 1900, tm.tm_mon = mo - 1, tm.tm_mday = d;
+    tm.tm_hour = h, tm.tm_min = mi, tm.tm_sec = s;
+    return static_cast<int64_t>(timegm(&tm)) * 1000;
+  }
+  try {
+    return now_ms - static_cast<int64_t>(parse_duration_s(text, what)) * 1000;
+  } catch (const std::invalid_argument&) {
+    throw std::invalid_argument(std::string(what) + ": '" + text +
+                                "' is neither a time (2026-12-07T10:30:00, UTC) nor a duration "
+                                "ago (30m, 2h, 7d)");
+  }
 }
 
 }  // namespace vox::options

@@ -36,5 +36,12 @@ std::pair<std::string, uint16_t> parse_server(const std::string& text);
 // "1073741824", "512M", "2G", "64K" (binary units; KiB, MiB, GiB too) -> bytes; nullopt
 // when malformed or past SIZE_MAX.
 std::optional<size_t> parse_bytes(const std::string& text);
+// "90", "90s", "30m", "12h", "7d", "2w" -> seconds (at most 2^40); throws
+// std::invalid_argument naming `what`.
+uint64_t parse_duration_s(const std::string& text, const char* what);
+// A point in time as Unix milliseconds: "2026-12-07", "2026-12-07T10:30" or
+// "2026-12-07T10:30:15" (UTC; a trailing Z allowed), or a duration before `now_ms` ("2h":
+// two hours ago); throws std::invalid_argument naming `what`.
+int64_t parse_time_ms(const std::string& text, const char* what, int64_t now_ms);
 
 }  // namespace vox::options

@@ -86,6 +86,7 @@ TEST(BanStore, RowsThatAreNotBansAreSkippedAndCounted) {
                          "INSERT INTO bans VALUES ('', 'ghost', 'x', '', '', 0, 0);"
                          "INSERT INTO bans VALUES ('', 'player', '', '', '', 0, 0);"
                          "INSERT INTO bans VALUES ('', 'player', 'bad\nid', '', '', 0, 0);"
+                         "INSERT INTO bans VALUES ('', 'player', 'textual', '', '', 0, 'abc');"
                          "INSERT INTO bans VALUES ('', 'player', 'long', "
                          "replace(hex(zeroblob(150)), '0', 'x'), '', 0, 0);",
                          nullptr, nullptr, nullptr),
@@ -94,7 +95,7 @@ TEST(BanStore, RowsThatAreNotBansAreSkippedAndCounted) {
   const BanStore::Read read = open_ban_store(where)->read(0);
   ASSERT_EQ(read.bans.size(), 1u);
   EXPECT_EQ(read.bans[0].target, "ok");
-  EXPECT_EQ(read.skipped, 4u);
+  EXPECT_EQ(read.skipped, 5u);
 }
 
 TEST(BanStore, AWorldDirectoryWithoutAWorldIsRefused) {

@@ -15,8 +15,11 @@
 #include "client-cli/commands.hpp"
 #include "client/voxel_client.hpp"
 #include "server/auth/player_token.hpp"
+#include "server/net/address_key.hpp"
 #include "server/net/ban_book.hpp"
+#include "server/net/ban_keeper.hpp"
 #include "server/store/ban_store.hpp"
+#include "server/store/world_store.hpp"
 #include "tests/server_process.hpp"
 #include "tests/temp_dir.hpp"
 
@@ -89,6 +92,32 @@ TEST(BanBook, PagesFollowTheirCursorsAndTheBookHasABound) {
   EXPECT_FALSE(book.put(ban(Ban::Kind::kPlayer, "one more")));
   EXPECT_TRUE(book.put(ban(Ban::Kind::kPlayer, "p1000", 7)));  // a replacement still goes
   EXPECT_EQ(book.size(), store::kMaxBans);
+}
+
+TEST(BanTargets, AnAddressInAnyOfItsFormsIsTheKeyAdmissionCountsBy) {
+  EXPECT_EQ(net::address_key_of("203.0.113.7"), "203.0.113.7");
+  EXPECT_EQ(net::address_key_of("::ffff:203.0.113.7"), "203.0.113.7");
+  EXPECT_EQ(net::address_key_of("2001:db8::5"), "2001:db8::/64");
+  EXPECT_EQ(net::address_key_of("2001:db8::/64"), "2001:db8::/64");  // as `bans` prints it
+  EXPECT_FALSE(net::address_key_of("203.0.113.7/64"));
+  EXPECT_FALSE(net::address_key_of("::ffff:203.0.113.7/64"));
+  EXPECT_FALSE(net::address_key_of("mallory"));
+  EXPECT_FALSE(net::address_key_of(""));
+  EXPECT_FALSE(net::address_key_of(std::string(100, '1')));
+}
+
+TEST(BanKeeper, RowsWrittenByOtherToolsAreReadInTheFormAdmissionMatches) {
+  test::TempDir dir("bans");
+  const std::string where = (dir / "world").string();
+  store::open_world_store(where, {});
+  auto other = store::open_ban_store(where);
+  other->put(ban(Ban::Kind::kAddress, "::ffff:10.0.0.1"));
+  other->put(ban(Ban::Kind::kAddress, "2001:db8::77"));
+  other->put(ban(Ban::Kind::kAddress, "not an address"));
+  net::BanKeeper keeper(store::open_ban_store(where));
+  EXPECT_TRUE(keeper.match("", "10.0.0.1"));
+  EXPECT_TRUE(keeper.match("", "2001:db8::/64"));
+  EXPECT_EQ(keeper.size(), 2u);
 }
 
 int64_t unix_now() {
@@ -259,6 +288,43 @@ TEST_F(Bans, AnAddressBanKeepsEveryoneFromItOutUntilItEnds) {
   EXPECT_NE(refused.error().message().find(" until "), std::string::npos);
   std::this_thread::sleep_for(std::chrono::milliseconds(2100));
   join(server.port(), token("bob"));
+}
+
+TEST_F(Bans, AnAdminIsNotHeldByAnAddressBanAndMayNotBanItself) {
+  test::ServerProcess server(server_args());
+  const std::string root = token("root", auth::Role::kAdmin);
+  auto admin = join(server.port(), root);
+  auto other_admin = join(server.port(), token("ops", auth::Role::kAdmin));
+  std::string out;
+  EXPECT_EQ(cli({"ban", "root"}, server.port(), root, &out), 1);
+  EXPECT_NE(out.find("may not ban its own player"), std::string::npos) << out;
+  // The address every connection here shares, banned by another process: refused to
+  // players, never to an admin (an admin can always come back and lift it).
+  store::open_ban_store((dir_ / "world").string())->put(ban(Ban::Kind::kAddress, "127.0.0.1"));
+  ::kill(server.pid(), SIGHUP);
+  bool refused = false;
+  for (int i = 0; i < 100 && !refused; ++i) {  // until the SIGHUP's read is in force
+    Client player;
+    player.connect("127.0.0.1", server.port(), 5s);
+    const wire::Envelope answer = hello(player, token("alice"));
+    refused = answer.has_error();
+    if (refused) {
+      EXPECT_EQ(answer.error().code(), wire::Error::BANNED);
+    }
+    if (!refused) std::this_thread::sleep_for(50ms);
+  }
+  EXPECT_TRUE(refused);
+  EXPECT_EQ(cli({"bans"}, server.port(), root, &out), 0) << out;  // an admin still gets in
+  EXPECT_NE(out.find("address 127.0.0.1  forever"), std::string::npos) << out;
+  wire::Envelope ping;
+  ping.mutable_ping()->set_nonce(5);
+  other_admin->send(ping);
+  bool pong = false;
+  while (auto m = other_admin->receive(5s)) {
+    if ((pong = m->has_pong())) break;
+    EXPECT_FALSE(m->has_error()) << m->error().message();
+  }
+  EXPECT_TRUE(pong);  // and the admins connected stay
 }
 
 TEST_F(Bans, ABanWrittenByAnotherProcessTakesEffectOnSighup) {

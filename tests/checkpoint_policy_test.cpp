@@ -79,3 +79,23 @@ TEST(CheckpointPolicy, AFullLogTailMakesACheckpointDue) {
 
 }  // namespace
 }  // namespace vox::pipeline
+
+namespace vox::pipeline {
+namespace {
+
+TEST(LogRetention, ACheckpointTrimsAllOnlyTheEditsBeforeTheWindowOrNone) {
+  const auto now = std::chrono::system_clock::time_point(std::chrono::hours(1000));
+  const int64_t now_ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count();
+  const store::LogTrim all = LogRetention{}.trim(42, now);
+  EXPECT_EQ(all.through, 42u);
+  EXPECT_EQ(all.accepted_before_ms, std::numeric_limits<int64_t>::max());
+  const store::LogTrim window = LogRetention{.window = std::chrono::hours(24 * 7)}.trim(42, now);
+  EXPECT_EQ(window.through, 42u);
+  EXPECT_EQ(window.accepted_before_ms, now_ms - 7 * 24 * 3600 * 1000ll);
+  const LogRetention keep_all{.keep_all = true, .window = std::chrono::hours(1)};
+  EXPECT_EQ(keep_all.trim(42, now).through, 0u);
+}
+
+}  // namespace
+}  // namespace vox::pipeline

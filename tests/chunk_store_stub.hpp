@@ -18,11 +18,12 @@ class ChunkStore final : public store::WorldStore {
                     const store::RegionWrite*) override {}
   store::RegionTable read_regions() override { return {}; }
   void write_checkpoint(std::span<const store::ChunkRecord> records, uint64_t seq,
-                        uint64_t trim_through) override {
+                        store::LogTrim trim) override {
     if (fail_checkpoints) throw store::StoreError("test: disk full");
     for (const store::ChunkRecord& r : records) chunks[r.coord] = r.samples;
     checkpoint_seq = seq;
-    trimmed_through = trim_through;
+    trimmed_through = trim.through;
+    trimmed_before_ms = trim.accepted_before_ms;
   }
   std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {
     ++reads;
@@ -47,6 +48,7 @@ class ChunkStore final : public store::WorldStore {
   bool down = false, fail_checkpoints = false;
   int reads = 0;
   uint64_t checkpoint_seq = 0, trimmed_through = 0;
+  int64_t trimmed_before_ms = 0;
 
  private:
   std::string name_ = "test store";

@@ -79,6 +79,30 @@ TEST_F(CliWorld, InfoAndLogShowWhatAnOperatorNeeds) {
   EXPECT_NE(log.out.find("3  2025-12-02T00:00:00.002Z  -  smooth"), std::string::npos) << log.out;
 }
 
+TEST_F(CliWorld, HistoryListsAPlayersEditsInABoxAndTimeAndSaysHowFarBackTheLogReaches) {
+  const std::string w = dir_.string();
+  const CliRun all = cli({"world", "history", w});
+  EXPECT_EQ(all.code, 0) << all.err;
+  EXPECT_NE(all.out.find("3 edits: - 2, alice 1"), std::string::npos) << all.out;
+  EXPECT_NE(all.out.find("reaches back to edit 1 (2025-12-02T00:00:00.000Z), the world's first"),
+            std::string::npos)
+      << all.out;
+  const CliRun alice = cli({"world", "history", w, "--player", "alice"});
+  EXPECT_NE(alice.out.find("2  2025-12-02T00:00:00.001Z  alice  brush"), std::string::npos);
+  EXPECT_NE(alice.out.find("1 edit: alice 1"), std::string::npos) << alice.out;
+  // The explosion at x = 3 (radius 6) touches x 0..9; the brush and the smooth do not.
+  const CliRun box = cli({"world", "history", w, "--min", "0,-1000,0", "--max", "9,1000,9"});
+  EXPECT_NE(box.out.find("1 edit: - 1"), std::string::npos) << box.out;
+  const CliRun span = cli({"world", "history", w, "--since", "2025-12-02T00:00:00", "--until",
+                           "2025-12-02"});  // both midnight: edit 1 only
+  EXPECT_NE(span.out.find("1 edit: - 1"), std::string::npos) << span.out;
+  EXPECT_NE(cli({"world", "history", w, "--since", "1h"}).out.find("0 edits"), std::string::npos);
+  EXPECT_EQ(cli({"world", "history", w, "--since", "yesterday"}).code, 2);
+  EXPECT_EQ(cli({"world", "history", w, "--min", "0,0,0"}).code, 2);
+  store::open_world_store(w, {})->write_checkpoint({}, 2, 2);  // trims 1..2
+  EXPECT_NE(cli({"world", "history", w}).out.find("reaches back to edit 3 ("), std::string::npos);
+}
+
 TEST_F(CliWorld, VerifyAcceptsTheServersCheckpointsAndNamesABadOne) {
   checkpoint_first_two(false);
   const CliRun good = cli({"world", "verify", dir_.string()});

@@ -29,9 +29,9 @@ class GatedStore final : public store::WorldStore {
   }
   store::RegionTable read_regions() override { return inner_.read_regions(); }
   void write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
-                        uint64_t trim_through) override {
+                        store::LogTrim trim) override {
     if (gate_checkpoints_) pass_gate();
-    inner_.write_checkpoint(chunks, seq, trim_through);
+    inner_.write_checkpoint(chunks, seq, trim);
   }
   std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {
     return inner_.read_chunk(c);

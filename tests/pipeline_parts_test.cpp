@@ -178,7 +178,8 @@ TEST(Checkpoints, AWrittenCheckpointStoresItsChunksAndTrimsTheLog) {
   ChunkStore store;
   WorldState state(1);
   const auto t0 = Checkpoints::Clock::now();
-  Checkpoints checkpoints(store, false, {.interval = std::chrono::seconds(10)}, false, nullptr, t0);
+  Checkpoints checkpoints(store, false, {.interval = std::chrono::seconds(10)}, LogRetention{},
+                          nullptr, t0);
   EXPECT_FALSE(checkpoints.has_unsaved());
   EXPECT_FALSE(checkpoints.due(t0 + std::chrono::hours(1)));  // nothing to write
   edited_chunk(state, checkpoints, {1, 0, 0});
@@ -211,7 +212,8 @@ TEST(Checkpoints, AChunkForgottenWhileACheckpointHoldsItIsNotMarkedStoredAndMayL
   ChunkStore store;
   WorldState state(1);
   const auto t0 = Checkpoints::Clock::now();
-  Checkpoints checkpoints(store, false, {.interval = std::chrono::seconds(1)}, true, nullptr, t0);
+  Checkpoints checkpoints(store, false, {.interval = std::chrono::seconds(1)},
+                          LogRetention{.keep_all = true}, nullptr, t0);
   edited_chunk(state, checkpoints, {1, 0, 0});
   edited_chunk(state, checkpoints, {2, 0, 0});
   const auto at = t0 + std::chrono::seconds(1);
@@ -239,7 +241,7 @@ TEST(Checkpoints, AFailedCheckpointLeavesItsChunksAndEditsUnsavedAndRestsBeforeT
   const auto t0 = Checkpoints::Clock::now();
   Checkpoints checkpoints(store, false,
                           {.interval = std::chrono::seconds(1), .retry = std::chrono::seconds(5)},
-                          true, nullptr, t0);
+                          LogRetention{.keep_all = true}, nullptr, t0);
   edited_chunk(state, checkpoints, {0, 0, 7});
   checkpoints.logged(2);
   const auto at = t0 + std::chrono::seconds(1);
@@ -263,7 +265,7 @@ TEST(Checkpoints, AFailedCheckpointLeavesItsChunksAndEditsUnsavedAndRestsBeforeT
 
 TEST(Checkpoints, TheLogIsFullAtItsBound) {
   ChunkStore store;
-  Checkpoints checkpoints(store, false, {.max_log_tail = 10}, false, nullptr,
+  Checkpoints checkpoints(store, false, {.max_log_tail = 10}, LogRetention{}, nullptr,
                           Checkpoints::Clock::now());
   EXPECT_FALSE(checkpoints.log_full(9));
   EXPECT_TRUE(checkpoints.log_full(10));

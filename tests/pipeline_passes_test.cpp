@@ -37,7 +37,7 @@ struct PassWorld {
       : memory(MemoryBudget(budget), seconds(60), seconds(1), Clock::now()) {
     if (durable)
       checkpoints = std::make_unique<Checkpoints>(store, false, CheckpointLimits{.max_log_tail = 4},
-                                                  false, nullptr, Clock::now());
+                                                  LogRetention{}, nullptr, Clock::now());
   }
   EditWorld access() {
     return {state, generator, memory, meshes, checkpoints.get(), 0, [this] {
@@ -260,7 +260,7 @@ TEST(Checkpoints, ATurnAnswersTheBatchesInFlightBeforeItStartsOrTakesInACheckpoi
   ChunkStore store;
   WorldState state(1);
   const auto t0 = Checkpoints::Clock::now();
-  Checkpoints checkpoints(store, false, {.interval = seconds(10)}, false, nullptr, t0);
+  Checkpoints checkpoints(store, false, {.interval = seconds(10)}, LogRetention{}, nullptr, t0);
   int drains = 0;
   const auto drain = [&] {
     ++drains;
@@ -292,7 +292,8 @@ TEST(Checkpoints, ATurnAnswersTheBatchesInFlightBeforeItStartsOrTakesInACheckpoi
 TEST(Checkpoints, TheLastOneAtStopWritesEverythingUnsaved) {
   ChunkStore store;
   WorldState state(1);
-  Checkpoints checkpoints(store, false, {.interval = seconds(3600)}, false, nullptr, Clock::now());
+  Checkpoints checkpoints(store, false, {.interval = seconds(3600)}, LogRetention{}, nullptr,
+                          Clock::now());
   for (int x = 0; x < 3; ++x) {
     state.chunks.insert({x, 0, 0}, test::rock());
     state.info[{x, 0, 0}] = {.modified = true, .unsaved = true};

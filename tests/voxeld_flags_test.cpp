@@ -300,7 +300,7 @@ TEST(VoxeldConfigFile, PrintConfigWritesAFileThatReadsBackToTheSameConfiguration
   ASSERT_EQ(read.code, -1) << read.err;
   EXPECT_EQ(read.config.net.port, 7900);
   EXPECT_EQ(read.config.world.max_memory, size_t{3} << 30);
-  EXPECT_TRUE(read.config.world.keep_log);
+  EXPECT_TRUE(read.config.world.history.keep_all);
   EXPECT_FLOAT_EQ(read.config.net.max_lod_distance, 1.5f);
   const Parsed again = parse({"--config", file.path, "--print-config"});
   ASSERT_EQ(again.code, 0) << again.err;

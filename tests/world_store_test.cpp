@@ -290,6 +290,27 @@ TEST_P(WorldStoreTest, CheckpointsReplaceChunksAndTrimTheLog) {
   EXPECT_EQ(listed, 2u);
 }
 
+TEST_P(WorldStoreTest, ACheckpointKeepsTheEditsOfTheHistoryWindow) {
+  auto s = open_world_store(fresh_world(), {.seed = 1});
+  std::vector<LoggedEdit> log;
+  // Accepted at 100, 200, ..., 1000 ms; the clock went back once (seq 6 at 150 ms).
+  for (uint64_t seq = 1; seq <= 10; ++seq)
+    log.push_back({seq, seq == 6 ? 150 : static_cast<int64_t>(seq) * 100, "",
+                   world::Smooth{{0, 0, 0}, 2, 1}});
+  s->append_edits(log);
+  const std::vector<ChunkRecord> chunks{{{0, 0, 0}, 8, encode_chunk(full_chunk(1))}};
+  // Through 8, but nothing accepted at 450 ms or later, nor after it: 1..4 go.
+  s->write_checkpoint(chunks, 8, LogTrim{8, 450});
+  std::vector<uint64_t> seqs;
+  s->for_each_edit(0, [&](const LoggedEdit& l) { return seqs.push_back(l.seq), true; });
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{5, 6, 7, 8, 9, 10}));
+  // A window past every edit: through the checkpoint, as without one.
+  s->write_checkpoint(chunks, 8, LogTrim{8, 5000});
+  seqs.clear();
+  s->for_each_edit(0, [&](const LoggedEdit& l) { return seqs.push_back(l.seq), true; });
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{9, 10}));
+}
+
 TEST_P(WorldStoreTest, ReadOnlyToolsReadAWorldWhileItIsWritten) {
   const std::string where = fresh_world();
   auto writer = open_world_store(where, {.seed = 3});

@@ -13,7 +13,7 @@
 //   lease_ms = 3000
 //   zone_chunks = 16        # fixed when the world is made; every node must agree
 //   max_followed_zones = 32 # zones followed at once for players' views (each holds a
-//                           # database connection: max_connections >= nodes x (this + 4))
+//                           # database connection: max_connections >= nodes x (this + 5))
 //   follow_idle_s = 300     # a zone no player here viewed this long is no longer followed,
 //                           # and its changed chunks leave memory (installed again when viewed)
 //

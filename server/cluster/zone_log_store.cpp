@@ -144,7 +144,7 @@ void ZoneLogStore::checkpoint_started(uint64_t seq, std::vector<ZoneTable::Check
 }
 
 void ZoneLogStore::write_checkpoint(std::span<const store::ChunkRecord> chunks, uint64_t seq,
-                                    uint64_t /*trim_through: the zones' logs are kept*/) {
+                                    store::LogTrim /*the zones' logs are kept*/) {
   std::vector<ZoneTable::CheckpointZone> zones;
   {
     std::lock_guard lock(mutex_);

@@ -68,7 +68,7 @@ class ZoneLogStore : public store::WorldStore {
   // edits by from now on; nullopt when they are at the version it has (and not in doubt).
   // Throws store::StoreError.
   std::optional<store::RegionTable> take_regions();
-  void write_checkpoint(std::span<const store::ChunkRecord>, uint64_t, uint64_t) override;
+  void write_checkpoint(std::span<const store::ChunkRecord>, uint64_t, store::LogTrim) override;
   // A changed chunk evicted from a zone held here (ZoneTable::may_evict), as the zone's
   // checkpoint has it; StoreError when that is past what the world applied of the zone.
   std::optional<store::ChunkRecord> read_chunk(world::ChunkCoord c) override {

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -165,8 +166,12 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node,
   std::function<void()> arm_hangup = [&] {
     hangups.async_wait([&](boost::system::error_code ec, int) {
       if (ec) return;
-      spdlog::info("SIGHUP: reading the bans again");
-      if (bans) bans->reload();
+      if (bans) {
+        spdlog::info("SIGHUP: reading the bans again");
+        bans->reload();
+      } else {
+        spdlog::info("SIGHUP: nothing to read again (--in-memory: bans live in memory)");
+      }
       arm_hangup();
     });
   };
@@ -203,6 +208,9 @@ void start_failed(const VoxeldConfig& c, const std::string& why) {
 }  // namespace
 
 int run_voxeld(VoxeldConfig c, const char* allocator) {
+  // SIGHUP (the bans read again) must not stop voxeld while it opens its world or after it
+  // has stopped serving: ignored outside serve(), whose signal set takes it meanwhile.
+  std::signal(SIGHUP, SIG_IGN);
   if (c.json_logs) use_json_logs();
   spdlog::set_level(spdlog::level::from_str(c.log_level));
   if (c.net.http && c.net.http->root.empty()) c.net.http->root = default_http_root();
@@ -251,6 +259,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
   }
   try {
     serve(c, node.get(), bans);
+    std::signal(SIGHUP, SIG_IGN);  // Asio gave it back its default (ending the process)
     spdlog::info("voxeld stopped");
   } catch (const std::exception& e) {
     spdlog::error("voxeld: {}", e.what());

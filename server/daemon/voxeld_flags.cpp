@@ -26,6 +26,7 @@ struct RawFlags {
   long idle_ms = 60000, handshake_ms = 5000, write_ms = 10000, frame_ms = 10000;
   long evict_after_s = 120, lod_remesh_ms = 750;
   double checkpoint_s = 10;
+  double history_days = 7;
   int metrics_port = -1;
   std::string http_port = "7780", http_root;
   std::vector<std::string> http_origins;
@@ -80,9 +81,12 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
   add("checkpoint-interval", po::value<double>(&r.checkpoint_s)->default_value(10),
       "seconds between checkpoints of the changed chunks (sooner past 2,048 chunks or 20,000 "
       "edits); a restart replays the log since the last one");
-  add("keep-log", po::bool_switch(&world.keep_log),
+  add("keep-log", po::bool_switch(&world.history.keep_all),
       "keep every edit in the log (an audit trail; voxel-cli world log) instead of deleting "
-      "what a checkpoint includes");
+      "what a checkpoint includes once it is older than --history-days");
+  add("history-days", po::value<double>(&r.history_days)->default_value(7),
+      "days of edits the log keeps past its checkpoints: what voxel-cli world history lists "
+      "(0: none)");
   add("in-memory", po::bool_switch(&c.in_memory),
       "keep no world on disk: every edit is lost when voxeld stops (benchmarks)");
   add("threads", po::value<int>(&world.threads)->default_value(0),
@@ -227,6 +231,8 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
          "--proxy-protocol-from must be an IP address such as 127.0.0.1 (got '" + proxy + "')");
     if (!ec) net.tcp_proxies.push_back(net::address_text(address));
   }
+  rule(r.history_days >= 0 && r.history_days <= 3650,
+       fmt::format("--history-days must be 0..3650 (got {})", r.history_days));
   rule(r.checkpoint_s >= 0.01 && r.checkpoint_s <= 86400,
        fmt::format("--checkpoint-interval must be 0.01..86400 (got {})", r.checkpoint_s));
   // The view radius bounds each session's memory (a ball of radius r holds ~4.2 r^3 chunks).
@@ -283,6 +289,8 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   world.lod.remesh_interval = std::chrono::milliseconds(r.lod_remesh_ms);
   world.evict_after = std::chrono::seconds(r.evict_after_s);
   world.checkpoint.interval = std::chrono::milliseconds(static_cast<long>(r.checkpoint_s * 1000));
+  world.history.window =
+      std::chrono::milliseconds(static_cast<int64_t>(r.history_days * 86400.0 * 1000.0));
   if (vm.count("seed")) c.seed = vm["seed"].as<uint64_t>();
   world.seed = c.seed.value_or(1);  // a stored world's own seed replaces it when opened
   if (r.metrics_port >= 0) c.metrics_port = static_cast<uint16_t>(r.metrics_port);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <optional>
 #include <string>
 
 #include "server/net/asio.hpp"
@@ -34,6 +35,19 @@ inline std::string address_key(const boost::asio::ip::address& a) {
     return ip::address_v6(bytes).to_string() + "/64";
   }
   return a.is_v6() ? ip::make_address_v4(ip::v4_mapped, a.to_v6()).to_string() : a.to_string();
+}
+
+// An address typed by a person or written into the bans table (docs/PROTOCOL.md 4.11):
+// "203.0.113.7", "::ffff:203.0.113.7", "2001:db8::5" or "2001:db8::/64" (the key of an IPv6
+// address ends so): its address_key, or nullopt when it is none of these.
+inline std::optional<std::string> address_key_of(std::string text) {
+  const bool prefix = text.size() > 3 && text.ends_with("/64");
+  if (prefix) text.resize(text.size() - 3);
+  if (text.empty() || text.size() > 64) return std::nullopt;
+  boost::system::error_code ec;
+  const auto a = boost::asio::ip::make_address(text, ec);
+  if (ec || (prefix && (!a.is_v6() || a.to_v6().is_v4_mapped()))) return std::nullopt;
+  return address_key(a);
 }
 
 }  // namespace vox::net

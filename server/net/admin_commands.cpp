@@ -33,10 +33,9 @@ Target target_of(const std::string& player_id, const std::string& address) {
     if (auto why = store::ban_problem(probe)) return {std::nullopt, *why};
     return {std::make_pair(Ban::Kind::kPlayer, player_id), ""};
   }
-  boost::system::error_code ec;
-  const auto a = boost::asio::ip::make_address(address.size() <= 64 ? address : "", ec);
-  if (ec) return {std::nullopt, "'" + escape_for_log(address, 64) + "' is not an IP address"};
-  return {std::make_pair(Ban::Kind::kAddress, address_key(a)), ""};
+  std::optional<std::string> key = address_key_of(address);
+  if (!key) return {std::nullopt, "'" + escape_for_log(address, 64) + "' is not an IP address"};
+  return {std::make_pair(Ban::Kind::kAddress, std::move(*key)), ""};
 }
 
 wire::Ban to_wire(const Ban& b) {
@@ -71,12 +70,13 @@ wire::AdminResult::Status status_of(BanKeeper::Outcome::Status s) {
 
 size_t close_matching(SessionDirectory<ClientSession>& sessions, Ban::Kind kind,
                       const std::string& target, wire::Error::Code code, const std::string& message,
-                      int64_t banned_until_unix_ms,
-                      uint64_t except_session) {  // any thread
+                      int64_t banned_until_unix_ms, uint64_t except_session,
+                      bool spare_admins) {  // any thread
   size_t closed = 0;
   for (const auto& s : sessions.live()) {
     const std::optional<PlayerCard> card = s->card();
     if (!card || card->session == except_session) continue;
+    if (spare_admins && card->role == auth::Role::kAdmin) continue;
     if ((kind == Ban::Kind::kPlayer ? card->player_id : card->address) != target) continue;
     s->close_with_error(code, message, banned_until_unix_ms);
     ++closed;
@@ -159,7 +159,7 @@ void ClientSession::kick(const wire::Kick& kick, wire::Envelope& reply) {
   const auto& [kind, target] = *t.who;
   const size_t closed = close_matching(
       *services_.sessions, kind, target, wire::Error::KICKED,
-      kick.reason().empty() ? "kicked by an admin" : "kicked: " + kick.reason(), 0, id_);
+      kick.reason().empty() ? "kicked by an admin" : "kicked: " + kick.reason(), 0, id_, false);
   log_admin(fmt::format("kicked {} {} ({} connections){}", store::to_string(kind),
                         escape_for_log(target), closed,
                         kick.reason().empty() ? "" : ": " + escape_for_log(kick.reason())));
@@ -189,6 +189,8 @@ void ClientSession::ban(const wire::Ban& request, wire::Envelope& reply) {
                   static_cast<int64_t>(std::min(request.duration_seconds(), kMaxBanSeconds)) * 1000;
   }
   std::optional<std::string> problem = t.who ? store::ban_problem(b) : t.problem;
+  if (!problem && b.kind == Ban::Kind::kPlayer && b.target == player_id_)
+    problem = "an admin may not ban its own player id (it could not connect to lift the ban)";
   if (!problem && request.duration_seconds() > kMaxBanSeconds)
     problem = "a ban lasts at most 100 years (duration 0: until unbanned)";
   if (!problem && admin_commands_in_flight_ >= kMaxAdminCommandsInFlight)
@@ -208,9 +210,9 @@ void ClientSession::ban(const wire::Ban& request, wire::Envelope& reply) {
       r->set_status(status_of(out.status));
       r->set_reason(out.message);
       if (out.status != BanKeeper::Outcome::Status::kOk) return self->queue_control(reply);
-      const size_t closed =
-          close_matching(*self->services_.sessions, out.ban.kind, out.ban.target,
-                         wire::Error::BANNED, describe_ban(out.ban), out.ban.until_ms, self->id_);
+      const size_t closed = close_matching(
+          *self->services_.sessions, out.ban.kind, out.ban.target, wire::Error::BANNED,
+          describe_ban(out.ban), out.ban.until_ms, self->id_, out.ban.kind == Ban::Kind::kAddress);
       *r->add_bans() = to_wire(out.ban);
       r->set_kicked(static_cast<uint32_t>(closed));
       self->log_admin(fmt::format("banned {} {} ({} connections closed): {}",

@@ -4,6 +4,7 @@
 
 #include <ctime>
 
+#include "server/net/address_key.hpp"
 #include "server/world/thread_name.hpp"
 
 namespace vox::net {
@@ -173,9 +174,20 @@ void BanKeeper::read_store(bool asked) {
     spdlog::warn("bans: could not read them again (the ones in force stay): {}", e.what());
     return;
   }
+  // An address as admission counts it, whatever form the row has it in.
+  for (Ban& b : read.bans) {
+    if (b.kind != Ban::Kind::kAddress) continue;
+    std::optional<std::string> key = address_key_of(b.target);
+    if (!key) ++read.skipped, b.target.clear();
+    if (key) b.target = std::move(*key);
+  }
+  std::erase_if(read.bans, [](const Ban& b) { return b.target.empty(); });
   if (read.skipped)
     spdlog::warn("bans: {} rows of {} are not valid bans and are ignored", read.skipped,
                  store_->name());
+  if (read.over)
+    spdlog::warn("bans: {} bans of {} are over the {} a world may have and are ignored", read.over,
+                 store_->name(), store::kMaxBans);
   std::vector<Ban> added;
   size_t now_in_force = 0;
   {

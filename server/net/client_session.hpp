@@ -122,8 +122,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void unban(const wire::Ban& ban, wire::Envelope& reply);
   void list_bans(const std::string& cursor, wire::Envelope& reply);
   void log_admin(const std::string& what);
-  // A ban in force for this connection's player or address: it is told and closed.
-  bool refuse_if_banned();
+  bool refuse_if_banned(const std::string& player_id, auth::Role role);
   void handle_edit(const wire::Edit& edit);
   void on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks);
   void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
@@ -153,7 +152,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   // The card's counters (written on the strand, read by any thread).
   std::atomic<uint64_t> edits_accepted_{0}, bytes_sent_{0};
   std::atomic<bool> leaving_{false};  // told to close: no card (listed, kicked) any more
-  int64_t connected_unix_ms_ = 0;  // set at Hello, before player_
+  int64_t connected_unix_ms_ = 0;     // set at Hello, before player_
 
   std::string name_;       // as the client sent it, or the token's display name
   std::string log_name_;   // escaped, for logs
@@ -175,9 +174,10 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
 };
 
 // Closes every player connection of `target` (a player id or an address) but
-// `except_session` with `code`; returns how many. Any thread.
+// `except_session` (and admins', with `spare_admins`) with `code`; returns how many. Any
+// thread.
 size_t close_matching(SessionDirectory<ClientSession>& sessions, store::Ban::Kind kind,
                       const std::string& target, wire::Error::Code code, const std::string& message,
-                      int64_t banned_until_unix_ms, uint64_t except_session);
+                      int64_t banned_until_unix_ms, uint64_t except_session, bool spare_admins);
 
 }  // namespace vox::net

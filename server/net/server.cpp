@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <map>
+
 #include "proto/framing.hpp"
 #include "server/net/address_key.hpp"
 #include "server/net/proxy_header.hpp"
@@ -55,13 +57,24 @@ void Server::start() {
   port_ = acceptor_.local_endpoint().port();
   // Bans found on a reload (another node's, or the table edited): their players go.
   bans_->start([sessions = sessions_](const std::vector<store::Ban>& added) {
-    for (const store::Ban& b : added) {
-      const size_t closed = close_matching(*sessions, b.kind, b.target, wire::Error::BANNED,
-                                           describe_ban(b), b.until_ms, 0);
-      if (closed)
-        spdlog::info("bans: {} {} banned elsewhere: {} connections closed",
-                     store::to_string(b.kind), escape_for_log(b.target), closed);
+    // One pass over the players, however many bans came (an import of thousands).
+    std::map<std::pair<store::Ban::Kind, std::string>, const store::Ban*> by_target;
+    for (const store::Ban& b : added) by_target.emplace(std::make_pair(b.kind, b.target), &b);
+    size_t closed = 0;
+    for (const auto& s : sessions->live()) {
+      const std::optional<PlayerCard> card = s->card();
+      if (!card) continue;
+      auto it = card->player_id.empty()
+                    ? by_target.end()
+                    : by_target.find({store::Ban::Kind::kPlayer, card->player_id});
+      if (it == by_target.end() && card->role != auth::Role::kAdmin)
+        it = by_target.find({store::Ban::Kind::kAddress, card->address});
+      if (it == by_target.end()) continue;
+      s->close_with_error(wire::Error::BANNED, describe_ban(*it->second), it->second->until_ms);
+      ++closed;
     }
+    if (closed)
+      spdlog::info("bans: {} new bans from the store closed {} connections", added.size(), closed);
   });
   subscription_ = pipeline_.subscribe([this](const std::vector<world::ChunkCoord>& changed) {
     // Pipeline thread: at once, or gathered while the last fan-out is unhandled.

@@ -44,16 +44,8 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
     send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
     return;
   }
-  if (auto ban = services_.bans->match(claims ? claims->player_id : "", address_)) {
-    ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kBanned)]);
-    if (auto suppressed = services_.logs->allow("banned", 10)) {
-      spdlog::info("session {}: {} {} is banned: refused{}", id_, store::to_string(ban->kind),
-                   escape_for_log(ban->target),
-                   *suppressed ? fmt::format(" [{} more refused]", *suppressed) : std::string());
-    }
-    send_error(wire::Error::BANNED, describe_ban(*ban), true, ban->until_ms);
+  if (refuse_if_banned(claims ? claims->player_id : "", claims ? claims->role : config_.open_role))
     return;
-  }
   if (services_.admission->promote(address_) != AdmissionControl::Verdict::kAdmit) {
     ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kServerFull)]);
     send_error(wire::Error::SERVER_FULL,
@@ -79,6 +71,27 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
                  auth::to_string(role_), address_,
                  *suppressed ? fmt::format(" [{} more joined]", *suppressed) : std::string());
   }
+  // A ban made while this Hello was being checked: the admin's sweep of the players may
+  // have run before this session was one, so it looks again now that it is.
+  refuse_if_banned(player_id_, role_);
+}
+
+// A ban in force for `player_id` or this connection's address: counted, logged, told
+// (BANNED with the reason and the end) and closed. Admins are never held by an address
+// ban (one could lock every admin behind a shared address out). Returns whether banned.
+bool ClientSession::refuse_if_banned(const std::string& player_id, auth::Role role) {
+  std::optional<store::Ban> ban = services_.bans->match(player_id, address_);
+  if (ban && ban->kind == store::Ban::Kind::kAddress && role == auth::Role::kAdmin)
+    ban = services_.bans->match(player_id, "");
+  if (!ban) return false;
+  ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kBanned)]);
+  if (auto suppressed = services_.logs->allow("banned", 10)) {
+    spdlog::info("session {}: {} {} is banned: refused{}", id_, store::to_string(ban->kind),
+                 escape_for_log(ban->target),
+                 *suppressed ? fmt::format(" [{} more refused]", *suppressed) : std::string());
+  }
+  send_error(wire::Error::BANNED, describe_ban(*ban), true, ban->until_ms);
+  return true;
 }
 
 std::optional<auth::PlayerClaims> ClientSession::verify_hello_token(const wire::Hello& hello) {

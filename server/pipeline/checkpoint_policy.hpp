@@ -14,6 +14,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "server/store/world_store.hpp"
+
 namespace vox::pipeline {
 
 struct CheckpointLimits {
@@ -24,6 +26,20 @@ struct CheckpointLimits {
   // a checkpoint is due by then whatever max_unsaved_edits says.
   uint64_t max_log_tail = 40000;
   std::chrono::milliseconds retry{std::chrono::seconds(5)};
+};
+
+// How much of the log checkpoints keep: all of it, or the edits of the last `window`.
+struct LogRetention {
+  bool keep_all = false;
+  std::chrono::milliseconds window{0};
+  // What a checkpoint through `seq` written at `now` deletes.
+  store::LogTrim trim(uint64_t seq, std::chrono::system_clock::time_point now) const {
+    if (keep_all) return {0};
+    if (window.count() <= 0) return {seq};
+    return {seq,
+            std::chrono::duration_cast<std::chrono::milliseconds>((now - window).time_since_epoch())
+                .count()};
+  }
 };
 
 class CheckpointPolicy {

@@ -51,7 +51,7 @@ CheckpointResult CheckpointWriter::run(const CheckpointJob& job) {
       result.coords.push_back(c);
       records.push_back({c, job.seq, std::move(bytes)});
     }
-    store_.write_checkpoint(records, job.seq, job.trim_through);
+    store_.write_checkpoint(records, job.seq, job.trim);
     result.ok = true;
   } catch (const std::exception& e) {  // the store's error, or no memory to encode
     {

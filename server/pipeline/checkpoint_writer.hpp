@@ -34,7 +34,7 @@ namespace vox::pipeline {
 
 struct CheckpointJob {
   uint64_t seq = 0;           // the chunks include every edit through this one, and no later one
-  uint64_t trim_through = 0;  // the log is deleted through this edit (0: kept)
+  store::LogTrim trim;  // what the log loses
   // The pipeline's chunks: never evicted, never replaced, and changed only after
   // preserve(), until the result is taken.
   std::vector<std::pair<world::ChunkCoord, const world::Chunk*>> chunks;

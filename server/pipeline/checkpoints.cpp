@@ -13,10 +13,10 @@ namespace vox::pipeline {
 using world::ChunkCoord;
 
 Checkpoints::Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
-                         bool keep_log, std::function<void()> wake, Clock::time_point now)
+                         LogRetention history, std::function<void()> wake, Clock::time_point now)
     : limits_(limits),
       own_connection_(own_connection),
-      keep_log_(keep_log),
+      history_(history),
       policy_(limits, now),
       writer_(std::make_unique<CheckpointWriter>(store, own_connection, std::move(wake))) {}
 
@@ -36,7 +36,7 @@ bool Checkpoints::log_full(uint64_t log_tail) {
 
 std::optional<CheckpointResult> Checkpoints::start(WorldState& st, uint64_t seq,
                                                    Clock::time_point now) {
-  CheckpointJob job{.seq = seq, .trim_through = keep_log_ ? 0 : seq};
+  CheckpointJob job{.seq = seq, .trim = history_.trim(seq, std::chrono::system_clock::now())};
   const std::vector<ChunkCoord> coords = take_unsaved(st, seq);
   for (const ChunkCoord& c : coords) {
     WorldState::ChunkInfo& info = st.info.at(c);  // unsaved chunks are never evicted

@@ -43,9 +43,9 @@ class Checkpoints {
 
   // `own_connection`: `store` is a second connection, written on the writer's thread
   // (`wake` runs there when a checkpoint is done); otherwise the pipeline's own, written
-  // on the pipeline thread at start(). `keep_log`: checkpoints leave the log whole.
-  Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits, bool keep_log,
-              std::function<void()> wake, Clock::time_point now);
+  // on the pipeline thread at start(). `history`: what checkpoints leave of the log.
+  Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
+              LogRetention history, std::function<void()> wake, Clock::time_point now);
 
   // A cluster node: each checkpoint writes only what `scope` (called at its start, with
   // its sequence number) allows; chunks outside it stay unsaved and resident. Set once,
@@ -114,7 +114,8 @@ class Checkpoints {
   std::vector<world::ChunkCoord> take_unsaved(WorldState& state, uint64_t seq);
 
   const CheckpointLimits limits_;
-  const bool own_connection_, keep_log_;
+  const bool own_connection_;
+  const LogRetention history_;
   Scope scope_;
   CheckpointPolicy policy_;
   std::unique_ptr<CheckpointWriter> writer_;

@@ -71,9 +71,10 @@ struct PipelineConfig {
   // apply (null: a single node). `store` is then the node's zone logs; no checkpoints are
   // written yet, so every changed chunk stays resident. It must outlive the pipeline.
   ZoneAuthority* zones = nullptr;
-  // Checkpoints leave the log whole (an audit trail of every edit) instead of deleting
-  // what they include.
-  bool keep_log = false;
+  // What checkpoints keep of the log they include: with keep_all every edit (an audit
+  // trail), else the edits accepted within `window` (the history `voxel-cli world history`
+  // lists and a rollback undoes; 0: none, the log is trimmed to what no checkpoint holds).
+  LogRetention history;
   // After a failed append, edits are refused kStorageUnavailable without trying the store
   // again for this long.
   std::chrono::milliseconds store_retry{1000};

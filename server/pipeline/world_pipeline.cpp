@@ -53,7 +53,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     state_->read_stored = [this](ChunkCoord c) { return reader_->read(c); };
     checkpoints_ = std::make_unique<Checkpoints>(
         config_.checkpoint_store ? *config_.checkpoint_store : *config_.store,
-        config_.checkpoint_store != nullptr, config_.checkpoint, config_.keep_log,
+        config_.checkpoint_store != nullptr, config_.checkpoint, config_.history,
         [this] { inbox_.poke(); }, Clock::now());
     if (config_.zones) {  // a cluster node: only the zones it holds, evicted while held
       checkpoints_->set_scope([this](uint64_t s) { return config_.zones->checkpoint_scope(s); });

@@ -37,16 +37,19 @@ bool has_control(const std::string& s) {
 }
 
 // A row read back: kept when it is a valid ban in force, counted as skipped when it is not
-// a valid ban, left when it ended; at most kMaxBans kept.
-void keep(BanStore::Read& out, const std::string& kind, Ban b, int64_t now_ms) {
+// a valid ban (or its times are not integers), as over past kMaxBans; true when it ended.
+bool keep(BanStore::Read& out, const std::string& kind, Ban b, bool integers, int64_t now_ms) {
   if (kind == "player")
     b.kind = Ban::Kind::kPlayer;
   else if (kind == "address")
     b.kind = Ban::Kind::kAddress;
   else
-    return void(++out.skipped);
-  if (ban_problem(b) || b.until_ms < 0 || out.bans.size() >= kMaxBans) return void(++out.skipped);
-  if (!b.expired(now_ms)) out.bans.push_back(std::move(b));
+    return ++out.skipped, false;
+  if (!integers || ban_problem(b) || b.until_ms < 0) return ++out.skipped, false;
+  if (b.expired(now_ms)) return true;
+  if (out.bans.size() >= kMaxBans) return ++out.over, false;
+  out.bans.push_back(std::move(b));
+  return false;
 }
 
 class SqliteBans final : public BanStore {
@@ -66,16 +69,21 @@ class SqliteBans final : public BanStore {
   const std::string& name() const override { return name_; }
 
   Read read(int64_t now_ms) override {
-    Statement(db_, kDeleteEnded, name_).bind(1, world_).bind(2, now_ms).run();
     Read out;
-    Statement q(db_, kSelectBans, name_);
-    q.bind(1, world_);
-    while (q.step()) {
-      Ban b;
-      b.target = q.text(1), b.reason = q.text(2), b.created_by = q.text(3);
-      b.created_ms = q.int64(4), b.until_ms = q.int64(5);
-      keep(out, q.text(0), std::move(b), now_ms);
+    bool ended = false;
+    {
+      Statement q(db_, kSelectBans, name_);
+      q.bind(1, world_);
+      while (q.step()) {
+        Ban b;
+        b.target = q.text(1), b.reason = q.text(2), b.created_by = q.text(3);
+        b.created_ms = q.int64(4), b.until_ms = q.int64(5);
+        // A row written by hand may hold text where times belong (SQLite keeps it).
+        const bool integers = q.is_integer(4) && q.is_integer(5);
+        ended |= keep(out, q.text(0), std::move(b), integers, now_ms);
+      }
     }
+    if (ended) Statement(db_, kDeleteEnded, name_).bind(1, world_).bind(2, now_ms).run();
     return out;
   }
   void put(const Ban& b) override {
@@ -115,14 +123,15 @@ class PostgresBans final : public BanStore {
     Read out;
     run([&](pqxx::connection& c) {
       pqxx::work t(c);
-      t.exec_params(kDeleteEnded, world_, now_ms);
+      bool ended = false;
       for (const auto& row : t.exec_params(kSelectBans, world_)) {
         Ban b;
         b.target = row[1].as<std::string>(), b.reason = row[2].as<std::string>();
         b.created_by = row[3].as<std::string>();
         b.created_ms = row[4].as<int64_t>(), b.until_ms = row[5].as<int64_t>();
-        keep(out, row[0].as<std::string>(), std::move(b), now_ms);
+        ended |= keep(out, row[0].as<std::string>(), std::move(b), true, now_ms);
       }
+      if (ended) t.exec_params(kDeleteEnded, world_, now_ms);
       t.commit();
     });
     return out;
@@ -154,13 +163,23 @@ class PostgresBans final : public BanStore {
         name_, [&] { conn_.reset(); },
         [&] {
           if (!conn_ || !conn_->is_open()) {
-            conn_ = std::make_unique<pqxx::connection>(uri_);
-            pqxx::nontransaction(*conn_).exec(kCreateBans);
+            conn_ = std::make_unique<pqxx::connection>(with_connect_timeout(uri_, kWait));
+            pqxx::nontransaction n(*conn_);
+            // No statement waits long either: the keeper's stop waits for its thread.
+            n.exec("SET statement_timeout = " + std::to_string(kWait.count()));
+            // Nodes starting together on a new database may race to make the table:
+            // one makes it, the others' CREATE fails once; then it is there.
+            try {
+              n.exec(kCreateBans);
+            } catch (const pqxx::sql_error&) {
+              n.exec(kCreateBans);
+            }
           }
           fn(*conn_);
         });
   }
 
+  static constexpr std::chrono::milliseconds kWait{5000};
   const std::string uri_, name_, world_;
   std::unique_ptr<pqxx::connection> conn_;
 };
@@ -176,6 +195,8 @@ std::optional<std::string> ban_problem(const Ban& b) {
            std::to_string(kMaxBanTarget) + " bytes";
   if (b.reason.size() > kMaxBanReason)
     return "a ban's reason is at most " + std::to_string(kMaxBanReason) + " bytes";
+  if (b.created_by.size() > kMaxBanTarget + 5)  // "name:" and a name, or a player id
+    return "a ban's author is at most " + std::to_string(kMaxBanTarget + 5) + " bytes";
   if (has_control(b.target) || has_control(b.reason) || has_control(b.created_by))
     return std::string("a ban holds no control characters");
   return std::nullopt;

@@ -33,8 +33,8 @@ inline constexpr size_t kMaxBanReason = 200;  // bytes
 inline constexpr size_t kMaxBanTarget = 128;  // bytes of a player id or address
 
 const char* to_string(Ban::Kind kind);  // "player", "address"
-// Why `b` cannot be stored (an empty or oversized target or reason, a control character),
-// or nullopt.
+// Why `b` cannot be stored (an empty or oversized target, reason or author, a control
+// character), or nullopt.
 std::optional<std::string> ban_problem(const Ban& b);
 
 class BanStore {
@@ -44,8 +44,11 @@ class BanStore {
   struct Read {
     std::vector<Ban> bans;  // valid and unexpired, at most kMaxBans
     size_t skipped = 0;     // rows that are not a valid ban (kept, never used)
+    size_t over = 0;        // valid bans past kMaxBans (kept, never used)
   };
-  // Every ban in force at `now_ms`; deletes those that ended.
+  // Every ban in force at `now_ms`; deletes those that ended (only when one did: a read
+  // takes no write lock otherwise). An address as the row has it: the caller checks its
+  // form.
   virtual Read read(int64_t now_ms) = 0;
   virtual void put(const Ban& b) = 0;  // adds, or replaces the ban of the same target
   // False when there was no ban of that target.

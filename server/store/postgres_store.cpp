@@ -149,7 +149,7 @@ class PostgresStore final : public WorldStore {
   }
 
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
-                        uint64_t trim_through) override {
+                        LogTrim trim) override {
     refuse_if_read_only();
     const auto seq = static_cast<int64_t>(checkpoint_seq);
     run([&](pqxx::connection& c) {
@@ -181,8 +181,9 @@ class PostgresStore final : public WorldStore {
       t.exec_params("DELETE FROM chunks WHERE seq > $1 AND seq < $2",
                     static_cast<int64_t>(previous), seq);
       t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
-      if (trim_through > 0)
-        t.exec_params("DELETE FROM edit_log WHERE seq <= $1", static_cast<int64_t>(trim_through));
+      if (trim.through > 0)
+        t.exec_params(schema::kTrimLog, static_cast<int64_t>(trim.through),
+                      trim.accepted_before_ms);
       t.commit();
     });
   }

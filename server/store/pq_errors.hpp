@@ -3,12 +3,27 @@
 // store's .cpp files (it includes libpqxx).
 #pragma once
 
+#include <algorithm>
+#include <chrono>
 #include <pqxx/pqxx>
 #include <string>
 
 #include "server/store/postgres_store.hpp"
 
 namespace vox::store {
+
+// The connection string with a connect timeout, unless it sets one: a database host gone
+// silent must not hold a caller (the pipeline thread reads chunks and regions; the ban
+// keeper's stop waits for its thread) for the system's TCP timeout.
+inline std::string with_connect_timeout(const std::string& uri, std::chrono::milliseconds wait) {
+  if (uri.find("connect_timeout") != std::string::npos) return uri;
+  const bool url = uri.rfind("postgres://", 0) == 0 || uri.rfind("postgresql://", 0) == 0;
+  std::string out = uri;
+  out += !url ? " " : uri.find('?') == std::string::npos ? "?" : "&";  // else key=value pairs
+  out += "connect_timeout=";
+  out += std::to_string(std::max<int64_t>(2, wait.count() / 1000));
+  return out;
+}
 
 template <typename Fn, typename Drop>
 auto translate_pq_errors(const std::string& name, Drop&& drop, Fn&& fn) {

@@ -60,6 +60,7 @@ class Statement {
     sqlite3_clear_bindings(stmt_);
   }
   int64_t int64(int col) const { return sqlite3_column_int64(stmt_, col); }
+  bool is_integer(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_INTEGER; }
   std::string text(int col) const {
     const auto* p = sqlite3_column_text(stmt_, col);
     return p ? std::string(reinterpret_cast<const char*>(p),

@@ -167,7 +167,7 @@ class SqliteStore final : public WorldStore {
   }
 
   void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
-                        uint64_t trim_through) override {
+                        LogTrim trim) override {
     // Without an fsync per transaction: each holds the write lock (appends wait) only for
     // its writes. Safe because WAL frames are durable in order: the next append's fsync
     // (synchronous=FULL) covers them, and a crash of the machine before it loses the whole
@@ -175,7 +175,7 @@ class SqliteStore final : public WorldStore {
     exec("PRAGMA synchronous=NORMAL");
     {
       Synchronous full{*this};
-      write_rows_and_move(chunks, checkpoint_seq, trim_through);
+      write_rows_and_move(chunks, checkpoint_seq, trim);
     }
     // Copies the WAL into the database now, without waiting for (or holding up) appends,
     // rather than in the append that next crosses SQLite's auto-checkpoint threshold.
@@ -220,7 +220,7 @@ class SqliteStore final : public WorldStore {
  private:
   // The chunk rows 64 per transaction, then the small one that makes them visible.
   void write_rows_and_move(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
-                           uint64_t trim_through) {
+                           const LogTrim& trim) {
     Statement put = cached(
         "INSERT INTO chunks (x, y, z, seq, samples) VALUES (?, ?, ?, ?, ?) "
         "ON CONFLICT (x, y, z, seq) DO UPDATE SET samples = excluded.samples");
@@ -252,9 +252,9 @@ class SqliteStore final : public WorldStore {
     failed.bind(1, static_cast<int64_t>(previous)).bind(2, static_cast<int64_t>(checkpoint_seq));
     failed.run();
     set_meta(schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
-    if (trim_through > 0) {
-      Statement trim(conn_.db, "DELETE FROM edit_log WHERE seq <= ?", name_);
-      trim.bind(1, static_cast<int64_t>(trim_through)).run();
+    if (trim.through > 0) {
+      Statement del(conn_.db, schema::kTrimLog, name_);
+      del.bind(1, static_cast<int64_t>(trim.through)).bind(2, trim.accepted_before_ms).run();
     }
     t.commit();
   }

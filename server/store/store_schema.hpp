@@ -43,6 +43,11 @@ inline constexpr const char* kInsertRegion =
     "INSERT INTO regions (" VOX_REGION_COLUMNS ") " VOX_REGION_VALUES;
 inline constexpr const char* kSelectRegions =
     "SELECT " VOX_REGION_COLUMNS " FROM regions ORDER BY id";
+// A checkpoint's trim of the log (LogTrim): $1 through, $2 accepted_before_ms. The first
+// edit kept is found from the oldest on (the rows about to go, then one): no index on at_ms.
+inline constexpr const char* kTrimLog =
+    "DELETE FROM edit_log WHERE seq <= $1 AND seq < COALESCE((SELECT seq FROM edit_log "
+    "WHERE at_ms >= $2 ORDER BY seq LIMIT 1), CAST($1 AS BIGINT) + 1)";
 // Chunk rows per transaction while a checkpoint writes (about 0.8 MB).
 inline constexpr size_t kCheckpointPart = 64;
 

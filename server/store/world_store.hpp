@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
@@ -60,6 +61,17 @@ struct RegionWrite {
 struct RegionTable {
   std::vector<world::Region> regions;  // by id
   uint64_t next_id = 1;                // above every id ever given
+};
+
+// What a checkpoint deletes from the log: the edits through `through` (0: none), but from
+// the first edit accepted at or after `accepted_before_ms` on, none (the history window:
+// the log stays one contiguous tail).
+struct LogTrim {
+  LogTrim(uint64_t through_seq = 0,  // NOLINT: a plain seq trims it all, as before windows
+          int64_t before_ms = std::numeric_limits<int64_t>::max())
+      : through(through_seq), accepted_before_ms(before_ms) {}
+  uint64_t through = 0;
+  int64_t accepted_before_ms = std::numeric_limits<int64_t>::max();
 };
 
 struct ChunkRecord {
@@ -117,11 +129,11 @@ class WorldStore {
   // world may have, throws StoreError; a world from before regions has none.
   virtual RegionTable read_regions() = 0;
   // Writes (replaces) the chunks, records that the chunks include every edit up to
-  // `checkpoint_seq`, and deletes the log up to `trim_through` (0: keep it): all or
-  // nothing for readers, in several short transactions (another connection's appends are
-  // not held up for long). Each chunk's seq must be `checkpoint_seq`.
+  // `checkpoint_seq`, and trims the log as `trim` says: all or nothing for readers, in
+  // several short transactions (another connection's appends are not held up for long).
+  // Each chunk's seq must be `checkpoint_seq`.
   virtual void write_checkpoint(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
-                                uint64_t trim_through) = 0;
+                                LogTrim trim) = 0;
   virtual std::optional<ChunkRecord> read_chunk(world::ChunkCoord c) = 0;
   // Every stored chunk's coordinate and seq.
   virtual void for_each_chunk(const std::function<void(world::ChunkCoord, uint64_t seq)>& fn) = 0;

@@ -33,19 +33,6 @@ std::string describe(world::ZoneId z) {
   return "zone (" + std::to_string(z.x) + ", " + std::to_string(z.z) + ")";
 }
 
-// The connection string with a connect timeout, unless it sets one: a database host gone
-// silent must not hold a caller (the pipeline thread reads chunks and regions) for the
-// system's TCP timeout.
-std::string with_connect_timeout(const std::string& uri, std::chrono::milliseconds lease) {
-  if (uri.find("connect_timeout") != std::string::npos) return uri;
-  const bool url = uri.rfind("postgres://", 0) == 0 || uri.rfind("postgresql://", 0) == 0;
-  std::string out = uri;
-  out += !url ? " " : uri.find('?') == std::string::npos ? "?" : "&";  // else key=value pairs
-  out += "connect_timeout=";
-  out += std::to_string(std::max<int64_t>(2, lease.count() / 1000));
-  return out;
-}
-
 }  // namespace
 
 bool is_cluster_world(const std::string& uri) {
