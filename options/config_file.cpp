@@ -248,6 +248,21 @@ ConfigFile store_config_file(const std::string& path, const po::options_descript
   return file;
 }
 
+std::map<std::string, std::vector<std::string>> effective_values(
+    const po::options_description& opts, const po::variables_map& vm,
+    const std::set<std::string>& skipped) {
+  std::map<std::string, std::vector<std::string>> out;
+  for (const auto& d : opts.options()) {
+    const std::string& key = d->long_name();
+    if (key.empty() || skipped.count(key) != 0) continue;
+    const auto it = vm.find(key);
+    const auto values =
+        it == vm.end() || it->second.empty() ? std::nullopt : value_text(it->second.value());
+    out[key] = values ? *values : std::vector<std::string>{};
+  }
+  return out;
+}
+
 void write_config_file(std::ostream& out, const po::options_description& opts,
                        const po::variables_map& vm, const std::set<std::string>& skipped) {
   for (const auto& d : opts.options()) {

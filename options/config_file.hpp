@@ -40,4 +40,10 @@ ConfigFile store_config_file(const std::string& path, const po::options_descript
 void write_config_file(std::ostream& out, const po::options_description& opts,
                        const po::variables_map& vm, const std::set<std::string>& skipped);
 
+// Every option's value in `vm` as text, as write_config_file writes it (a list: a value
+// each; none: empty), by key; keys in `skipped` left out. What a reload compares.
+std::map<std::string, std::vector<std::string>> effective_values(
+    const po::options_description& opts, const po::variables_map& vm,
+    const std::set<std::string>& skipped);
+
 }  // namespace vox::options

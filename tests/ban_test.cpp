@@ -341,3 +341,58 @@ TEST_F(Bans, ABanWrittenByAnotherProcessTakesEffectOnSighup) {
 
 }  // namespace
 }  // namespace vox
+
+namespace vox {
+namespace {
+
+// The same fixture: a voxeld with a key, here also with a --config file.
+class Reloading : public Bans {};
+
+TEST_F(Reloading, SighupAppliesNewBudgetsAndANewKeyAndABrokenFileChangesNothing) {
+  const std::filesystem::path conf = dir_ / "voxeld.conf";
+  std::ofstream(conf) << "edit-budget = 1000\n";
+  std::vector<std::string> args = server_args();
+  args.insert(args.end(), {"--config", conf.string(), "--log-level", "info"});
+  test::ServerProcess server(args);
+  const auto budget_of_a_new_player = [&](const std::string& tok) {
+    Client c;
+    c.connect("127.0.0.1", server.port(), 5s);
+    const wire::Envelope w = hello(c, tok);
+    return w.has_welcome() ? w.welcome().edit_budget_per_second() : -1.0;
+  };
+  const auto sighup_and_wait = [&](const std::string& line) {
+    ::kill(server.pid(), SIGHUP);
+    for (int i = 0; i < 200; ++i) {
+      std::ifstream log(server.log_path());
+      const std::string text((std::istreambuf_iterator<char>(log)), {});
+      if (text.find(line) != std::string::npos) return true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  };
+  EXPECT_EQ(budget_of_a_new_player(token("alice")), 1000);
+  std::ofstream(conf) << "edit-budget = 2500\nmax-view-radius = 5\n";
+  ASSERT_TRUE(sighup_and_wait("SIGHUP: edit-budget: 1000 -> 2500"));
+  EXPECT_TRUE(sighup_and_wait("max-view-radius: 12 -> 5 needs a restart (still 12)"));
+  EXPECT_EQ(budget_of_a_new_player(token("alice")), 2500);
+
+  std::ofstream(conf) << "edit-budget = lots\n";
+  ASSERT_TRUE(sighup_and_wait("; nothing changed"));
+  EXPECT_EQ(budget_of_a_new_player(token("alice")), 2500);
+
+  // A new key in the same file: old tokens are refused from now on, new ones taken.
+  const std::string old_token = token("bob");
+  key_ = auth::generate_key_pair();
+  std::ofstream(dir_ / "game.pub") << auth::key_to_text(key_.public_key);
+  std::ofstream(conf) << "edit-budget = 2500\nmax-view-radius = 5\n";
+  ASSERT_TRUE(sighup_and_wait("(a new key)"));
+  Client refused;
+  refused.connect("127.0.0.1", server.port(), 5s);
+  const wire::Envelope e = hello(refused, old_token);
+  ASSERT_TRUE(e.has_error());
+  EXPECT_EQ(e.error().code(), wire::Error::BAD_TOKEN);
+  EXPECT_EQ(budget_of_a_new_player(token("bob")), 2500);
+}
+
+}  // namespace
+}  // namespace vox

@@ -10,7 +10,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "server/auth/player_token.hpp"
 #include "server/daemon/json_log.hpp"
+#include "server/daemon/reload.hpp"
 
 namespace vox::daemon {
 namespace {
@@ -337,6 +339,58 @@ TEST(JsonLog, LogFormatIsTextOrJson) {
   const Parsed bad = parse({"--log-format", "xml"});
   EXPECT_EQ(bad.code, 2);
   EXPECT_NE(bad.err.find("--log-format must be text or json (got 'xml')"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace vox::daemon
+
+namespace vox::daemon {
+namespace {
+
+TEST(Reload, ItAppliesBudgetsCapsLogLevelAndKeyAndNamesWhatNeedsARestart) {
+  const Parsed now = parse({"--edit-budget", "1000", "--port", "7000"});
+  ASSERT_EQ(now.code, -1) << now.err;
+  const Parsed next = parse(
+      {"--edit-budget", "2000", "--port", "7001", "--max-clients", "9", "--log-level", "debug"});
+  ASSERT_EQ(next.code, -1) << next.err;
+  const ReloadPlan plan = plan_reload(now.config, next.config);
+  EXPECT_EQ(plan.changed,
+            (std::vector<std::string>{"edit-budget: 1000 -> 2000", "log-level: info -> debug",
+                                      "max-clients: 256 -> 9"}));
+  EXPECT_EQ(plan.kept, std::vector<std::string>{"port: 7000 -> 7001 needs a restart (still 7000)"});
+  EXPECT_EQ(plan.after.net.edit_budget_rate, 2000);
+  EXPECT_EQ(plan.after.net.max_clients, 9u);
+  EXPECT_EQ(plan.after.net.port, 7000);  // kept
+  EXPECT_EQ(plan.after.log_level, "debug");
+  // Applied again, the plan is empty but for what still needs a restart.
+  const ReloadPlan again = plan_reload(plan.after, next.config);
+  EXPECT_TRUE(again.changed.empty());
+  EXPECT_EQ(again.kept.size(), 1u);
+}
+
+TEST(Reload, ANewKeyInTheSameFileIsANewKeyButAnOpenServerStaysOpen) {
+  char path[] = "/tmp/voxel_reload_XXXXXX";
+  const int fd = ::mkstemp(path);
+  ASSERT_GE(fd, 0);
+  ::close(fd);
+  const auto write_key = [&](const auth::PublicKey& k) {
+    std::ofstream(path) << auth::key_to_text(k) << "\n";
+  };
+  write_key(auth::generate_key_pair().public_key);
+  const Parsed a = parse({"--auth-public-key", path});
+  write_key(auth::generate_key_pair().public_key);
+  const Parsed b = parse({"--auth-public-key", path});
+  ASSERT_EQ(a.code, -1) << a.err;
+  ASSERT_EQ(b.code, -1) << b.err;
+  const ReloadPlan rotated = plan_reload(a.config, b.config);
+  ASSERT_EQ(rotated.changed.size(), 1u);
+  EXPECT_NE(rotated.changed[0].find("(a new key)"), std::string::npos) << rotated.changed[0];
+  EXPECT_EQ(rotated.after.net.auth_key, b.config.net.auth_key);
+  const ReloadPlan opened = plan_reload(parse({}).config, b.config);
+  ASSERT_EQ(opened.kept.size(), 1u);
+  EXPECT_NE(opened.kept[0].find("between an open server and player tokens"), std::string::npos);
+  EXPECT_FALSE(opened.after.net.auth_key);
+  std::remove(path);
 }
 
 }  // namespace

@@ -8,11 +8,13 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <thread>
 
 #include "server/cluster/cluster_config.hpp"
 #include "server/cluster/cluster_node.hpp"
 #include "server/daemon/json_log.hpp"
+#include "server/daemon/reload.hpp"
 #include "server/metrics/metrics_endpoint.hpp"
 #include "server/net/server.hpp"
 #include "server/store/ban_store.hpp"
@@ -115,6 +117,32 @@ metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node
   };
 }
 
+// SIGHUP: the flags and the --config file parsed again, and what may change applied:
+// each change one log line, each change that needs a restart a warning; a configuration
+// that does not parse changes nothing.
+void reload(VoxeldConfig& current, net::Server& server) {
+  VoxeldConfig next;
+  std::ostringstream out, err;
+  if (parse_voxeld_flags(current.args, next, out, err) != -1) {
+    std::istringstream lines(err.str());
+    for (std::string line; std::getline(lines, line);)
+      spdlog::error("SIGHUP: {}; nothing changed", line);
+    return;
+  }
+  ReloadPlan plan = plan_reload(current, next);
+  for (const std::string& line : plan.changed) spdlog::info("SIGHUP: {}", line);
+  for (const std::string& line : plan.kept) spdlog::warn("SIGHUP: {}", line);
+  if (plan.changed.empty() && plan.kept.empty())
+    spdlog::info("SIGHUP: the configuration is unchanged");
+  current = std::move(plan.after);
+  spdlog::set_level(spdlog::level::from_str(current.log_level));
+  const net::ServerConfig& n = current.net;
+  server.reload(
+      {n.auth_key, n.edit_budget_rate, n.edit_budget_burst, n.admin_edit_budget_rate,
+       n.admin_edit_budget_burst},
+      {n.max_clients, n.max_handshaking, n.max_per_address, n.max_handshaking_per_address});
+}
+
 // Runs the opened world until a signal; throws what the server throws. `node`: a cluster
 // node's links (null: a single node).
 void serve(const VoxeldConfig& c, cluster::ClusterNode* node,
@@ -161,17 +189,15 @@ void serve(const VoxeldConfig& c, cluster::ClusterNode* node,
     if (!c.http_port_file.empty()) write_port_file(c.http_port_file, server.http_port());
   }
   if (c.stats_seconds > 0) server.start_stats_log(std::chrono::seconds(c.stats_seconds));
-  // SIGHUP: the bans are read again now (the README, "Players, kicks and bans").
+  // SIGHUP: the configuration and the bans are read again (reload.hpp; the README,
+  // "Reloading the configuration"). On an io thread: the files are small.
+  VoxeldConfig current = c;
   asio::signal_set hangups(io, SIGHUP);
   std::function<void()> arm_hangup = [&] {
     hangups.async_wait([&](boost::system::error_code ec, int) {
       if (ec) return;
-      if (bans) {
-        spdlog::info("SIGHUP: reading the bans again");
-        bans->reload();
-      } else {
-        spdlog::info("SIGHUP: nothing to read again (--in-memory: bans live in memory)");
-      }
+      reload(current, server);
+      if (bans) bans->reload();
       arm_hangup();
     });
   };

@@ -345,6 +345,8 @@ int parse_voxeld_flags(const std::vector<std::string>& args, VoxeldConfig& confi
     err << "voxeld: " << line << "\n";
   }
   if (!bad.empty()) return 2;
+  config.args = args;
+  config.effective = options::effective_values(opts, vm, not_in_file);
   if (vm.count("print-config")) {
     out << "# voxeld configuration: voxeld --config FILE reads it; a flag given with it wins.\n"
            "# A list (http-allow-origin, ...) takes one line per value. Written by "

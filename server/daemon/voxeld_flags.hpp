@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -29,6 +30,10 @@ struct VoxeldConfig {
   int stats_seconds = 10;
   std::string log_level = "info";
   bool json_logs = false;  // --log-format json (json_log.hpp)
+  // What a reload (SIGHUP) parses again, and compares: the arguments as given, and every
+  // flag's effective value as text (voxeld --print-config's), by name.
+  std::vector<std::string> args;
+  std::map<std::string, std::vector<std::string>> effective;
 };
 
 // Parses voxeld's arguments (argv[1..]) into `config`. Returns -1 to go on, else the exit

@@ -30,6 +30,8 @@ class AdmissionControl {
 
   explicit AdmissionControl(AdmissionLimits limits) : limits_(limits) {}
   const AdmissionLimits& limits() const { return limits_; }
+  // New caps (a reload): connections over them stay; new ones are refused until under.
+  void set_limits(AdmissionLimits limits) { limits_ = limits; }
 
   // A new connection from `address`; on kAdmit it counts as handshaking until promote()
   // or release(). Not `capped`: only the totals apply (a trusted proxy's connections, each
@@ -73,10 +75,17 @@ class AdmissionGate {
     std::lock_guard lock(mutex_);
     control_.release(address, was_player);
   }
-  const AdmissionLimits& limits() const { return control_.limits(); }  // immutable
+  AdmissionLimits limits() const {
+    std::lock_guard lock(mutex_);
+    return control_.limits();
+  }
+  void set_limits(AdmissionLimits limits) {
+    std::lock_guard lock(mutex_);
+    control_.set_limits(limits);
+  }
 
  private:
-  std::mutex mutex_;  // leaf lock
+  mutable std::mutex mutex_;  // leaf lock
   AdmissionControl control_;
 };
 

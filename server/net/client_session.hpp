@@ -20,6 +20,7 @@
 #include "server/net/ban_keeper.hpp"
 #include "server/net/connection.hpp"
 #include "server/net/edit_gate.hpp"
+#include "server/net/live_settings.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/player_registry.hpp"
 #include "server/net/result_order.hpp"
@@ -50,6 +51,7 @@ struct SessionServices {
   std::shared_ptr<PlayerRegistry<ClientSession>> players;     // authenticated player ids
   std::shared_ptr<SessionDirectory<ClientSession>> sessions;  // every live session
   std::shared_ptr<BanKeeper> bans;
+  std::shared_ptr<LiveSettings> live;  // what a reload changes: read at each Hello
 };
 
 // Who a session's player is (an admin's player list, kicks and bans). Any thread.
@@ -103,9 +105,11 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void on_frame(std::span<const uint8_t> body);
   void handle_hello(const wire::Hello& hello);
   // With a key: the token's claims, or nullopt after refusing the connection.
-  std::optional<auth::PlayerClaims> verify_hello_token(const wire::Hello& hello);
-  void join_as(const auth::PlayerClaims& claims);  // replaces a connection of the same id
-  BudgetLimits edit_limits(const auth::PlayerClaims* claims) const;
+  std::optional<auth::PlayerClaims> verify_hello_token(const wire::Hello& hello,
+                                                       const auth::PublicKey& key);
+  // Replaces a connection of the same id.
+  void join_as(const auth::PlayerClaims& claims, const LiveValues& live);
+  BudgetLimits edit_limits(const auth::PlayerClaims* claims, const LiveValues& live) const;
   void send_welcome(uint64_t players);
   void handle_set_view(const wire::SetView& view);
   using PendingView = ViewFeed::View;

@@ -36,7 +36,15 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
       players_(std::make_shared<PlayerRegistry<ClientSession>>()),
       publish_(std::make_shared<PublishGate>()),
       sessions_(std::make_shared<SessionDirectory<ClientSession>>()),
-      bans_(std::make_shared<BanKeeper>()) {}
+      bans_(std::make_shared<BanKeeper>()),
+      live_(std::make_shared<LiveSettings>(
+          LiveValues{config_.auth_key, config_.edit_budget_rate, config_.edit_budget_burst,
+                     config_.admin_edit_budget_rate, config_.admin_edit_budget_burst})) {}
+
+void Server::reload(const LiveValues& live, const AdmissionLimits& caps) {
+  live_->set(live);
+  admission_->set_limits(caps);
+}
 
 Server::~Server() {
   {
@@ -226,7 +234,8 @@ void Server::admit_as(StrandSocket socket, const std::string& address) {
       std::make_unique<TcpConnection>(std::move(socket), shared_config_->max_frame_bytes,
                                       shared_config_->frame_timeout),
       address, next_session_++, pipeline_,
-      SessionServices{counters_, shared_config_, admission_, logs_, players_, sessions_, bans_});
+      SessionServices{counters_, shared_config_, admission_, logs_, players_, sessions_, bans_,
+                      live_});
   add_session(session);
 }
 
@@ -255,7 +264,8 @@ void Server::admit_websocket(WsStream ws, std::string address) {
       std::make_unique<WsConnection>(std::move(ws), shared_config_->max_frame_bytes,
                                      shared_config_->frame_timeout, counters_),
       std::move(address), next_session_++, pipeline_,
-      SessionServices{counters_, shared_config_, admission_, logs_, players_, sessions_, bans_});
+      SessionServices{counters_, shared_config_, admission_, logs_, players_, sessions_, bans_,
+                      live_});
   add_session(session);
 }
 

@@ -39,6 +39,9 @@ class Server {
   // The world's bans (voxeld's, read from its store); before start. Without: bans in
   // memory only. Stopped by ~Server (its callbacks post to the sessions' strands).
   void set_bans(std::shared_ptr<BanKeeper> bans) { bans_ = std::move(bans); }
+  // A reload (SIGHUP): the token key and budgets for the next Hellos, the connection caps
+  // for the next connections. Any thread.
+  void reload(const LiveValues& live, const AdmissionLimits& caps);
 
  private:
   // All strand_ only.
@@ -93,6 +96,7 @@ class Server {
 
   std::shared_ptr<SessionDirectory<ClientSession>> sessions_;  // shared with the sessions
   std::shared_ptr<BanKeeper> bans_;                            // shared with the sessions
+  std::shared_ptr<LiveSettings> live_;  // shared with the sessions: what a reload changes
 
   struct Snapshot {
     uint64_t edits = 0, meshes = 0, bytes = 0;

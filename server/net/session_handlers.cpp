@@ -37,8 +37,9 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
     return;
   }
   std::optional<auth::PlayerClaims> claims;
-  if (config_.auth_key) {
-    claims = verify_hello_token(hello);
+  const LiveValues live = services_.live->get();
+  if (live.auth_key) {
+    claims = verify_hello_token(hello, *live.auth_key);
     if (!claims) return;
   } else if (hello.player_name().empty() || hello.player_name().size() > 32) {
     send_error(wire::Error::BAD_VALUE, "player_name must be 1..32 bytes", true);
@@ -56,9 +57,9 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   log_name_ = escape_for_log(name_);
   role_ = claims ? claims->role : config_.open_role;
   if (claims)
-    join_as(*claims);
+    join_as(*claims, live);
   else
-    edits_.join(role_, std::make_shared<SharedEditBudget>(edit_limits(nullptr)));
+    edits_.join(role_, std::make_shared<SharedEditBudget>(edit_limits(nullptr, live)));
   connected_unix_ms_ = BanKeeper::now_ms();
   player_.store(true, std::memory_order_release);
   counters_.handshaking.fetch_sub(1);
@@ -94,11 +95,12 @@ bool ClientSession::refuse_if_banned(const std::string& player_id, auth::Role ro
   return true;
 }
 
-std::optional<auth::PlayerClaims> ClientSession::verify_hello_token(const wire::Hello& hello) {
+std::optional<auth::PlayerClaims> ClientSession::verify_hello_token(const wire::Hello& hello,
+                                                                    const auth::PublicKey& key) {
   const int64_t now = std::chrono::duration_cast<std::chrono::seconds>(
                           std::chrono::system_clock::now().time_since_epoch())
                           .count();
-  auth::VerifiedToken v = auth::verify_token(hello.token(), *config_.auth_key, now);
+  auth::VerifiedToken v = auth::verify_token(hello.token(), key, now);
   if (v.claims) return std::move(v.claims);
   ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kToken)]);
   send_error(v.error == auth::TokenError::kMissing   ? wire::Error::AUTH_REQUIRED
@@ -108,10 +110,10 @@ std::optional<auth::PlayerClaims> ClientSession::verify_hello_token(const wire::
   return std::nullopt;
 }
 
-void ClientSession::join_as(const auth::PlayerClaims& claims) {
+void ClientSession::join_as(const auth::PlayerClaims& claims, const LiveValues& live) {
   player_id_ = claims.player_id;
   auto [previous, budget] =
-      services_.players->claim(player_id_, shared_from_this(), edit_limits(&claims));
+      services_.players->claim(player_id_, shared_from_this(), edit_limits(&claims, live));
   edits_.join(role_, std::move(budget));
   if (!previous) return;
   previous->close_with_error(wire::Error::REPLACED, "another connection joined as this player");
@@ -122,9 +124,10 @@ void ClientSession::join_as(const auth::PlayerClaims& claims) {
   }
 }
 
-BudgetLimits ClientSession::edit_limits(const auth::PlayerClaims* claims) const {
-  const EditBudgetPolicy policy({config_.edit_budget_rate, config_.edit_budget_burst},
-                                {config_.admin_edit_budget_rate, config_.admin_edit_budget_burst});
+BudgetLimits ClientSession::edit_limits(const auth::PlayerClaims* claims,
+                                        const LiveValues& live) const {
+  const EditBudgetPolicy policy({live.edit_budget_rate, live.edit_budget_burst},
+                                {live.admin_edit_budget_rate, live.admin_edit_budget_burst});
   // Without a token (an open server) every client has the player's budget, whatever
   // --open-role says: anyone may connect.
   return policy.limits_for(claims ? role_ : auth::Role::kPlayer, claims ? claims->edit_rate : 0,

@@ -33,7 +33,7 @@
 namespace vox::pipeline {
 
 struct CheckpointJob {
-  uint64_t seq = 0;           // the chunks include every edit through this one, and no later one
+  uint64_t seq = 0;     // the chunks include every edit through this one, and no later one
   store::LogTrim trim;  // what the log loses
   // The pipeline's chunks: never evicted, never replaced, and changed only after
   // preserve(), until the result is taken.
