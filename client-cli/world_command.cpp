@@ -167,7 +167,7 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
   out << "verify: " << replayed << " logged edits replayed"
       << (whole_log ? " onto the seed" : " onto the checkpoints") << ", " << checked << " of "
       << stored.size() << " checkpointed chunks checked";
-  if (!whole_log) out << " (the log before " << info.checkpoint_seq << " was trimmed)";
+  if (!whole_log) out << " (the log before edit " << first_logged << " was trimmed)";
   out << ": " << (mismatches == 0 ? "all match" : std::to_string(mismatches) + " differ") << "\n";
   return mismatches == 0 ? 0 : 1;
 }

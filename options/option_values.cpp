@@ -1,5 +1,6 @@
 #include "options/option_values.hpp"
 
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -124,17 +125,29 @@ int64_t parse_time_ms(const std::string& text, const char* what, int64_t now_ms)
   if (!t.empty() && (t.back() == 'Z' || t.back() == 'z')) t.pop_back();
   const int n =
       std::sscanf(t.c_str(), "%4d-%2d-%2dT%2d:%2d:%2d%c", &y, &mo, &d, &h, &mi, &s, &tail);
-  if (t.size() >= 10 && t[4] == '-' && (n == 3 || n == 5 || n == 6) && mo >= 1 && mo <= 12 &&
-      d >= 1 && d <= 31 && h < 24 && mi < 60 && s < 61 && y >= 1970 &&
-      t.size() == (n == 3   ? 10u
-                   : n == 5 ? 16u
-                            : 19u)) {
+  // Digits only where the format has them (sscanf would take signs and spaces).
+  const std::string shape = n == 3   ? "dddd-dd-dd"
+                            : n == 5 ? "dddd-dd-ddTdd:dd"
+                                     : "dddd-dd-ddTdd:dd:dd";
+  bool digits = (n == 3 || n == 5 || n == 6) && t.size() == shape.size();
+  for (size_t i = 0; digits && i < t.size(); ++i)
+    digits =
+        shape[i] == 'd' ? std::isdigit(static_cast<unsigned char>(t[i])) != 0 : t[i] == shape[i];
+  if (digits && y >= 1970) {
     std::tm tm{};
     tm.tm_year = y - 1900, tm.tm_mon = mo - 1, tm.tm_mday = d;
     tm.tm_hour = h, tm.tm_min = mi, tm.tm_sec = s;
-    return static_cast<int64_t>(timegm(&tm)) * 1000;
+    const std::time_t at = timegm(&tm);
+    std::tm back{};
+    gmtime_r(&at, &back);  // a day or an hour out of range comes back as another one
+    if (back.tm_year == y - 1900 && back.tm_mon == mo - 1 && back.tm_mday == d &&
+        back.tm_hour == h && back.tm_min == mi && back.tm_sec == s)
+      return static_cast<int64_t>(at) * 1000;
   }
   try {
+    // A duration ago needs its unit: a bare number is more likely a mistyped time.
+    if (text.empty() || !std::isalpha(static_cast<unsigned char>(text.back())))
+      throw std::invalid_argument(text);
     return now_ms - static_cast<int64_t>(parse_duration_s(text, what)) * 1000;
   } catch (const std::invalid_argument&) {
     throw std::invalid_argument(std::string(what) + ": '" + text +

@@ -93,6 +93,7 @@ TEST(LogRetention, ACheckpointTrimsAllOnlyTheEditsBeforeTheWindowOrNone) {
   const store::LogTrim window = LogRetention{.window = std::chrono::hours(24 * 7)}.trim(42, now);
   EXPECT_EQ(window.through, 42u);
   EXPECT_EQ(window.accepted_before_ms, now_ms - 7 * 24 * 3600 * 1000ll);
+  EXPECT_EQ(window.stamps_until_ms, now_ms + 24 * 3600 * 1000ll);
   const LogRetention keep_all{.keep_all = true, .window = std::chrono::hours(1)};
   EXPECT_EQ(keep_all.trim(42, now).through, 0u);
 }

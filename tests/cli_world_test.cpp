@@ -98,6 +98,9 @@ TEST_F(CliWorld, HistoryListsAPlayersEditsInABoxAndTimeAndSaysHowFarBackTheLogRe
   EXPECT_NE(span.out.find("1 edit: - 1"), std::string::npos) << span.out;
   EXPECT_NE(cli({"world", "history", w, "--since", "1h"}).out.find("0 edits"), std::string::npos);
   EXPECT_EQ(cli({"world", "history", w, "--since", "yesterday"}).code, 2);
+  EXPECT_EQ(cli({"world", "history", w, "--since", "2026"}).code, 2);  // a time? say which
+  EXPECT_EQ(cli({"world", "history", w, "--since", "2025-02-30"}).code, 2);
+  EXPECT_EQ(cli({"world", "history", w, "--since", "2025-12-0 1"}).code, 2);
   EXPECT_EQ(cli({"world", "history", w, "--min", "0,0,0"}).code, 2);
   store::open_world_store(w, {})->write_checkpoint({}, 2, 2);  // trims 1..2
   EXPECT_NE(cli({"world", "history", w}).out.find("reaches back to edit 3 ("), std::string::npos);

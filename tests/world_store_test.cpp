@@ -311,6 +311,19 @@ TEST_P(WorldStoreTest, ACheckpointKeepsTheEditsOfTheHistoryWindow) {
   EXPECT_EQ(seqs, (std::vector<uint64_t>{9, 10}));
 }
 
+TEST_P(WorldStoreTest, AnEditStampedByAClockThatRanAheadHoldsNoHistoryBack) {
+  auto s = open_world_store(fresh_world(), {.seed = 1});
+  std::vector<LoggedEdit> log;
+  const int64_t at[] = {100, 5000000, 200, 300};  // edit 2: a clock far ahead
+  for (uint64_t seq = 1; seq <= 4; ++seq)
+    log.push_back({seq, at[seq - 1], "", world::Smooth{{0, 0, 0}, 2, 1}});
+  s->append_edits(log);
+  s->write_checkpoint({}, 4, LogTrim{4, 250, 1000});
+  std::vector<uint64_t> seqs;
+  s->for_each_edit(0, [&](const LoggedEdit& l) { return seqs.push_back(l.seq), true; });
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{4}));
+}
+
 TEST_P(WorldStoreTest, ReadOnlyToolsReadAWorldWhileItIsWritten) {
   const std::string where = fresh_world();
   auto writer = open_world_store(where, {.seed = 3});

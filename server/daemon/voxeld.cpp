@@ -123,7 +123,13 @@ metrics::MetricsEndpoint::Extra cluster_figures(const cluster::ClusterNode* node
 void reload(VoxeldConfig& current, net::Server& server) {
   VoxeldConfig next;
   std::ostringstream out, err;
-  if (parse_voxeld_flags(current.args, next, out, err) != -1) {
+  int parsed = 2;
+  try {
+    parsed = parse_voxeld_flags(current.args, next, out, err);
+  } catch (const std::exception& e) {  // nothing known throws; a reload must not stop voxeld
+    err << e.what() << "\n";
+  }
+  if (parsed != -1) {
     std::istringstream lines(err.str());
     for (std::string line; std::getline(lines, line);)
       spdlog::error("SIGHUP: {}; nothing changed", line);

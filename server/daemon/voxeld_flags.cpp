@@ -302,10 +302,8 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
     http.allow_origins = r.http_origins;
     http.trusted_proxies = std::move(proxies);
     http.request_timeout = net.handshake_timeout;
-    // A page takes a few connections: the HTTP cap per address follows the game's, at least
-    // 32 (a trusted proxy has none).
-    http.max_per_address =
-        net.max_per_address == 0 ? 0 : std::max<size_t>(32, 2 * net.max_per_address);
+    // The HTTP cap per address follows the game's (a trusted proxy has none).
+    http.max_per_address = net::http_per_address_cap(net.max_per_address);
     net.http = std::move(http);
     net.http_port_required = !vm["http-port"].defaulted();
   }

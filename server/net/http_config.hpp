@@ -2,6 +2,7 @@
 // files are, which page origins may open a WebSocket, and its caps. Read-only after start.
 #pragma once
 
+#include <algorithm>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
@@ -12,6 +13,12 @@
 #include <vector>
 
 namespace vox::net {
+
+// The HTTP port's connections per address, from the game's (--max-per-address): a page
+// takes a few connections, so at least 32 (0: no cap).
+inline size_t http_per_address_cap(size_t game_cap) {
+  return game_cap == 0 ? 0 : std::max<size_t>(32, 2 * game_cap);
+}
 
 struct HttpConfig {
   std::string bind = "127.0.0.1";

@@ -357,6 +357,12 @@ class HttpFront::Conn : public std::enable_shared_from_this<Conn> {
   int requests_ = 0;
 };
 
+void HttpFront::set_max_per_address(size_t cap) {
+  AdmissionLimits limits = gate_->limits();
+  limits.max_per_address = limits.max_handshaking_per_address = cap;
+  gate_->set_limits(limits);
+}
+
 HttpFront::HttpFront(asio::io_context& io, HttpConfig config, ServerCounters& counters,
                      std::shared_ptr<SharedLogRateLimit> logs, Upgraded upgraded)
     : io_(io),

@@ -81,6 +81,8 @@ class HttpFront {
   uint16_t port() const { return port_; }
   // Stops accepting; open HTTP connections end at their next request. Any thread.
   void stop();
+  // A reload's new cap on connections per address (http_per_address_cap); any thread.
+  void set_max_per_address(size_t cap);
 
  private:
   class Conn;

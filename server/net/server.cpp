@@ -44,6 +44,7 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
 void Server::reload(const LiveValues& live, const AdmissionLimits& caps) {
   live_->set(live);
   admission_->set_limits(caps);
+  if (http_) http_->set_max_per_address(http_per_address_cap(caps.max_per_address));
 }
 
 Server::~Server() {
@@ -173,7 +174,7 @@ void Server::admit(StrandSocket socket) {
 // The header first, within the handshake timeout, at most as many at once as handshakes;
 // a connection without a valid one is closed (logged, rate-limited).
 void Server::read_proxy_header(StrandSocket socket, asio::ip::address proxy) {
-  if (proxy_reads_.fetch_add(1) >= std::max<size_t>(config_.max_handshaking, 1)) {
+  if (proxy_reads_.fetch_add(1) >= std::max<size_t>(admission_->limits().max_handshaking, 1)) {
     proxy_reads_.fetch_sub(1);
     return refuse(std::move(socket), AdmissionControl::Verdict::kHandshakesFull);
   }

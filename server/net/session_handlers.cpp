@@ -50,7 +50,9 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   if (services_.admission->promote(address_) != AdmissionControl::Verdict::kAdmit) {
     ServerCounters::bump(counters_.refused[static_cast<size_t>(RefusedBy::kServerFull)]);
     send_error(wire::Error::SERVER_FULL,
-               "the server is full (" + std::to_string(config_.max_clients) + " players)", true);
+               "the server is full (" + std::to_string(services_.admission->limits().max_players) +
+                   " players)",
+               true);
     return;
   }
   name_ = claims ? claims->display_name : hello.player_name();
@@ -153,7 +155,8 @@ void ClientSession::send_welcome(uint64_t players) {
   w->set_edit_budget_per_second(std::max(0.0, budget.rate));
   w->set_edit_budget_burst(budget.rate > 0 ? budget.burst : 0);
   w->set_max_set_views_per_second(std::max(0.0, config_.set_view_rate));
-  w->set_max_connections_per_address(static_cast<uint32_t>(config_.max_per_address));
+  w->set_max_connections_per_address(
+      static_cast<uint32_t>(services_.admission->limits().max_per_address));
   w->set_max_resync_chunks(static_cast<uint32_t>(config_.max_resync_chunks));
   w->set_mesh_table_revision(proto::kMeshTableRevision);
   w->set_max_lod_level(

@@ -36,9 +36,11 @@ struct LogRetention {
   store::LogTrim trim(uint64_t seq, std::chrono::system_clock::time_point now) const {
     if (keep_all) return {0};
     if (window.count() <= 0) return {seq};
-    return {seq,
-            std::chrono::duration_cast<std::chrono::milliseconds>((now - window).time_since_epoch())
-                .count()};
+    const auto ms = [](std::chrono::system_clock::time_point t) {
+      return std::chrono::duration_cast<std::chrono::milliseconds>(t.time_since_epoch()).count();
+    };
+    // A stamp more than a day ahead is a clock's mistake: it holds nothing back.
+    return {seq, ms(now - window), ms(now + std::chrono::hours(24))};
   }
 };
 

@@ -73,7 +73,7 @@ struct PipelineConfig {
   ZoneAuthority* zones = nullptr;
   // What checkpoints keep of the log they include: with keep_all every edit (an audit
   // trail), else the edits accepted within `window` (the history `voxel-cli world history`
-  // lists and a rollback undoes; 0: none, the log is trimmed to what no checkpoint holds).
+  // lists; 0: none, the log is trimmed to what no checkpoint holds).
   LogRetention history;
   // After a failed append, edits are refused kStorageUnavailable without trying the store
   // again for this long.

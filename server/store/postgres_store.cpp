@@ -115,7 +115,7 @@ class PostgresStore final : public WorldStore {
     run([&](pqxx::connection& c) {
       pqxx::read_transaction t(c);
       i = info_from_meta(name_, read_meta(t));
-      const auto log = t.exec1("SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log");
+      const auto log = t.exec1(schema::kLogSpan);
       i.logged_edits = log[0].as<uint64_t>();
       i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
       i.modified_chunks = t.exec1(schema::kCountVisibleChunks)[0].as<uint64_t>();
@@ -182,8 +182,9 @@ class PostgresStore final : public WorldStore {
                     static_cast<int64_t>(previous), seq);
       t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
       if (trim.through > 0)
-        t.exec_params(schema::kTrimLog, static_cast<int64_t>(trim.through),
-                      trim.accepted_before_ms);
+        trim.windowed() ? t.exec_params(schema::kTrimLog, static_cast<int64_t>(trim.through),
+                                        trim.accepted_before_ms, trim.stamps_until_ms)
+                        : t.exec_params(schema::kTrimLogAll, static_cast<int64_t>(trim.through));
       t.commit();
     });
   }

@@ -106,7 +106,7 @@ class SqliteStore final : public WorldStore {
   WorldInfo info() override {
     const auto meta = read_meta();
     WorldInfo i = info_from_meta(name_, meta);
-    Statement q(conn_.db, "SELECT COUNT(*), COALESCE(MAX(seq), 0) FROM edit_log", name_);
+    Statement q(conn_.db, schema::kLogSpan, name_);
     if (q.step())
       i.logged_edits = static_cast<uint64_t>(q.int64(0)),
       i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
@@ -253,8 +253,10 @@ class SqliteStore final : public WorldStore {
     failed.run();
     set_meta(schema::kMetaCheckpointSeq, std::to_string(checkpoint_seq));
     if (trim.through > 0) {
-      Statement del(conn_.db, schema::kTrimLog, name_);
-      del.bind(1, static_cast<int64_t>(trim.through)).bind(2, trim.accepted_before_ms).run();
+      Statement del(conn_.db, trim.windowed() ? schema::kTrimLog : schema::kTrimLogAll, name_);
+      del.bind(1, static_cast<int64_t>(trim.through));
+      if (trim.windowed()) del.bind(2, trim.accepted_before_ms).bind(3, trim.stamps_until_ms);
+      del.run();
     }
     t.commit();
   }

@@ -43,11 +43,18 @@ inline constexpr const char* kInsertRegion =
     "INSERT INTO regions (" VOX_REGION_COLUMNS ") " VOX_REGION_VALUES;
 inline constexpr const char* kSelectRegions =
     "SELECT " VOX_REGION_COLUMNS " FROM regions ORDER BY id";
+// How many edits the log holds (WorldInfo::logged_edits) and its last seq: by its first
+// and last keys, not a count, which would read a week of history at every start. The log
+// is one contiguous tail but where an append in doubt was forgotten (a gap of its edits).
+inline constexpr const char* kLogSpan =
+    "SELECT COALESCE(MAX(seq) - MIN(seq) + 1, 0), COALESCE(MAX(seq), 0) FROM edit_log";
 // A checkpoint's trim of the log (LogTrim): $1 through, $2 accepted_before_ms. The first
 // edit kept is found from the oldest on (the rows about to go, then one): no index on at_ms.
+// A stamp past $3 (a clock that ran ahead) does not hold the log back.
 inline constexpr const char* kTrimLog =
     "DELETE FROM edit_log WHERE seq <= $1 AND seq < COALESCE((SELECT seq FROM edit_log "
-    "WHERE at_ms >= $2 ORDER BY seq LIMIT 1), CAST($1 AS BIGINT) + 1)";
+    "WHERE at_ms >= $2 AND at_ms <= $3 ORDER BY seq LIMIT 1), CAST($1 AS BIGINT) + 1)";
+inline constexpr const char* kTrimLogAll = "DELETE FROM edit_log WHERE seq <= $1";
 // Chunk rows per transaction while a checkpoint writes (about 0.8 MB).
 inline constexpr size_t kCheckpointPart = 64;
 

@@ -65,13 +65,17 @@ struct RegionTable {
 
 // What a checkpoint deletes from the log: the edits through `through` (0: none), but from
 // the first edit accepted at or after `accepted_before_ms` on, none (the history window:
-// the log stays one contiguous tail).
+// the log stays one contiguous tail). An edit stamped after `stamps_until_ms` (a clock
+// that ran ahead) does not count as the first one kept.
 struct LogTrim {
   LogTrim(uint64_t through_seq = 0,  // NOLINT: a plain seq trims it all, as before windows
-          int64_t before_ms = std::numeric_limits<int64_t>::max())
-      : through(through_seq), accepted_before_ms(before_ms) {}
+          int64_t before_ms = std::numeric_limits<int64_t>::max(),
+          int64_t until_ms = std::numeric_limits<int64_t>::max())
+      : through(through_seq), accepted_before_ms(before_ms), stamps_until_ms(until_ms) {}
   uint64_t through = 0;
   int64_t accepted_before_ms = std::numeric_limits<int64_t>::max();
+  int64_t stamps_until_ms = std::numeric_limits<int64_t>::max();
+  bool windowed() const { return accepted_before_ms != std::numeric_limits<int64_t>::max(); }
 };
 
 struct ChunkRecord {
