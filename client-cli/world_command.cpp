@@ -201,13 +201,17 @@ int world_backup_restore(const std::vector<std::string>& args, std::ostream& out
   if (rc >= 0) return rc;
   return guarded(err, [&] {
     const std::string from = vm["from"].as<std::string>();
-    if (store::is_postgres_uri(from))
+    if (!backup && store::is_postgres_uri(from))
+      throw std::invalid_argument("world restore: FILE is a backup file, not a database");
+    if (backup && store::is_postgres_uri(from) && store::is_cluster_world(from))
       throw std::invalid_argument(
-          "world backup: a PostgreSQL world is backed up with pg_dump (README, \"Backup and "
-          "restore\")");
+          "world backup: a cluster's database is backed up with pg_dump (README, \"Backup "
+          "and restore\")");
     if (backup) {
       const std::string file = vm["out"].as<std::string>();
-      const store::BackupFigures f = store::backup_world(from, file);
+      const store::BackupFigures f = store::is_postgres_uri(from)
+                                         ? store::backup_postgres_world(from, file)
+                                         : store::backup_world(from, file);
       out << "backup: " << file << ", " << f.bytes << " bytes in " << f.seconds
           << " s (restore it with voxel-cli world restore " << file << " --to DIR)\n";
       return 0;
