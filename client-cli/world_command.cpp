@@ -20,6 +20,7 @@
 #include "server/store/world_store.hpp"
 #include "server/store/zone_leases.hpp"
 #include "server/world/edit_replay.hpp"
+#include "server/world/edit_undo.hpp"
 
 namespace vox::cli {
 namespace {
@@ -80,13 +81,26 @@ struct HistoryFilter {
 
 // The logged edits that match, oldest first, and how far back the log reaches (older
 // edits were trimmed by checkpoints: voxeld --history-days, --keep-log).
-int world_history(store::WorldStore& s, const HistoryFilter& filter, std::ostream& out) {
+// With `plan`, also what rolling the listed edits back would change (world/edit_undo.hpp):
+// the log from the first listed edit on is held in memory, at most kMaxPlanEdits of it.
+constexpr size_t kMaxPlanEdits = 2'000'000;
+
+int world_history(store::WorldStore& s, const HistoryFilter& filter, bool plan, std::ostream& out) {
   uint64_t first_seq = 0, listed = 0;
   int64_t first_ms = 0;
   std::map<std::string, uint64_t> by_author;
+  std::vector<store::LoggedEdit> tail;  // plan: from the first listed edit on
+  std::vector<bool> listed_in_tail;
+  bool too_long = false;
   s.for_each_edit(0, [&](const store::LoggedEdit& e) {
     if (first_seq == 0) first_seq = e.seq, first_ms = e.unix_ms;
-    if (!filter.matches(e)) return true;
+    const bool match = filter.matches(e);
+    if (plan && (match || !tail.empty()) && !too_long) {
+      too_long = tail.size() >= kMaxPlanEdits;
+      tail.push_back(e);
+      listed_in_tail.push_back(match);
+    }
+    if (!match) return true;
     ++listed;
     ++by_author[e.author.empty() ? "-" : e.author];
     out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
@@ -97,6 +111,22 @@ int world_history(store::WorldStore& s, const HistoryFilter& filter, std::ostrea
   for (const auto& [author, n] : by_author)
     out << (author == by_author.begin()->first ? ": " : ", ") << author << " " << n;
   out << "\n";
+  if (plan && too_long) {
+    out << "rollback plan: more than " << kMaxPlanEdits
+        << " edits from the first listed one on; narrow --since\n";
+  } else if (plan) {
+    std::vector<world::LoggedStep> steps;
+    steps.reserve(tail.size());
+    for (size_t i = 0; i < tail.size(); ++i)
+      steps.push_back({&tail[i].edit, tail[i].keep, listed_in_tail[i]});
+    const world::UndoPlan p = world::plan_undo(steps);
+    out << "rollback plan: undoing these " << p.undone << " edits recomputes " << p.chunks.size()
+        << " chunks (every other edit in them kept, in its order)\n";
+  }
+  if (filter.since_ms > std::numeric_limits<int64_t>::min() && first_seq > 1 &&
+      filter.since_ms < first_ms)
+    out << "warning: --since is before the oldest edit the log holds; the edits before it "
+           "were trimmed and are neither listed nor undone\n";
   const store::WorldInfo info = s.info();
   if (first_seq == 0)
     out << "the log holds no edit (" << info.checkpoint_seq
@@ -243,7 +273,9 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
       "min", po::value<std::string>(), "history: X,Y,Z, the box's lowest sample")(
       "max", po::value<std::string>(),
       "history: X,Y,Z, the box's highest sample: edits "
-      "touching the box");
+      "touching the box")("plan", po::bool_switch(),
+                          "history: also say what rolling the listed edits back would change "
+                          "(edits undone, chunks recomputed)");
   po::positional_options_description positional;
   positional.add("action", 1).add("world", 1);
   po::variables_map vm;
@@ -296,7 +328,7 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
     auto s = store::open_world_store(where, {.read_only = true});
     if (action == "info") return world_info(*s, out);
     if (action == "log") return world_log(*s, since_seq, out);
-    if (action == "history") return world_history(*s, filter, out);
+    if (action == "history") return world_history(*s, filter, vm["plan"].as<bool>(), out);
     return world_verify(*s, out, err);
   });
 }

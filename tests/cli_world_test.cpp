@@ -87,7 +87,9 @@ TEST_F(CliWorld, HistoryListsAPlayersEditsInABoxAndTimeAndSaysHowFarBackTheLogRe
   EXPECT_NE(all.out.find("reaches back to edit 1 (2025-12-02T00:00:00.000Z), the world's first"),
             std::string::npos)
       << all.out;
-  const CliRun alice = cli({"world", "history", w, "--player", "alice"});
+  const CliRun alice = cli({"world", "history", w, "--player", "alice", "--plan"});
+  EXPECT_NE(alice.out.find("rollback plan: undoing these 1 edits recomputes"), std::string::npos)
+      << alice.out;
   EXPECT_NE(alice.out.find("2  2025-12-02T00:00:00.001Z  alice  brush"), std::string::npos);
   EXPECT_NE(alice.out.find("1 edit: alice 1"), std::string::npos) << alice.out;
   // The explosion at x = 3 (radius 6) touches x 0..9; the brush and the smooth do not.

@@ -30,26 +30,45 @@ bool meets(const std::vector<ChunkCoord>& chunks, const ChunkSet& set) {
                      [&](const ChunkCoord& c) { return set.count(c) != 0; });
 }
 
+// Forward: the chunks to recompute.
+ChunkSet dirty_chunks(std::span<const LoggedStep> log, const std::vector<Reach>& reach,
+                      size_t max_chunks, size_t& undone, bool& too_many) {
+  ChunkSet dirty;
+  for (size_t i = 0; i < log.size(); ++i) {
+    if (!log[i].undo && !meets(reach[i].reads, dirty)) continue;
+    undone += log[i].undo ? 1 : 0;
+    dirty.insert(reach[i].writes.begin(), reach[i].writes.end());
+    if (max_chunks != 0 && dirty.size() > max_chunks) {
+      too_many = true;
+      return {};
+    }
+  }
+  return dirty;
+}
+
+std::vector<Reach> reaches(std::span<const LoggedStep> log) {
+  std::vector<Reach> reach;
+  reach.reserve(log.size());
+  for (const LoggedStep& s : log) reach.push_back(reach_of(*s.edit));
+  return reach;
+}
+
 }  // namespace
+
+UndoPlan plan_undo(std::span<const LoggedStep> log, size_t max_chunks) {
+  UndoPlan plan;
+  const ChunkSet dirty = dirty_chunks(log, reaches(log), max_chunks, plan.undone, plan.too_many);
+  plan.chunks.assign(dirty.begin(), dirty.end());
+  std::sort(plan.chunks.begin(), plan.chunks.end());
+  return plan;
+}
 
 UndoResult undo_edits(std::span<const LoggedStep> log, const TerrainGenerator& generator,
                       const std::function<std::optional<Chunk>(ChunkCoord)>& base,
                       size_t max_chunks, int zone_chunks) {
   UndoResult out;
-  std::vector<Reach> reach;
-  reach.reserve(log.size());
-  for (const LoggedStep& s : log) reach.push_back(reach_of(*s.edit));
-  // Forward: the chunks to recompute.
-  ChunkSet dirty;
-  for (size_t i = 0; i < log.size(); ++i) {
-    if (!log[i].undo && !meets(reach[i].reads, dirty)) continue;
-    out.undone += log[i].undo ? 1 : 0;
-    dirty.insert(reach[i].writes.begin(), reach[i].writes.end());
-    if (max_chunks != 0 && dirty.size() > max_chunks) {
-      out.too_many = true;
-      return out;
-    }
-  }
+  const std::vector<Reach> reach = reaches(log);
+  const ChunkSet dirty = dirty_chunks(log, reach, max_chunks, out.undone, out.too_many);
   if (dirty.empty()) return out;
   // Backward: the edits they depend on, and every chunk those read.
   ChunkSet needed = dirty;

@@ -36,6 +36,16 @@ struct UndoResult {
   bool too_many = false;  // over max_chunks: nothing recomputed
 };
 
+// What undoing would change, without the base: the chunks to recompute (by coordinate)
+// and how many edits would be undone. At most `max_chunks` (0: no bound; over it,
+// too_many and no chunks).
+struct UndoPlan {
+  std::vector<ChunkCoord> chunks;
+  size_t undone = 0;
+  bool too_many = false;
+};
+UndoPlan plan_undo(std::span<const LoggedStep> log, size_t max_chunks = 0);
+
 // `log`: every edit after the base, in order. `base(c)`: chunk c as it was before the
 // log's first edit (nullopt: as the generator makes it). At most `max_chunks` chunks are
 // recomputed (0: no bound); the chunks read to recompute them are not counted.
