@@ -170,10 +170,11 @@ void ZoneReplicas::give_back(world::ZoneId zone, std::vector<store::ZoneRecord> 
   q.insert(q.begin(), std::make_move_iterator(records.begin()),
            std::make_move_iterator(records.end()));
   // In sequence order, each once: the follower queued later ones (and maybe the same ones,
-  // when the pipeline had read them from the log) meanwhile.
-  std::stable_sort(q.begin(), q.end(), [](const store::ZoneRecord& a, const store::ZoneRecord& b) {
-    return a.seq < b.seq;
-  });
+  // when the pipeline had read them from the log) meanwhile. Two records of one sequence
+  // number are one record, so their order does not matter (and no std::stable_sort: its
+  // temporary buffer trips clang 14's AddressSanitizer, as it did in options/).
+  std::sort(q.begin(), q.end(),
+            [](const store::ZoneRecord& a, const store::ZoneRecord& b) { return a.seq < b.seq; });
   q.erase(std::unique(q.begin(), q.end(),
                       [](const store::ZoneRecord& a, const store::ZoneRecord& b) {
                         return a.seq == b.seq;
