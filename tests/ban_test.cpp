@@ -22,6 +22,7 @@
 #include "server/store/world_store.hpp"
 #include "tests/server_process.hpp"
 #include "tests/temp_dir.hpp"
+#include "tests/token_world.hpp"
 
 namespace vox {
 namespace {
@@ -120,44 +121,10 @@ TEST(BanKeeper, RowsWrittenByOtherToolsAreReadInTheFormAdmissionMatches) {
   EXPECT_EQ(keeper.size(), 2u);
 }
 
-int64_t unix_now() {
-  return std::chrono::duration_cast<std::chrono::seconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-class Bans : public ::testing::Test {
+class Bans : public test::TokenWorld {
  protected:
-  void SetUp() override {
-    key_ = auth::generate_key_pair();
-    std::ofstream(dir_ / "game.pub") << auth::key_to_text(key_.public_key);
-  }
-  std::vector<std::string> server_args() const {
-    return {"--auth-public-key", (dir_ / "game.pub").string(), "--world",
-            (dir_ / "world").string()};
-  }
-  std::string token(const std::string& id, auth::Role role = auth::Role::kPlayer) const {
-    return auth::mint_token({.player_id = id,
-                             .display_name = "Name of " + id,
-                             .role = role,
-                             .expires_at = unix_now() + 600},
-                            key_.seed);
-  }
-  // The Welcome or Error a Hello with `token` gets.
-  static wire::Envelope hello(Client& c, const std::string& token) {
-    c.send(client::make_hello("ignored", 1, token));
-    for (;;) {
-      auto m = c.receive(10s);
-      if (!m) return {};
-      if (m->has_welcome() || m->has_error()) return *m;
-    }
-  }
-  std::unique_ptr<Client> join(uint16_t port, const std::string& token) {
-    auto c = std::make_unique<Client>();
-    c->connect("127.0.0.1", port, 5s);
-    EXPECT_TRUE(hello(*c, token).has_welcome());
-    return c;
-  }
+  Bans() : TokenWorld("bans") {}
+  std::vector<std::string> server_args() const { return key_and_world(); }
   // The Error a connection is closed with (skipping what came before).
   static wire::Error closed_with(Client& c) {
     for (;;) {
@@ -175,18 +142,6 @@ class Bans : public ::testing::Test {
       if (r->has_admin_result()) return r->admin_result();
     }
   }
-  int cli(std::vector<std::string> args, uint16_t port, const std::string& token,
-          std::string* out = nullptr) {
-    args.push_back("--server=127.0.0.1:" + std::to_string(port));
-    args.push_back("--token=" + token);
-    std::ostringstream o, e;
-    const int rc = cli::run_cli(args, o, e);
-    if (out) *out = o.str() + e.str();
-    return rc;
-  }
-
-  test::TempDir dir_{"bans"};
-  auth::KeyPair key_;
 };
 
 TEST_F(Bans, OnlyAnAdminListsKicksAndBansAndABanHoldsAcrossARestartUntilUnbanned) {
@@ -220,7 +175,14 @@ TEST_F(Bans, OnlyAnAdminListsKicksAndBansAndABanHoldsAcrossARestartUntilUnbanned
     EXPECT_EQ(told.code(), wire::Error::KICKED);
     EXPECT_NE(told.message().find("take a break"), std::string::npos) << told.message();
     EXPECT_EQ(ask(*admin, kick).status(), wire::AdminResult::NOT_FOUND);  // gone now
-    join(server.port(), token("alice"));                                  // a kick is no ban
+    wire::Envelope self_kick;
+    self_kick.mutable_admin_command()->mutable_kick()->set_player_id("root");
+    EXPECT_EQ(ask(*admin, self_kick).status(), wire::AdminResult::BAD_VALUE);
+    self_kick.mutable_admin_command()->mutable_kick()->set_reason(std::string(201, 'x'));
+    const wire::AdminResult long_reason = ask(*admin, self_kick);
+    EXPECT_NE(long_reason.reason().find("a kick's reason is at most 200"), std::string::npos)
+        << long_reason.reason();
+    join(server.port(), token("alice"));  // a kick is no ban
 
     wire::Envelope b;
     b.mutable_admin_command()->mutable_ban()->set_player_id("mallory");
@@ -288,6 +250,9 @@ TEST_F(Bans, AnAddressBanKeepsEveryoneFromItOutUntilItEnds) {
   EXPECT_NE(refused.error().message().find(" until "), std::string::npos);
   std::this_thread::sleep_for(std::chrono::milliseconds(2100));
   join(server.port(), token("bob"));
+  wire::Envelope unban;
+  unban.mutable_admin_command()->mutable_unban()->set_address("127.0.0.1");
+  EXPECT_EQ(ask(*admin, unban).status(), wire::AdminResult::NOT_FOUND);  // it had ended
 }
 
 TEST_F(Bans, AnAdminIsNotHeldByAnAddressBanAndMayNotBanItself) {

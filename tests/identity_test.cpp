@@ -19,6 +19,7 @@
 #include "server/world/terrain_generator.hpp"
 #include "tests/server_process.hpp"
 #include "tests/temp_dir.hpp"
+#include "tests/token_world.hpp"
 
 namespace vox {
 namespace {
@@ -27,39 +28,14 @@ namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 using client::Client;
 
-int64_t unix_now() {
-  return std::chrono::duration_cast<std::chrono::seconds>(
-             std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
-
-class Identity : public ::testing::Test {
+class Identity : public test::TokenWorld {
  protected:
-  void SetUp() override {
-    key_ = auth::generate_key_pair();
-    std::ofstream(dir_ / "game.pub") << auth::key_to_text(key_.public_key);
-  }
+  Identity() : TokenWorld("identity") {}
 
   std::vector<std::string> server_args() const {
-    return {"--auth-public-key", (dir_ / "game.pub").string(), "--keep-log", "--world",
-            (dir_ / "world").string()};
-  }
-  std::string token(const std::string& id, auth::Role role = auth::Role::kPlayer, int64_t ttl = 600,
-                    uint32_t edit_rate = 0, uint32_t edit_burst = 0) const {
-    return auth::mint_token({.player_id = id,
-                             .display_name = "Name of " + id,
-                             .role = role,
-                             .expires_at = unix_now() + ttl,
-                             .edit_rate = edit_rate,
-                             .edit_burst = edit_burst},
-                            key_.seed);
-  }
-  // A connected client that joined with `token`.
-  std::unique_ptr<Client> join(uint16_t port, const std::string& token) {
-    auto c = std::make_unique<Client>();
-    c->connect("127.0.0.1", port, 5s);
-    EXPECT_TRUE(hello(*c, token).has_welcome());
-    return c;
+    std::vector<std::string> args = key_and_world();
+    args.push_back("--keep-log");
+    return args;
   }
   // Sends `m` and returns the answer with the same request id (EditResult or RegionResult).
   static wire::Envelope ask(Client& c, const wire::Envelope& m) {
@@ -85,24 +61,6 @@ class Identity : public ::testing::Test {
     m.mutable_region_command()->mutable_list();
     return m;
   }
-  int cli(std::vector<std::string> args, uint16_t port, const std::string& token,
-          std::string* out = nullptr) {
-    args.push_back("--server=127.0.0.1:" + std::to_string(port));
-    args.push_back("--token=" + token);
-    std::ostringstream o, e;
-    const int rc = cli::run_cli(args, o, e);
-    if (out) *out = o.str() + e.str();
-    return rc;
-  }
-  // Sends Hello with `token`; returns the first Welcome or Error the server answers.
-  static wire::Envelope hello(Client& c, const std::string& token) {
-    c.send(client::make_hello("ignored", 1, token));
-    for (;;) {
-      auto m = c.receive(10s);
-      if (!m) return {};
-      if (m->has_welcome() || m->has_error()) return *m;
-    }
-  }
   static wire::EditResult explode(Client& c, uint64_t request, float y) {
     wire::Envelope m;
     m.mutable_edit()->set_request_id(request);
@@ -117,9 +75,6 @@ class Identity : public ::testing::Test {
       if (r->has_edit_result()) return r->edit_result();
     }
   }
-
-  test::TempDir dir_{"identity"};  // the key file and the world
-  auth::KeyPair key_;
 };
 
 TEST_F(Identity, ATokenLetsAPlayerInAndEveryBadOneIsRefused) {

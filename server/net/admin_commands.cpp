@@ -147,10 +147,13 @@ void ClientSession::list_players(uint64_t after_session, wire::Envelope& reply) 
 void ClientSession::kick(const wire::Kick& kick, wire::Envelope& reply) {
   auto* result = reply.mutable_admin_result();
   const Target t = target_of(kick.player_id(), kick.address());
-  Ban probe;  // the reason's rules are a ban's
-  probe.target = "-";
-  probe.reason = kick.reason();
-  std::optional<std::string> problem = t.who ? store::ban_problem(probe) : t.problem;
+  std::optional<std::string> problem = t.who ? std::nullopt : std::optional(t.problem);
+  if (!problem && kick.reason().size() > store::kMaxBanReason)
+    problem = "a kick's reason is at most " + std::to_string(store::kMaxBanReason) + " bytes";
+  if (!problem && std::any_of(kick.reason().begin(), kick.reason().end(), [](char c) {
+        return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
+      }))
+    problem = "a kick's reason holds no control characters";
   if (problem) {
     result->set_status(wire::AdminResult::BAD_VALUE);
     result->set_reason(*problem);
@@ -164,9 +167,12 @@ void ClientSession::kick(const wire::Kick& kick, wire::Envelope& reply) {
                         escape_for_log(target), closed,
                         kick.reason().empty() ? "" : ": " + escape_for_log(kick.reason())));
   result->set_kicked(static_cast<uint32_t>(closed));
+  const bool only_itself = (kind == Ban::Kind::kPlayer ? player_id_ : address_) == target;
   if (closed == 0) {
-    result->set_status(wire::AdminResult::NOT_FOUND);
-    result->set_reason(std::string("no connection of that ") + store::to_string(kind));
+    result->set_status(only_itself ? wire::AdminResult::BAD_VALUE : wire::AdminResult::NOT_FOUND);
+    result->set_reason(only_itself
+                           ? "an admin's command never closes its own connection"
+                           : std::string("no connection of that ") + store::to_string(kind));
   } else {
     result->set_status(wire::AdminResult::OK);
   }

@@ -147,15 +147,15 @@ void BanKeeper::apply(Job& job) {
     }
   } else {
     try {
-      bool stored = false;
-      if (store_) stored = store_->remove(job.ban.kind, job.ban.target);
+      // The row goes whatever it held; the answer is OK only for a ban that was in force.
+      if (store_) store_->remove(job.ban.kind, job.ban.target);
       std::optional<Ban> removed;
       {
         std::lock_guard lock(mutex_);
         removed = book_.remove(job.ban.kind, job.ban.target);
       }
       if (removed) out.ban = *removed;
-      if (!removed && !stored)
+      if (!removed || removed->expired(now_ms()))
         out = {Outcome::Status::kNotFound,
                std::string("no ban of that ") + store::to_string(job.ban.kind), job.ban};
     } catch (const store::StoreError& e) {

@@ -159,24 +159,23 @@ class PostgresBans final : public BanStore {
  private:
   template <class Fn>
   void run(Fn&& fn) {
-    translate_pq_errors(
-        name_, [&] { conn_.reset(); },
+    run_on(
+        conn_, name_,
         [&] {
-          if (!conn_ || !conn_->is_open()) {
-            conn_ = std::make_unique<pqxx::connection>(with_connect_timeout(uri_, kWait));
-            pqxx::nontransaction n(*conn_);
-            // No statement waits long either: the keeper's stop waits for its thread.
-            n.exec("SET statement_timeout = " + std::to_string(kWait.count()));
-            // Nodes starting together on a new database may race to make the table:
-            // one makes it, the others' CREATE fails once; then it is there.
-            try {
-              n.exec(kCreateBans);
-            } catch (const pqxx::sql_error&) {
-              n.exec(kCreateBans);
-            }
+          auto c = std::make_unique<pqxx::connection>(with_connect_timeout(uri_, kWait));
+          pqxx::nontransaction n(*c);
+          // No statement waits long either: the keeper's stop waits for its thread.
+          n.exec("SET statement_timeout = " + std::to_string(kWait.count()));
+          // Nodes starting together on a new database may race to make the table: one
+          // makes it, the others' CREATE fails once; then it is there.
+          try {
+            n.exec(kCreateBans);
+          } catch (const pqxx::sql_error&) {
+            n.exec(kCreateBans);
           }
-          fn(*conn_);
-        });
+          return c;
+        },
+        fn);
   }
 
   static constexpr std::chrono::milliseconds kWait{5000};

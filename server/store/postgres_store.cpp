@@ -265,15 +265,14 @@ class PostgresStore final : public WorldStore {
   // failure becomes a StoreError naming the store, and drops the connection.
   template <class Fn>
   void run(Fn&& fn) {
-    translate_pq_errors(
-        name_, [&] { conn_.reset(); },
+    run_on(
+        conn_, name_,
         [&] {
-          if (!conn_ || !conn_->is_open()) {
-            conn_ = std::make_unique<pqxx::connection>(uri_);
-            if (!options_.read_only && options_.record_start) lock_world(*conn_);
-          }
-          fn(*conn_);
-        });
+          auto c = std::make_unique<pqxx::connection>(uri_);
+          if (!options_.read_only && options_.record_start) lock_world(*c);
+          return c;
+        },
+        fn);
   }
 
   // One writing process per world: a session advisory lock in this database, held by the
@@ -288,8 +287,7 @@ class PostgresStore final : public WorldStore {
            std::chrono::steady_clock::now() < give_up) {
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     }
-    if (!locked) {
-      conn_.reset();
+    if (!locked) {  // the new connection goes with the exception
       throw StoreError(name_ +
                        ": another voxeld is writing this world (it holds its lock); "
                        "stop it first");

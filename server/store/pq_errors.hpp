@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 #include <pqxx/pqxx>
 #include <string>
 
@@ -38,6 +39,20 @@ auto translate_pq_errors(const std::string& name, Drop&& drop, Fn&& fn) {
     drop();
     throw StoreError(name + ": " + first_line(e.what()));
   }
+}
+
+// Runs fn on `conn`: opened by `open` (which does what a new connection needs) when there
+// is none or it broke; every libpqxx failure a StoreError naming `name`, the connection
+// dropped (the next call reopens it).
+template <typename Open, typename Fn>
+void run_on(std::unique_ptr<pqxx::connection>& conn, const std::string& name, Open&& open,
+            Fn&& fn) {
+  translate_pq_errors(
+      name, [&] { conn.reset(); },
+      [&] {
+        if (!conn || !conn->is_open()) conn = open();
+        fn(*conn);
+      });
 }
 
 }  // namespace vox::store
