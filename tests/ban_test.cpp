@@ -325,8 +325,13 @@ TEST_F(Reloading, SighupAppliesNewBudgetsAndANewKeyAndABrokenFileChangesNothing)
     const wire::Envelope w = hello(c, tok);
     return w.has_welcome() ? w.welcome().edit_budget_per_second() : -1.0;
   };
-  const auto sighup_and_wait = [&](const std::string& line) {
-    ::kill(server.pid(), SIGHUP);
+  // As the README says to: a new file renamed over the old one (a reload never reads a
+  // file half written).
+  const auto write_conf = [&](const std::string& text) {
+    std::ofstream(conf.string() + ".new") << text;
+    std::filesystem::rename(conf.string() + ".new", conf);
+  };
+  const auto log_has = [&](const std::string& line) {
     for (int i = 0; i < 200; ++i) {
       std::ifstream log(server.log_path());
       const std::string text((std::istreambuf_iterator<char>(log)), {});
@@ -335,21 +340,26 @@ TEST_F(Reloading, SighupAppliesNewBudgetsAndANewKeyAndABrokenFileChangesNothing)
     }
     return false;
   };
+  const auto sighup_and_wait = [&](const std::string& line) {
+    ::kill(server.pid(), SIGHUP);
+    return log_has(line);
+  };
   EXPECT_EQ(budget_of_a_new_player(token("alice")), 1000);
-  std::ofstream(conf) << "edit-budget = 2500\nmax-view-radius = 5\n";
+  write_conf("edit-budget = 2500\nmax-view-radius = 5\n");
   ASSERT_TRUE(sighup_and_wait("SIGHUP: edit-budget: 1000 -> 2500"));
-  EXPECT_TRUE(sighup_and_wait("max-view-radius: 12 -> 5 needs a restart (still 12)"));
+  EXPECT_TRUE(log_has("max-view-radius: 12 -> 5 needs a restart (still 12)"));
   EXPECT_EQ(budget_of_a_new_player(token("alice")), 2500);
 
-  std::ofstream(conf) << "edit-budget = lots\n";
+  write_conf("edit-budget = lots\n");
   ASSERT_TRUE(sighup_and_wait("; nothing changed"));
   EXPECT_EQ(budget_of_a_new_player(token("alice")), 2500);
 
   // A new key in the same file: old tokens are refused from now on, new ones taken.
   const std::string old_token = token("bob");
   key_ = auth::generate_key_pair();
-  std::ofstream(dir_ / "game.pub") << auth::key_to_text(key_.public_key);
-  std::ofstream(conf) << "edit-budget = 2500\nmax-view-radius = 5\n";
+  std::ofstream(dir_ / "game.pub.new") << auth::key_to_text(key_.public_key);
+  std::filesystem::rename(dir_ / "game.pub.new", dir_ / "game.pub");
+  write_conf("edit-budget = 2500\nmax-view-radius = 5\n");
   ASSERT_TRUE(sighup_and_wait("(a new key)"));
   Client refused;
   refused.connect("127.0.0.1", server.port(), 5s);
