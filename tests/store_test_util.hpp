@@ -1,12 +1,26 @@
 // What the store's tests share: one edit of every kind (and both stamp shapes), with
-// floats that are not round numbers, so an inexact round trip shows.
+// floats that are not round numbers, so an inexact round trip shows; a chunk of random
+// samples.
 #pragma once
 
+#include <random>
 #include <vector>
 
+#include "server/world/chunk.hpp"
 #include "server/world/edit.hpp"
 
 namespace vox::test {
+
+// A chunk of pseudo-random samples (no two seeds alike): one that compresses badly.
+inline world::Chunk full_chunk(uint32_t seed) {
+  world::Chunk c;
+  std::mt19937 rng(seed);
+  for (int i = 0; i < world::kChunkVolume; ++i) {
+    c.densities()[i] = static_cast<world::Density>(static_cast<int>(rng() % 65535) - 32767);
+    c.materials()[i] = static_cast<world::Material>(rng() % 4);
+  }
+  return c;
+}
 
 inline std::vector<world::Edit> one_edit_of_each_kind() {
   world::Stamp box;

@@ -369,10 +369,8 @@ TEST(Reload, ItAppliesBudgetsCapsLogLevelAndKeyAndNamesWhatNeedsARestart) {
 }
 
 TEST(Reload, ANewKeyInTheSameFileIsANewKeyButAnOpenServerStaysOpen) {
-  char path[] = "/tmp/voxel_reload_XXXXXX";
-  const int fd = ::mkstemp(path);
-  ASSERT_GE(fd, 0);
-  ::close(fd);
+  const ConfigFileOnDisk file("");  // its directory and name; it holds a key here
+  const std::string& path = file.path;
   const auto write_key = [&](const auth::PublicKey& k) {
     std::ofstream(path) << auth::key_to_text(k) << "\n";
   };
@@ -390,7 +388,6 @@ TEST(Reload, ANewKeyInTheSameFileIsANewKeyButAnOpenServerStaysOpen) {
   ASSERT_EQ(opened.kept.size(), 1u);
   EXPECT_NE(opened.kept[0].find("between an open server and player tokens"), std::string::npos);
   EXPECT_FALSE(opened.after.net.auth_key);
-  std::remove(path);
 }
 
 }  // namespace

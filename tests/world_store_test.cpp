@@ -15,12 +15,10 @@
 #include <random>
 #include <thread>
 
-#include "server/store/ban_store.hpp"
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/store/postgres_store.hpp"
 #include "server/store/sqlite_store.hpp"
-#include "server/store/world_backup.hpp"
 #include "tests/postgres_server.hpp"
 #include "tests/store_test_util.hpp"
 #include "tests/temp_dir.hpp"
@@ -28,20 +26,12 @@
 namespace vox::store {
 namespace {
 
+using test::full_chunk;
+
 namespace fs = std::filesystem;
 
 // Bit-for-bit equality of two edits (encodings compare every float exactly).
 bool same(const world::Edit& a, const world::Edit& b) { return encode_edit(a) == encode_edit(b); }
-
-world::Chunk full_chunk(uint32_t seed) {
-  world::Chunk c;
-  std::mt19937 rng(seed);
-  for (int i = 0; i < world::kChunkVolume; ++i) {
-    c.densities()[i] = static_cast<world::Density>(static_cast<int>(rng() % 65535) - 32767);
-    c.materials()[i] = static_cast<world::Material>(rng() % 4);
-  }
-  return c;
-}
 
 // A schema-1 world holding chunk (1, 2, 3) at seq 3 (checkpoint 3, seed 5): readers read it
 // as it is (a world from before regions has none); a writer migrates it, reads it, and
@@ -324,57 +314,6 @@ TEST_P(WorldStoreTest, AnEditStampedByAClockThatRanAheadHoldsNoHistoryBack) {
   std::vector<uint64_t> seqs;
   s->for_each_edit(0, [&](const LoggedEdit& l) { return seqs.push_back(l.seq), true; });
   EXPECT_EQ(seqs, (std::vector<uint64_t>{4}));
-}
-
-TEST_P(WorldStoreTest, APostgresqlWorldBacksUpToAFileThatRestoresRowForRow) {
-  if (GetParam() != "postgresql") GTEST_SKIP() << "a SQLite world: WorldBackup.*";
-  const std::string where = fresh_world();
-  {
-    auto s = open_world_store(where, {.seed = 11});
-    std::vector<LoggedEdit> log;
-    for (uint64_t seq = 1; seq <= 700; ++seq)  // more than one FETCH of each
-      log.push_back({seq, static_cast<int64_t>(seq), seq % 2 ? "alice" : "",
-                     world::Paint{{1, 2, 3}, 2, static_cast<uint8_t>(1 + seq % 9)}});
-    RegionWrite regions;
-    world::Region r;
-    r.id = 1, r.name = "spawn", r.flags = world::kRegionFlagsKnown, r.owners = {"alice"};
-    r.box = {{0, 0, 0}, {8, 8, 8}};
-    regions.upsert.push_back(r);
-    regions.next_id = 2;
-    s->append_edits(log, {}, &regions);
-    std::vector<ChunkRecord> chunks;
-    for (int x = 0; x < 300; ++x)
-      chunks.push_back({{x, 0, 0}, 600, encode_chunk(full_chunk(static_cast<uint32_t>(x)))});
-    s->write_checkpoint(chunks, 600, LogTrim{100});
-    Ban b;
-    b.target = "mallory", b.reason = "grief", b.created_ms = 5;
-    open_ban_store(where)->put(b);
-  }
-  test::TempDir dir("pg_backup");
-  const BackupFigures f = backup_postgres_world(where, (dir / "world.backup").string());
-  EXPECT_GT(f.bytes, 0u);
-  EXPECT_THROW(backup_postgres_world(where, (dir / "world.backup").string()), StoreError);
-  EXPECT_EQ(restore_world((dir / "world.backup").string(), (dir / "restored").string(), false), "");
-  auto from = open_world_store(where, {.read_only = true});
-  auto to = open_world_store((dir / "restored").string(), {.read_only = true});
-  const WorldInfo a = from->info(), b = to->info();
-  EXPECT_EQ(b.seed, 11u);
-  EXPECT_EQ(b.checkpoint_seq, a.checkpoint_seq);
-  EXPECT_EQ(b.last_seq, 700u);
-  EXPECT_EQ(b.logged_edits, 600u);  // 101..700
-  EXPECT_EQ(b.modified_chunks, 300u);
-  for (int x : {0, 150, 299})
-    EXPECT_EQ(to->read_chunk({x, 0, 0})->samples, from->read_chunk({x, 0, 0})->samples);
-  std::vector<std::pair<uint64_t, std::string>> la, lb;
-  from->for_each_edit(0,
-                      [&](const LoggedEdit& e) { return la.emplace_back(e.seq, e.author), true; });
-  to->for_each_edit(0, [&](const LoggedEdit& e) { return lb.emplace_back(e.seq, e.author), true; });
-  EXPECT_EQ(la, lb);
-  const RegionTable regions = to->read_regions();
-  ASSERT_EQ(regions.regions.size(), 1u);
-  EXPECT_EQ(regions.regions[0].name, "spawn");
-  EXPECT_EQ(regions.next_id, 2u);
-  EXPECT_EQ(open_ban_store((dir / "restored").string())->read(0).bans.size(), 1u);
 }
 
 TEST_P(WorldStoreTest, ReadOnlyToolsReadAWorldWhileItIsWritten) {
