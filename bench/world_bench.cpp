@@ -132,10 +132,11 @@ void BM_UndoTenThousandEdits(benchmark::State& state) {
     edits.push_back(Explosion{{x, y, z}, 4, 1});
   }
   std::vector<LoggedStep> log;
-  for (size_t i = 0; i < edits.size(); ++i) log.push_back({&edits[i], {}, i % 2 == 1});
+  for (size_t i = 0; i < edits.size(); ++i)
+    log.push_back({i + 1, &edits[i], {}, i % 2 == 1, i % 2 == 1});
   size_t chunks = 0, replayed = 0;
   for (auto _ : state) {
-    const UndoResult r = undo_edits(log, gen, [](ChunkCoord) { return std::nullopt; });
+    const UndoResult r = undo_edits(steps_of(log), gen, [](ChunkCoord) { return std::nullopt; });
     chunks = r.chunks.size();
     replayed = r.replayed;
     benchmark::DoNotOptimize(r.chunks.data());

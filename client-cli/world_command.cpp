@@ -17,6 +17,7 @@
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/store/world_backup.hpp"
+#include "server/store/world_history.hpp"
 #include "server/store/world_store.hpp"
 #include "server/store/zone_leases.hpp"
 #include "server/world/edit_replay.hpp"
@@ -33,6 +34,13 @@ std::string utc_time(int64_t unix_ms) {
   o << std::put_time(&tm, "%Y-%m-%dT%H:%M:%S") << '.' << std::setw(3) << std::setfill('0')
     << unix_ms % 1000 << 'Z';
   return o.str();
+}
+
+std::string describe_rollback(const std::vector<uint64_t>& undoes) {
+  return "rollback of " + std::to_string(undoes.size()) + " edit" +
+         (undoes.size() == 1 ? " " : "s ") + std::to_string(undoes.front()) +
+         (undoes.size() == 1 ? "" : ".." + std::to_string(undoes.back())) +
+         " (voxel-cli rollback --undo SEQ brings them back)";
 }
 
 int world_info(store::WorldStore& s, std::ostream& out) {
@@ -52,7 +60,7 @@ int world_info(store::WorldStore& s, std::ostream& out) {
 int world_log(store::WorldStore& s, uint64_t since, std::ostream& out) {
   s.for_each_edit(since, [&](const store::LoggedEdit& e) {
     out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
-        << "  " << store::describe_edit(e.edit);
+        << "  " << (e.undoes ? describe_rollback(*e.undoes) : store::describe_edit(e.edit));
     if (!e.keep.empty())
       out << "  (clipped: " << e.keep.size() << " protected box" << (e.keep.size() == 1 ? "" : "es")
           << " kept)";
@@ -69,6 +77,7 @@ struct HistoryFilter {
   int64_t since_ms = std::numeric_limits<int64_t>::min();
   int64_t until_ms = std::numeric_limits<int64_t>::max();
   bool matches(const store::LoggedEdit& e) const {
+    if (e.undoes) return false;  // the edits, not rollbacks (world log lists those)
     if (e.unix_ms < since_ms || e.unix_ms > until_ms) return false;
     if (player && *player != (e.author.empty() ? "-" : e.author)) return false;
     if (!box) return true;
@@ -81,26 +90,15 @@ struct HistoryFilter {
 
 // The logged edits that match, oldest first, and how far back the log reaches (older
 // edits were trimmed by checkpoints: voxeld --history-days, --keep-log).
-// With `plan`, also what rolling the listed edits back would change (world/edit_undo.hpp):
-// the log from the first listed edit on is held in memory, at most kMaxPlanEdits of it.
-constexpr size_t kMaxPlanEdits = 2'000'000;
-
+// With `plan`, also what rolling the listed edits back would change (a dry run of
+// store::prepare_rollback: edits rolled back already are not counted again).
 int world_history(store::WorldStore& s, const HistoryFilter& filter, bool plan, std::ostream& out) {
   uint64_t first_seq = 0, listed = 0;
   int64_t first_ms = 0;
   std::map<std::string, uint64_t> by_author;
-  std::vector<store::LoggedEdit> tail;  // plan: from the first listed edit on
-  std::vector<bool> listed_in_tail;
-  bool too_long = false;
   s.for_each_edit(0, [&](const store::LoggedEdit& e) {
     if (first_seq == 0) first_seq = e.seq, first_ms = e.unix_ms;
-    const bool match = filter.matches(e);
-    if (plan && (match || !tail.empty()) && !too_long) {
-      too_long = tail.size() >= kMaxPlanEdits;
-      tail.push_back(e);
-      listed_in_tail.push_back(match);
-    }
-    if (!match) return true;
+    if (!filter.matches(e)) return true;
     ++listed;
     ++by_author[e.author.empty() ? "-" : e.author];
     out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
@@ -111,17 +109,21 @@ int world_history(store::WorldStore& s, const HistoryFilter& filter, bool plan, 
   for (const auto& [author, n] : by_author)
     out << (author == by_author.begin()->first ? ": " : ", ") << author << " " << n;
   out << "\n";
-  if (plan && too_long) {
-    out << "rollback plan: more than " << kMaxPlanEdits
-        << " edits from the first listed one on; narrow --since\n";
-  } else if (plan) {
-    std::vector<world::LoggedStep> steps;
-    steps.reserve(tail.size());
-    for (size_t i = 0; i < tail.size(); ++i)
-      steps.push_back({&tail[i].edit, tail[i].keep, listed_in_tail[i]});
-    const world::UndoPlan p = world::plan_undo(steps);
-    out << "rollback plan: undoing these " << p.undone << " edits recomputes " << p.chunks.size()
-        << " chunks (every other edit in them kept, in its order)\n";
+  if (plan) {
+    store::RollbackQuery q{.player = filter.player.value_or(""),
+                           .box = filter.box,
+                           .since_ms = filter.since_ms,
+                           .until_ms = filter.until_ms == std::numeric_limits<int64_t>::max()
+                                           ? filter.until_ms
+                                           : filter.until_ms + 1};
+    const store::WorldInfo info = s.info();
+    const store::RollbackOutcome p =
+        store::prepare_rollback(s, world::TerrainGenerator(info.seed), q, info.last_seq, true, 0);
+    if (!p.refusal.empty())
+      out << "rollback plan: refused: " << p.refusal << "\n";
+    else
+      out << "rollback plan: undoing these " << p.edits << " edits recomputes " << p.chunks.size()
+          << " chunks (every other edit in them kept, in its order)\n";
   }
   if (filter.since_ms > std::numeric_limits<int64_t>::min() && first_seq > 1 &&
       filter.since_ms < first_ms)
@@ -179,6 +181,7 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
   bool checked_at_checkpoint = !whole_log || info.checkpoint_seq == 0;
   world::EditLimits limits;
   limits.max_radius = limits.max_strength = 1e9f;  // the server's limits may be wider
+  auto rollbacks = store::replay_rollbacks_after(s, generator, from);
   s.for_each_edit(from, [&](const store::LoggedEdit& e) {
     if (!checked_at_checkpoint && e.seq > info.checkpoint_seq) {
       check_checkpoints();
@@ -186,6 +189,11 @@ int world_verify(store::WorldStore& s, std::ostream& out, std::ostream& err) {
     }
     if (e.seq <= previous) throw std::runtime_error("log out of order at " + std::to_string(e.seq));
     previous = e.seq;
+    if (e.undoes) {
+      for (auto& [c, chunk] : rollbacks.at(e.seq)) map.insert(c, std::move(chunk));
+      ++replayed;
+      return true;
+    }
     if (auto refusal = world::validate(e.edit, limits))
       throw std::runtime_error("logged edit " + std::to_string(e.seq) +
                                " is not valid: " + refusal->message);

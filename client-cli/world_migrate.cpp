@@ -13,6 +13,7 @@
 #include "client-cli/commands.hpp"
 #include "server/store/chunk_codec.hpp"
 #include "server/store/postgres_store.hpp"
+#include "server/store/world_history.hpp"
 #include "server/store/world_store.hpp"
 #include "server/store/zone_world.hpp"
 #include "server/world/edit_replay.hpp"
@@ -46,7 +47,15 @@ void load_single_world(store::WorldStore& s, world::ChunkMap& map,
   }
   world::EditLimits limits;
   limits.max_radius = limits.max_strength = 1e9f;  // the server's limits may have been wider
+  auto rollbacks = store::replay_rollbacks_after(s, generator, info.checkpoint_seq);
   s.for_each_edit(info.checkpoint_seq, [&](const store::LoggedEdit& e) {
+    if (e.undoes) {
+      for (auto& [c, chunk] : rollbacks.at(e.seq)) {
+        map.insert(c, std::move(chunk));
+        modified.insert(c);
+      }
+      return true;
+    }
     if (auto refusal = world::validate(e.edit, limits))
       throw std::runtime_error("logged edit " + std::to_string(e.seq) +
                                " is not valid: " + refusal->message);

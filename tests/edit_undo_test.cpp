@@ -38,9 +38,10 @@ std::map<ChunkCoord, Chunk> replayed(const std::vector<Authored>& edits, char sk
 UndoResult undo(const std::vector<Authored>& edits, char who, const TerrainGenerator& gen,
                 size_t max_chunks = 0) {
   std::vector<LoggedStep> log;
-  for (const Authored& a : edits) log.push_back({&a.edit, {}, a.who == who});
+  uint64_t seq = 0;
+  for (const Authored& a : edits) log.push_back({++seq, &a.edit, {}, a.who == who, a.who == who});
   return undo_edits(
-      log, gen, [](ChunkCoord) { return std::nullopt; }, max_chunks);
+      steps_of(log), gen, [](ChunkCoord) { return std::nullopt; }, max_chunks);
 }
 
 TEST(EditUndo, UndoingBsEditsLeavesExactlyTheWorldOfAsAlone) {
@@ -59,7 +60,7 @@ TEST(EditUndo, UndoingBsEditsLeavesExactlyTheWorldOfAsAlone) {
   };
   const UndoResult r = undo(edits, 'B', gen);
   EXPECT_FALSE(r.too_many);
-  EXPECT_EQ(r.undone, 3u);
+  EXPECT_EQ(r.changed, 3u);
   const std::map<ChunkCoord, Chunk> want = replayed(edits, 'B', gen);
   ASSERT_FALSE(r.chunks.empty());
   for (const auto& [c, chunk] : r.chunks) {

@@ -43,6 +43,21 @@ class GatedStore final : public store::WorldStore {
                      const std::function<bool(const store::LoggedEdit&)>& fn) override {
     inner_.for_each_edit(after, fn);
   }
+  void for_each_edit_back(uint64_t after, uint64_t through,
+                          const std::function<bool(const store::LoggedEdit&)>& fn) override {
+    inner_.for_each_edit_back(after, through, fn);
+  }
+  void for_each_rollback(uint64_t after,
+                         const std::function<bool(const store::LoggedEdit&)>& fn) override {
+    inner_.for_each_rollback(after, fn);
+  }
+  std::optional<store::ChunkRecord> read_base_chunk(world::ChunkCoord c) override {
+    return inner_.read_base_chunk(c);
+  }
+  void advance_base(std::span<const store::ChunkRecord> chunks, uint64_t through) override {
+    inner_.advance_base(chunks, through);
+  }
+  void reset_base() override { inner_.reset_base(); }
 
   void close() {
     std::lock_guard lock(mutex_);

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "server/pipeline/token_bucket.hpp"
+#include "server/world/chunk.hpp"
 #include "server/world/chunk_coord.hpp"
 #include "server/world/edit.hpp"
 #include "server/world/region.hpp"
@@ -69,9 +70,23 @@ struct InspectTask {
   // before it could run (then on whichever thread found it).
   std::function<void(bool cancelled)> run;
 };
-// Edits, region changes and inspections share one queue: each sees every edit queued
-// before it.
-using OrderedTask = std::variant<EditTask, InspectTask, RegionTask>;
+// A rollback's steps in order with the edits (pipeline/rollbacks.hpp): chunks frozen (edits
+// reaching them are refused until thawed; `done` gets the sequence number of the last
+// edit before the freeze), a slice of its recomputed chunks put in place (the first
+// slice's batch logs the record; `done` once durable, or not: undone), or chunks thawed.
+struct RollbackTask {
+  enum class Kind { kFreeze, kInstall, kThaw } kind = Kind::kFreeze;
+  std::vector<world::ChunkCoord> coords;                           // freeze, thaw
+  std::vector<std::pair<world::ChunkCoord, world::Chunk>> chunks;  // install
+  std::optional<std::vector<uint64_t>> undoes;  // install: the first slice's record
+  std::string by;                               // its author
+  // Pipeline thread (or stop()'s, with ok false): freeze gives `through`; install `ok`
+  // when durable.
+  std::function<void(bool ok, uint64_t through)> done;
+};
+// Edits, region changes, inspections and rollback steps share one queue: each sees every
+// edit queued before it.
+using OrderedTask = std::variant<EditTask, InspectTask, RegionTask, RollbackTask>;
 
 // Part of an owner's request taken into a batch. `done` is set on the request's last
 // slice: run it once the slice's chunks are published.

@@ -1,14 +1,18 @@
 #include "server/pipeline/checkpoint_writer.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 
+#include "server/store/world_history.hpp"
 #include "server/world/thread_name.hpp"
 
 namespace vox::pipeline {
 
 CheckpointWriter::CheckpointWriter(store::WorldStore& store, bool background,
-                                   std::function<void()> on_done)
-    : store_(store), on_done_(std::move(on_done)) {
+                                   std::function<void()> on_done,
+                                   const world::TerrainGenerator* history)
+    : store_(store), on_done_(std::move(on_done)), history_(history) {
   if (background) thread_ = named_thread("vox-checkpoint", [this] { work(); });
 }
 
@@ -51,8 +55,12 @@ CheckpointResult CheckpointWriter::run(const CheckpointJob& job) {
       result.coords.push_back(c);
       records.push_back({c, job.seq, std::move(bytes)});
     }
-    store_.write_checkpoint(records, job.seq, job.trim);
+    // A window is kept by moving the history's base (keep_history), never by a trim that
+    // would drop it; a trim of everything (--history-days 0) drops it.
+    const bool whole = job.trim.through > 0 && !job.trim.windowed();
+    store_.write_checkpoint(records, job.seq, whole || !history_ ? job.trim : store::LogTrim{0});
     result.ok = true;
+    if (!whole && history_) keep_history(job);
   } catch (const std::exception& e) {  // the store's error, or no memory to encode
     {
       std::lock_guard lock(mutex_);
@@ -65,6 +73,30 @@ CheckpointResult CheckpointWriter::run(const CheckpointJob& job) {
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+void CheckpointWriter::keep_history(const CheckpointJob& job) {
+  // Steps of a bounded size (store::advance_history), for at most this long per checkpoint:
+  // a week-old backlog (a window shortened) goes over several.
+  constexpr auto kBudget = std::chrono::seconds(2);
+  const auto until = std::chrono::steady_clock::now() + kBudget;
+  try {
+    for (;;) {
+      const store::HistoryStep step =
+          store::advance_history(store_, *history_, job.trim, job.seq, encoder_);
+      if (step.reset)
+        spdlog::info("world store: the history for rollbacks starts at edit {} (the checkpoint)",
+                     step.through);
+      if (step.reset || step.through == 0 || std::chrono::steady_clock::now() >= until) return;
+    }
+  } catch (const std::exception& e) {  // nothing is lost: the log keeps the edits meanwhile
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_history_warning_ >= std::chrono::minutes(1)) {
+      last_history_warning_ = now;
+      spdlog::warn("world store: the history's base did not move (the log keeps growing): {}",
+                   e.what());
+    }
+  }
 }
 
 void CheckpointWriter::submit(CheckpointJob job) {

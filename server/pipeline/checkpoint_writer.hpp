@@ -29,6 +29,7 @@
 #include "server/store/chunk_codec.hpp"
 #include "server/store/world_store.hpp"
 #include "server/world/chunk.hpp"
+#include "server/world/terrain_generator.hpp"
 
 namespace vox::pipeline {
 
@@ -53,8 +54,11 @@ class CheckpointWriter {
  public:
   // `background`: a thread writes to `store`, a connection no one else uses while this
   // lives; `on_done` then runs on it after each job (no lock held; must not block).
-  // Otherwise submit() writes on the caller's thread.
-  CheckpointWriter(store::WorldStore& store, bool background, std::function<void()> on_done);
+  // Otherwise submit() writes on the caller's thread. With `history` (the world's
+  // generator; null for a cluster's zones), a job whose trim keeps a window moves the
+  // history's base instead (store::advance_history) after writing.
+  CheckpointWriter(store::WorldStore& store, bool background, std::function<void()> on_done,
+                   const world::TerrainGenerator* history = nullptr);
   ~CheckpointWriter();  // finishes the job in flight and joins
   CheckpointWriter(const CheckpointWriter&) = delete;
   CheckpointWriter& operator=(const CheckpointWriter&) = delete;
@@ -73,10 +77,12 @@ class CheckpointWriter {
  private:
   void work();
   CheckpointResult run(const CheckpointJob& job);  // encodes and writes
+  void keep_history(const CheckpointJob& job);     // after a job written: the base moves
   void done(CheckpointResult r);                   // publishes the result; the job is over
 
   store::WorldStore& store_;
   const std::function<void()> on_done_;
+  const world::TerrainGenerator* const history_;
   store::ChunkEncoder encoder_;  // the writing thread's
   mutable std::mutex mutex_;     // leaf lock; never held while encoding or writing
   std::condition_variable cv_;
@@ -89,6 +95,7 @@ class CheckpointWriter {
   std::optional<world::ChunkCoord> reading_;
   size_t bytes_ = 0;   // records encoded and copies held
   bool busy_ = false;  // a job submitted and its result not produced yet
+  std::chrono::steady_clock::time_point last_history_warning_{};  // the writing thread's
   bool stopping_ = false;
   std::thread thread_;
 };

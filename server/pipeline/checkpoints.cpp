@@ -13,12 +13,14 @@ namespace vox::pipeline {
 using world::ChunkCoord;
 
 Checkpoints::Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
-                         LogRetention history, std::function<void()> wake, Clock::time_point now)
+                         LogRetention history, std::function<void()> wake, Clock::time_point now,
+                         const world::TerrainGenerator* generator)
     : limits_(limits),
       own_connection_(own_connection),
       history_(history),
       policy_(limits, now),
-      writer_(std::make_unique<CheckpointWriter>(store, own_connection, std::move(wake))) {}
+      writer_(
+          std::make_unique<CheckpointWriter>(store, own_connection, std::move(wake), generator)) {}
 
 bool Checkpoints::log_full(uint64_t log_tail) {
   const bool full = policy_.log_full(log_tail);

@@ -44,8 +44,10 @@ class Checkpoints {
   // `own_connection`: `store` is a second connection, written on the writer's thread
   // (`wake` runs there when a checkpoint is done); otherwise the pipeline's own, written
   // on the pipeline thread at start(). `history`: what checkpoints leave of the log.
+  // `generator`: the world's, to keep the history's base (CheckpointWriter); null: none.
   Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
-              LogRetention history, std::function<void()> wake, Clock::time_point now);
+              LogRetention history, std::function<void()> wake, Clock::time_point now,
+              const world::TerrainGenerator* generator = nullptr);
 
   // A cluster node: each checkpoint writes only what `scope` (called at its start, with
   // its sequence number) allows; chunks outside it stay unsaved and resident. Set once,

@@ -38,7 +38,13 @@ void DurableCommit::start(EditBatch& b, std::optional<store::RegionWrite> region
   log.reserve(b.accepted.size());
   // Sequence numbers are never reused, even after a failed append (its outcome may be in
   // doubt): the log may have gaps, never two edits with one number.
-  for (size_t i = 0; i < b.accepted.size(); ++i) {
+  for (size_t i = 0; i <= b.accepted.size(); ++i) {
+    if (b.record && b.record->before == i) {  // a rollback, in its place among the edits
+      store::LoggedEdit& r = log.emplace_back();
+      r.seq = next_seq_++, r.unix_ms = unix_ms, r.author = b.record->by;
+      r.undoes = b.record->undoes;
+    }
+    if (i == b.accepted.size()) break;
     const EditTask& t = *b.accepted[i];
     log.push_back({next_seq_++, unix_ms, t.author, t.edit, b.keep[i], t.edit_id, t.part});
   }

@@ -76,6 +76,13 @@ struct EditBatch {
   std::vector<const EditTask*> accepted;                   // in the order they applied
   std::vector<std::vector<world::VoxelBox>> keep;          // per accepted edit: clipped
   RegionChanges regions;                                   // what its region tasks changed
+  // A rollback's first slice: its record, logged after the first `before` accepted edits.
+  struct Record {
+    size_t before = 0;
+    std::vector<uint64_t> undoes;
+    std::string by;
+  };
+  std::optional<Record> record;
   FreshMeshes fresh;
   EditTimes edited_at;  // per dirty chunk, its oldest edit
   Undo undo;

@@ -45,6 +45,46 @@ bool changes_regions(const std::vector<OrderedTask>& tasks) {
                      [](const OrderedTask& t) { return std::holds_alternative<RegionTask>(t); });
 }
 
+namespace {
+
+bool reaches(const std::unordered_set<ChunkCoord, world::ChunkCoordHash>& frozen,
+             const world::Edit& edit) {
+  for (const ChunkCoord& c : world::chunks_overlapping(read_box(edit)))
+    if (frozen.count(c)) return true;
+  return false;
+}
+
+// A rollback's step in its place among the batch's tasks (RollbackTask). An install is
+// answered with the batch: results[t].accepted when it was put in place.
+void rollback_step(RollbackTask& task, EditBatch& b, size_t t, EditWorld& world,
+                   const EditRules& rules, Clock::time_point now) {
+  using Kind = RollbackTask::Kind;
+  if (task.kind == Kind::kFreeze) {
+    if (rules.frozen) rules.frozen->insert(task.coords.begin(), task.coords.end());
+    // The edits accepted so far are logged with this batch, before anything frozen now.
+    if (task.done) task.done(true, rules.last_seq + b.accepted.size());
+    return;
+  }
+  if (task.kind == Kind::kThaw) {
+    if (rules.frozen)
+      for (const ChunkCoord& c : task.coords) rules.frozen->erase(c);
+    if (task.done) task.done(true, 0);
+    return;
+  }
+  b.any_edit = true;  // answered with the batch
+  if (rules.store_resting) return;
+  std::vector<ChunkCoord> dirtied;
+  if (install_chunks(world, task.chunks, now, dirtied, rules.durable ? &b.undo : nullptr) !=
+      world::RefusalReason::kNone)
+    return;
+  b.results[t].accepted = true;
+  if (task.undoes) b.record = EditBatch::Record{b.accepted.size(), *task.undoes, task.by};
+  b.dirty.insert(b.dirty.end(), dirtied.begin(), dirtied.end());
+  b.edit_dirty[t] = std::move(dirtied);
+}
+
+}  // namespace
+
 EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, ProtectedRegions& regions,
                       const EditRules& rules, Clock::time_point now) {
   EditBatch b;
@@ -65,12 +105,20 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       regions.apply(*region, t, rules.store_resting, b.regions, kStorageMessage);
       continue;
     }
+    if (auto* rollback = std::get_if<RollbackTask>(&tasks[t])) {
+      rollback_step(*rollback, b, t, world, rules, now);
+      continue;
+    }
     EditTask& task = std::get<EditTask>(tasks[t]);
     const world::Edit& edit = task.edit;
     EditResult& result = b.results[t];
     b.any_edit = true;
     if (auto refusal = world::validate(edit, rules.limits)) {
       refuse(result, refusal->reason, refusal->message, delta);
+      continue;
+    }
+    if (rules.frozen && !rules.frozen->empty() && reaches(*rules.frozen, edit)) {
+      refuse(result, world::RefusalReason::kServerBusy, kRollingBackMessage, delta);
       continue;
     }
     if (rules.store_resting) {

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <unordered_set>
 #include <vector>
 
 #include "server/pipeline/edit_batch.hpp"
@@ -34,7 +35,14 @@ struct EditRules {
   uint64_t log_tail;               // logged edits no checkpoint holds (world.checkpoints)
   ZoneAuthority* zones = nullptr;  // a cluster node: edits only in the zones it may write
   EditIds* edit_ids = nullptr;     // a single node's: the edit ids it has applied
+  // Chunks a rollback is recomputing: edits reaching them are refused until thawed.
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash>* frozen = nullptr;
+  uint64_t last_seq = 0;  // the sequence number of the last edit logged before this batch
 };
+
+// What an edit reaching a chunk a rollback recomputes is told (SERVER_BUSY: retry).
+inline constexpr const char* kRollingBackMessage =
+    "an admin is rolling this area back: edits here are refused for a moment; retry";
 
 // Whether `tasks` change the protected regions (a cluster node reads its table first).
 bool changes_regions(const std::vector<OrderedTask>& tasks);

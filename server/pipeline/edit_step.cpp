@@ -121,6 +121,54 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
   return world::RefusalReason::kNone;
 }
 
+void replace_chunk(EditWorld& w, ChunkCoord c, world::Chunk chunk, Clock::time_point now) {
+  WorldState& st = w.state;
+  WorldState::ChunkInfo& info = st.info[c];
+  if (world::Chunk* old = st.chunks.find(c)) {
+    if (info.checkpointing && w.checkpoints) w.checkpoints->preserve(c, *old);
+    const bool was_uniform = old->is_uniform();
+    *old = std::move(chunk);
+    st.chunks.note_changed(was_uniform, *old);
+  } else {
+    st.chunks.insert(c, std::move(chunk));
+  }
+  st.modified_count += info.modified ? 0 : 1;
+  info.modified = info.unsaved = true;
+  info.last_used = now;
+  if (w.checkpoints) w.checkpoints->changed(c);
+}
+
+world::RefusalReason install_chunks(EditWorld& w,
+                                    std::vector<std::pair<world::ChunkCoord, world::Chunk>>& chunks,
+                                    Clock::time_point now, std::vector<ChunkCoord>& dirtied,
+                                    Undo* undo) {
+  WorldState& st = w.state;
+  std::vector<ChunkCoord> wanted;
+  for (const auto& [c, chunk] : chunks) wanted.push_back(c);
+  try {
+    st.ensure_loaded(wanted, w.generator, now);
+  } catch (const store::StoreError&) {
+    return world::RefusalReason::kStorageUnavailable;
+  }
+  std::vector<ChunkCoord> dirty_here;
+  for (auto& [c, chunk] : chunks) {
+    const WorldState::ChunkInfo& info = st.info.at(c);
+    const int32_t k = world::kChunkSize;
+    const world::VoxelBox whole{{c.x * k, c.y * k, c.z * k},
+                                {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}};
+    if (undo) undo->save(c, *st.chunks.find(c), whole, info.modified, info.unsaved);
+    replace_chunk(w, c, std::move(chunk), now);
+    world::ChangedBox changed;  // chunk-local: all of it
+    changed.changed = true;
+    changed.lo = {0, 0, 0}, changed.hi = {k - 1, k - 1, k - 1};
+    world::append_dirty_chunks(c, changed, dirty_here);
+  }
+  for (const ChunkCoord& c : dirty_here) {
+    if (auto it = st.info.find(c); it != st.info.end() && it->second.meshed) dirtied.push_back(c);
+  }
+  return world::RefusalReason::kNone;
+}
+
 void undo_edits(WorldState& st, Checkpoints* checkpoints, Undo& undo) {
   for (auto it = undo.patches.rbegin(); it != undo.patches.rend(); ++it) {
     const Undo::Patch& p = *it;

@@ -44,6 +44,18 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
                                      EditResult& result, Undo* undo = nullptr,
                                      std::span<const world::VoxelBox> keep = {});
 
+// Puts `chunk` in place of chunk c (a rollback's recomputed chunk): resident from now on,
+// marked changed and unsaved; a checkpoint in flight gets a copy of what it replaces.
+// Pipeline thread only.
+void replace_chunk(EditWorld& w, world::ChunkCoord c, world::Chunk chunk, Clock::time_point now);
+// A slice of a rollback's chunks put in place, as an edit would change them: each loaded
+// first (kStorageUnavailable when a stored one cannot be read: nothing changed), its old
+// samples saved in `undo`, the meshed chunks reading it appended to `dirtied`.
+world::RefusalReason install_chunks(EditWorld& w,
+                                    std::vector<std::pair<world::ChunkCoord, world::Chunk>>& chunks,
+                                    Clock::time_point now, std::vector<world::ChunkCoord>& dirtied,
+                                    Undo* undo);
+
 // Undoes a batch's edits, last first: each chunk gets back its samples and its flags as
 // they were before the batch (a chunk an edit compacted to one sample is expanded again;
 // the samples outside the box were that sample already); a chunk a checkpoint in flight

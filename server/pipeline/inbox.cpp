@@ -21,6 +21,8 @@ void refuse_stopped(OrderedTask& task, bool cancelled) {
     r.status = RegionOutcome::Status::kShuttingDown;
     r.message = kStoppedMessage;
     if (region->done) region->done(r);
+  } else if (auto* rollback = std::get_if<RollbackTask>(&task)) {
+    if (rollback->done) rollback->done(false, 0);
   } else {
     std::get<InspectTask>(task).run(cancelled);
   }

@@ -67,6 +67,11 @@ struct PipelineConfig {
   // `store`). It must outlive the pipeline.
   store::WorldStore* checkpoint_store = nullptr;
   CheckpointLimits checkpoint;
+  // A third connection, for rollbacks (pipeline/rollbacks.hpp; null: none are taken). It
+  // must outlive the pipeline. A rollback holds at most max_rollback_chunks chunks (about
+  // 100 KB each) while it recomputes.
+  store::WorldStore* history_store = nullptr;
+  size_t max_rollback_chunks = 2000;
   // A cluster node (docs/CLUSTER.md): the zones it may write and the records it must
   // apply (null: a single node). `store` is then the node's zone logs; no checkpoints are
   // written yet, so every changed chunk stays resident. It must outlive the pipeline.

@@ -54,7 +54,7 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     checkpoints_ = std::make_unique<Checkpoints>(
         config_.checkpoint_store ? *config_.checkpoint_store : *config_.store,
         config_.checkpoint_store != nullptr, config_.checkpoint, config_.history,
-        [this] { inbox_.poke(); }, Clock::now());
+        [this] { inbox_.poke(); }, Clock::now(), config_.zones ? nullptr : &generator_);
     if (config_.zones) {  // a cluster node: only the zones it holds, evicted while held
       checkpoints_->set_scope([this](uint64_t s) { return config_.zones->checkpoint_scope(s); });
       state_->may_evict_modified = [this](ChunkCoord c) { return config_.zones->may_evict(c); };
@@ -93,6 +93,9 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
                                   config_.max_generating, [this] { inbox_.generated_ready(); });
   lod_->learn_modified();  // what the restore loaded or replayed
   thread_ = named_thread("vox-pipeline", [this] { run(); });
+  if (config_.history_store && !config_.zones)
+    rollbacks_ = std::make_unique<Rollbacks>(*this, *config_.history_store, generator_,
+                                             config_.max_rollback_chunks);
 }
 
 WorldPipeline::~WorldPipeline() { stop(); }
@@ -102,6 +105,15 @@ void WorldPipeline::enqueue(OrderedTask task) {
 }
 
 void WorldPipeline::change_regions(RegionTask task) { enqueue(std::move(task)); }
+
+void WorldPipeline::rollback(Rollbacks::Job job) {
+  if (rollbacks_) return rollbacks_->submit(std::move(job));
+  RollbackReport r;
+  r.status = RollbackReport::Status::kRefused;
+  r.message = config_.zones ? "rollbacks are not available on a cluster world yet"
+                            : "rollbacks need a durable world (not --in-memory)";
+  if (job.done) job.done(r);
+}
 
 std::future<EditResult> WorldPipeline::submit(world::Edit edit) {
   auto promise = std::make_shared<std::promise<EditResult>>();
@@ -170,6 +182,7 @@ PipelineStats WorldPipeline::stats() const {
 }
 
 void WorldPipeline::stop() {
+  if (rollbacks_) rollbacks_->stop();  // while the pipeline still answers its tasks
   inbox_.stop();
   if (thread_.joinable()) thread_.join();
   checkpoints_.reset();  // after the final checkpoint
@@ -311,11 +324,13 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
       .store_resting = durable && commit_->resting(now),
       .log_tail = checkpoints_ ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0,
       .zones = config_.zones,
-      .edit_ids = edit_ids_.get()};
+      .edit_ids = edit_ids_.get(),
+      .frozen = &frozen_,
+      .last_seq = commit_ ? commit_->last_seq() : 0};
   EditWorld world = edit_world();
   EditBatch b = apply_edits(tasks, world, regions_, rules, now);
   if (!b.any_edit) return;
-  if (commit_ && (!b.accepted.empty() || b.regions.changed()))
+  if (commit_ && (!b.accepted.empty() || b.regions.changed() || b.record))
     commit_->start(b, regions_.write_for_append(b.regions));  // overlaps the re-meshing
   const Clock::time_point start = Clock::now();
   b.fresh = remesh(*state_, b.dirty, meshes_, commit_.get());
@@ -353,6 +368,22 @@ void WorldPipeline::answer(EditBatch& b, bool durable) {
       outcome.message = kStorageMessage;
     }
     if (auto& done = std::get<RegionTask>(b.tasks[t]).done) done(outcome);
+  }
+  for (size_t t = 0; t < b.tasks.size(); ++t) {  // a rollback's slices: put in place for good
+    auto* slice = std::get_if<RollbackTask>(&b.tasks[t]);
+    if (!slice || slice->kind != RollbackTask::Kind::kInstall) continue;
+    const bool ok = durable && b.results[t].accepted;
+    if (ok) {
+      const Clock::time_point now = Clock::now();
+      for (const auto& [c, chunk] : slice->chunks) {
+        frozen_.erase(c);
+        const int32_t k = world::kChunkSize;
+        lod_->edited(
+            {{c.x * k, c.y * k, c.z * k}, {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}},
+            now);
+      }
+    }
+    if (slice->done) slice->done(ok, ok && slice->undoes ? b.seqs.first + b.record->before : 0);
   }
   for (size_t t = 0; t < b.tasks.size(); ++t) {
     auto* task = std::get_if<EditTask>(&b.tasks[t]);

@@ -12,6 +12,7 @@
 #include <future>
 #include <memory>
 #include <thread>
+#include <unordered_set>
 #include <vector>
 
 #include "server/mesh/region_mesher.hpp"
@@ -25,6 +26,7 @@
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/pipeline_config.hpp"
 #include "server/pipeline/protected_regions.hpp"
+#include "server/pipeline/rollbacks.hpp"
 #include "server/pipeline/stats_book.hpp"
 #include "server/pipeline/stored_chunk_reader.hpp"
 #include "server/pipeline/subscribers.hpp"
@@ -69,6 +71,11 @@ class WorldPipeline {
   // Any thread. Adds or removes a protected region in order with the edits around it;
   // `task.done` runs on the pipeline thread once the change is durable (or refused).
   void change_regions(RegionTask task);
+  // Any thread: a rollback (pipeline/rollbacks.hpp), or refused at once without a
+  // history store (in memory, a cluster node).
+  void rollback(Rollbacks::Job job);
+  // Any thread: a rollback's step, in order with the edits (Rollbacks).
+  void submit_rollback(RollbackTask task) { enqueue(std::move(task)); }
   // Any thread: the protected regions in force, as of the last durable change.
   std::shared_ptr<const std::vector<world::Region>> regions() const { return regions_.published(); }
   // Any thread. Generates and meshes what the box misses; `done` runs on the pipeline
@@ -164,8 +171,11 @@ class WorldPipeline {
   // ZoneTable keeps them per zone).
   const std::unique_ptr<EditIds> edit_ids_ = config_.zones ? nullptr : std::make_unique<EditIds>();
   std::unique_ptr<DurableCommit> commit_;
+  // Chunks a rollback is recomputing (RollbackTask): edits reaching them are refused.
+  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> frozen_;
   std::unique_ptr<ViewLoads> loads_;
   std::thread thread_;
+  std::unique_ptr<Rollbacks> rollbacks_;  // with a history store; stopped first
 };
 
 }  // namespace vox::pipeline

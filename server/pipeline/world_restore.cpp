@@ -9,6 +9,7 @@
 #include "server/pipeline/stored_chunk_reader.hpp"
 #include "server/pipeline/world_state.hpp"
 #include "server/store/chunk_codec.hpp"
+#include "server/store/world_history.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/parallel.hpp"
 
@@ -26,6 +27,7 @@ void preload(store::WorldStore& store, EditWorld& w, const std::vector<store::Lo
   std::unordered_set<ChunkCoord, world::ChunkCoordHash> wanted;
   std::vector<ChunkCoord> to_generate;
   for (const store::LoggedEdit& e : tail) {
+    if (e.undoes) continue;  // a rollback record recomputes its chunks itself
     const auto* smooth = std::get_if<world::Smooth>(&e.edit);
     for (const ChunkCoord& c : world::chunks_overlapping(smooth ? world::smooth_read_box(*smooth)
                                                                 : world::touched_box(e.edit))) {
@@ -80,6 +82,13 @@ RestoredWorld restore_world(store::WorldStore& store, EditWorld& w, ProtectedReg
   preload(store, w, tail);
   uint64_t last = out.info.checkpoint_seq;
   for (const store::LoggedEdit& e : tail) {
+    if (e.undoes) {  // a rollback: its chunks as the history recomputes them
+      for (auto& [c, chunk] : store::replay_rollback(store, w.generator, e, w.zone_chunks))
+        replace_chunk(w, c, std::move(chunk), start);
+      ++out.rollbacks;
+      last = e.seq;
+      continue;
+    }
     std::vector<ChunkCoord> dirtied;  // nothing is meshed yet
     EditResult ignored;
     const auto refused =
@@ -100,9 +109,9 @@ RestoredWorld restore_world(store::WorldStore& store, EditWorld& w, ProtectedReg
   out.next_seq = std::max(out.info.last_seq, last) + 1;
   spdlog::info(
       "world: {} (seed {}, start {}): {} stored chunks, {} protected regions, {} logged edits "
-      "replayed in {:.0f} ms",
+      "and {} rollbacks replayed in {:.0f} ms",
       store.name(), out.info.seed, out.info.starts, st.stored.size(), regions.in_force().size(),
-      out.replayed, seconds_since(start) * 1000);
+      out.replayed, out.rollbacks, seconds_since(start) * 1000);
   return out;
 }
 

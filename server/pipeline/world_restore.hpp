@@ -17,8 +17,9 @@ class StoredChunkReader;
 
 struct RestoredWorld {
   store::WorldInfo info;
-  uint64_t replayed = 0;  // logged edits applied again
-  uint64_t next_seq = 1;  // the next edit's sequence number
+  uint64_t replayed = 0;   // logged edits applied again
+  uint64_t rollbacks = 0;  // rollback records among them (store/world_history.hpp)
+  uint64_t next_seq = 1;   // the next edit's sequence number
 };
 
 // Throws store::StoreError when the store cannot be read, a chunk it names is damaged, or a

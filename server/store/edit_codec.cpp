@@ -171,6 +171,59 @@ std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes, std::stri
   return std::move(record->edit);
 }
 
+namespace {
+void put_varint(std::vector<uint8_t>& out, uint64_t v) {
+  while (v >= 0x80) {
+    out.push_back(static_cast<uint8_t>(v) | 0x80);
+    v >>= 7;
+  }
+  out.push_back(static_cast<uint8_t>(v));
+}
+std::optional<uint64_t> get_varint(std::span<const uint8_t> in, size_t& at) {
+  uint64_t v = 0;
+  for (int shift = 0; shift < 64 && at < in.size(); shift += 7) {
+    const uint8_t b = in[at++];
+    if (shift == 63 && b > 1) return std::nullopt;  // past 64 bits
+    v |= static_cast<uint64_t>(b & 0x7f) << shift;
+    if ((b & 0x80) == 0) return v;
+  }
+  return std::nullopt;
+}
+}  // namespace
+
+std::vector<uint8_t> encode_seq_list(std::span<const uint64_t> seqs) {
+  std::vector<uint8_t> out{kRollbackFormat};
+  out.reserve(2 + seqs.size() * 2);
+  put_varint(out, seqs.size());
+  uint64_t last = 0;
+  for (const uint64_t s : seqs) put_varint(out, s - last), last = s;
+  return out;
+}
+
+std::optional<std::vector<uint64_t>> decode_seq_list(std::span<const uint8_t> bytes,
+                                                     std::string* error) {
+  const auto fail = [&](const char* why) -> std::optional<std::vector<uint64_t>> {
+    if (error) *error = why;
+    return std::nullopt;
+  };
+  if (bytes.empty() || bytes[0] != kRollbackFormat) return fail("not a rollback record");
+  size_t at = 1;
+  const auto n = get_varint(bytes, at);
+  if (!n || *n == 0 || *n > kMaxRollbackSeqs || *n > bytes.size())
+    return fail("a rollback record's count is out of range");
+  std::vector<uint64_t> seqs;
+  seqs.reserve(*n);
+  uint64_t last = 0;
+  for (uint64_t i = 0; i < *n; ++i) {
+    const auto gap = get_varint(bytes, at);
+    if (!gap || *gap == 0 || *gap > UINT64_MAX - last)
+      return fail("a rollback record's sequence numbers are not ascending");
+    seqs.push_back(last += *gap);
+  }
+  if (at != bytes.size()) return fail("a rollback record has bytes past its end");
+  return seqs;
+}
+
 std::string describe_edit(const world::Edit& edit) {
   std::ostringstream o;
   if (const auto* b = std::get_if<world::Brush>(&edit)) {

@@ -45,6 +45,16 @@ std::optional<EditRecord> decode_edit_record(std::span<const uint8_t> bytes,
 std::optional<world::Edit> decode_edit(std::span<const uint8_t> bytes,
                                        std::string* error = nullptr);
 
+// A rollback record's sequence numbers (the `undoes` column of `rollbacks`): u8 format (3),
+// then LEB128 varints: the count (1..kMaxRollbackSeqs), the first seq, and each next one's
+// gap from the one before (at least 1: ascending, no repeats).
+inline constexpr uint8_t kRollbackFormat = 3;
+inline constexpr size_t kMaxRollbackSeqs = 1'000'000;
+std::vector<uint8_t> encode_seq_list(std::span<const uint64_t> seqs);
+// nullopt and `error` set when the bytes are not such a list.
+std::optional<std::vector<uint64_t>> decode_seq_list(std::span<const uint8_t> bytes,
+                                                     std::string* error = nullptr);
+
 // One line for people: "brush at (1, 2, 3) r 4 strength 0.5 add material 3".
 std::string describe_edit(const world::Edit& edit);
 

@@ -95,6 +95,8 @@ BackupFigures backup_postgres_world(const std::string& uri, const std::string& o
                            "INSERT INTO meta (key, value) VALUES (?, ?) ON CONFLICT (key) DO "
                            "UPDATE SET value = excluded.value",
                            to_name);
+        // The base is the source's, or none (a new file's says its history starts at 0).
+        Statement(to.db, "DELETE FROM meta WHERE key = 'base_seq'", to_name).run();
         for (const auto& [key, value] : meta) put_meta.bind(1, key).bind(2, value).run();
         Statement put_chunk(
             to.db, "INSERT INTO chunks (x, y, z, seq, samples) VALUES (?, ?, ?, ?, ?)", to_name);
@@ -115,6 +117,25 @@ BackupFigures backup_postgres_world(const std::string& uri, const std::string& o
                    put_edit.bind(1, r[0].as<int64_t>()).bind(2, r[1].as<int64_t>());
                    put_edit.bind(3, r[2].as<std::string>()).bind(4, bytes_of(edit)).run();
                  });
+        if (has_table(t, "rollbacks")) {
+          Statement put_record(
+              to.db, "INSERT INTO rollbacks (seq, at_ms, author, undoes) VALUES (?, ?, ?, ?)",
+              to_name);
+          each_row(t, "vox_records", "SELECT seq, at_ms, author, undoes FROM rollbacks",
+                   [&](const pqxx::row& r) {
+                     const pqxx::binarystring undoes(r[3]);
+                     put_record.bind(1, r[0].as<int64_t>()).bind(2, r[1].as<int64_t>());
+                     put_record.bind(3, r[2].as<std::string>()).bind(4, bytes_of(undoes)).run();
+                   });
+          Statement put_base(to.db, "INSERT INTO chunk_base (x, y, z, samples) VALUES (?, ?, ?, ?)",
+                             to_name);
+          each_row(t, "vox_base", "SELECT x, y, z, samples FROM chunk_base",
+                   [&](const pqxx::row& r) {
+                     const pqxx::binarystring samples(r[3]);
+                     put_base.bind(1, r[0].as<int64_t>()).bind(2, r[1].as<int64_t>());
+                     put_base.bind(3, r[2].as<int64_t>()).bind(4, bytes_of(samples)).run();
+                   });
+        }
         if (has_table(t, "regions")) {
           Statement put_region(to.db, schema::kInsertRegion, to_name);
           for (const auto& r : t.exec(schema::kSelectRegions)) {

@@ -85,16 +85,19 @@ class PostgresStore final : public WorldStore {
       }
       t.exec(kCreateTables);
       t.exec(schema::kCreateRegions);
+      t.exec(schema::create_history("BIGINT", "BYTEA"));
       const Meta meta = read_meta(t);
+      // Regions and the history's tables were made above; an older world has no base yet.
       if (meta.contains(schema::kMetaSchemaVersion) &&
           parse_meta_u64(name_, schema::kMetaSchemaVersion, meta.at(schema::kMetaSchemaVersion)) <
-              schema::kRegions)
+              static_cast<uint64_t>(kSchemaVersion))
         t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
       if (!meta.contains(schema::kMetaSchemaVersion)) {
         t.exec_params(kUpsertMeta, schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
         t.exec_params(kUpsertMeta, schema::kMetaSeed,
                       std::to_string(options_.seed.value_or(options_.new_world_seed)));
         t.exec_params(kUpsertMeta, schema::kMetaCheckpointSeq, "0");
+        t.exec_params(kUpsertMeta, schema::kMetaBaseSeq, "0");
       }
       if (options_.record_start) t.exec(schema::kDropUnfinishedChunks);
       const uint64_t starts =
@@ -115,9 +118,18 @@ class PostgresStore final : public WorldStore {
     run([&](pqxx::connection& c) {
       pqxx::read_transaction t(c);
       i = info_from_meta(name_, read_meta(t));
-      const auto log = t.exec1(schema::kLogSpan);
-      i.logged_edits = log[0].as<uint64_t>();
-      i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
+      if (has_history(t)) {
+        const auto log = t.exec1(schema::kLogBounds);
+        int64_t b[4] = {};
+        bool null[4] = {};
+        for (int k = 0; k < 4; ++k)
+          null[k] = log[k].is_null(), b[k] = null[k] ? 0 : log[k].as<int64_t>();
+        log_bounds(b, null, i);
+      } else {
+        const auto log = t.exec1(schema::kLogSpan);
+        i.logged_edits = log[0].as<uint64_t>();
+        i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
+      }
       i.modified_chunks = t.exec1(schema::kCountVisibleChunks)[0].as<uint64_t>();
       i.size_bytes = t.exec1(
                           "SELECT pg_total_relation_size('meta') + "
@@ -135,12 +147,16 @@ class PostgresStore final : public WorldStore {
     run([&](pqxx::connection& c) {
       pqxx::work t(c);
       for (const SeqRange& r : forget) {
-        t.exec_params("DELETE FROM edit_log WHERE seq >= $1 AND seq <= $2",
-                      static_cast<int64_t>(r.first), static_cast<int64_t>(r.last));
+        for (const char* sql : {"DELETE FROM edit_log WHERE seq >= $1 AND seq <= $2",
+                                "DELETE FROM rollbacks WHERE seq >= $1 AND seq <= $2"})
+          t.exec_params(sql, static_cast<int64_t>(r.first), static_cast<int64_t>(r.last));
       }
       for (const LoggedEdit& e : edits) {
-        const auto bytes = encode_edit(e.edit, e.keep);
-        t.exec_params("INSERT INTO edit_log (seq, at_ms, author, edit) VALUES ($1, $2, $3, $4)",
+        const auto bytes = e.undoes ? encode_seq_list(*e.undoes) : encode_edit(e.edit, e.keep);
+        t.exec_params(e.undoes ? "INSERT INTO rollbacks (seq, at_ms, author, undoes) VALUES "
+                                 "($1, $2, $3, $4)"
+                               : "INSERT INTO edit_log (seq, at_ms, author, edit) VALUES "
+                                 "($1, $2, $3, $4)",
                       static_cast<int64_t>(e.seq), e.unix_ms, e.author, binary(bytes));
       }
       if (regions) write_regions(t, *regions);
@@ -185,6 +201,14 @@ class PostgresStore final : public WorldStore {
         trim.windowed() ? t.exec_params(schema::kTrimLog, static_cast<int64_t>(trim.through),
                                         trim.accepted_before_ms, trim.stamps_until_ms)
                         : t.exec_params(schema::kTrimLogAll, static_cast<int64_t>(trim.through));
+      if (trim.through > 0) {
+        // The records before the first edit kept go with them, and the history's base.
+        t.exec_params(
+            "DELETE FROM rollbacks WHERE seq <= $1 AND seq < COALESCE((SELECT MIN(seq) FROM "
+            "edit_log), CAST($1 AS BIGINT) + 1)",
+            static_cast<int64_t>(trim.through));
+        t.exec(schema::kDropBase);
+      }
       t.commit();
     });
   }
@@ -232,30 +256,122 @@ class PostgresStore final : public WorldStore {
 
   void for_each_edit(uint64_t after_seq,
                      const std::function<bool(const LoggedEdit&)>& fn) override {
+    pages(after_seq, fn, [](pqxx::transaction_base& t, uint64_t from) {
+      return t.exec_params(has_history(t) ? VOX_LOG_UNION " LIMIT 10000"
+                                          : "SELECT seq, at_ms, author, edit, 0 FROM edit_log "
+                                            "WHERE seq > $1 ORDER BY seq LIMIT 10000",
+                           static_cast<int64_t>(from));
+    });
+  }
+
+  void for_each_edit_back(uint64_t after_seq, uint64_t through_seq,
+                          const std::function<bool(const LoggedEdit&)>& fn) override {
+    const auto top = static_cast<int64_t>(std::min<uint64_t>(through_seq, INT64_MAX - 1));
+    pages(top + 1, fn, [after_seq](pqxx::transaction_base& t, uint64_t below) {
+      return t.exec_params(
+          "SELECT seq, at_ms, author, edit, 0 FROM edit_log WHERE seq > $1 AND seq < $2 "
+          "ORDER BY seq DESC LIMIT 10000",
+          static_cast<int64_t>(after_seq), static_cast<int64_t>(below));
+    });
+  }
+
+  void for_each_rollback(uint64_t after_seq,
+                         const std::function<bool(const LoggedEdit&)>& fn) override {
+    pages(after_seq, fn, [](pqxx::transaction_base& t, uint64_t from) {
+      if (!has_history(t)) return pqxx::result{};
+      return t.exec_params(
+          "SELECT seq, at_ms, author, undoes, 1 FROM rollbacks WHERE seq > $1 ORDER BY seq "
+          "LIMIT 10000",
+          static_cast<int64_t>(from));
+    });
+  }
+
+  std::optional<ChunkRecord> read_base_chunk(world::ChunkCoord coord) override {
+    std::optional<ChunkRecord> out;
     run([&](pqxx::connection& c) {
       pqxx::read_transaction t(c);
-      // In pages, so a long log is never one result in memory.
-      uint64_t from = after_seq;
+      const WorldInfo i = info_from_meta(name_, read_meta(t));
+      if (!i.base_seq) throw StoreError(name_ + ": no history is kept (no base)");
+      const auto r =
+          t.exec_params("SELECT samples FROM chunk_base WHERE x = $1 AND y = $2 AND z = $3",
+                        coord.x, coord.y, coord.z);
+      if (r.empty()) return;
+      const pqxx::binarystring samples(r[0][0]);
+      out = ChunkRecord{coord, *i.base_seq, {samples.data(), samples.data() + samples.size()}};
+    });
+    return out;
+  }
+
+  void advance_base(std::span<const ChunkRecord> chunks, uint64_t through) override {
+    refuse_if_read_only();
+    run([&](pqxx::connection& c) {
+      pqxx::work t(c);
+      const WorldInfo i = info_from_meta(name_, read_meta(t));
+      if (!i.base_seq || through < *i.base_seq || through > i.checkpoint_seq)
+        throw StoreError(name_ + ": the history cannot move to edit " + std::to_string(through));
+      for (const ChunkRecord& r : chunks)
+        t.exec_params(
+            "INSERT INTO chunk_base (x, y, z, samples) VALUES ($1, $2, $3, $4) "
+            "ON CONFLICT (x, y, z) DO UPDATE SET samples = excluded.samples",
+            r.coord.x, r.coord.y, r.coord.z, binary(r.samples));
+      trim_through(t, through);
+      t.commit();
+    });
+  }
+
+  void reset_base() override {
+    refuse_if_read_only();
+    run([&](pqxx::connection& c) {
+      pqxx::work t(c);
+      const WorldInfo i = info_from_meta(name_, read_meta(t));
+      t.exec("DELETE FROM chunk_base");
+      t.exec(
+          "INSERT INTO chunk_base (x, y, z, samples) SELECT x, y, z, samples FROM chunks "
+          "WHERE seq <= (SELECT CAST(value AS BIGINT) FROM meta WHERE key = 'checkpoint_seq')");
+      trim_through(t, i.checkpoint_seq);
+      t.commit();
+    });
+  }
+
+ private:
+  static bool has_history(pqxx::transaction_base& t) {
+    return t.exec1("SELECT to_regclass('rollbacks') IS NOT NULL")[0].as<bool>();
+  }
+
+  // The log's edits through `through` go, with its records; the base is as of it.
+  static void trim_through(pqxx::work& t, uint64_t through) {
+    const auto seq = static_cast<int64_t>(through);
+    t.exec_params("DELETE FROM edit_log WHERE seq <= $1", seq);
+    t.exec_params("DELETE FROM rollbacks WHERE seq <= $1", seq);
+    t.exec_params(kUpsertMeta, schema::kMetaBaseSeq, std::to_string(through));
+  }
+
+  // Rows of seq, at_ms, author, record, is_rollback, read in pages of 10,000 (a long log
+  // is never one result in memory): `page(t, key)` reads those after (or, newest first,
+  // before) the last key.
+  template <class Page>
+  void pages(uint64_t from, const std::function<bool(const LoggedEdit&)>& fn, Page page) {
+    run([&](pqxx::connection& c) {
+      pqxx::read_transaction t(c);
+      uint64_t key = from;
       for (;;) {
-        const auto rows = t.exec_params(
-            "SELECT seq, at_ms, author, edit FROM edit_log WHERE seq > $1 ORDER BY seq LIMIT 10000",
-            static_cast<int64_t>(from));
+        const pqxx::result rows = page(t, key);
         for (const auto& row : rows) {
           LoggedEdit e;
           e.seq = row[0].as<uint64_t>();
           e.unix_ms = row[1].as<int64_t>();
           e.author = row[2].as<std::string>();
           const pqxx::binarystring bytes(row[3]);
-          decode_logged_edit(name_, {bytes.data(), bytes.size()}, e);
+          row[4].as<int>() ? decode_logged_rollback(name_, {bytes.data(), bytes.size()}, e)
+                           : decode_logged_edit(name_, {bytes.data(), bytes.size()}, e);
           if (!fn(e)) return;
-          from = e.seq;
+          key = e.seq;
         }
         if (rows.size() < 10000) return;
       }
     });
   }
 
- private:
   // Inside an append's transaction: one statement per change; a repair, the whole table.
   static void write_regions(pqxx::work& t, const RegionWrite& w) {
     write_region_rows(t, "regions", w);

@@ -79,18 +79,21 @@ class SqliteStore final : public WorldStore {
     exec("BEGIN IMMEDIATE");
     exec(kCreateTables);
     exec(schema::kCreateRegions);
+    exec(schema::create_history("INTEGER", "BLOB").c_str());
     const auto meta = read_meta();
     if (!meta.contains(schema::kMetaSchemaVersion)) {
       set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
       set_meta(schema::kMetaSeed, std::to_string(options.seed.value_or(options.new_world_seed)));
       set_meta(schema::kMetaCheckpointSeq, "0");
-    } else if (parse_meta_u64(name_, schema::kMetaSchemaVersion,
-                              meta.at(schema::kMetaSchemaVersion)) < schema::kVersionedChunks) {
-      exec(schema::migrate_chunks("INTEGER", "BLOB").c_str());
-      set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
-    } else if (parse_meta_u64(name_, schema::kMetaSchemaVersion,
-                              meta.at(schema::kMetaSchemaVersion)) < schema::kRegions) {
-      set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));  // regions made above
+      set_meta(schema::kMetaBaseSeq, "0");  // a new world's history starts at its seed
+    } else {
+      const uint64_t version =
+          parse_meta_u64(name_, schema::kMetaSchemaVersion, meta.at(schema::kMetaSchemaVersion));
+      if (version < schema::kVersionedChunks)
+        exec(schema::migrate_chunks("INTEGER", "BLOB").c_str());
+      // Regions and the history's tables were made above; an older world has no base yet.
+      if (version < static_cast<uint64_t>(kSchemaVersion))
+        set_meta(schema::kMetaSchemaVersion, std::to_string(kSchemaVersion));
     }
     if (options.record_start) exec(schema::kDropUnfinishedChunks);
     const auto starts =
@@ -106,10 +109,19 @@ class SqliteStore final : public WorldStore {
   WorldInfo info() override {
     const auto meta = read_meta();
     WorldInfo i = info_from_meta(name_, meta);
-    Statement q(conn_.db, schema::kLogSpan, name_);
-    if (q.step())
-      i.logged_edits = static_cast<uint64_t>(q.int64(0)),
-      i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
+    if (has_history()) {
+      Statement q(conn_.db, schema::kLogBounds, name_);
+      int64_t b[4] = {};
+      bool null[4] = {};
+      if (q.step())
+        for (int k = 0; k < 4; ++k) b[k] = q.int64(k), null[k] = !q.is_integer(k);
+      log_bounds(b, null, i);
+    } else {
+      Statement q(conn_.db, schema::kLogSpan, name_);
+      if (q.step())
+        i.logged_edits = static_cast<uint64_t>(q.int64(0)),
+        i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
+    }
     Statement c(conn_.db, schema::kCountVisibleChunks, name_);
     if (c.step()) i.modified_chunks = static_cast<uint64_t>(c.int64(0));
     std::error_code ec;
@@ -125,13 +137,20 @@ class SqliteStore final : public WorldStore {
     if (edits.empty() && forget.empty() && !regions) return;
     Transaction t(*this);
     Statement drop = cached("DELETE FROM edit_log WHERE seq >= ? AND seq <= ?");
-    for (const SeqRange& r : forget)
+    Statement drop_records = cached("DELETE FROM rollbacks WHERE seq >= ? AND seq <= ?");
+    for (const SeqRange& r : forget) {
       drop.bind(1, static_cast<int64_t>(r.first)).bind(2, static_cast<int64_t>(r.last)).run();
+      drop_records.bind(1, static_cast<int64_t>(r.first)).bind(2, static_cast<int64_t>(r.last));
+      drop_records.run();
+    }
     Statement ins = cached("INSERT INTO edit_log (seq, at_ms, author, edit) VALUES (?, ?, ?, ?)");
+    Statement record =
+        cached("INSERT INTO rollbacks (seq, at_ms, author, undoes) VALUES (?, ?, ?, ?)");
     for (const LoggedEdit& e : edits) {
-      const auto bytes = encode_edit(e.edit, e.keep);
-      ins.bind(1, static_cast<int64_t>(e.seq)).bind(2, e.unix_ms).bind(3, e.author).bind(4, bytes);
-      ins.run();
+      Statement& to = e.undoes ? record : ins;
+      const auto bytes = e.undoes ? encode_seq_list(*e.undoes) : encode_edit(e.edit, e.keep);
+      to.bind(1, static_cast<int64_t>(e.seq)).bind(2, e.unix_ms).bind(3, e.author).bind(4, bytes);
+      to.run();
     }
     if (regions) write_regions(*regions);
     t.commit();
@@ -204,20 +223,105 @@ class SqliteStore final : public WorldStore {
 
   void for_each_edit(uint64_t after_seq,
                      const std::function<bool(const LoggedEdit&)>& fn) override {
+    const bool history = has_history();
     Statement q(conn_.db,
-                "SELECT seq, at_ms, author, edit FROM edit_log WHERE seq > ? ORDER BY seq", name_);
+                history ? VOX_LOG_UNION
+                        : "SELECT seq, at_ms, author, edit, 0 FROM edit_log WHERE seq > $1 "
+                          "ORDER BY seq",
+                name_);
     q.bind(1, static_cast<int64_t>(after_seq));
+    each_row(q, fn);
+  }
+
+  void for_each_edit_back(uint64_t after_seq, uint64_t through_seq,
+                          const std::function<bool(const LoggedEdit&)>& fn) override {
+    Statement q(conn_.db,
+                "SELECT seq, at_ms, author, edit, 0 FROM edit_log WHERE seq > ? AND seq <= ? "
+                "ORDER BY seq DESC",
+                name_);
+    q.bind(1, static_cast<int64_t>(after_seq));
+    q.bind(2, static_cast<int64_t>(std::min<uint64_t>(through_seq, INT64_MAX)));
+    each_row(q, fn);
+  }
+
+  void for_each_rollback(uint64_t after_seq,
+                         const std::function<bool(const LoggedEdit&)>& fn) override {
+    if (!has_history()) return;
+    Statement q(conn_.db,
+                "SELECT seq, at_ms, author, undoes, 1 FROM rollbacks WHERE seq > ? ORDER BY seq",
+                name_);
+    q.bind(1, static_cast<int64_t>(after_seq));
+    each_row(q, fn);
+  }
+
+  std::optional<ChunkRecord> read_base_chunk(world::ChunkCoord c) override {
+    const WorldInfo i = info_from_meta(name_, read_meta());
+    if (!i.base_seq) throw StoreError(name_ + ": no history is kept (no base)");
+    Statement q = cached("SELECT samples FROM chunk_base WHERE x = ? AND y = ? AND z = ?");
+    q.bind(1, c.x).bind(2, c.y).bind(3, c.z);
+    if (!q.step()) return std::nullopt;
+    const auto blob = q.blob(0);
+    return ChunkRecord{c, *i.base_seq, {blob.begin(), blob.end()}};
+  }
+
+  void advance_base(std::span<const ChunkRecord> chunks, uint64_t through) override {
+    Transaction t(*this);
+    const WorldInfo i = info_from_meta(name_, read_meta());
+    if (!i.base_seq || through < *i.base_seq || through > i.checkpoint_seq)
+      throw StoreError(name_ + ": the history cannot move to edit " + std::to_string(through));
+    Statement put = cached(
+        "INSERT INTO chunk_base (x, y, z, samples) VALUES (?, ?, ?, ?) "
+        "ON CONFLICT (x, y, z) DO UPDATE SET samples = excluded.samples");
+    for (const ChunkRecord& c : chunks) {
+      put.bind(1, c.coord.x).bind(2, c.coord.y).bind(3, c.coord.z).bind(4, c.samples);
+      put.run();
+    }
+    trim_through(through);
+    set_meta(schema::kMetaBaseSeq, std::to_string(through));
+    t.commit();
+  }
+
+  void reset_base() override {
+    Transaction t(*this);
+    const WorldInfo i = info_from_meta(name_, read_meta());
+    exec("DELETE FROM chunk_base");
+    exec(
+        "INSERT INTO chunk_base (x, y, z, samples) SELECT x, y, z, samples FROM chunks "
+        "WHERE seq <= (SELECT CAST(value AS BIGINT) FROM meta WHERE key = 'checkpoint_seq')");
+    trim_through(i.checkpoint_seq);
+    set_meta(schema::kMetaBaseSeq, std::to_string(i.checkpoint_seq));
+    t.commit();
+  }
+
+ private:
+  bool has_history() {
+    Statement t(conn_.db,
+                "SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'rollbacks'",
+                name_);
+    return t.step() && t.int64(0) > 0;
+  }
+
+  // Rows of seq, at_ms, author, record, is_rollback.
+  void each_row(Statement& q, const std::function<bool(const LoggedEdit&)>& fn) {
     while (q.step()) {
       LoggedEdit e;
       e.seq = static_cast<uint64_t>(q.int64(0));
       e.unix_ms = q.int64(1);
       e.author = q.text(2);
-      decode_logged_edit(name_, q.blob(3), e);
+      q.int64(4) ? decode_logged_rollback(name_, q.blob(3), e)
+                 : decode_logged_edit(name_, q.blob(3), e);
       if (!fn(e)) return;
     }
   }
 
- private:
+  void trim_through(uint64_t through) {
+    for (const char* sql :
+         {"DELETE FROM edit_log WHERE seq <= ?", "DELETE FROM rollbacks WHERE seq <= ?"}) {
+      Statement del(conn_.db, sql, name_);
+      del.bind(1, static_cast<int64_t>(through)).run();
+    }
+  }
+
   // The chunk rows 64 per transaction, then the small one that makes them visible.
   void write_rows_and_move(std::span<const ChunkRecord> chunks, uint64_t checkpoint_seq,
                            const LogTrim& trim) {
@@ -257,6 +361,15 @@ class SqliteStore final : public WorldStore {
       del.bind(1, static_cast<int64_t>(trim.through));
       if (trim.windowed()) del.bind(2, trim.accepted_before_ms).bind(3, trim.stamps_until_ms);
       del.run();
+      // The records before the first edit kept go with them, and the history's base.
+      Statement records(conn_.db,
+                        "DELETE FROM rollbacks WHERE seq <= ? AND seq < COALESCE((SELECT "
+                        "MIN(seq) FROM edit_log), ?)",
+                        name_);
+      records.bind(1, static_cast<int64_t>(trim.through))
+          .bind(2, static_cast<int64_t>(trim.through) + 1)
+          .run();
+      exec(schema::kDropBase);
     }
     t.commit();
   }

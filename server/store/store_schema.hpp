@@ -5,6 +5,11 @@
 //   meta      key TEXT PRIMARY KEY, value TEXT: schema_version, seed, starts, checkpoint_seq
 //   edit_log  seq PRIMARY KEY, at_ms, author TEXT, edit (edit_codec.hpp)
 //   chunks    (x, y, z, seq) PRIMARY KEY, samples (chunk_codec.hpp); index on seq
+//   rollbacks seq PRIMARY KEY, at_ms, author, undoes (edit_codec.hpp's seq list): rollback
+//             records, numbered with the log's edits (schema 4)
+//   chunk_base (x, y, z) PRIMARY KEY, samples: each chunk the log's trimmed edits changed,
+//             as of meta base_seq (absent: no base kept); the history rollbacks reach
+//             (schema 4)
 //   regions   id PRIMARY KEY, name, x0 y0 z0 x1 y1 z1 (inclusive), flags, owners (player
 //             ids joined by '\n'; ids hold no control characters), created_by, created_ms
 //             (schema 3: protected regions, world/region.hpp; written whole by the append
@@ -26,6 +31,7 @@ namespace vox::store::schema {
 
 inline constexpr int kVersionedChunks = 2;  // the schema that made chunk rows versioned
 inline constexpr int kRegions = 3;          // the schema that added protected regions
+inline constexpr int kHistory = 4;          // rollback records and the history's base
 
 // A region table's columns (a cluster world keeps the same in `zone_regions`, zone_schema.hpp).
 // Portable as it is: SQLite gives BIGINT columns integer affinity.
@@ -55,6 +61,17 @@ inline constexpr const char* kTrimLog =
     "DELETE FROM edit_log WHERE seq <= $1 AND seq < COALESCE((SELECT seq FROM edit_log "
     "WHERE at_ms >= $2 AND at_ms <= $3 ORDER BY seq LIMIT 1), CAST($1 AS BIGINT) + 1)";
 inline constexpr const char* kTrimLogAll = "DELETE FROM edit_log WHERE seq <= $1";
+// The log's first and last keys, of edits and of rollback records (each by its index).
+inline constexpr const char* kLogBounds =
+    "SELECT (SELECT MIN(seq) FROM edit_log), (SELECT MAX(seq) FROM edit_log), "
+    "(SELECT MIN(seq) FROM rollbacks), (SELECT MAX(seq) FROM rollbacks)";
+// The log in order, edits and rollback records merged ($1: after): seq, at_ms, author,
+// record, is_rollback.
+#define VOX_LOG_UNION                                                          \
+  "SELECT seq, at_ms, author, edit, 0 FROM edit_log WHERE seq > $1 UNION ALL " \
+  "SELECT seq, at_ms, author, undoes, 1 FROM rollbacks WHERE seq > $1 ORDER BY seq"
+inline constexpr const char* kDropBase =
+    "DELETE FROM chunk_base; DELETE FROM meta WHERE key = 'base_seq';";
 // Chunk rows per transaction while a checkpoint writes (about 0.8 MB).
 inline constexpr size_t kCheckpointPart = 64;
 
@@ -89,5 +106,16 @@ inline constexpr const char* kMetaSeed = "seed";
 inline constexpr const char* kMetaStarts = "starts";
 inline constexpr const char* kMetaCheckpointSeq = "checkpoint_seq";
 inline constexpr const char* kMetaNextRegionId = "next_region_id";
+inline constexpr const char* kMetaBaseSeq = "base_seq";
+
+// The history's tables, in a backend's column types.
+inline std::string create_history(const std::string& int64_type, const std::string& blob_type) {
+  return "CREATE TABLE IF NOT EXISTS rollbacks (seq " + int64_type + " PRIMARY KEY, at_ms " +
+         int64_type + " NOT NULL, author TEXT NOT NULL, undoes " + blob_type +
+         " NOT NULL);"
+         "CREATE TABLE IF NOT EXISTS chunk_base (x INTEGER NOT NULL, y INTEGER NOT NULL, "
+         "z INTEGER NOT NULL, samples " +
+         blob_type + " NOT NULL, PRIMARY KEY (x, y, z));";
+}
 
 }  // namespace vox::store::schema

@@ -26,6 +26,17 @@ world::Chunk read_checkpointed_chunk(WorldStore& s, world::ChunkCoord c) {
   return std::move(*chunk);
 }
 
+void WorldStore::for_each_edit_back(uint64_t, uint64_t,
+                                    const std::function<bool(const LoggedEdit&)>&) {}
+void WorldStore::for_each_rollback(uint64_t, const std::function<bool(const LoggedEdit&)>&) {}
+std::optional<ChunkRecord> WorldStore::read_base_chunk(world::ChunkCoord) {
+  throw StoreError(name() + ": keeps no history");
+}
+void WorldStore::advance_base(std::span<const ChunkRecord>, uint64_t) {
+  throw StoreError(name() + ": keeps no history");
+}
+void WorldStore::reset_base() { throw StoreError(name() + ": keeps no history"); }
+
 std::unique_ptr<WorldStore> open_world_store(const std::string& where, const OpenOptions& options) {
   if (is_postgres_uri(where)) return open_postgres_store(where, options);
   return open_sqlite_store(where, options);
@@ -70,6 +81,8 @@ WorldInfo info_from_meta(const std::string& store, const Meta& meta) {
     i.starts = parse_meta_u64(store, schema::kMetaStarts, it->second);
   if (auto it = meta.find(schema::kMetaCheckpointSeq); it != meta.end())
     i.checkpoint_seq = parse_meta_u64(store, schema::kMetaCheckpointSeq, it->second);
+  if (auto it = meta.find(schema::kMetaBaseSeq); it != meta.end())
+    i.base_seq = parse_meta_u64(store, schema::kMetaBaseSeq, it->second);
   i.last_seq = i.checkpoint_seq;
   return i;
 }
@@ -122,6 +135,27 @@ void decode_logged_edit(const std::string& store, std::span<const uint8_t> bytes
   if (!record) throw StoreError(store + ": logged edit " + std::to_string(e.seq) + ": " + why);
   e.edit = std::move(record->edit);
   e.keep = std::move(record->keep);
+}
+
+void decode_logged_rollback(const std::string& store, std::span<const uint8_t> bytes,
+                            LoggedEdit& e) {
+  std::string why;
+  auto seqs = decode_seq_list(bytes, &why);
+  if (!seqs || seqs->back() >= e.seq)
+    throw StoreError(store + ": rollback record " + std::to_string(e.seq) + ": " +
+                     (seqs ? "undoes a later edit" : why));
+  e.undoes = std::move(*seqs);
+}
+
+void log_bounds(const int64_t (&b)[4], bool (&null)[4], WorldInfo& i) {
+  uint64_t lo = 0, hi = 0;
+  for (int k = 0; k < 4; k += 2) {
+    if (null[k]) continue;
+    lo = lo == 0 ? static_cast<uint64_t>(b[k]) : std::min(lo, static_cast<uint64_t>(b[k]));
+    hi = std::max(hi, static_cast<uint64_t>(b[k + 1]));
+  }
+  i.logged_edits = hi == 0 ? 0 : hi - lo + 1;
+  i.last_seq = std::max(i.checkpoint_seq, hi);
 }
 
 }  // namespace vox::store

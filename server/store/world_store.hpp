@@ -33,7 +33,7 @@ struct StoreError : std::runtime_error {
 };
 
 // The schema this code writes; a store of a newer one is refused, never written.
-inline constexpr int kSchemaVersion = 3;
+inline constexpr int kSchemaVersion = 4;
 
 struct LoggedEdit {
   uint64_t seq = 0;     // global sequence number, from 1, in the order the edits applied
@@ -49,6 +49,9 @@ struct LoggedEdit {
   // (`keep` then holds the samples outside it).
   uint64_t edit_id = 0;
   std::optional<world::ZoneId> part;
+  // A rollback record (docs/OPERATIONS.md), not an edit: the sequence numbers of the edits
+  // (or records) it undoes, ascending; `edit` and `keep` are then unused.
+  std::optional<std::vector<uint64_t>> undoes;
 };
 
 // A change of the stored protected regions, written in an append's transaction.
@@ -92,6 +95,10 @@ struct WorldInfo {
   uint64_t logged_edits = 0;    // rows in the log (those after trimming)
   uint64_t modified_chunks = 0;
   uint64_t size_bytes = 0;  // on disk, as the backend counts it
+  // The history rollbacks reach (docs/OPERATIONS.md): the base chunks are the world as it
+  // was after this edit, and the log holds every edit after it. nullopt: no base is kept
+  // (the log was trimmed whole, or the world is from before rollbacks).
+  std::optional<uint64_t> base_seq;
 };
 
 // How long opening a world as its writer waits for another writer's lock before refusing:
@@ -145,6 +152,26 @@ class WorldStore {
   // does not decode throws StoreError naming its seq.
   virtual void for_each_edit(uint64_t after_seq,
                              const std::function<bool(const LoggedEdit&)>& fn) = 0;
+
+  // The history (rollbacks, issue 43). Any trim of the log by write_checkpoint drops the
+  // base (WorldInfo::base_seq becomes nullopt); these keep it. A store that keeps none (a
+  // cluster's zones) reads no records and throws StoreError for the rest.
+  // The logged edits (no rollback records) of seqs in (after_seq, through_seq], newest first.
+  virtual void for_each_edit_back(uint64_t after_seq, uint64_t through_seq,
+                                  const std::function<bool(const LoggedEdit&)>& fn);
+  // The rollback records after `after_seq`, in order (for_each_edit gives them too).
+  virtual void for_each_rollback(uint64_t after_seq,
+                                 const std::function<bool(const LoggedEdit&)>& fn);
+  // Chunk c as it was after edit base_seq (its record's seq is base_seq); nullopt: as the
+  // generator makes it.
+  virtual std::optional<ChunkRecord> read_base_chunk(world::ChunkCoord c);
+  // The history's start moves to `through` (at most checkpoint_seq): `chunks`, the chunks
+  // the log's edits through it changed, as of it, replace their base rows; base_seq
+  // becomes `through` and the log loses everything through it. One transaction.
+  virtual void advance_base(std::span<const ChunkRecord> chunks, uint64_t through);
+  // The history starts again at the checkpoint: the base becomes the checkpointed chunks,
+  // base_seq checkpoint_seq, and the log loses everything through it. One transaction.
+  virtual void reset_base();
 };
 
 // Tools (verify, migrate): checkpointed chunk `c` read back and decoded; StoreError naming

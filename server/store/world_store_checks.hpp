@@ -29,5 +29,11 @@ RegionTable check_region_table(const std::string& store, std::vector<world::Regi
                                uint64_t next_id_meta);
 // Fills e.edit and e.keep from a log record (e.seq names it in the error).
 void decode_logged_edit(const std::string& store, std::span<const uint8_t> bytes, LoggedEdit& e);
+// Fills e.undoes from a rollback record (e.seq set: it undoes only earlier seqs).
+void decode_logged_rollback(const std::string& store, std::span<const uint8_t> bytes,
+                            LoggedEdit& e);
+// WorldInfo's logged_edits and last_seq from schema::kLogBounds' four columns (null: the
+// table is empty).
+void log_bounds(const int64_t (&b)[4], bool (&null)[4], WorldInfo& i);
 
 }  // namespace vox::store

@@ -1,7 +1,6 @@
 #include "server/world/edit_undo.hpp"
 
 #include <algorithm>
-#include <unordered_set>
 
 #include "server/world/chunk_map.hpp"
 #include "server/world/edit_apply.hpp"
@@ -31,63 +30,78 @@ bool meets(const std::vector<ChunkCoord>& chunks, const ChunkSet& set) {
 }
 
 // Forward: the chunks to recompute.
-ChunkSet dirty_chunks(std::span<const LoggedStep> log, const std::vector<Reach>& reach,
-                      size_t max_chunks, size_t& undone, bool& too_many) {
+ChunkSet dirty_chunks(const StepSource& log, size_t max_chunks, size_t& changed, bool& too_many) {
   ChunkSet dirty;
-  for (size_t i = 0; i < log.size(); ++i) {
-    if (!log[i].undo && !meets(reach[i].reads, dirty)) continue;
-    undone += log[i].undo ? 1 : 0;
-    dirty.insert(reach[i].writes.begin(), reach[i].writes.end());
-    if (max_chunks != 0 && dirty.size() > max_chunks) {
-      too_many = true;
-      return {};
-    }
-  }
+  log(false, [&](const LoggedStep& s) {
+    if (too_many || (!s.changed && dirty.empty())) return;
+    const Reach r = reach_of(*s.edit);
+    if (!s.changed && (s.excluded || !meets(r.reads, dirty))) return;
+    changed += s.changed ? 1 : 0;
+    dirty.insert(r.writes.begin(), r.writes.end());
+    if (max_chunks != 0 && dirty.size() > max_chunks) too_many = true;
+  });
+  if (too_many) dirty.clear();
   return dirty;
-}
-
-std::vector<Reach> reaches(std::span<const LoggedStep> log) {
-  std::vector<Reach> reach;
-  reach.reserve(log.size());
-  for (const LoggedStep& s : log) reach.push_back(reach_of(*s.edit));
-  return reach;
 }
 
 }  // namespace
 
-UndoPlan plan_undo(std::span<const LoggedStep> log, size_t max_chunks) {
+StepSource steps_of(std::span<const LoggedStep> log) {
+  return [log](bool newest_first, const std::function<void(const LoggedStep&)>& visit) {
+    if (newest_first) {
+      for (auto it = log.rbegin(); it != log.rend(); ++it) visit(*it);
+    } else {
+      for (const LoggedStep& s : log) visit(s);
+    }
+  };
+}
+
+std::unordered_set<uint64_t> excluded_by(std::span<const RollbackMark> records) {
+  std::unordered_set<uint64_t> out;
+  for (auto it = records.rbegin(); it != records.rend(); ++it)
+    if (!out.count(it->seq)) out.insert(it->undoes.begin(), it->undoes.end());
+  return out;
+}
+
+UndoPlan plan_undo(const StepSource& log, size_t max_chunks) {
   UndoPlan plan;
-  const ChunkSet dirty = dirty_chunks(log, reaches(log), max_chunks, plan.undone, plan.too_many);
+  const ChunkSet dirty = dirty_chunks(log, max_chunks, plan.changed, plan.too_many);
   plan.chunks.assign(dirty.begin(), dirty.end());
   std::sort(plan.chunks.begin(), plan.chunks.end());
   return plan;
 }
 
-UndoResult undo_edits(std::span<const LoggedStep> log, const TerrainGenerator& generator,
+UndoResult undo_edits(const StepSource& log, const TerrainGenerator& generator,
                       const std::function<std::optional<Chunk>(ChunkCoord)>& base,
                       size_t max_chunks, int zone_chunks) {
   UndoResult out;
-  const std::vector<Reach> reach = reaches(log);
-  const ChunkSet dirty = dirty_chunks(log, reach, max_chunks, out.undone, out.too_many);
+  const ChunkSet dirty = dirty_chunks(log, max_chunks, out.changed, out.too_many);
   if (dirty.empty()) return out;
   // Backward: the edits they depend on, and every chunk those read.
   ChunkSet needed = dirty;
-  std::vector<size_t> replay;
-  for (size_t i = log.size(); i-- > 0;) {
-    if (log[i].undo || !meets(reach[i].writes, needed)) continue;
-    replay.push_back(i);
-    needed.insert(reach[i].reads.begin(), reach[i].reads.end());
-  }
+  std::vector<uint64_t> replay;  // newest first
+  log(true, [&](const LoggedStep& s) {
+    if (out.too_many || s.excluded) return;
+    const Reach r = reach_of(*s.edit);
+    if (!meets(r.writes, needed)) return;
+    replay.push_back(s.seq);
+    needed.insert(r.reads.begin(), r.reads.end());
+    if (max_chunks != 0 && needed.size() > max_chunks) out.too_many = true;
+  });
+  if (out.too_many) return out;
   // From the base, the edits kept, in their order.
   ChunkMap map;
   for (const ChunkCoord& c : needed) {
     std::optional<Chunk> chunk = base(c);
     map.insert(c, chunk ? std::move(*chunk) : generator.generate(c));
   }
-  for (auto it = replay.rbegin(); it != replay.rend(); ++it) {
-    replay_edit(map, generator, *log[*it].edit, log[*it].keep, zone_chunks);
+  auto next = replay.rbegin();
+  log(false, [&](const LoggedStep& s) {
+    if (next == replay.rend() || s.seq != *next) return;
+    replay_edit(map, generator, *s.edit, s.keep, zone_chunks);
     ++out.replayed;
-  }
+    ++next;
+  });
   out.chunks.reserve(dirty.size());
   for (const ChunkCoord& c : dirty) out.chunks.emplace_back(c, *map.find(c));
   std::sort(out.chunks.begin(), out.chunks.end(),
