@@ -1,13 +1,15 @@
-// voxel-cli players | kick | ban | unban | bans: an admin's view of who is on, and keeping
-// griefers out, over the protocol (docs/PROTOCOL.md 4.11), with an admin token (--token or
-// VOXEL_TOKEN).
+// voxel-cli players | kick | ban | unban | bans | rollback: an admin's view of who is on,
+// keeping griefers out and undoing what they did, over the protocol (docs/PROTOCOL.md 4.11,
+// 4.12), with an admin token (--token or VOXEL_TOKEN).
 #include <algorithm>
 #include <charconv>
 #include <cstdio>
 #include <ctime>
+#include <limits>
 #include <ostream>
 
 #include "client-cli/commands.hpp"
+#include "client-cli/edit_filter.hpp"
 #include "client-cli/server_request.hpp"
 
 namespace vox::cli {
@@ -19,6 +21,9 @@ constexpr const char* kSynopsis =
     "       voxel-cli ban PLAYER_ID|ADDRESS [--for DURATION] [--reason TEXT]\n"
     "       voxel-cli unban PLAYER_ID|ADDRESS\n"
     "       voxel-cli bans\n"
+    "       voxel-cli rollback [--player ID] [--min X,Y,Z --max X,Y,Z] [--since T] [--until T]\n"
+    "                          [--dry-run]\n"
+    "       voxel-cli rollback --undo SEQ [--dry-run]\n"
     "(with an admin token: --token or VOXEL_TOKEN; a target that parses as an IP address is "
     "an address, an IPv6 one bans its /64; --address or --player say which)";
 
@@ -128,6 +133,56 @@ int list_bans(const po::variables_map& vm, std::ostream& out, std::ostream& err)
   return 0;
 }
 
+// A rollback on the running server: what it undid (or would), then how far back its
+// history reaches.
+int rollback(const po::variables_map& vm, std::ostream& out, std::ostream& err) {
+  wire::Envelope m;
+  auto* rb = m.mutable_admin_command()->mutable_rollback();
+  rb->set_dry_run(vm["dry-run"].as<bool>());
+  if (vm.count("undo")) {
+    if (vm.count("player") || vm.count("min") || vm.count("since") || vm.count("until"))
+      throw std::invalid_argument("rollback: --undo takes no filter");
+    rb->set_undo_rollback(vm["undo"].as<uint64_t>());
+  } else {
+    const EditFilter f = parse_edit_filter(vm, "rollback");
+    if (f.player) rb->set_player_id(*f.player);
+    if (f.box) {
+      auto* b = rb->mutable_box();
+      b->set_min_x(f.box->lo[0]), b->set_min_y(f.box->lo[1]), b->set_min_z(f.box->lo[2]);
+      b->set_max_x(f.box->hi[0]), b->set_max_y(f.box->hi[1]), b->set_max_z(f.box->hi[2]);
+    }
+    if (vm.count("since")) rb->set_since_unix_ms(std::max<int64_t>(f.since_ms, 1));
+    if (vm.count("until"))
+      rb->set_until_unix_ms(f.until_ms == std::numeric_limits<int64_t>::max() ? f.until_ms
+                                                                              : f.until_ms + 1);
+  }
+  const wire::AdminResult r = ask(vm, m);
+  const wire::RollbackReport& w = r.rollback();
+  if (r.status() != wire::AdminResult::OK) {
+    refused(r, err);
+    if (w.history_from() != 0)
+      err << "the history reaches back to edit " << w.history_from() << " ("
+          << utc(w.history_from_unix_ms()) << " UTC)\n";
+    return 1;
+  }
+  if (w.edits() == 0) {
+    out << "nothing to roll back: no edit in the history matches (or they are rolled back "
+           "already)\n";
+  } else if (rb->dry_run()) {
+    out << "dry run: would " << (rb->undo_rollback() ? "bring back " : "undo ") << w.edits()
+        << " edit(s), recomputing " << w.chunks() << " chunk(s)\n";
+  } else {
+    out << (rb->undo_rollback() ? "brought back " : "rolled back ") << w.edits()
+        << " edit(s), recomputed " << w.chunks() << " chunk(s) in " << w.seconds()
+        << " s: rollback " << w.record() << " (voxel-cli rollback --undo " << w.record()
+        << " undoes it)\n";
+  }
+  if (w.history_from() != 0)
+    out << "the history reaches back to edit " << w.history_from() << " ("
+        << utc(w.history_from_unix_ms()) << " UTC)\n";
+  return 0;
+}
+
 }  // namespace
 
 int admin_command(const std::string& action, const std::vector<std::string>& args,
@@ -147,6 +202,14 @@ int admin_command(const std::string& action, const std::vector<std::string>& arg
   if (action == "ban")
     opts.add_options()("for", po::value<std::string>(),
                        "how long: 90s, 30m, 12h, 7d, 2w (default: until unbanned)");
+  if (action == "rollback") {
+    add_edit_filter_options(opts, "rollback");
+    opts.add_options()("since", po::value<std::string>(),
+                       "rollback: edits accepted at or after this time (2026-12-07T10:30:00, "
+                       "UTC) or this long ago (30m, 2h, 7d)")(
+        "undo", po::value<uint64_t>(), "undo the rollback of this number (its edits come back)")(
+        "dry-run", po::bool_switch(), "say what it would change; change nothing");
+  }
   po::positional_options_description positional;
   if (targeted) positional.add("target", 1);
   po::variables_map vm;
@@ -157,6 +220,7 @@ int admin_command(const std::string& action, const std::vector<std::string>& arg
       throw std::invalid_argument("--player and --address exclude each other");
     if (action == "players") return list_players(vm, out, err);
     if (action == "bans") return list_bans(vm, out, err);
+    if (action == "rollback") return rollback(vm, out, err);
     wire::Envelope m;
     auto* command = m.mutable_admin_command();
     if (action == "kick") {

@@ -101,7 +101,7 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   if (args[0] == "keygen") return keygen_command(rest, out, err);
   if (args[0] == "token") return token_command(rest, out, err);
   if (args[0] == "region") return region_command(rest, out, err);
-  for (const char* action : {"players", "kick", "ban", "unban", "bans"}) {
+  for (const char* action : {"players", "kick", "ban", "unban", "bans", "rollback"}) {
     if (args[0] == action) return admin_command(action, rest, out, err);
   }
   for (const char* kind : {"brush", "explode", "smooth", "paint", "stamp"}) {

@@ -14,6 +14,7 @@
 
 #include "client-cli/cli_options.hpp"
 #include "client-cli/commands.hpp"
+#include "client-cli/edit_filter.hpp"
 #include "server/store/chunk_codec.hpp"
 #include "server/store/edit_codec.hpp"
 #include "server/store/world_backup.hpp"
@@ -276,14 +277,10 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
       "since", po::value<std::string>(),
       "log: edits after this sequence number; history: edits accepted at or after this time "
       "(2026-12-07T10:30:00, UTC) or this long ago (30m, 2h, 7d)")(
-      "until", po::value<std::string>(), "history: edits accepted at or before this time")(
-      "player", po::value<std::string>(), "history: this player id's edits ('-': no author)")(
-      "min", po::value<std::string>(), "history: X,Y,Z, the box's lowest sample")(
-      "max", po::value<std::string>(),
-      "history: X,Y,Z, the box's highest sample: edits "
-      "touching the box")("plan", po::bool_switch(),
-                          "history: also say what rolling the listed edits back would change "
-                          "(edits undone, chunks recomputed)");
+      "plan", po::bool_switch(),
+      "history: also say what rolling the listed edits back would change (edits undone, "
+      "chunks recomputed)");
+  add_edit_filter_options(opts, "history");
   po::positional_options_description positional;
   positional.add("action", 1).add("world", 1);
   po::variables_map vm;
@@ -301,28 +298,9 @@ int world_command(const std::vector<std::string>& args, std::ostream& out, std::
     HistoryFilter filter;
     uint64_t since_seq = 0;
     if (action == "history") {
-      const int64_t now = std::chrono::duration_cast<std::chrono::milliseconds>(
-                              std::chrono::system_clock::now().time_since_epoch())
-                              .count();
-      if (vm.count("since"))
-        filter.since_ms = options::parse_time_ms(vm["since"].as<std::string>(), "--since", now);
-      if (vm.count("until"))
-        filter.until_ms = options::parse_time_ms(vm["until"].as<std::string>(), "--until", now);
-      if (vm.count("player")) filter.player = vm["player"].as<std::string>();
-      if (vm.count("min") != vm.count("max"))
-        throw std::invalid_argument("history: --min and --max name a box together");
-      if (vm.count("min")) {
-        const auto lo = parse_vec3(vm["min"].as<std::string>(), "--min");
-        const auto hi = parse_vec3(vm["max"].as<std::string>(), "--max");
-        world::VoxelBox b;
-        for (int a = 0; a < 3; ++a) {
-          if (std::fabs(lo[a]) > 1e9f || std::fabs(hi[a]) > 1e9f || lo[a] > hi[a])
-            throw std::invalid_argument("history: --min must be at most --max on every axis");
-          b.lo[a] = static_cast<int32_t>(std::floor(lo[a]));
-          b.hi[a] = static_cast<int32_t>(std::ceil(hi[a]));
-        }
-        filter.box = b;
-      }
+      const EditFilter f = parse_edit_filter(vm, "history");
+      filter.player = f.player, filter.box = f.box;
+      filter.since_ms = f.since_ms, filter.until_ms = f.until_ms;
     } else if (vm.count("since")) {
       const std::string text = vm["since"].as<std::string>();
       const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), since_seq);

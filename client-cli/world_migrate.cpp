@@ -121,6 +121,7 @@ int migrate_out(const std::string& from, const std::string& to, std::optional<wo
       records.push_back({c, 1, encoder.encode(*zw.chunks.find(c))});
   }
   target->write_checkpoint(records, 1, 0);
+  target->reset_base();  // its history starts with the chunks it was given, not the seed
   // The protected regions: all of them (a region may reach past the zone taken alone).
   const store::ZoneRegions regions = db.read_regions();
   const store::RegionWrite write{.whole = true,

@@ -221,9 +221,31 @@ TEST(History, TrimmingTheWholeLogDropsTheBaseAndTheNextCheckpointStartsItAgain) 
   const RollbackOutcome r = prepare_rollback(*s, gen, {.player = "B"}, last, true, 0);
   EXPECT_NE(r.refusal.find("keeps no history"), std::string::npos) << r.refusal;
   ChunkEncoder encoder;
-  const HistoryStep step = advance_history(*s, gen, LogTrim{0}, last, encoder);
+  // Where the whole log is kept (an audit trail), nothing is trimmed to start a base.
+  EXPECT_FALSE(advance_history(*s, gen, LogTrim{0}, last, encoder).reset);
+  EXPECT_FALSE(s->info().base_seq.has_value());
+  const int64_t now = now_ms();
+  const HistoryStep step = advance_history(*s, gen, LogTrim(last, now - 1000, now), last, encoder);
   EXPECT_TRUE(step.reset);
   EXPECT_EQ(s->info().base_seq, last);
+}
+
+// A restart from the checkpoint replays a record logged after it: the base must not pass
+// an edit that record reaches, or the replay would not see that edit go.
+TEST(History, TheBaseStopsBeforeWhatARecordPastTheCheckpointReaches) {
+  const test::TempDir tmp("history_floor");
+  const world::TerrainGenerator gen(kSeed);
+  auto s = open_world_store((tmp / "world").string(), {.seed = kSeed});
+  const int64_t now = now_ms(), old = now - int64_t{10} * 24 * 3600 * 1000;
+  const uint64_t last = append(*s, turns(gen, old), 1);
+  s->write_checkpoint({}, last, LogTrim{0});
+  append_rollback(*s, last + 1, {4, 6});  // after the checkpoint
+  ChunkEncoder encoder;
+  const HistoryStep step = advance_history(
+      *s, gen, LogTrim(last, now - int64_t{7} * 24 * 3600 * 1000, now + 3600 * 1000), last,
+      encoder);
+  EXPECT_EQ(step.through, 3u);
+  EXPECT_EQ(s->info().base_seq, 3u);
 }
 
 TEST(History, SeqListsRoundTripAndHostileOnesAreRefused) {

@@ -248,7 +248,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
   if (c.net.http && c.net.http->root.empty()) c.net.http->root = default_http_root();
   log_start(c, allocator);
   // The durable world: opened (and checked) before anything listens.
-  std::unique_ptr<store::WorldStore> store, checkpoint_store;
+  std::unique_ptr<store::WorldStore> store, checkpoint_store, history_store;
   std::unique_ptr<cluster::ClusterNode> node;
   std::shared_ptr<net::BanKeeper> bans;  // none: in memory only
   if (!c.cluster_file.empty()) {
@@ -281,6 +281,8 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
       // Checkpoints are written on their own connection while edits are appended.
       checkpoint_store =
           store::open_world_store(where, {.seed = c.world.seed, .record_start = false});
+      // Rollbacks read the history on theirs (pipeline/rollbacks.hpp).
+      history_store = store::open_world_store(where, {.seed = c.world.seed, .record_start = false});
       bans = std::make_shared<net::BanKeeper>(store::open_ban_store(where));
     } catch (const std::exception& e) {
       start_failed(c, e.what());
@@ -288,6 +290,7 @@ int run_voxeld(VoxeldConfig c, const char* allocator) {
     }
     c.world.store = store.get();
     c.world.checkpoint_store = checkpoint_store.get();
+    c.world.history_store = history_store.get();
   }
   try {
     serve(c, node.get(), bans);

@@ -90,13 +90,13 @@ void ClientSession::handle_admin_command(const wire::AdminCommand& command) {
   result->set_request_id(command.request_id());
   if (role_ != auth::Role::kAdmin) {
     if (auto suppressed = services_.logs->allow("admin-refused", 5)) {
-      spdlog::warn("session {}: player '{}' ({}, {}) may not list, kick or ban players{}", id_,
+      spdlog::warn("session {}: player '{}' ({}, {}) may not list, kick, ban or roll back{}", id_,
                    log_name_, player_id_.empty() ? "no id" : escape_for_log(player_id_),
                    auth::to_string(role_),
                    *suppressed ? fmt::format(" [{} more refused]", *suppressed) : std::string());
     }
     result->set_status(wire::AdminResult::FORBIDDEN);
-    result->set_reason("only an admin may list, kick or ban players");
+    result->set_reason("only an admin may list, kick or ban players, or roll edits back");
     return queue_control(reply);
   }
   switch (command.command_case()) {
@@ -110,6 +110,8 @@ void ClientSession::handle_admin_command(const wire::AdminCommand& command) {
       return unban(command.unban(), reply);
     case wire::AdminCommand::kBans:
       return list_bans(command.bans().cursor(), reply);
+    case wire::AdminCommand::kRollback:
+      return rollback(command.rollback(), reply);
     default:
       break;
   }
@@ -266,6 +268,85 @@ void ClientSession::list_bans(const std::string& cursor, wire::Envelope& reply) 
   result->set_cursor(page.next);
   result->set_status(wire::AdminResult::OK);
   queue_control(reply);
+}
+
+// A rollback (pipeline/rollbacks.hpp), answered once done. At least one filter: a slip of
+// the hand must not undo the whole world.
+void ClientSession::rollback(const wire::Rollback& request, wire::Envelope& reply) {
+  auto* result = reply.mutable_admin_result();
+  store::RollbackQuery q;
+  std::string problem;
+  if (request.undo_rollback() != 0) {
+    q.undo_record = request.undo_rollback();
+    if (!request.player_id().empty() || request.has_box() || request.since_unix_ms() != 0 ||
+        request.until_unix_ms() != 0)
+      problem = "undo_rollback takes no filter";
+  } else {
+    q.player = request.player_id();
+    if (!q.player.empty() && q.player != "-") {
+      Ban probe;
+      probe.target = q.player;
+      if (auto why = store::ban_problem(probe)) problem = *why;
+    }
+    if (request.has_box()) {
+      const wire::VoxelBox& b = request.box();
+      q.box = world::VoxelBox{{b.min_x(), b.min_y(), b.min_z()}, {b.max_x(), b.max_y(), b.max_z()}};
+      for (int a = 0; a < 3; ++a)
+        if (q.box->lo[a] > q.box->hi[a]) problem = "the box's min exceeds its max";
+    }
+    if (request.since_unix_ms() < 0 || request.until_unix_ms() < 0) problem = "a time before 1970";
+    if (request.since_unix_ms() != 0) q.since_ms = request.since_unix_ms();
+    if (request.until_unix_ms() != 0) q.until_ms = request.until_unix_ms();
+    if (q.until_ms <= q.since_ms) problem = "until is not after since";
+    if (q.player.empty() && !q.box && request.since_unix_ms() == 0)
+      problem =
+          "name a player, a box or a time (a rollback of everyone's edits everywhere is "
+          "refused)";
+  }
+  if (problem.empty() && admin_commands_in_flight_ >= kMaxAdminCommandsInFlight)
+    problem = "over " + std::to_string(kMaxAdminCommandsInFlight) + " admin commands waiting";
+  if (!problem.empty()) {
+    result->set_status(problem.starts_with("over") ? wire::AdminResult::BUSY
+                                                   : wire::AdminResult::BAD_VALUE);
+    result->set_reason(problem);
+    return queue_control(reply);
+  }
+  ++admin_commands_in_flight_;
+  const std::string what =
+      q.undo_record
+          ? fmt::format("undo of rollback {}", q.undo_record)
+          : fmt::format("rollback of '{}'{}{}", escape_for_log(q.player, 64),
+                        q.box ? " in a box" : "", request.since_unix_ms() ? " since a time" : "");
+  const bool dry_run = request.dry_run();
+  pipeline_.rollback({.query = std::move(q),
+                      .dry_run = dry_run,
+                      .by = player_id_,
+                      .done = [self = shared_from_this(), reply, what,
+                               dry_run](const pipeline::RollbackReport& out) mutable {
+                        asio::post(self->strand_, [self, reply, what, dry_run, out]() mutable {
+                          --self->admin_commands_in_flight_;
+                          using S = pipeline::RollbackReport::Status;
+                          auto* r = reply.mutable_admin_result();
+                          r->set_status(out.status == S::kOk        ? wire::AdminResult::OK
+                                        : out.status == S::kRefused ? wire::AdminResult::BAD_VALUE
+                                        : out.status == S::kTooMany ? wire::AdminResult::TOO_MANY
+                                        : out.status == S::kUnavailable
+                                            ? wire::AdminResult::STORAGE_UNAVAILABLE
+                                            : wire::AdminResult::BUSY);
+                          r->set_reason(out.message);
+                          auto* w = r->mutable_rollback();
+                          w->set_record(out.record);
+                          w->set_edits(out.edits);
+                          w->set_chunks(out.chunks);
+                          w->set_history_from(out.history_from);
+                          w->set_history_from_unix_ms(out.history_from_ms);
+                          w->set_seconds(out.seconds);
+                          if (out.status == S::kOk && !dry_run)
+                            self->log_admin(fmt::format("{}: {} edits, {} chunks, record {}", what,
+                                                        out.edits, out.chunks, out.record));
+                          self->queue_control(reply);
+                        });
+                      }});
 }
 
 // Every admin action, one line with its author (a few per second at most, with a count).

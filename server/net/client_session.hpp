@@ -125,6 +125,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void ban(const wire::Ban& ban, wire::Envelope& reply);
   void unban(const wire::Ban& ban, wire::Envelope& reply);
   void list_bans(const std::string& cursor, wire::Envelope& reply);
+  void rollback(const wire::Rollback& request, wire::Envelope& reply);
   void log_admin(const std::string& what);
   bool refuse_if_banned(const std::string& player_id, auth::Role role);
   void handle_edit(const wire::Edit& edit);

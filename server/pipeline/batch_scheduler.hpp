@@ -80,6 +80,7 @@ struct RollbackTask {
   std::vector<std::pair<world::ChunkCoord, world::Chunk>> chunks;  // install
   std::optional<std::vector<uint64_t>> undoes;  // install: the first slice's record
   std::string by;                               // its author
+  bool last = true;                             // install: the rollback's last slice
   // Pipeline thread (or stop()'s, with ok false): freeze gives `through`; install `ok`
   // when durable.
   std::function<void(bool ok, uint64_t through)> done;

@@ -11,8 +11,8 @@ namespace vox::pipeline {
 
 CheckpointWriter::CheckpointWriter(store::WorldStore& store, bool background,
                                    std::function<void()> on_done,
-                                   const world::TerrainGenerator* history)
-    : store_(store), on_done_(std::move(on_done)), history_(history) {
+                                   const world::TerrainGenerator* history, std::mutex* history_lock)
+    : store_(store), on_done_(std::move(on_done)), history_(history), history_lock_(history_lock) {
   if (background) thread_ = named_thread("vox-checkpoint", [this] { work(); });
 }
 
@@ -80,6 +80,11 @@ void CheckpointWriter::keep_history(const CheckpointJob& job) {
   // a week-old backlog (a window shortened) goes over several.
   constexpr auto kBudget = std::chrono::seconds(2);
   const auto until = std::chrono::steady_clock::now() + kBudget;
+  std::unique_lock<std::mutex> lock;
+  if (history_lock_) {
+    lock = std::unique_lock(*history_lock_, std::try_to_lock);
+    if (!lock) return;  // a rollback reads the history: the next checkpoint moves it
+  }
   try {
     for (;;) {
       const store::HistoryStep step =
@@ -87,7 +92,18 @@ void CheckpointWriter::keep_history(const CheckpointJob& job) {
       if (step.reset)
         spdlog::info("world store: the history for rollbacks starts at edit {} (the checkpoint)",
                      step.through);
-      if (step.reset || step.through == 0 || std::chrono::steady_clock::now() >= until) return;
+      if (step.reset || step.through == 0) return;
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= until) {
+        if (now - last_history_warning_ >= std::chrono::minutes(1)) {
+          last_history_warning_ = now;
+          spdlog::warn(
+              "world store: the history's base lags the window (at edit {}); the log is longer "
+              "than --history-days until it catches up",
+              step.through);
+        }
+        return;
+      }
     }
   } catch (const std::exception& e) {  // nothing is lost: the log keeps the edits meanwhile
     const auto now = std::chrono::steady_clock::now();

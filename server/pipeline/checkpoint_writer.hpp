@@ -57,8 +57,10 @@ class CheckpointWriter {
   // Otherwise submit() writes on the caller's thread. With `history` (the world's
   // generator; null for a cluster's zones), a job whose trim keeps a window moves the
   // history's base instead (store::advance_history) after writing.
+  // `history_lock`: held by a rollback while it reads the history; tried, never waited for.
   CheckpointWriter(store::WorldStore& store, bool background, std::function<void()> on_done,
-                   const world::TerrainGenerator* history = nullptr);
+                   const world::TerrainGenerator* history = nullptr,
+                   std::mutex* history_lock = nullptr);
   ~CheckpointWriter();  // finishes the job in flight and joins
   CheckpointWriter(const CheckpointWriter&) = delete;
   CheckpointWriter& operator=(const CheckpointWriter&) = delete;
@@ -83,6 +85,7 @@ class CheckpointWriter {
   store::WorldStore& store_;
   const std::function<void()> on_done_;
   const world::TerrainGenerator* const history_;
+  std::mutex* const history_lock_;
   store::ChunkEncoder encoder_;  // the writing thread's
   mutable std::mutex mutex_;     // leaf lock; never held while encoding or writing
   std::condition_variable cv_;

@@ -14,13 +14,13 @@ using world::ChunkCoord;
 
 Checkpoints::Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
                          LogRetention history, std::function<void()> wake, Clock::time_point now,
-                         const world::TerrainGenerator* generator)
+                         const world::TerrainGenerator* generator, std::mutex* history_lock)
     : limits_(limits),
       own_connection_(own_connection),
       history_(history),
       policy_(limits, now),
-      writer_(
-          std::make_unique<CheckpointWriter>(store, own_connection, std::move(wake), generator)) {}
+      writer_(std::make_unique<CheckpointWriter>(store, own_connection, std::move(wake), generator,
+                                                 history_lock)) {}
 
 bool Checkpoints::log_full(uint64_t log_tail) {
   const bool full = policy_.log_full(log_tail);
@@ -111,13 +111,14 @@ void Checkpoints::finish(WorldState& st, const CheckpointResult& r, Clock::time_
 }
 
 void Checkpoints::turn(WorldState& st, Clock::time_point now,
-                       const std::function<uint64_t()>& drain, const Finished& finished) {
+                       const std::function<uint64_t()>& drain, const Finished& finished,
+                       bool may_start) {
   if (auto r = take_result()) {
     drain();
     finish(st, *r, now);
     finished(*r);
   }
-  if (!due(now)) return;
+  if (!may_start || !due(now)) return;
   const uint64_t seq = drain();
   // Every applied edit, and no other; written on this thread without a second connection.
   if (auto r = start(st, seq, now)) {

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <unordered_set>
 #include <vector>
@@ -47,7 +48,8 @@ class Checkpoints {
   // `generator`: the world's, to keep the history's base (CheckpointWriter); null: none.
   Checkpoints(store::WorldStore& store, bool own_connection, CheckpointLimits limits,
               LogRetention history, std::function<void()> wake, Clock::time_point now,
-              const world::TerrainGenerator* generator = nullptr);
+              const world::TerrainGenerator* generator = nullptr,
+              std::mutex* history_lock = nullptr);
 
   // A cluster node: each checkpoint writes only what `scope` (called at its start, with
   // its sequence number) allows; chunks outside it stay unsaved and resident. Set once,
@@ -98,8 +100,10 @@ class Checkpoints {
   // "saved" flags from before: they would never be written). `finished` hears of each
   // checkpoint taken in, at once (before another may start).
   using Finished = std::function<void(const CheckpointResult&)>;
+  // `may_start` false: only a finished checkpoint is taken in (a rollback's slices are
+  // going in: no checkpoint may cover its record before its last slice).
   void turn(WorldState& state, Clock::time_point now, const std::function<uint64_t()>& drain,
-            const Finished& finished);
+            const Finished& finished, bool may_start = true);
   // At stop, every batch answered (`seq`: the last edit): the checkpoint in flight, then
   // one of everything still unsaved, waited for, so that a restart replays nothing (if the
   // store fails, the log still has every edit).

@@ -60,6 +60,11 @@ void rollback_step(RollbackTask& task, EditBatch& b, size_t t, EditWorld& world,
                    const EditRules& rules, Clock::time_point now) {
   using Kind = RollbackTask::Kind;
   if (task.kind == Kind::kFreeze) {
+    // After a failed append, appends in doubt may still be in the log: nothing is read.
+    if (rules.store_resting) {
+      if (task.done) task.done(false, 0);
+      return;
+    }
     if (rules.frozen) rules.frozen->insert(task.coords.begin(), task.coords.end());
     // The edits accepted so far are logged with this batch, before anything frozen now.
     if (task.done) task.done(true, rules.last_seq + b.accepted.size());

@@ -19,6 +19,8 @@ namespace {
 
 // How often the recomputation may find that edits grew its set while it froze more.
 constexpr int kMaxFreezes = 4;
+// How often a slice after the record is tried (backing off to 0.8 s): about 10 s.
+constexpr int kMaxSliceTries = 15;
 // How long the store may take to hold the edits before a freeze.
 constexpr auto kDurableWait = std::chrono::seconds(10);
 
@@ -32,8 +34,14 @@ RollbackReport failed(Status s, std::string message) {
 }  // namespace
 
 Rollbacks::Rollbacks(WorldPipeline& pipeline, store::WorldStore& store,
-                     const world::TerrainGenerator& generator, size_t max_chunks)
-    : pipeline_(pipeline), store_(store), generator_(generator), max_chunks_(max_chunks) {
+                     const world::TerrainGenerator& generator, size_t max_chunks,
+                     std::mutex& history_lock, bool keeps_history)
+    : pipeline_(pipeline),
+      store_(store),
+      generator_(generator),
+      max_chunks_(max_chunks),
+      history_lock_(history_lock),
+      keeps_history_(keeps_history) {
   thread_ = named_thread("vox-rollback", [this] { work(); });
 }
 
@@ -97,13 +105,27 @@ void Rollbacks::work() {
   }
 }
 
+bool Rollbacks::stopping() {
+  std::lock_guard lock(mutex_);
+  return stopping_;
+}
+
 RollbackReport Rollbacks::run(const Job& job) {
+  if (!keeps_history_)
+    return failed(Status::kRefused,
+                  "this server keeps no history (voxeld --history-days 0): nothing to roll back");
+  // The history's base stays where it is until the record is logged (CheckpointWriter).
+  std::unique_lock history(history_lock_);
   // 1. The plan, as of the edits logged so far.
-  uint64_t through = freeze({});
-  if (!wait_durable(through))
-    return failed(Status::kUnavailable, "the world store is not keeping up; nothing changed");
+  const auto unavailable = [] {
+    return failed(Status::kUnavailable,
+                  "the world store is failing or behind (an append in doubt is not read); "
+                  "nothing changed; retry once it works");
+  };
+  std::optional<uint64_t> through = freeze({});
+  if (!through || !wait_durable(*through)) return unavailable();
   store::RollbackOutcome o =
-      store::prepare_rollback(store_, generator_, job.query, through, true, max_chunks_);
+      store::prepare_rollback(store_, generator_, job.query, *through, true, max_chunks_);
   const auto report = [](const store::RollbackOutcome& x) {
     RollbackReport r;
     r.edits = x.edits, r.chunks = x.chunks.size();
@@ -115,65 +137,80 @@ RollbackReport Rollbacks::run(const Job& job) {
     return r;
   };
   if (job.dry_run || !o.refusal.empty() || o.too_many || o.undoes.empty()) return report(o);
-  // 2., 3. Freeze, recompute; again while the set grew.
+  // 2., 3. Freeze, recompute; again while the set grew. Whatever happens, what is still
+  // frozen thaws when this returns (or throws).
   std::set<ChunkCoord> frozen;
-  std::vector<ChunkCoord> more = o.chunks;
-  const auto thaw_all = [&] { thaw({frozen.begin(), frozen.end()}); };
-  for (int round = 0;; ++round) {
-    if (round == kMaxFreezes) {
-      thaw_all();
-      return failed(Status::kBusy, "the area kept changing while it was recomputed; retry");
+  struct Thaw {
+    Rollbacks& self;
+    std::set<ChunkCoord>& frozen;
+    ~Thaw() {
+      if (!frozen.empty()) self.thaw({frozen.begin(), frozen.end()});
     }
+  } thaw_guard{*this, frozen};
+  std::vector<ChunkCoord> more = o.chunks;
+  for (int round = 0;; ++round) {
+    if (round == kMaxFreezes)
+      return failed(Status::kBusy, "the area kept changing while it was recomputed; retry");
+    if (stopping()) return failed(Status::kStopped, "the server is stopping");
     frozen.insert(more.begin(), more.end());
     through = freeze(std::move(more));
-    {
-      std::lock_guard lock(mutex_);
-      if (stopping_) return thaw_all(), failed(Status::kStopped, "the server is stopping");
-    }
-    if (!wait_durable(through)) {
-      thaw_all();
-      return failed(Status::kUnavailable, "the world store is not keeping up; nothing changed");
-    }
-    o = store::prepare_rollback(store_, generator_, job.query, through, false, max_chunks_);
-    if (!o.refusal.empty() || o.too_many || o.undoes.empty()) return thaw_all(), report(o);
+    if (!through || !wait_durable(*through)) return unavailable();
+    o = store::prepare_rollback(store_, generator_, job.query, *through, false, max_chunks_);
+    if (!o.refusal.empty() || o.too_many || o.undoes.empty()) return report(o);
     more.clear();
     for (const ChunkCoord& c : o.chunks)
       if (!frozen.count(c)) more.push_back(c);
     if (more.empty()) break;
   }
-  // 4. In place, in slices; the first logs the record.
+  // 4. In place, in slices; the first logs the record. From then on the rollback is
+  // finished even at stop (the pipeline writes no checkpoint past the record meanwhile).
   RollbackReport r = report(o);
   std::vector<std::pair<ChunkCoord, world::Chunk>>& chunks = o.recomputed;
   for (size_t from = 0; from < chunks.size(); from += kSlice) {
     const size_t n = std::min(kSlice, chunks.size() - from);
     std::vector<std::pair<ChunkCoord, world::Chunk>> slice;
+    slice.reserve(n);
     for (size_t i = 0; i < n; ++i) slice.push_back(chunks[from + i]);  // kept to try again
-    const bool first = from == 0;
+    const bool first = from == 0, last = from + n == chunks.size();
     std::optional<uint64_t> seq;
     for (int attempt = 0; !seq; ++attempt) {
-      seq = install(slice, first ? &o.undoes : nullptr, job.by);
+      seq = install(slice, first ? &o.undoes : nullptr, job.by, last);
       if (seq) break;
-      if (first) {  // nothing of it is in the world or the log
-        thaw_all();
+      if (first)  // not logged, unless its append is in doubt (then forgotten by the next)
         return failed(Status::kUnavailable,
-                      "the world store could not log the rollback; nothing changed");
+                      "the world store failed while logging the rollback; nothing changed "
+                      "(voxel-cli world log shows no record of it); retry once it works");
+      if (attempt == kMaxSliceTries) {
+        spdlog::error(
+            "rollback {}: {} of its chunks could not be put in place (the store cannot read "
+            "what they replace); no checkpoint is written until voxeld restarts and replays "
+            "it",
+            r.record, chunks.size() - from);
+        r.status = Status::kUnavailable;
+        r.message = "logged as rollback " + std::to_string(r.record) +
+                    ", but not all its chunks are in place: restart voxeld to replay it";
+        frozen.clear();  // stays frozen: no edit may land on what the replay recomputes
+        return r;
       }
-      // The record is durable: its chunks must go in (a later failure undid the slice).
-      std::this_thread::sleep_for(std::chrono::milliseconds(std::min(1000, 50 << attempt)));
+      std::this_thread::sleep_for(std::chrono::milliseconds(50 << std::min(attempt, 4)));
     }
-    if (first) r.record = *seq;
+    if (first) {
+      r.record = *seq;
+      history.unlock();
+    }
     for (auto& [c, chunk] : slice) frozen.erase(c);
   }
-  thaw_all();  // frozen by an earlier round, not recomputed in the end
-  return r;
+  return r;  // the guard thaws what an earlier round froze and the end did not recompute
 }
 
-uint64_t Rollbacks::freeze(std::vector<ChunkCoord> coords) {
-  std::promise<uint64_t> through;
+std::optional<uint64_t> Rollbacks::freeze(std::vector<ChunkCoord> coords) {
+  std::promise<std::optional<uint64_t>> through;
   RollbackTask t;
   t.kind = RollbackTask::Kind::kFreeze;
   t.coords = std::move(coords);
-  t.done = [&through](bool, uint64_t seq) { through.set_value(seq); };
+  t.done = [&through](bool ok, uint64_t seq) {
+    through.set_value(ok ? std::optional<uint64_t>(seq) : std::nullopt);
+  };
   pipeline_.submit_rollback(std::move(t));
   return through.get_future().get();
 }
@@ -191,13 +228,14 @@ void Rollbacks::thaw(std::vector<ChunkCoord> coords) {
 
 std::optional<uint64_t> Rollbacks::install(std::vector<std::pair<ChunkCoord, world::Chunk>> chunks,
                                            const std::vector<uint64_t>* undoes,
-                                           const std::string& by) {
+                                           const std::string& by, bool last) {
   std::promise<std::optional<uint64_t>> landed;
   RollbackTask t;
   t.kind = RollbackTask::Kind::kInstall;
   t.chunks = std::move(chunks);
   if (undoes) t.undoes = *undoes;
   t.by = by;
+  t.last = last;
   t.done = [&landed](bool ok, uint64_t seq) {
     landed.set_value(ok ? std::optional<uint64_t>(seq) : std::nullopt);
   };
@@ -209,7 +247,7 @@ bool Rollbacks::wait_durable(uint64_t through) {
   const auto give_up = std::chrono::steady_clock::now() + kDurableWait;
   while (store_.info().last_seq < through) {
     if (std::chrono::steady_clock::now() >= give_up) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   return true;
 }

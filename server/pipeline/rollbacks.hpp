@@ -19,6 +19,7 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
@@ -54,18 +55,24 @@ class Rollbacks {
   static constexpr size_t kMaxQueued = 4;
   static constexpr size_t kSlice = 32;  // chunks per install batch (~10 ms of meshing)
 
-  // `store`: a connection no one else uses; `pipeline` and `store` outlive this.
+  // `store`: a connection no one else uses; `pipeline`, `store` and `history_lock` (the
+  // checkpoint writer tries it before it moves the history's base) outlive this.
+  // `keeps_history`: checkpoints keep a window (or everything); else every rollback is
+  // refused.
   Rollbacks(WorldPipeline& pipeline, store::WorldStore& store,
-            const world::TerrainGenerator& generator, size_t max_chunks);
+            const world::TerrainGenerator& generator, size_t max_chunks, std::mutex& history_lock,
+            bool keeps_history);
   ~Rollbacks();  // stop()
   Rollbacks(const Rollbacks&) = delete;
   Rollbacks& operator=(const Rollbacks&) = delete;
 
   // Any thread: queued, or answered kBusy (queue full) / kStopped at once.
   void submit(Job job);
-  // Any thread, before the pipeline stops: the queued jobs are answered kStopped, the
-  // running one ends at its next step (its record, if logged, stays and is replayed at
-  // the next start), the thread is joined. Idempotent.
+  // Any thread, before the pipeline stops: the queued jobs are answered kStopped; the
+  // running one ends before its record is logged, or, once it is, puts its slices in
+  // place first (a few seconds at most; if the store fails, the pipeline writes no
+  // checkpoint past the record, and the next start replays it); the thread is joined.
+  // Idempotent.
   void stop();
 
  private:
@@ -73,16 +80,20 @@ class Rollbacks {
   RollbackReport run(const Job& job);
   // Via the pipeline, waiting: chunks frozen, the last edit before; chunks thawed; a slice
   // put in place (its record's seq when it carried one, 0 if not; nullopt: undone).
-  uint64_t freeze(std::vector<world::ChunkCoord> coords);
+  std::optional<uint64_t> freeze(std::vector<world::ChunkCoord> coords);  // nullopt: refused
+  bool stopping();
   void thaw(std::vector<world::ChunkCoord> coords);
   std::optional<uint64_t> install(std::vector<std::pair<world::ChunkCoord, world::Chunk>> chunks,
-                                  const std::vector<uint64_t>* undoes, const std::string& by);
+                                  const std::vector<uint64_t>* undoes, const std::string& by,
+                                  bool last);
   bool wait_durable(uint64_t through);  // until the store holds every edit through it
 
   WorldPipeline& pipeline_;
   store::WorldStore& store_;                  // the rollback thread's
   const world::TerrainGenerator& generator_;  // the pipeline's (const: any thread)
   const size_t max_chunks_;
+  std::mutex& history_lock_;
+  const bool keeps_history_;
   std::mutex mutex_;  // leaf lock: the queue and stopping_
   std::condition_variable cv_;
   std::deque<Job> queue_;

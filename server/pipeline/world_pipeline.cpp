@@ -54,7 +54,8 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
     checkpoints_ = std::make_unique<Checkpoints>(
         config_.checkpoint_store ? *config_.checkpoint_store : *config_.store,
         config_.checkpoint_store != nullptr, config_.checkpoint, config_.history,
-        [this] { inbox_.poke(); }, Clock::now(), config_.zones ? nullptr : &generator_);
+        [this] { inbox_.poke(); }, Clock::now(), config_.zones ? nullptr : &generator_,
+        &history_mutex_);
     if (config_.zones) {  // a cluster node: only the zones it holds, evicted while held
       checkpoints_->set_scope([this](uint64_t s) { return config_.zones->checkpoint_scope(s); });
       state_->may_evict_modified = [this](ChunkCoord c) { return config_.zones->may_evict(c); };
@@ -94,8 +95,9 @@ WorldPipeline::WorldPipeline(PipelineConfig config, PipelineObserver observer)
   lod_->learn_modified();  // what the restore loaded or replayed
   thread_ = named_thread("vox-pipeline", [this] { run(); });
   if (config_.history_store && !config_.zones)
-    rollbacks_ = std::make_unique<Rollbacks>(*this, *config_.history_store, generator_,
-                                             config_.max_rollback_chunks);
+    rollbacks_ = std::make_unique<Rollbacks>(
+        *this, *config_.history_store, generator_, config_.max_rollback_chunks, history_mutex_,
+        config_.history.keep_all || config_.history.window.count() > 0);
 }
 
 WorldPipeline::~WorldPipeline() { stop(); }
@@ -307,9 +309,15 @@ void WorldPipeline::run() {
   repair_regions(Clock::now(), true);
   drain_commits();
   drain_after_stop();
-  if (checkpoints_)
+  // A rollback whose slices are not all in: no checkpoint covers its record, so the next
+  // start replays it from the log.
+  if (checkpoints_ && !hold_checkpoints_)
     checkpoints_->last(*state_, commit_->last_seq(),
                        [this](const CheckpointResult& r) { record(r); });
+  else if (checkpoints_)
+    spdlog::warn(
+        "no checkpoint at shutdown: a rollback was being put in place; the next start "
+        "replays it from the log");
 }
 
 // Edits, region changes and inspections, in arrival order. Without a store the batch is
@@ -373,6 +381,8 @@ void WorldPipeline::answer(EditBatch& b, bool durable) {
     auto* slice = std::get_if<RollbackTask>(&b.tasks[t]);
     if (!slice || slice->kind != RollbackTask::Kind::kInstall) continue;
     const bool ok = durable && b.results[t].accepted;
+    if (ok && slice->undoes && !slice->last) hold_checkpoints_ = true;  // more slices follow
+    if (ok && slice->last) hold_checkpoints_ = false;
     if (ok) {
       const Clock::time_point now = Clock::now();
       for (const auto& [c, chunk] : slice->chunks) {
@@ -569,7 +579,7 @@ void WorldPipeline::checkpoints_turn(Clock::time_point now) {
         drain_commits();
         return commit_->last_seq();
       },
-      [this](const CheckpointResult& r) { record(r); });
+      [this](const CheckpointResult& r) { record(r); }, !hold_checkpoints_);
 }
 
 // A checkpoint taken in, at once (the observer may read the store before the next starts).

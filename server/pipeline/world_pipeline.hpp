@@ -11,6 +11,7 @@
 
 #include <future>
 #include <memory>
+#include <mutex>
 #include <thread>
 #include <unordered_set>
 #include <vector>
@@ -173,6 +174,11 @@ class WorldPipeline {
   std::unique_ptr<DurableCommit> commit_;
   // Chunks a rollback is recomputing (RollbackTask): edits reaching them are refused.
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> frozen_;
+  // A rollback's record is durable but not all its slices are in: no checkpoint starts.
+  bool hold_checkpoints_ = false;
+  // Held by a rollback from its plan until its record is logged, and tried by the
+  // checkpoint writer before it moves the history's base (else it waits for the next).
+  std::mutex history_mutex_;
   std::unique_ptr<ViewLoads> loads_;
   std::thread thread_;
   std::unique_ptr<Rollbacks> rollbacks_;  // with a history store; stopped first

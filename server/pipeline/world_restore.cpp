@@ -82,7 +82,15 @@ RestoredWorld restore_world(store::WorldStore& store, EditWorld& w, ProtectedReg
   preload(store, w, tail);
   uint64_t last = out.info.checkpoint_seq;
   for (const store::LoggedEdit& e : tail) {
-    if (e.undoes) {  // a rollback: its chunks as the history recomputes them
+    if (e.undoes) {              // a rollback: its chunks as the history recomputes them
+      if (!out.info.base_seq) {  // the base went with a trim of the whole log
+        spdlog::error(
+            "world: rollback {} is logged but the history it needs was trimmed (--history-days "
+            "0); it is not replayed: its edits stay",
+            e.seq);
+        last = e.seq;
+        continue;
+      }
       for (auto& [c, chunk] : store::replay_rollback(store, w.generator, e, w.zone_chunks))
         replace_chunk(w, c, std::move(chunk), start);
       ++out.rollbacks;

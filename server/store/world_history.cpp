@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <unordered_set>
 
+#include "server/store/edit_codec.hpp"
 #include "server/world/chunk_map.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/edit_replay.hpp"
@@ -144,6 +145,11 @@ RollbackOutcome prepare_rollback(WorldStore& s, const world::TerrainGenerator& g
     return out;
   }
   if (targets.empty()) return out;
+  if (targets.size() > kMaxRollbackSeqs) {
+    out.refusal = "it would undo " + std::to_string(targets.size()) + " edits, more than " +
+                  std::to_string(kMaxRollbackSeqs) + " at once: narrow it (a box, a time)";
+    return out;
+  }
   RollbackOutcome r =
       recompute(s, generator, base, records, targets, through, dry_run, max_chunks, zone_chunks);
   r.history_from = out.history_from, r.history_from_ms = out.history_from_ms;
@@ -181,21 +187,46 @@ HistoryStep advance_history(WorldStore& s, const world::TerrainGenerator& genera
   constexpr size_t kMaxEdits = 100'000, kMaxChunks = 256;
   HistoryStep step;
   const WorldInfo info = s.info();
+  const bool keeps_all = window.through == 0 || !window.windowed();
+  // A world without a base: the checkpoint becomes it, but not where the log is kept
+  // whole (an audit trail is never trimmed; such a world gets no history).
+  if (!info.base_seq && keeps_all) return step;
   if (!info.base_seq) {
     s.reset_base();
     step.reset = true;
     step.through = info.checkpoint_seq;
     return step;
   }
-  if (window.through == 0 || !window.windowed()) return step;  // keeps everything
+  if (keeps_all) return step;
   const uint64_t base = *info.base_seq;
   const std::vector<LoggedEdit> records = records_through(s, base, info.last_seq);
   const std::unordered_set<uint64_t> out = world::excluded_by(marks_of(records));
+  // A record past the checkpoint is replayed by a restart from it: the base stays before
+  // every edit such a record reaches (through the records it undoes too), or the replay
+  // would not see that edit change.
+  uint64_t floor = std::numeric_limits<uint64_t>::max();
+  {
+    std::unordered_set<uint64_t> reached;
+    std::vector<uint64_t> todo;
+    for (const LoggedEdit& r : records)
+      if (r.seq > checkpoint_seq) todo.push_back(r.seq);
+    while (!todo.empty()) {
+      const uint64_t seq = todo.back();
+      todo.pop_back();
+      const auto it = std::find_if(records.begin(), records.end(),
+                                   [&](const LoggedEdit& r) { return r.seq == seq; });
+      if (it == records.end()) continue;
+      for (const uint64_t u : *it->undoes) {
+        floor = std::min(floor, u);
+        if (reached.insert(u).second) todo.push_back(u);
+      }
+    }
+  }
   std::vector<LoggedEdit> leaving;
   std::unordered_set<ChunkCoord, world::ChunkCoordHash> reach;
   uint64_t through = base;
   s.for_each_edit(base, [&](const LoggedEdit& e) {
-    if (e.seq > std::min(checkpoint_seq, window.through)) return false;
+    if (e.seq > std::min(checkpoint_seq, window.through) || e.seq >= floor) return false;
     if (e.undoes) {
       through = e.seq;
       return true;
