@@ -11,6 +11,7 @@
 #include "server/world/chunk_map.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/edit_replay.hpp"
+#include "tests/replay_util.hpp"
 
 namespace vox::world {
 namespace {
@@ -23,16 +24,7 @@ struct Authored {
 // The world after `edits` but those of `skip`, from the generator: every chunk they reach.
 std::map<ChunkCoord, Chunk> replayed(const std::vector<Authored>& edits, char skip,
                                      const TerrainGenerator& gen) {
-  ChunkMap map;
-  for (const Authored& a : edits)
-    if (a.who != skip) replay_edit(map, gen, a.edit);
-  std::map<ChunkCoord, Chunk> out;
-  for (const Authored& a : edits)
-    for (const ChunkCoord& c : chunks_overlapping(touched_box(a.edit))) {
-      if (!map.find(c)) map.insert(c, gen.generate(c));
-      out.emplace(c, *map.find(c));
-    }
-  return out;
+  return test::replayed_without(edits, skip, gen);
 }
 
 UndoResult undo(const std::vector<Authored>& edits, char who, const TerrainGenerator& gen,

@@ -14,6 +14,7 @@
 #include "server/world/chunk_map.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/edit_replay.hpp"
+#include "tests/replay_util.hpp"
 #include "tests/temp_dir.hpp"
 
 namespace vox::pipeline {
@@ -42,17 +43,7 @@ std::vector<Turn> turns(float y) {
 
 std::map<ChunkCoord, world::Chunk> replayed(const std::vector<Turn>& edits,
                                             const std::string& skip) {
-  const world::TerrainGenerator gen(kSeed);
-  world::ChunkMap map;
-  for (const Turn& t : edits)
-    if (t.who != skip) world::replay_edit(map, gen, t.edit);
-  std::map<ChunkCoord, world::Chunk> out;
-  for (const Turn& t : edits)
-    for (const ChunkCoord& c : world::chunks_overlapping(world::touched_box(t.edit))) {
-      if (!map.find(c)) map.insert(c, gen.generate(c));
-      out.emplace(c, *map.find(c));
-    }
-  return out;
+  return test::replayed_without(edits, skip, world::TerrainGenerator(kSeed));
 }
 
 // The pipeline's chunks against `want`: every one resident and equal.

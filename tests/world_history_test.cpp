@@ -17,6 +17,7 @@
 #include "server/world/edit_replay.hpp"
 #include "server/world/edit_undo.hpp"
 #include "tests/postgres_server.hpp"
+#include "tests/replay_util.hpp"
 #include "tests/temp_dir.hpp"
 
 namespace vox::store {
@@ -67,16 +68,7 @@ uint64_t append_rollback(WorldStore& s, uint64_t seq, std::vector<uint64_t> undo
 std::map<ChunkCoord, world::Chunk> replayed(const std::vector<Authored>& edits,
                                             const std::string& skip,
                                             const world::TerrainGenerator& gen) {
-  world::ChunkMap map;
-  for (const Authored& a : edits)
-    if (a.who != skip) world::replay_edit(map, gen, a.edit);
-  std::map<ChunkCoord, world::Chunk> out;
-  for (const Authored& a : edits)
-    for (const ChunkCoord& c : world::chunks_overlapping(world::touched_box(a.edit))) {
-      if (!map.find(c)) map.insert(c, gen.generate(c));
-      out.emplace(c, *map.find(c));
-    }
-  return out;
+  return test::replayed_without(edits, skip, gen);
 }
 
 void expect_chunks(const std::vector<std::pair<ChunkCoord, world::Chunk>>& got,
