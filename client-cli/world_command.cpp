@@ -1,6 +1,7 @@
 // voxel-cli world info|log|verify WORLD: the durable world as an operator inspects it. Opens
 // the store read-only (a world directory or a postgresql:// URI), so it works beside a
 // running voxeld.
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -10,6 +11,7 @@
 #include <map>
 #include <optional>
 #include <ostream>
+#include <set>
 #include <sstream>
 
 #include "client-cli/cli_options.hpp"
@@ -37,11 +39,18 @@ std::string utc_time(int64_t unix_ms) {
   return o.str();
 }
 
-std::string describe_rollback(const std::vector<uint64_t>& undoes) {
-  return "rollback of " + std::to_string(undoes.size()) + " edit" +
-         (undoes.size() == 1 ? " " : "s ") + std::to_string(undoes.front()) +
-         (undoes.size() == 1 ? "" : ".." + std::to_string(undoes.back())) +
-         " (voxel-cli rollback --undo SEQ brings them back)";
+// `records`: the rollback records listed so far (a record undoing one is an undo).
+std::string describe_rollback(const std::vector<uint64_t>& undoes,
+                              const std::set<uint64_t>& records) {
+  if (std::all_of(undoes.begin(), undoes.end(), [&](uint64_t s) { return records.count(s); }))
+    return "undo of rollback " + std::to_string(undoes.front()) +
+           (undoes.size() == 1 ? "" : " and more");
+  std::string out = "rollback of " + std::to_string(undoes.size()) + " edit";
+  out += undoes.size() == 1 ? " " : "s ";
+  out += std::to_string(undoes.front());
+  if (undoes.size() > 1) out += ".." + std::to_string(undoes.back());
+  out += " (voxel-cli rollback --undo SEQ brings them back)";
+  return out;
 }
 
 int world_info(store::WorldStore& s, std::ostream& out) {
@@ -59,9 +68,12 @@ int world_info(store::WorldStore& s, std::ostream& out) {
 }
 
 int world_log(store::WorldStore& s, uint64_t since, std::ostream& out) {
+  std::set<uint64_t> records;
+  s.for_each_rollback(0, [&](const store::LoggedEdit& r) { return records.insert(r.seq), true; });
   s.for_each_edit(since, [&](const store::LoggedEdit& e) {
     out << e.seq << "  " << utc_time(e.unix_ms) << "  " << (e.author.empty() ? "-" : e.author)
-        << "  " << (e.undoes ? describe_rollback(*e.undoes) : store::describe_edit(e.edit));
+        << "  "
+        << (e.undoes ? describe_rollback(*e.undoes, records) : store::describe_edit(e.edit));
     if (!e.keep.empty())
       out << "  (clipped: " << e.keep.size() << " protected box" << (e.keep.size() == 1 ? "" : "es")
           << " kept)";

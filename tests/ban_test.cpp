@@ -367,6 +367,37 @@ TEST_F(Reloading, SighupAppliesNewBudgetsAndANewKeyAndABrokenFileChangesNothing)
   ASSERT_TRUE(e.has_error());
   EXPECT_EQ(e.error().code(), wire::Error::BAD_TOKEN);
   EXPECT_EQ(budget_of_a_new_player(token("bob")), 2500);
+
+  // A player already in is held to a reloaded budget too: two of the largest explosions at
+  // once (each costs the whole burst), the second waits for what the first
+  // took, at the budget's rate: minutes at 2,500 samples a second, a day at 10.
+  auto carol = join(server.port(), token("carol"));
+  uint64_t request = 0;
+  const auto second_of_two_waits_ms = [&] {
+    wire::EditResult last;
+    for (int i = 0; i < 2; ++i) {
+      wire::Envelope m;
+      m.mutable_edit()->set_request_id(++request);
+      auto* x = m.mutable_edit()->mutable_explosion();
+      x->mutable_center()->set_y(500);
+      x->set_radius(32), x->set_power(1);
+      carol->send(m);
+      for (;;) {
+        auto r = carol->receive(10s);
+        if (!r) return -1;
+        if (!r->has_edit_result()) continue;
+        last = r->edit_result();
+        break;
+      }
+    }
+    return last.status() == wire::EditResult::RATE_LIMITED ? int(last.retry_after_ms()) : 0;
+  };
+  const int before = second_of_two_waits_ms();
+  EXPECT_GT(before, 100'000);
+  EXPECT_LT(before, 1'000'000);
+  write_conf("edit-budget = 10\nmax-view-radius = 5\n");
+  ASSERT_TRUE(sighup_and_wait("SIGHUP: edit-budget: 2500 -> 10"));
+  EXPECT_GT(second_of_two_waits_ms(), 3'600'000);  // 10 a second now, for carol as well
 }
 
 }  // namespace

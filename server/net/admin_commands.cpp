@@ -283,11 +283,10 @@ void ClientSession::rollback(const wire::Rollback& request, wire::Envelope& repl
       problem = "undo_rollback takes no filter";
   } else {
     q.player = request.player_id();
-    if (!q.player.empty() && q.player != "-") {
-      Ban probe;
-      probe.target = q.player;
-      if (auto why = store::ban_problem(probe)) problem = *why;
-    }
+    if (q.player.size() > 128) problem = "a player id is at most 128 bytes";
+    if (std::any_of(q.player.begin(), q.player.end(),
+                    [](unsigned char c) { return c < 0x20 || c == 0x7f; }))
+      problem = "a player id holds no control characters";
     if (request.has_box()) {
       const wire::VoxelBox& b = request.box();
       q.box = world::VoxelBox{{b.min_x(), b.min_y(), b.min_z()}, {b.max_x(), b.max_y(), b.max_z()}};
@@ -297,7 +296,8 @@ void ClientSession::rollback(const wire::Rollback& request, wire::Envelope& repl
     if (request.since_unix_ms() < 0 || request.until_unix_ms() < 0) problem = "a time before 1970";
     if (request.since_unix_ms() != 0) q.since_ms = request.since_unix_ms();
     if (request.until_unix_ms() != 0) q.until_ms = request.until_unix_ms();
-    if (q.until_ms <= q.since_ms) problem = "until is not after since";
+    if (request.until_unix_ms() != 0 && q.until_ms <= q.since_ms)
+      problem = "until is not after since";
     if (q.player.empty() && !q.box && request.since_unix_ms() == 0)
       problem =
           "name a player, a box or a time (a rollback of everyone's edits everywhere is "

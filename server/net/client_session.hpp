@@ -82,6 +82,9 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void on_lod_published(std::shared_ptr<const std::vector<pipeline::LodKey>> keys);
   bool has_lod_view() const { return feed_.has_lod_view(); }  // any thread
   // Sends an Error and closes (SHUTTING_DOWN, SERVER_FULL); any thread.
+  // Any thread: a SIGHUP's edit budgets, for this player from now on (applied on the strand;
+  // a token's own budget still wins).
+  void reload_budget(const LiveValues& live);
   void close_with_error(wire::Error::Code code, std::string message,
                         int64_t banned_until_unix_ms = 0);
   uint64_t id() const { return id_; }
@@ -153,6 +156,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   pipeline::WorldPipeline& pipeline_;
   ServerCounters& counters_;
   std::atomic<bool> player_{false};
+  std::optional<auth::PlayerClaims> claims_;  // strand: the token it joined with (none: open)
   std::atomic<size_t> memory_bytes_{0};
   // The card's counters (written on the strand, read by any thread).
   std::atomic<uint64_t> edits_accepted_{0}, bytes_sent_{0};

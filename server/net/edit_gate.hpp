@@ -35,6 +35,11 @@ class EditGate {
     budget_ = std::move(budget);
   }
   const SharedEditBudget* budget() const { return budget_.get(); }
+  // A reload's new limits (the tokens held are kept, up to the new burst); nothing before
+  // Hello.
+  void set_budget_limits(BudgetLimits l, Clock::time_point now) {
+    if (budget_) budget_->set_limits(l, now);
+  }
 
   struct Refusal {
     wire::EditResult::Status status;

@@ -1,6 +1,7 @@
 // What a SIGHUP may change while voxeld runs (the README, "Reloading the configuration"):
 // the key player tokens are checked with and the edit budgets of the roles, read at each
-// Hello (connected players keep what they joined with). Any thread (one leaf mutex).
+// Hello (and given to the players already in: ClientSession::reload_budget). Any thread
+// (one leaf mutex).
 #pragma once
 
 #include <mutex>

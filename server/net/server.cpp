@@ -43,6 +43,7 @@ Server::Server(asio::io_context& io, ServerConfig config, pipeline::WorldPipelin
 
 void Server::reload(const LiveValues& live, const AdmissionLimits& caps) {
   live_->set(live);
+  for (const auto& s : sessions_->live()) s->reload_budget(live);  // players already in too
   admission_->set_limits(caps);
   if (http_) http_->set_max_per_address(http_per_address_cap(caps.max_per_address));
 }

@@ -58,6 +58,7 @@ void ClientSession::handle_hello(const wire::Hello& hello) {
   name_ = claims ? claims->display_name : hello.player_name();
   log_name_ = escape_for_log(name_);
   role_ = claims ? claims->role : config_.open_role;
+  claims_ = claims;
   if (claims)
     join_as(*claims, live);
   else
@@ -124,6 +125,14 @@ void ClientSession::join_as(const auth::PlayerClaims& claims, const LiveValues& 
                  escape_for_log(player_id_), previous->id(),
                  *suppressed ? fmt::format(" [{} more replaced]", *suppressed) : std::string());
   }
+}
+
+void ClientSession::reload_budget(const LiveValues& live) {
+  asio::post(strand_, [self = shared_from_this(), live] {
+    if (!self->player_.load(std::memory_order_acquire)) return;  // its Hello reads them
+    self->edits_.set_budget_limits(
+        self->edit_limits(self->claims_ ? &*self->claims_ : nullptr, live), Clock::now());
+  });
 }
 
 BudgetLimits ClientSession::edit_limits(const auth::PlayerClaims* claims,
