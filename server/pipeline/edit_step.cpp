@@ -156,11 +156,17 @@ world::RefusalReason install_chunks(EditWorld& w,
     const int32_t k = world::kChunkSize;
     const world::VoxelBox whole{{c.x * k, c.y * k, c.z * k},
                                 {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}};
-    if (undo) undo->save(c, *st.chunks.find(c), whole, info.modified, info.unsaved);
+    const world::Chunk& old = *st.chunks.find(c);
+    // Only the meshes reading samples that differ are rebuilt (a chunk's neighbours read
+    // its faces; most of a rollback's changes lie inside).
+    world::ChangedBox changed;
+    for (int z = 0; z < k; ++z)
+      for (int y = 0; y < k; ++y)
+        for (int x = 0; x < k; ++x)
+          if (!(old.at(x, y, z) == chunk.at(x, y, z))) changed.add(x, y, z);
+    if (!changed.changed) continue;  // the same samples: nothing to put in place
+    if (undo) undo->save(c, old, whole, info.modified, info.unsaved);
     replace_chunk(w, c, std::move(chunk), now);
-    world::ChangedBox changed;  // chunk-local: all of it
-    changed.changed = true;
-    changed.lo = {0, 0, 0}, changed.hi = {k - 1, k - 1, k - 1};
     world::append_dirty_chunks(c, changed, dirty_here);
   }
   for (const ChunkCoord& c : dirty_here) {

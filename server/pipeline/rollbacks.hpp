@@ -53,7 +53,7 @@ class Rollbacks {
     std::function<void(const RollbackReport&)> done;
   };
   static constexpr size_t kMaxQueued = 4;
-  static constexpr size_t kSlice = 32;  // chunks per install batch (~10 ms of meshing)
+  static constexpr size_t kSlice = 16;  // chunks per install batch (~5 ms of meshing)
 
   // `store`: a connection no one else uses; `pipeline`, `store` and `history_lock` (the
   // checkpoint writer tries it before it moves the history's base) outlive this.
