@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/memory_keeper.hpp"
@@ -222,6 +223,29 @@ void refuse_undone(EditBatch& b, EditIds* ids, ZoneAuthority* zones) {
   b.counts.edits_refused += b.accepted.size();
   b.dirty.clear();
   b.fresh.clear();
+}
+
+void answer_tasks(EditBatch& b, bool durable, const std::vector<ChunkCoord>& published) {
+  for (auto& [t, outcome] : b.regions.outcomes) {
+    if (!durable && outcome.status == RegionOutcome::Status::kOk) {
+      outcome.status = RegionOutcome::Status::kStorageUnavailable;
+      outcome.message = kStorageMessage;
+    }
+    if (auto& done = std::get<RegionTask>(b.tasks[t]).done) done(outcome);
+  }
+  const std::unordered_set<ChunkCoord, world::ChunkCoordHash> published_set(published.begin(),
+                                                                            published.end());
+  for (size_t t = 0; t < b.tasks.size(); ++t) {
+    auto* task = std::get_if<EditTask>(&b.tasks[t]);
+    if (!task) continue;
+    auto& r = b.results[t];
+    for (const ChunkCoord& c : b.edit_dirty[t])
+      if (published_set.count(c)) r.changed_chunks.push_back(c);
+    std::sort(r.changed_chunks.begin(), r.changed_chunks.end());
+    r.changed_chunks.erase(std::unique(r.changed_chunks.begin(), r.changed_chunks.end()),
+                           r.changed_chunks.end());
+    if (task->done) task->done(r);
+  }
 }
 
 }  // namespace vox::pipeline

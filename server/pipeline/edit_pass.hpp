@@ -59,4 +59,8 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
 // undone (the client sends it again).
 void refuse_undone(EditBatch& b, EditIds* ids, ZoneAuthority* zones);
 
+// Answers the batch's region tasks (refused STORAGE_UNAVAILABLE when not `durable`) and its
+// edits (each with the chunks it changed among `published`).
+void answer_tasks(EditBatch& b, bool durable, const std::vector<world::ChunkCoord>& published);
+
 }  // namespace vox::pipeline

@@ -154,8 +154,7 @@ world::RefusalReason install_chunks(EditWorld& w,
   for (auto& [c, chunk] : chunks) {
     const WorldState::ChunkInfo& info = st.info.at(c);
     const int32_t k = world::kChunkSize;
-    const world::VoxelBox whole{{c.x * k, c.y * k, c.z * k},
-                                {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}};
+    const world::VoxelBox whole = world::chunk_box(c);
     const world::Chunk& old = *st.chunks.find(c);
     // Only the meshes reading samples that differ are rebuilt (a chunk's neighbours read
     // its faces; most of a rollback's changes lie inside).

@@ -245,7 +245,7 @@ std::optional<uint64_t> Rollbacks::install(std::vector<std::pair<ChunkCoord, wor
 
 bool Rollbacks::wait_durable(uint64_t through) {
   const auto give_up = std::chrono::steady_clock::now() + kDurableWait;
-  while (store_.info().last_seq < through) {
+  while (store_.last_seq() < through) {
     if (std::chrono::steady_clock::now() >= give_up) return false;
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }

@@ -3,7 +3,6 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <unordered_set>
 
 #include "server/pipeline/edit_pass.hpp"
 #include "server/pipeline/heap_stats.hpp"
@@ -21,8 +20,6 @@ using world::ChunkCoord;
 using world::ChunkCoordHash;
 
 namespace {
-
-using CoordSet = std::unordered_set<ChunkCoord, ChunkCoordHash>;
 
 // A batch slower than this is logged: every edit queued behind it waited.
 constexpr auto kSlowBatch = std::chrono::milliseconds(100);
@@ -311,7 +308,7 @@ void WorldPipeline::run() {
   drain_after_stop();
   // A rollback whose slices are not all in: no checkpoint covers its record, so the next
   // start replays it from the log.
-  if (checkpoints_ && !hold_checkpoints_)
+  if (checkpoints_ && rollback_slices_.checkpoints_allowed())
     checkpoints_->last(*state_, commit_->last_seq(),
                        [this](const CheckpointResult& r) { record(r); });
   else if (checkpoints_)
@@ -333,7 +330,7 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
       .log_tail = checkpoints_ ? checkpoints_->log_tail(commit_->edits_in_flight()) : 0,
       .zones = config_.zones,
       .edit_ids = edit_ids_.get(),
-      .frozen = &frozen_,
+      .frozen = rollback_slices_.frozen(),
       .last_seq = commit_ ? commit_->last_seq() : 0};
   EditWorld world = edit_world();
   EditBatch b = apply_edits(tasks, world, regions_, rules, now);
@@ -358,55 +355,16 @@ void WorldPipeline::answer(EditBatch& b, bool durable) {
     if (checkpoints_) checkpoints_->logged(b.accepted.size());
     // The coarse levels re-mesh what durable edits changed.
     const Clock::time_point now = Clock::now();
-    for (size_t t = 0; t < b.tasks.size(); ++t) {
-      const auto* task = std::get_if<EditTask>(&b.tasks[t]);
-      if (task && b.results[t].accepted) lod_->edited(world::touched_box(task->edit), now);
-    }
+    for (const EditTask* task : b.accepted) lod_->edited(world::touched_box(task->edit), now);
   }
   const std::vector<ChunkCoord> published =
       publish(*state_, meshes_, b.dirty, b.fresh, &b.edited_at);
-  const CoordSet published_set(published.begin(), published.end());
   b.counts.meshes_published += published.size();
   count(b.counts);  // before the results: whoever waits on one sees its counts
   // Results, then subscribers: an edit's result is known once its meshes are published.
   if (durable) regions_.landed(b.regions);  // before the answers: a list after one sees it
-  for (auto& [t, outcome] : b.regions.outcomes) {
-    if (!durable && outcome.status == RegionOutcome::Status::kOk) {
-      outcome.status = RegionOutcome::Status::kStorageUnavailable;
-      outcome.message = kStorageMessage;
-    }
-    if (auto& done = std::get<RegionTask>(b.tasks[t]).done) done(outcome);
-  }
-  for (size_t t = 0; t < b.tasks.size(); ++t) {  // a rollback's slices: put in place for good
-    auto* slice = std::get_if<RollbackTask>(&b.tasks[t]);
-    if (!slice || slice->kind != RollbackTask::Kind::kInstall) continue;
-    const bool ok = durable && b.results[t].accepted;
-    if (ok && slice->undoes && !slice->last) hold_checkpoints_ = true;  // more slices follow
-    if (ok && slice->last) hold_checkpoints_ = false;
-    if (ok) {
-      const Clock::time_point now = Clock::now();
-      for (const auto& [c, chunk] : slice->chunks) {
-        frozen_.erase(c);
-        const int32_t k = world::kChunkSize;
-        lod_->edited(
-            {{c.x * k, c.y * k, c.z * k}, {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}},
-            now);
-      }
-    }
-    if (slice->done) slice->done(ok, ok && slice->undoes ? b.seqs.first + b.record->before : 0);
-  }
-  for (size_t t = 0; t < b.tasks.size(); ++t) {
-    auto* task = std::get_if<EditTask>(&b.tasks[t]);
-    if (!task) continue;
-    auto& r = b.results[t];
-    for (const ChunkCoord& c : b.edit_dirty[t]) {
-      if (published_set.count(c)) r.changed_chunks.push_back(c);
-    }
-    std::sort(r.changed_chunks.begin(), r.changed_chunks.end());
-    r.changed_chunks.erase(std::unique(r.changed_chunks.begin(), r.changed_chunks.end()),
-                           r.changed_chunks.end());
-    if (task->done) task->done(r);
-  }
+  rollback_slices_.answer(b, durable, *lod_);
+  answer_tasks(b, durable, published);
   subscribers_.notify(published);
 }
 
@@ -579,7 +537,7 @@ void WorldPipeline::checkpoints_turn(Clock::time_point now) {
         drain_commits();
         return commit_->last_seq();
       },
-      [this](const CheckpointResult& r) { record(r); }, !hold_checkpoints_);
+      [this](const CheckpointResult& r) { record(r); }, rollback_slices_.checkpoints_allowed());
 }
 
 // A checkpoint taken in, at once (the observer may read the store before the next starts).

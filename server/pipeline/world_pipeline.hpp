@@ -27,6 +27,7 @@
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/pipeline_config.hpp"
 #include "server/pipeline/protected_regions.hpp"
+#include "server/pipeline/rollback_slices.hpp"
 #include "server/pipeline/rollbacks.hpp"
 #include "server/pipeline/stats_book.hpp"
 #include "server/pipeline/stored_chunk_reader.hpp"
@@ -172,10 +173,7 @@ class WorldPipeline {
   // ZoneTable keeps them per zone).
   const std::unique_ptr<EditIds> edit_ids_ = config_.zones ? nullptr : std::make_unique<EditIds>();
   std::unique_ptr<DurableCommit> commit_;
-  // Chunks a rollback is recomputing (RollbackTask): edits reaching them are refused.
-  std::unordered_set<world::ChunkCoord, world::ChunkCoordHash> frozen_;
-  // A rollback's record is durable but not all its slices are in: no checkpoint starts.
-  bool hold_checkpoints_ = false;
+  RollbackSlices rollback_slices_;  // the chunks rollbacks freeze, the checkpoint hold
   // Held by a rollback from its plan until its record is logged, and tried by the
   // checkpoint writer before it moves the history's base (else it waits for the next).
   std::mutex history_mutex_;

@@ -117,19 +117,7 @@ class PostgresStore final : public WorldStore {
     WorldInfo i;
     run([&](pqxx::connection& c) {
       pqxx::read_transaction t(c);
-      i = info_from_meta(name_, read_meta(t));
-      if (has_history(t)) {
-        const auto log = t.exec1(schema::kLogBounds);
-        int64_t b[4] = {};
-        bool null[4] = {};
-        for (int k = 0; k < 4; ++k)
-          null[k] = log[k].is_null(), b[k] = null[k] ? 0 : log[k].as<int64_t>();
-        log_bounds(b, null, i);
-      } else {
-        const auto log = t.exec1(schema::kLogSpan);
-        i.logged_edits = log[0].as<uint64_t>();
-        i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
-      }
+      i = log_info(t);
       i.modified_chunks = t.exec1(schema::kCountVisibleChunks)[0].as<uint64_t>();
       i.size_bytes = t.exec1(
                           "SELECT pg_total_relation_size('meta') + "
@@ -137,6 +125,33 @@ class PostgresStore final : public WorldStore {
                           "COALESCE(pg_total_relation_size(to_regclass('regions')), 0)")[0]
                          .as<uint64_t>();
     });
+    return i;
+  }
+
+  uint64_t last_seq() override {
+    uint64_t seq = 0;
+    run([&](pqxx::connection& c) {
+      pqxx::read_transaction t(c);
+      seq = log_info(t).last_seq;
+    });
+    return seq;
+  }
+
+  // The meta row and the log's bounds (logged_edits, last_seq).
+  WorldInfo log_info(pqxx::read_transaction& t) {
+    WorldInfo i = info_from_meta(name_, read_meta(t));
+    if (has_history(t)) {
+      const auto log = t.exec1(schema::kLogBounds);
+      int64_t b[4] = {};
+      bool null[4] = {};
+      for (int k = 0; k < 4; ++k)
+        null[k] = log[k].is_null(), b[k] = null[k] ? 0 : log[k].as<int64_t>();
+      log_bounds(b, null, i);
+    } else {
+      const auto log = t.exec1(schema::kLogSpan);
+      i.logged_edits = log[0].as<uint64_t>();
+      i.last_seq = std::max(i.checkpoint_seq, log[1].as<uint64_t>());
+    }
     return i;
   }
 

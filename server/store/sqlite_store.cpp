@@ -107,8 +107,22 @@ class SqliteStore final : public WorldStore {
   const std::string& name() const override { return name_; }
 
   WorldInfo info() override {
-    const auto meta = read_meta();
-    WorldInfo i = info_from_meta(name_, meta);
+    WorldInfo i = log_info();
+    Statement c(conn_.db, schema::kCountVisibleChunks, name_);
+    if (c.step()) i.modified_chunks = static_cast<uint64_t>(c.int64(0));
+    std::error_code ec;
+    for (const char* suffix : {"", "-wal"}) {
+      const auto n = std::filesystem::file_size(file_.string() + suffix, ec);
+      if (!ec) i.size_bytes += n;
+    }
+    return i;
+  }
+
+  uint64_t last_seq() override { return log_info().last_seq; }
+
+  // The meta row and the log's bounds (logged_edits, last_seq).
+  WorldInfo log_info() {
+    WorldInfo i = info_from_meta(name_, read_meta());
     if (has_history()) {
       Statement q(conn_.db, schema::kLogBounds, name_);
       int64_t b[4] = {};
@@ -121,13 +135,6 @@ class SqliteStore final : public WorldStore {
       if (q.step())
         i.logged_edits = static_cast<uint64_t>(q.int64(0)),
         i.last_seq = std::max(i.checkpoint_seq, static_cast<uint64_t>(q.int64(1)));
-    }
-    Statement c(conn_.db, schema::kCountVisibleChunks, name_);
-    if (c.step()) i.modified_chunks = static_cast<uint64_t>(c.int64(0));
-    std::error_code ec;
-    for (const char* suffix : {"", "-wal"}) {
-      const auto n = std::filesystem::file_size(file_.string() + suffix, ec);
-      if (!ec) i.size_bytes += n;
     }
     return i;
   }

@@ -125,6 +125,8 @@ class WorldStore {
   // "SQLite world/world.sqlite" or "PostgreSQL host/db": for messages.
   virtual const std::string& name() const = 0;
   virtual WorldInfo info() = 0;
+  // info().last_seq without counting chunks or sizes: the meta row and the log's bounds.
+  virtual uint64_t last_seq() { return info().last_seq; }
   // Appends the edits in one transaction, durable when it returns (fsync / commit). In the
   // same transaction, deletes the logged edits of sequence numbers [first, last] of each
   // of `forget`: appends whose outcome was in doubt (they failed, yet may have landed) and

@@ -141,6 +141,11 @@ std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits) {
   return std::visit(Visitor{limits}, edit);
 }
 
+VoxelBox chunk_box(ChunkCoord c) {
+  const int32_t k = kChunkSize;
+  return {{c.x * k, c.y * k, c.z * k}, {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}};
+}
+
 VoxelBox touched_box(const Edit& edit) {
   struct Visitor {
     VoxelBox operator()(const Brush& b) const { return sphere_box(b.center, b.radius); }

@@ -8,6 +8,7 @@
 #include <string>
 #include <variant>
 
+#include "server/world/chunk_coord.hpp"
 #include "server/world/sample.hpp"
 
 namespace vox::world {
@@ -94,6 +95,8 @@ struct VoxelBox {
 std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits);
 // Call only on a valid edit.
 VoxelBox touched_box(const Edit& edit);
+// Every sample of chunk `c`.
+VoxelBox chunk_box(ChunkCoord c);
 // The most samples touched_box() holds for an edit valid under `limits`: a stamp spans
 // 2 * (max_radius + its 2-voxel margin) per axis, and floor(lo)..ceil(hi) of a span off
 // the integer grid holds 2 samples more, so (2 * max_radius + 6)^3.
