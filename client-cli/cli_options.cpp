@@ -1,5 +1,6 @@
 #include "client-cli/cli_options.hpp"
 
+#include <cmath>
 #include <cstdlib>
 #include <ostream>
 #include <stdexcept>
@@ -40,6 +41,17 @@ void add_view_options(po::options_description& opts, const char* at_help, bool t
     opts.add_options()("timeout", po::value<double>()->default_value(120),
                        "seconds to wait for the whole view");
   }
+}
+
+std::array<int32_t, 3> parse_corner(const std::string& text, const char* what) {
+  const std::array<float, 3> f = parse_vec3(text, what);
+  std::array<int32_t, 3> out{};
+  for (int a = 0; a < 3; ++a) {
+    if (f[a] != std::floor(f[a]) || std::fabs(f[a]) > 1e9f)
+      throw std::invalid_argument(std::string(what) + " must be whole sample coordinates");
+    out[a] = static_cast<int32_t>(f[a]);
+  }
+  return out;
 }
 
 }  // namespace vox::cli

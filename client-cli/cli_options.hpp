@@ -26,6 +26,9 @@ using options::parse_vec2;
 using options::parse_vec3;
 using options::timeout_of;
 
+// "X,Y,Z" of whole sample coordinates; std::invalid_argument naming `what` otherwise.
+std::array<int32_t, 3> parse_corner(const std::string& text, const char* what);
+
 inline constexpr const char* kDefaultServer = "127.0.0.1:7777";
 
 // The options of a network command: --help, --server and --token, under "voxel-cli NAME

@@ -19,6 +19,9 @@ constexpr const char* kUsage =
     "commands:\n"
     "  info                    the server's version, seed, limits and player count\n"
     "  brush | explode | smooth | paint | stamp   one edit; prints the result\n"
+    "  ray --from X,Y,Z --dir X,Y,Z   where a ray first meets the terrain\n"
+    "  ground --at X,Z         the terrain's height at a column (aim edits at the surface)\n"
+    "  sample --min X,Y,Z --max X,Y,Z   the densities and materials of a box\n"
     "  script FILE             run a file of edits (one per line, same options)\n"
     "  watch --at X,Y,Z        print every chunk update around a point\n"
     "  export --at X,Y,Z --out FILE   fetch meshes around a point: .obj, .ply or .glb\n"
@@ -106,6 +109,9 @@ int run_cli(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   }
   for (const char* kind : {"brush", "explode", "smooth", "paint", "stamp"}) {
     if (args[0] == kind) return edit_command(kind, rest, out, err);
+  }
+  for (const char* kind : {"ray", "ground", "sample"}) {
+    if (args[0] == kind) return query_command(kind, rest, out, err);
   }
   err << "voxel-cli: unknown command '" << args[0] << "'\n" << kUsage;
   return 2;

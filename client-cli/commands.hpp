@@ -29,6 +29,9 @@ int cluster_world_command(const std::string& action, const std::string& uri, std
 int keygen_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int token_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int region_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+// ray | ground | sample (query_command.cpp)
+int query_command(const std::string& kind, const std::vector<std::string>& args, std::ostream& out,
+                  std::ostream& err);
 // action: players, kick, ban, unban, bans or rollback (admin_command.cpp).
 int admin_command(const std::string& action, const std::vector<std::string>& args,
                   std::ostream& out, std::ostream& err);

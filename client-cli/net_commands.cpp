@@ -2,6 +2,7 @@
 #include <atomic>
 #include <chrono>
 #include <csignal>
+#include <cstdio>
 #include <fstream>
 #include <iomanip>
 #include <ostream>
@@ -146,6 +147,14 @@ std::string describe(const wire::EditResult& r) {
     for (const uint64_t id : r.clipped_by()) s << " " << id;
     s << " kept as it was";
   }
+  for (const wire::MaterialVolume& v : r.volumes()) {
+    char line[96];
+    std::snprintf(line, sizeof line, "; material %u: %.2f removed, %.2f added", v.material(),
+                  v.removed(), v.added());
+    s << line;
+  }
+  if (r.volumes_size() == 0)
+    s << " (nothing there to change: 'voxel-cli ground --at X,Z' finds the surface)";
   return s.str();
 }
 

@@ -18,18 +18,6 @@ constexpr const char* kSynopsis =
     "       voxel-cli region remove ID\n"
     "(with an admin token: --token or VOXEL_TOKEN)";
 
-// "X,Y,Z" of integer sample coordinates.
-std::array<int32_t, 3> parse_corner(const std::string& text, const char* what) {
-  const std::array<float, 3> f = parse_vec3(text, what);
-  std::array<int32_t, 3> out{};
-  for (int a = 0; a < 3; ++a) {
-    if (f[a] != std::floor(f[a]) || std::fabs(f[a]) > 1e9f)
-      throw std::invalid_argument(std::string(what) + " must be whole sample coordinates");
-    out[a] = static_cast<int32_t>(f[a]);
-  }
-  return out;
-}
-
 // Sends one command and waits for its RegionResult.
 wire::RegionResult run_command(const po::variables_map& vm, wire::Envelope command) {
   command.mutable_region_command()->set_request_id(1);

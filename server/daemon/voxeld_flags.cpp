@@ -138,6 +138,11 @@ po::options_description describe(VoxeldConfig& c, RawFlags& r) {
       "coarsest level of detail a view may ask for (0: none; level 6 chunks are 2,048 voxels)");
   add("max-lod-distance", po::value<float>(&net.max_lod_distance)->default_value(2.0f),
       "largest SetView.lod_distance (1..4; larger: more coarse chunks per view)");
+  add("query-rate", po::value<double>(&net.query_rate)->default_value(20),
+      "raycast, ground and sample queries per second per connection, a burst of twice as "
+      "many (0: unlimited)");
+  add("max-query-distance", po::value<float>(&net.max_query_distance)->default_value(512),
+      "longest raycast or ground search in voxels (1..4096)");
   add("lod-remesh-interval-ms", po::value<long>(&r.lod_remesh_ms)->default_value(750),
       "an edited level-1 chunk is re-meshed at most this often, each coarser level half as "
       "often down to 1/8 (10..750; an update reaches players within about this plus a pass)");
@@ -240,6 +245,8 @@ std::vector<std::string> check(const po::variables_map& vm, const RawFlags& r, V
   range("--max-lod-level", net.max_lod_level, 0u, 6u);
   range("--max-lod-distance", net.max_lod_distance, 1.0f, 4.0f);
   range("--lod-remesh-interval-ms", r.lod_remesh_ms, 10L, 750L);
+  range("--query-rate", net.query_rate, 0.0, 100000.0);
+  range("--max-query-distance", net.max_query_distance, 1.0f, 4096.0f);
   rule(net.max_clients >= 1, "--max-clients must be >= 1");
   rule(net.max_handshaking >= 1, "--max-handshaking must be >= 1");
   // The burst (8x) must hold one work unit, or no view of the address would ever load.

@@ -56,6 +56,7 @@ ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
       error_budget_(config_.protocol_error_rate, config_.protocol_error_burst),
+      query_budget_(config_.query_rate, 2 * config_.query_rate),
       feed_(pipeline.meshes(), pipeline.lod_meshes(),
             pipeline_wants(pipeline, id_, std::hash<std::string>{}(address_) | 1),  // never 0
             counters_) {
@@ -189,6 +190,9 @@ void ClientSession::on_frame(std::span<const uint8_t> body) {
       break;
     case wire::Envelope::kAdminCommand:
       handle_admin_command(message.admin_command());
+      break;
+    case wire::Envelope::kQuery:
+      handle_query(message.query());
       break;
     case wire::Envelope::kPing: {
       wire::Envelope pong;

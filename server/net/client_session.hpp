@@ -131,6 +131,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   void rollback(const wire::Rollback& request, wire::Envelope& reply);
   void log_admin(const std::string& what);
   bool refuse_if_banned(const std::string& player_id, auth::Role role);
+  void handle_query(const wire::Query& query);  // query_commands.cpp
   void handle_edit(const wire::Edit& edit);
   void on_edit_result(uint64_t ticket, wire::Envelope result, size_t work_chunks);
   void queue_result(uint64_t request, wire::EditResult::Status status, const std::string& reason,
@@ -175,6 +176,8 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   size_t admin_commands_in_flight_ = 0;  // bans sent to the BanKeeper, not yet answered
   EditGate edits_;  // role, validity, in-flight cap and budget of the client's edits
   pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
+  pipeline::TokenBucket query_budget_;
+  size_t queries_in_flight_ = 0;  // sent to the pipeline, not yet answered
   ResultOrder results_;
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
   ViewFeed feed_;  // what the client sees: its view, what it holds, the next mesh

@@ -38,6 +38,13 @@ struct ServerConfig {
   size_t max_control_bytes = 1 << 20;
   size_t max_edits_in_flight = 256;  // a client's edits queued in the pipeline at once
   size_t max_resync_chunks = 64;     // coordinates in one Resync
+  // Queries (docs/PROTOCOL.md 4.13): a ray's length, a SampleQuery's samples, a client's
+  // queries waiting at once (their answers fit max_control_bytes), and its rate (a burst
+  // of twice as many; <= 0: unlimited).
+  float max_query_distance = 512;
+  uint32_t max_query_samples = 32 * 32 * 32;
+  size_t max_queries_in_flight = 8;
+  double query_rate = 20;
   std::chrono::milliseconds handshake_timeout{5000};
   std::chrono::milliseconds idle_timeout{60000};   // nothing received for this long: disconnect
   std::chrono::milliseconds write_timeout{10000};  // a write not finished in this time: disconnect

@@ -42,6 +42,7 @@ struct ServerCounters {
   Counter players{0};      // gauge: sessions past Hello
   Counter handshaking{0};  // gauge: connections before Hello
   Counter edits{0};
+  Counter queries{0};  // raycast, ground and sample queries passed on to the pipeline
   Counter meshes_sent{0};
   Counter deltas_sent{0};
   static constexpr size_t kLevels = 7;  // mesh levels 0..6

@@ -172,6 +172,10 @@ void ClientSession::send_welcome(uint64_t players) {
       std::min<uint32_t>(config_.max_lod_level,
                          static_cast<uint32_t>(std::max(0, pipeline_.config().lod.levels - 1))));
   w->set_max_lod_distance(config_.max_lod_distance);
+  w->set_max_query_distance(config_.max_query_distance);
+  w->set_max_query_samples(config_.max_query_samples);
+  w->set_max_queries_in_flight(static_cast<uint32_t>(config_.max_queries_in_flight));
+  w->set_queries_per_second(std::max(0.0, config_.query_rate));
   queue_control(welcome);
 }
 

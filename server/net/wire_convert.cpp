@@ -124,6 +124,13 @@ wire::Envelope edit_result_message(uint64_t request, const pipeline::EditResult&
   for (const world::ChunkCoord& c : r.changed_chunks) *w->add_changed_chunks() = to_wire(c);
   for (const uint64_t region : r.clipped_by) w->add_clipped_by(region);
   if (r.already_applied) w->set_already_applied(true);
+  if (r.accepted)
+    for (const world::MaterialVolume& v : r.volumes) {
+      auto* out = w->add_volumes();
+      out->set_material(v.material);
+      out->set_removed(v.removed);
+      out->set_added(v.added);
+    }
   return result;
 }
 

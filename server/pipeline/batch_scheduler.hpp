@@ -25,6 +25,7 @@
 #include <variant>
 #include <vector>
 
+#include "server/mesh/surface_query.hpp"
 #include "server/pipeline/token_bucket.hpp"
 #include "server/world/chunk.hpp"
 #include "server/world/chunk_coord.hpp"
@@ -36,6 +37,7 @@ namespace vox::pipeline {
 
 struct EditResult;
 struct RegionOutcome;
+struct QueryAnswer;
 
 using LoadOwner = uint64_t;
 
@@ -85,9 +87,19 @@ struct RollbackTask {
   // when durable.
   std::function<void(bool ok, uint64_t through)> done;
 };
-// Edits, region changes, inspections and rollback steps share one queue: each sees every
-// edit queued before it.
-using OrderedTask = std::variant<EditTask, InspectTask, RegionTask, RollbackTask>;
+// A question about the samples (mesh/surface_query.hpp): a ray (a ground query is a ray
+// down), or the samples of a box. Answered on the pipeline thread in order with the edits,
+// from the samples they left (an edit before it may still wait for the store); chunks not
+// in memory are loaded, up to a few per query.
+struct QueryTask {
+  std::optional<mesh::Ray> ray;
+  world::VoxelBox box;  // without a ray
+  // Pipeline thread (or stop()'s, refused kShuttingDown).
+  std::function<void(const QueryAnswer&)> done;
+};
+// Edits, region changes, inspections, rollback steps and queries share one queue: each
+// sees every edit queued before it.
+using OrderedTask = std::variant<EditTask, InspectTask, RegionTask, RollbackTask, QueryTask>;
 
 // Part of an owner's request taken into a batch. `done` is set on the request's last
 // slice: run it once the slice's chunks are published.

@@ -19,6 +19,7 @@
 #include "server/store/world_store.hpp"
 #include "server/world/chunk.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/material_volume.hpp"
 
 namespace vox::pipeline {
 
@@ -38,6 +39,18 @@ struct EditResult {
   // What the edit cost the server beyond its samples, charged to its sender: chunks of
   // terrain generated for it, and uniform chunks it turned into full ones.
   size_t chunks_generated = 0, chunks_expanded = 0;
+  // Accepted: what it removed and added of each material (world/material_volume.hpp).
+  std::vector<world::MaterialVolume> volumes;
+};
+
+// The answer to a QueryTask: refused (kOverBudget: it reached more chunks not in memory
+// than one query loads, those it loaded stay; kServerBusy; kStorageUnavailable;
+// kShuttingDown) or the ray's hit, or the box's samples.
+struct QueryAnswer {
+  world::RefusalReason reason = world::RefusalReason::kNone;
+  std::string message;
+  mesh::RayHit hit;
+  std::string densities, materials;
 };
 
 // What a batch's edits overwrote, to undo the batch when the store could not make it

@@ -16,6 +16,31 @@ namespace vox::pipeline {
 
 using world::ChunkCoord;
 
+world::RefusalReason load_chunks(EditWorld& w, const std::vector<ChunkCoord>& wanted,
+                                 size_t max_generate, size_t may_expand, Clock::time_point now,
+                                 size_t& generated) {
+  WorldState& st = w.state;
+  size_t missing = 0;
+  for (const ChunkCoord& c : wanted) missing += st.info.count(c) ? 0 : 1;
+  if (missing > max_generate) return world::RefusalReason::kOverBudget;
+  // What is resident: terrain on its way for loads (reserved) does not hold edits back.
+  const MemoryBudget& budget = w.memory.budget();
+  if (!budget.may_generate(w.resident_bytes(), missing + may_expand)) {
+    const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
+    const auto pass = w.memory.for_edits(need, w.other_bytes);
+    if (!pass) return world::RefusalReason::kServerBusy;  // made room once this batch already
+    st.evict(w.meshes, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
+    if (!budget.may_generate(w.resident_bytes(), missing + may_expand))
+      return world::RefusalReason::kServerBusy;
+  }
+  try {
+    generated = st.ensure_loaded(wanted, w.generator, now);
+  } catch (const store::StoreError&) {  // a checkpointed chunk could not be read back
+    return world::RefusalReason::kStorageUnavailable;
+  }
+  return world::RefusalReason::kNone;
+}
+
 world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Clock::time_point now,
                                      size_t max_generate, std::vector<ChunkCoord>& dirtied,
                                      EditResult& result, Undo* undo,
@@ -56,29 +81,15 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
               m = 1;
             }
       }
-  size_t missing = 0;
-  for (const ChunkCoord& c : wanted) missing += st.info.count(c) ? 0 : 1;
-  if (missing > max_generate) return world::RefusalReason::kOverBudget;
   size_t may_expand = 0;  // touched chunks that are (or may come out) uniform
   for (const ChunkCoord& c : touched) {
     const world::Chunk* chunk = st.chunks.find(c);
     may_expand += !chunk || chunk->is_uniform() ? 1 : 0;
   }
-  // What is resident: terrain on its way for loads (reserved) does not hold edits back.
-  const MemoryBudget& budget = w.memory.budget();
-  if (!budget.may_generate(w.resident_bytes(), missing + may_expand)) {
-    const size_t need = (missing + may_expand) * MemoryBudget::kBytesPerChunk;
-    const auto pass = w.memory.for_edits(need, w.other_bytes);
-    if (!pass) return world::RefusalReason::kServerBusy;  // made room once this batch already
-    st.evict(w.meshes, now, pass->idle, pass->min_age, pass->target_bytes, pass->max_scan);
-    if (!budget.may_generate(w.resident_bytes(), missing + may_expand))
-      return world::RefusalReason::kServerBusy;
-  }
-  try {
-    result.chunks_generated = st.ensure_loaded(wanted, w.generator, now);
-  } catch (const store::StoreError&) {  // a checkpointed chunk could not be read back
-    return world::RefusalReason::kStorageUnavailable;
-  }
+  if (const auto refused =
+          load_chunks(w, wanted, max_generate, may_expand, now, result.chunks_generated);
+      refused != world::RefusalReason::kNone)
+    return refused;
 
   std::optional<world::SampleSnapshot> snapshot;
   if (const auto* smooth = std::get_if<world::Smooth>(&edit)) {
@@ -98,13 +109,17 @@ world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Cloc
     if (undo) undo->save(touched[i], *targets[i], box, i_info.modified, i_info.unsaved);
   }
   const world::SampleSnapshot* snap = snapshot ? &*snapshot : nullptr;
+  std::vector<world::VolumeTally> tallies(touched.size());  // what each chunk gave and got
   if (touched.size() == 1) {
-    changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap, keep);
+    changed[0] = world::apply_edit(edit, touched[0], *targets[0], snap, keep, &tallies[0]);
   } else {
     parallel_for_index(st.arena, touched.size(), [&](size_t i) {
-      changed[i] = world::apply_edit(edit, touched[i], *targets[i], snap, keep);
+      changed[i] = world::apply_edit(edit, touched[i], *targets[i], snap, keep, &tallies[i]);
     });
   }
+  for (size_t i = 1; i < tallies.size(); ++i) tallies[0].merge(tallies[i]);
+  result.volumes.clear();
+  tallies[0].materials([&](const world::MaterialVolume& v) { result.volumes.push_back(v); });
   for (size_t i = 0; i < touched.size(); ++i) {
     st.chunks.note_changed(was_uniform[i] != 0, *targets[i]);
     result.chunks_expanded += was_uniform[i] && !targets[i]->is_uniform() ? 1 : 0;

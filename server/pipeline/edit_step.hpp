@@ -39,6 +39,14 @@ struct EditWorld {
   int zone_chunks = 0;  // a cluster node's zones: a smooth reads within each sample's zone
 };
 
+// Makes `wanted` resident, as an edit needs its chunks: refused kOverBudget when more than
+// `max_generate` are missing, kServerBusy when they (and `may_expand` uniform chunks turned
+// full) do not fit the memory budget even after eviction, kStorageUnavailable when a stored
+// chunk cannot be read back. `generated`: chunks of terrain made. Pipeline thread only.
+world::RefusalReason load_chunks(EditWorld& w, const std::vector<world::ChunkCoord>& wanted,
+                                 size_t max_generate, size_t may_expand, Clock::time_point now,
+                                 size_t& generated);
+
 world::RefusalReason apply_edit_step(EditWorld& w, const world::Edit& edit, Clock::time_point now,
                                      size_t max_generate, std::vector<world::ChunkCoord>& dirtied,
                                      EditResult& result, Undo* undo = nullptr,

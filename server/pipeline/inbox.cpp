@@ -23,6 +23,11 @@ void refuse_stopped(OrderedTask& task, bool cancelled) {
     if (region->done) region->done(r);
   } else if (auto* rollback = std::get_if<RollbackTask>(&task)) {
     if (rollback->done) rollback->done(false, 0);
+  } else if (auto* query = std::get_if<QueryTask>(&task)) {
+    QueryAnswer a;
+    a.reason = world::RefusalReason::kShuttingDown;
+    a.message = kStoppedMessage;
+    if (query->done) query->done(a);
   } else {
     std::get<InspectTask>(task).run(cancelled);
   }

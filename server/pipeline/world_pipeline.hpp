@@ -78,6 +78,8 @@ class WorldPipeline {
   void rollback(Rollbacks::Job job);
   // Any thread: a rollback's step, in order with the edits (Rollbacks).
   void submit_rollback(RollbackTask task) { enqueue(std::move(task)); }
+  // Any thread: a question about the samples, answered in order with the edits.
+  void query(QueryTask task) { enqueue(std::move(task)); }
   // Any thread: the protected regions in force, as of the last durable change.
   std::shared_ptr<const std::vector<world::Region>> regions() const { return regions_.published(); }
   // Any thread. Generates and meshes what the box misses; `done` runs on the pipeline

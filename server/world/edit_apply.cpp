@@ -15,6 +15,7 @@ struct Target {
   ChunkCoord c;
   Chunk& chunk;
   std::span<const VoxelBox> keep;
+  VolumeTally* tally;  // null: not counted
 };
 
 constexpr Material kDefaultFill = 2;  // dirt, for a brush adding without a material
@@ -36,7 +37,7 @@ float dist2(const Vec3& c, int x, int y, int z) {
 // reach no protected region pass a constant false, which the compiler drops.
 template <class Kept, class Fn>
 ChangedBox map_samples(const int (&lo)[3], const int (&hi)[3], const int32_t (&o)[3], Chunk& chunk,
-                       Kept&& kept, Fn&& fn) {
+                       VolumeTally* tally, Kept&& kept, Fn&& fn) {
   ChangedBox changed;
   for (int z = lo[2]; z <= hi[2]; ++z)
     for (int y = lo[1]; y <= hi[1]; ++y)
@@ -45,6 +46,7 @@ ChangedBox map_samples(const int (&lo)[3], const int (&hi)[3], const int32_t (&o
         const Sample old = chunk.at(x, y, z);
         const Sample now = fn(o[0] + x, o[1] + y, o[2] + z, old);
         if (now == old) continue;
+        if (tally) tally->add(old, now);
         chunk.set(x, y, z, now);
         changed.add(x, y, z);
       }
@@ -77,10 +79,10 @@ ChangedBox for_each_sample(const Target& t, Fn&& fn) {
   ChangedBox changed;
   if (keep.empty()) {
     changed = map_samples(
-        lo, hi, o, t.chunk, [](int, int, int) { return false; }, fn);
+        lo, hi, o, t.chunk, t.tally, [](int, int, int) { return false; }, fn);
   } else if (keep.size() <= kKeepBoxesTested) {
     changed = map_samples(
-        lo, hi, o, t.chunk,
+        lo, hi, o, t.chunk, t.tally,
         [&keep](int x, int y, int z) {
           return std::any_of(keep.begin(), keep.end(), [&](const VoxelBox& k) {
             return x >= k.lo[0] && x <= k.hi[0] && y >= k.lo[1] && y <= k.hi[1] && z >= k.lo[2] &&
@@ -98,7 +100,7 @@ ChangedBox for_each_sample(const Target& t, Fn&& fn) {
             mask[i >> 6] |= uint64_t{1} << (i & 63);
           }
     changed = map_samples(
-        lo, hi, o, t.chunk,
+        lo, hi, o, t.chunk, t.tally,
         [&mask](int x, int y, int z) {
           const int i = x + kChunkSize * (y + kChunkSize * z);
           return ((mask[i >> 6] >> (i & 63)) & 1) != 0;
@@ -262,8 +264,8 @@ ChangedBox apply_stamp(const Stamp& st, const Target& t) {
 }  // namespace
 
 ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot,
-                      std::span<const VoxelBox> keep) {
-  const Target t{touched_box(edit), c, chunk, keep};
+                      std::span<const VoxelBox> keep, VolumeTally* tally) {
+  const Target t{touched_box(edit), c, chunk, keep, tally};
   struct Dispatch {
     const Target& t;
     const SampleSnapshot* snapshot;

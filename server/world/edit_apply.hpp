@@ -11,6 +11,7 @@
 #include "server/world/chunk.hpp"
 #include "server/world/chunk_map.hpp"
 #include "server/world/edit.hpp"
+#include "server/world/material_volume.hpp"
 
 namespace vox::world {
 
@@ -39,9 +40,10 @@ struct ChangedBox {
 // Applies `edit` to the samples of chunk `c` that it touches, but those inside a `keep`
 // box (world coordinates: protected regions it may not change; see region.hpp), which
 // keep their values. `snapshot` is required for Smooth (pre-edit values around the edit)
-// and ignored otherwise.
+// and ignored otherwise. With `tally`, adds what each changed sample removed and added of
+// its materials (material_volume.hpp).
 ChangedBox apply_edit(const Edit& edit, ChunkCoord c, Chunk& chunk, const SampleSnapshot* snapshot,
-                      std::span<const VoxelBox> keep = {});
+                      std::span<const VoxelBox> keep = {}, VolumeTally* tally = nullptr);
 
 // The chunks whose meshes read a changed sample of chunk c: c itself, and a neighbour
 // across each face, edge or corner within 2 samples (its cells reach our samples 0, 1)
