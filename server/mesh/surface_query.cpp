@@ -181,22 +181,29 @@ RayHit raycast(ChunkSource& chunks, const Ray& ray) {
 
 bool read_samples(ChunkSource& chunks, const world::VoxelBox& box, std::string& densities,
                   std::string& materials) {
-  SampleReader read(chunks);
   size_t n = 1;
   for (int a = 0; a < 3; ++a) n *= static_cast<size_t>(int64_t{box.hi[a]} - box.lo[a] + 1);
   densities.resize(2 * n);
   materials.resize(n);
+  const int32_t k = world::kChunkSize;
   size_t i = 0;
   for (int32_t z = box.lo[2]; z <= box.hi[2]; ++z)
     for (int32_t y = box.lo[1]; y <= box.hi[1]; ++y)
-      for (int32_t x = box.lo[0]; x <= box.hi[0]; ++x, ++i) {
-        const world::Sample s = read.at(x, y, z);
-        const auto u = static_cast<uint16_t>(s.density);
-        densities[2 * i] = static_cast<char>(u & 0xff);
-        densities[2 * i + 1] = static_cast<char>(u >> 8);
-        materials[i] = static_cast<char>(s.material);
+      for (int32_t x = box.lo[0]; x <= box.hi[0];) {  // a run within one chunk at a time
+        const ChunkCoord c = world::chunk_of_voxel(x, y, z);
+        const world::Chunk* chunk = chunks.chunk(c);
+        if (!chunk) return false;
+        const int32_t end = std::min(box.hi[0], c.x * k + k - 1);
+        const int ly = world::floor_mod(y, k), lz = world::floor_mod(z, k);
+        for (; x <= end; ++x, ++i) {
+          const world::Sample s = chunk->at(x - c.x * k, ly, lz);
+          const auto u = static_cast<uint16_t>(s.density);
+          densities[2 * i] = static_cast<char>(u & 0xff);
+          densities[2 * i + 1] = static_cast<char>(u >> 8);
+          materials[i] = static_cast<char>(s.material);
+        }
       }
-  return !read.failed();
+  return true;
 }
 
 }  // namespace vox::mesh
