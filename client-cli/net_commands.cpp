@@ -138,8 +138,8 @@ std::string describe(const wire::EditResult& r) {
     s << "refused: " << wire::EditResult::Status_Name(r.status()) << ": " << r.reason();
     return s.str();
   }
-  s << "accepted: " << r.changed_chunks_size() << " chunk"
-    << (r.changed_chunks_size() == 1 ? "" : "s") << " changed";
+  s << "accepted: " << r.changed_chunks_size() << " chunk mesh"
+    << (r.changed_chunks_size() == 1 ? "" : "es") << " changed";
   for (const auto& c : r.changed_chunks())
     s << " (" << c.x() << "," << c.y() << "," << c.z() << ")";
   if (r.clipped_by_size() > 0) {
