@@ -102,6 +102,45 @@ TEST(EditPass, AValidEditIsAppliedWithItsDirtyChunksUndoAndEditTime) {
   EXPECT_GT(w.checkpoints->unsaved_chunks(), 0u);  // the next checkpoint writes them
 }
 
+// A query answered in place: once all queries have had their share of the thread, the next
+// is refused with a time to come back, and a query never loads more than its share of
+// terrain (kLoadsPerQuery; the rest on the next ask) nor faster than the budget's rate.
+TEST(QueryPass, QueriesShareTheThreadAndTheirLoadsAndSayWhenToAskAgain) {
+  PassWorld w(false);
+  EditWorld access = w.access();
+  const Clock::time_point now = Clock::now();
+  QueryAnswer answer;
+  const auto ask = [&](mesh::Ray ray, QueryBudget* budget) {
+    QueryTask task;
+    task.ray = ray;
+    task.done = [&](const QueryAnswer& a) { answer = a; };
+    answer_query(task, access, budget, now);
+    EXPECT_FALSE(task.done);  // dropped once called
+    return answer;
+  };
+  // Straight down through 20 chunks of sky and ground, none in memory.
+  const mesh::Ray down{{5.5f, 620, 5.5f}, {0, -1, 0}, 640};
+  QueryBudget budget;
+  QueryAnswer a = ask(down, &budget);
+  EXPECT_EQ(a.reason, world::RefusalReason::kOverBudget) << a.message;
+  EXPECT_EQ(w.state.chunks.size(), QueryBudget::kLoadsPerQuery);  // those loaded stay
+  a = ask(down, &budget);
+  EXPECT_EQ(a.reason, world::RefusalReason::kNone) << a.message;
+  EXPECT_TRUE(a.hit.hit);
+  // The thread's share spent (a long query overdrew it): refused, with when to come back.
+  budget.seconds.charge(0.2, now);
+  a = ask(down, &budget);
+  EXPECT_EQ(a.reason, world::RefusalReason::kServerBusy);
+  EXPECT_GE(a.retry_after_ms, 1500u);  // 0.15 s of debt at 0.1 s a second
+  EXPECT_LE(a.retry_after_ms, 2600u);
+  // The loads' rate spent: a query reaching new terrain is refused at once.
+  QueryBudget slow;
+  slow.loads = TokenBucket(1, 1, now);
+  a = ask({{2000.5f, 40, 2000.5f}, {0, -1, 0}, 80}, &slow);
+  EXPECT_EQ(a.reason, world::RefusalReason::kServerBusy) << a.message;
+  EXPECT_GT(a.retry_after_ms, 0u);
+}
+
 TEST(EditPass, RefusalsSayWhyAndLeaveTheWorldAsItWas) {
   PassWorld w(true);
   world::Edit too_big = world::Explosion{{0, 0, 0}, 1000, 1};

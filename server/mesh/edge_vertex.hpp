@@ -28,6 +28,22 @@ inline Vec3f gradient(const world::Density* d, int i, const GridStrides& stride)
           static_cast<float>(d[i + stride[2]] - d[i - stride[2]])};
 }
 
+// Bourke edge (marching_cubes_tables.hpp) -> its axis and the offset of its lower sample in
+// the cell.
+struct EdgeSlot {
+  int8_t axis, dx, dy, dz;
+};
+inline constexpr EdgeSlot kEdgeSlot[12] = {
+    {0, 0, 0, 0}, {1, 1, 0, 0}, {0, 0, 1, 0}, {1, 0, 0, 0}, {0, 0, 0, 1}, {1, 1, 0, 1},
+    {0, 0, 1, 1}, {1, 0, 0, 1}, {2, 0, 0, 0}, {2, 1, 0, 0}, {2, 1, 1, 0}, {2, 0, 1, 0},
+};
+
+// How far along its edge from the lower sample a vertex of `fraction` lies, in voxels: the
+// position every mesher (and a raycast) gives it.
+inline float edge_offset(int fraction) {
+  return static_cast<float>(fraction) * (1.0f / kFractionSteps);
+}
+
 struct EdgeVertex {
   int fraction;  // along the edge from i0, in 1/kFractionSteps (0..kFractionSteps)
   Vec3f normal;  // unit length, towards air

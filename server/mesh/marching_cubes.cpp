@@ -97,7 +97,7 @@ bool mesh_vertices(const PaddedBlock& in, MeshScratch& s, ChunkMesh& out) {
           const int x = std::countr_zero(bits);
           const EdgeVertex v =
               edge_vertex(dens, mats, PaddedBlock::index(x, y, z), a, kStride, floor);
-          const float tq = static_cast<float>(v.fraction) * (1.0f / kFractionSteps);
+          const float tq = edge_offset(v.fraction);
           on_corner |= (v.fraction == 0) | (v.fraction == kFractionSteps);
           // Selects instead of indexing a member by axis, which would force p through memory.
           *pos++ = {static_cast<float>(x) + (a == 0 ? tq : 0.0f),

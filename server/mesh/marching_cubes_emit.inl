@@ -4,6 +4,7 @@
 
 #include <bit>
 
+#include "server/mesh/edge_vertex.hpp"
 #include "server/mesh/marching_cubes_tables.hpp"
 
 namespace vox::mesh {
@@ -12,14 +13,8 @@ namespace detail {
 constexpr int row_of(int y, int z) { return y + kRowsPerAxis * z; }
 constexpr uint64_t low_bits(int n) { return n >= 64 ? ~0ull : (1ull << n) - 1; }
 
-// Bourke edge -> (axis, offset of its lower sample in the cell).
-struct EdgeSlot {
-  int8_t axis, dx, dy, dz;
-};
-inline constexpr EdgeSlot kEdgeSlot[12] = {
-    {0, 0, 0, 0}, {1, 1, 0, 0}, {0, 0, 1, 0}, {1, 0, 0, 0}, {0, 0, 0, 1}, {1, 1, 0, 1},
-    {0, 0, 1, 1}, {1, 0, 0, 1}, {2, 0, 0, 0}, {2, 1, 0, 0}, {2, 1, 1, 0}, {2, 0, 1, 0},
-};
+using mesh::EdgeSlot;
+using mesh::kEdgeSlot;
 
 // Bit x set when cell (x, y, z) has corners on both sides of the surface.
 inline uint64_t mixed_cells(const MeshScratch& s, int nx, int y, int z) {

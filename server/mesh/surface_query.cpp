@@ -135,14 +135,12 @@ RayHit raycast(ChunkSource& chunks, const Ray& ray) {
     const uint16_t cut = edgeTable[solid];
     for (int e = 0; e < 12; ++e) {
       if (!(cut & (1 << e))) continue;
-      const auto& a = kCubeCorner[kEdgeCorners[e][0]];
-      const auto& b = kCubeCorner[kEdgeCorners[e][1]];
-      const int axis = a[0] != b[0] ? 0 : a[1] != b[1] ? 1 : 2;
-      const auto& lower = a[axis] < b[axis] ? a : b;
+      const EdgeSlot& slot = kEdgeSlot[e];
+      const int lower[3] = {slot.dx, slot.dy, slot.dz};
       const int i0 = (lower[0] + 1) + 4 * (lower[1] + 1) + 16 * (lower[2] + 1);
-      vertex[e] = edge_vertex(dens.data(), mats.data(), i0, axis, kStride, 0);
+      vertex[e] = edge_vertex(dens.data(), mats.data(), i0, slot.axis, kStride, 0);
       for (int c = 0; c < 3; ++c) pos[e][c] = static_cast<double>(cell[c]) + lower[c];
-      pos[e][axis] += static_cast<float>(vertex[e].fraction) * (1.0f / kFractionSteps);
+      pos[e][slot.axis] += edge_offset(vertex[e].fraction);
     }
     double near = std::numeric_limits<double>::infinity(), wu = 0, wv = 0;
     int tri[3] = {};

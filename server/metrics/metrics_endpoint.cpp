@@ -286,7 +286,8 @@ class MetricsEndpoint::Collector : public prometheus::Collectable {
     counter(out, "voxeld_sent_messages_total", "Messages written to clients",
             value_of(c_.messages_sent));
     counter(out, "voxeld_meshes_sent_total", "ChunkMesh messages sent", value_of(c_.meshes_sent));
-    counter(out, "voxeld_queries_total", "Raycast, ground and sample queries answered by the world",
+    counter(out, "voxeld_queries_total",
+            "Raycast, ground and sample queries passed on to the world (not those refused at once)",
             value_of(c_.queries));
     counter(out, "voxeld_deltas_sent_total", "ChunkMesh messages sent as deltas",
             value_of(c_.deltas_sent));

@@ -56,7 +56,7 @@ ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
       error_budget_(config_.protocol_error_rate, config_.protocol_error_burst),
-      query_budget_(config_.query_rate, 2 * config_.query_rate),
+      query_budget_(config_.query_rate, std::max(1.0, 2 * config_.query_rate)),
       feed_(pipeline.meshes(), pipeline.lod_meshes(),
             pipeline_wants(pipeline, id_, std::hash<std::string>{}(address_) | 1),  // never 0
             counters_) {
@@ -167,6 +167,14 @@ void ClientSession::on_frame(std::span<const uint8_t> body) {
     if (message.body_case() == wire::Envelope::kEdit && player_) {
       queue_result(message.edit().request_id(), wire::EditResult::BAD_VALUE,
                    "the edit has fields this protocol version does not define");
+    }
+    if (message.body_case() == wire::Envelope::kQuery && player_) {  // and a Query its answer
+      wire::Envelope reply;
+      auto* r = reply.mutable_query_result();
+      r->set_request_id(message.query().request_id());
+      r->set_status(wire::QueryResult::BAD_VALUE);
+      r->set_reason("the query has fields this protocol version does not define");
+      queue_control(reply);
     }
     send_error(wire::Error::UNKNOWN_MESSAGE,
                "the message has fields this protocol version does not define", false);

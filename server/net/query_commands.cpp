@@ -4,6 +4,7 @@
 // but where a comment says otherwise.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "server/net/client_session.hpp"
@@ -22,11 +23,17 @@ bool finite(const wire::Vec3& v) {
   return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
 }
 
-bool inside(const world::EditLimits& limits, double x, double y, double z) {
-  const double p[3] = {x, y, z};
-  for (int a = 0; a < 3; ++a)
-    if (p[a] < limits.world_min[a] || p[a] > limits.world_max[a] + 1.0) return false;
-  return true;
+// The ray cut where it leaves the world's samples (it would read terrain no edit reaches
+// and load it for nothing).
+void clip_to_world(mesh::Ray& r, const world::EditLimits& limits) {
+  const double o[3] = {r.origin.x, r.origin.y, r.origin.z};
+  const double d[3] = {r.direction.x, r.direction.y, r.direction.z};
+  double t = r.max_distance;
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] > 0) t = std::min(t, (limits.world_max[a] - o[a]) / d[a]);
+    if (d[a] < 0) t = std::min(t, (limits.world_min[a] - o[a]) / d[a]);
+  }
+  r.max_distance = static_cast<float>(std::max(0.0, t));
 }
 
 wire::Vec3 to_wire(const mesh::Vec3f& v) {
@@ -49,12 +56,13 @@ std::string check_query(const wire::Query& q, const world::EditLimits& limits,
       if (!(len > 1e-6) || !std::isfinite(len)) return "the raycast's direction has no length";
       if (!(r.max_distance() > 0) || r.max_distance() > config.max_query_distance)
         return "max_distance must be above 0 and at most " + longest;
-      if (!inside(limits, r.origin().x(), r.origin().y(), r.origin().z()))
+      if (!world::inside_world(limits, r.origin().x(), r.origin().y(), r.origin().z()))
         return "the raycast's origin lies outside the world";
       task.ray = mesh::Ray{{r.origin().x(), r.origin().y(), r.origin().z()},
                            {static_cast<float>(dx / len), static_cast<float>(dy / len),
                             static_cast<float>(dz / len)},
                            r.max_distance()};
+      clip_to_world(*task.ray, limits);
       return {};
     }
     case wire::Query::kGround: {
@@ -64,9 +72,10 @@ std::string check_query(const wire::Query& q, const world::EditLimits& limits,
         return "the ground query carries a value that is not finite";
       if (!(g.max_depth() > 0) || g.max_depth() > config.max_query_distance)
         return "max_depth must be above 0 and at most " + longest;
-      if (!inside(limits, g.x(), g.from_y(), g.z()))
+      if (!world::inside_world(limits, g.x(), g.from_y(), g.z()))
         return "the ground query's start lies outside the world";
       task.ray = mesh::Ray{{g.x(), g.from_y(), g.z()}, {0, -1, 0}, g.max_depth()};
+      clip_to_world(*task.ray, limits);
       return {};
     }
     case wire::Query::kSamples: {
@@ -122,6 +131,8 @@ void ClientSession::handle_query(const wire::Query& query) {
     }
     queue_control(reply);
   };
+  if (pipeline_.config().zones)  // its chunks of other nodes' zones may be behind theirs
+    return refuse(wire::QueryResult::BAD_VALUE, "queries are not available on a cluster world yet");
   pipeline::QueryTask task;
   if (std::string why = check_query(query, pipeline_.config().limits, config_, task); !why.empty())
     return refuse(wire::QueryResult::BAD_VALUE, why);
@@ -151,8 +162,9 @@ void ClientSession::handle_query(const wire::Query& query) {
       r->clear_box();
       r->set_reason(a.message);
       if (a.reason != world::RefusalReason::kShuttingDown)
-        r->set_retry_after_ms(a.reason == world::RefusalReason::kOverBudget ? kMoreLoadsRetryMs
-                                                                            : kBusyRetryMs);
+        r->set_retry_after_ms(a.retry_after_ms > 0                            ? a.retry_after_ms
+                              : a.reason == world::RefusalReason::kOverBudget ? kMoreLoadsRetryMs
+                                                                              : kBusyRetryMs);
     } else if (r->has_box()) {
       r->set_densities(a.densities);
       r->set_materials(a.materials);

@@ -186,12 +186,9 @@ void ClientSession::handle_set_view(const wire::SetView& view) {
     return;
   }
   const float p[3] = {view.position().x(), view.position().y(), view.position().z()};
-  for (int a = 0; a < 3; ++a) {
-    if (p[a] < static_cast<float>(limits.world_min[a]) ||
-        p[a] > static_cast<float>(limits.world_max[a])) {
-      send_error(wire::Error::BAD_VALUE, "SetView position is outside the world", false);
-      return;
-    }
+  if (!world::inside_world(limits, p[0], p[1], p[2])) {
+    send_error(wire::Error::BAD_VALUE, "SetView position is outside the world", false);
+    return;
   }
   if (view.radius() > config_.max_view_radius) {
     send_error(wire::Error::BAD_VALUE,

@@ -49,6 +49,7 @@ struct EditResult {
 struct QueryAnswer {
   world::RefusalReason reason = world::RefusalReason::kNone;
   std::string message;
+  uint32_t retry_after_ms = 0;  // a refusal's, when the pipeline knows it (0: the default)
   mesh::RayHit hit;
   std::string densities, materials;
 };

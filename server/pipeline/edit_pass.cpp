@@ -8,7 +8,7 @@
 #include "server/pipeline/checkpoints.hpp"
 #include "server/pipeline/memory_keeper.hpp"
 #include "server/pipeline/protected_regions.hpp"
-#include "server/pipeline/world_state.hpp"
+#include "server/pipeline/query_pass.hpp"
 #include "server/pipeline/zone_authority.hpp"
 #include "server/world/edit_apply.hpp"
 
@@ -54,56 +54,6 @@ bool reaches(const std::unordered_set<ChunkCoord, world::ChunkCoordHash>& frozen
   for (const ChunkCoord& c : world::chunks_overlapping(read_box(edit)))
     if (frozen.count(c)) return true;
   return false;
-}
-
-// The chunks of the world for a query: those not in memory are loaded, up to
-// kQueryLoads per query (then it gives up; the next query goes on from there).
-class QuerySource final : public mesh::ChunkSource {
- public:
-  static constexpr size_t kQueryLoads = 16;
-  QuerySource(EditWorld& world, Clock::time_point now) : world_(world), now_(now) {}
-  const world::Chunk* chunk(ChunkCoord c) override {
-    WorldState& st = world_.state;
-    if (const world::Chunk* found = st.chunks.find(c)) {
-      st.info.at(c).last_used = now_;
-      return found;
-    }
-    if (loads_ == kQueryLoads) {
-      refused_ = world::RefusalReason::kOverBudget;
-      return nullptr;
-    }
-    ++loads_;
-    size_t generated = 0;
-    refused_ = load_chunks(world_, {c}, 1, 0, now_, generated);
-    return refused_ == world::RefusalReason::kNone ? st.chunks.find(c) : nullptr;
-  }
-  world::RefusalReason refused() const { return refused_; }
-
- private:
-  EditWorld& world_;
-  const Clock::time_point now_;
-  size_t loads_ = 0;
-  world::RefusalReason refused_ = world::RefusalReason::kNone;
-};
-
-void answer_query(QueryTask& task, EditWorld& world, Clock::time_point now) {
-  QuerySource source(world, now);
-  QueryAnswer a;
-  const bool complete = task.ray ? (a.hit = mesh::raycast(source, *task.ray)).complete
-                                 : mesh::read_samples(source, task.box, a.densities, a.materials);
-  if (!complete) {
-    a.reason = source.refused();
-    a.message = a.reason == world::RefusalReason::kOverBudget
-                    ? "the query reaches more terrain not in memory than one query loads (" +
-                          std::to_string(QuerySource::kQueryLoads) +
-                          " chunks); those loaded stay: ask again"
-                : a.reason == world::RefusalReason::kServerBusy
-                    ? std::string(
-                          "the server's memory budget is full: queries needing new terrain are "
-                          "refused")
-                    : std::string(kStorageReadMessage);
-  }
-  if (task.done) task.done(a);
 }
 
 // A rollback's step in its place among the batch's tasks (RollbackTask). An install is
@@ -163,7 +113,7 @@ EditBatch apply_edits(std::vector<OrderedTask>& tasks, EditWorld& world, Protect
       continue;
     }
     if (auto* query = std::get_if<QueryTask>(&tasks[t])) {
-      answer_query(*query, world, now);
+      answer_query(*query, world, rules.query_budget, now);
       continue;
     }
     if (auto* rollback = std::get_if<RollbackTask>(&tasks[t])) {

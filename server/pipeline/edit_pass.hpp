@@ -13,6 +13,7 @@
 #include "server/pipeline/edit_batch.hpp"
 #include "server/pipeline/edit_ids.hpp"
 #include "server/pipeline/edit_step.hpp"
+#include "server/pipeline/query_pass.hpp"
 #include "server/world/edit.hpp"
 
 namespace vox::pipeline {
@@ -38,6 +39,7 @@ struct EditRules {
   // Chunks a rollback is recomputing: edits reaching them are refused until thawed.
   std::unordered_set<world::ChunkCoord, world::ChunkCoordHash>* frozen = nullptr;
   uint64_t last_seq = 0;  // the sequence number of the last edit logged before this batch
+  QueryBudget* query_budget = nullptr;  // what queries may take of the thread (null: all)
 };
 
 // What an edit reaching a chunk a rollback recomputes is told (SERVER_BUSY: retry).

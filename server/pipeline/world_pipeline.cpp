@@ -331,7 +331,8 @@ void WorldPipeline::edit_pass(std::vector<OrderedTask>& tasks, Clock::time_point
       .zones = config_.zones,
       .edit_ids = edit_ids_.get(),
       .frozen = rollback_slices_.frozen(),
-      .last_seq = commit_ ? commit_->last_seq() : 0};
+      .last_seq = commit_ ? commit_->last_seq() : 0,
+      .query_budget = &query_budget_};
   EditWorld world = edit_world();
   EditBatch b = apply_edits(tasks, world, regions_, rules, now);
   if (!b.any_edit) return;

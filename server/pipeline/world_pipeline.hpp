@@ -27,6 +27,7 @@
 #include "server/pipeline/mesh_store.hpp"
 #include "server/pipeline/pipeline_config.hpp"
 #include "server/pipeline/protected_regions.hpp"
+#include "server/pipeline/query_pass.hpp"
 #include "server/pipeline/rollback_slices.hpp"
 #include "server/pipeline/rollbacks.hpp"
 #include "server/pipeline/stats_book.hpp"
@@ -176,6 +177,7 @@ class WorldPipeline {
   const std::unique_ptr<EditIds> edit_ids_ = config_.zones ? nullptr : std::make_unique<EditIds>();
   std::unique_ptr<DurableCommit> commit_;
   RollbackSlices rollback_slices_;  // the chunks rollbacks freeze, the checkpoint hold
+  QueryBudget query_budget_;        // what all queries may take of the thread
   // Held by a rollback from its plan until its record is logged, and tried by the
   // checkpoint writer before it moves the history's base (else it waits for the next).
   std::mutex history_mutex_;

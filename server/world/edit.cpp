@@ -141,6 +141,13 @@ std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits) {
   return std::visit(Visitor{limits}, edit);
 }
 
+bool inside_world(const EditLimits& limits, double x, double y, double z) {
+  const double p[3] = {x, y, z};
+  for (int a = 0; a < 3; ++a)
+    if (!(p[a] >= limits.world_min[a] && p[a] <= limits.world_max[a])) return false;
+  return true;
+}
+
 VoxelBox chunk_box(ChunkCoord c) {
   const int32_t k = kChunkSize;
   return {{c.x * k, c.y * k, c.z * k}, {c.x * k + k - 1, c.y * k + k - 1, c.z * k + k - 1}};

@@ -95,6 +95,9 @@ struct VoxelBox {
 std::optional<Refusal> validate(const Edit& edit, const EditLimits& limits);
 // Call only on a valid edit.
 VoxelBox touched_box(const Edit& edit);
+// Whether a position (a view's, a ray's origin) lies in the world: world_min ≤ p ≤ world_max
+// on each axis.
+bool inside_world(const EditLimits& limits, double x, double y, double z);
 // Every sample of chunk `c`.
 VoxelBox chunk_box(ChunkCoord c);
 // The most samples touched_box() holds for an edit valid under `limits`: a stamp spans
