@@ -120,3 +120,81 @@ def shared_faces(chunks):
             theirs = face_vertices(tuple(n), other.mesh, axis, 0)
             pairs.append(((c, tuple(n)), axis, mine, theirs))
     return pairs
+
+
+def occupancy(density):
+    """Section 4.4: a sample's occupancy, its int16 density mapped from [-1, 1] onto [0, 1]."""
+    return (density + 32767) / 65534
+
+
+def yield_between(before, after):
+    """The material yield (section 4.4) of the change from one sample answer to another of
+    the same box: {material: (removed, added)}, material 0 left out."""
+    out = {}
+
+    def add(m, removed, added):
+        if m:
+            r, a = out.get(m, (0.0, 0.0))
+            out[m] = (r + removed, a + added)
+    for d0, m0, d1, m1 in zip(before.densities, before.materials, after.densities,
+                              after.materials):
+        if m0 == m1:
+            rise = occupancy(d1) - occupancy(d0)
+            if rise:
+                add(m0, max(-rise, 0.0), max(rise, 0.0))
+        else:
+            add(m0, occupancy(d0), 0.0)
+            add(m1, 0.0, occupancy(d1))
+    return out
+
+
+def first_hit(chunks, origin, direction, max_distance):
+    """The nearest crossing of the ray with the triangles of the held level-0 meshes, in
+    world voxels (64-bit floats): (distance, point, normal interpolated from the vertex
+    normals, material of the vertex nearest the point), or None."""
+    n = math.sqrt(_dot(direction, direction))
+    d = tuple(c / n for c in direction)
+    end = tuple(o + max_distance * c for o, c in zip(origin, d))
+    lo = [min(a, b) for a, b in zip(origin, end)]
+    hi = [max(a, b) for a, b in zip(origin, end)]
+    best = None
+    for coord, held in chunks.items():
+        base = [CHUNK * c for c in coord]
+        if any(base[a] > hi[a] + 1 or base[a] + CHUNK < lo[a] - 1 for a in range(3)):
+            continue
+        m = held.mesh
+        pos = m.positions
+        for t in range(0, len(m.triangles), 3):
+            vs = m.triangles[t:t + 3]
+            a, b, c = (tuple(pos[3 * v + k] + base[k] for k in range(3)) for v in vs)
+            hit = _ray_triangle(origin, d, a, b, c)
+            if hit is None or hit[0] > max_distance or (best and hit[0] >= best[0]):
+                continue
+            s, u, v = hit
+            w = (1 - u - v, u, v)
+            point = tuple(o + s * k for o, k in zip(origin, d))
+            normal = [sum(w[i] * m.normals[3 * vs[i] + k] for i in range(3)) for k in range(3)]
+            length = math.sqrt(_dot(normal, normal))
+            corners = (a, b, c)
+            nearest = min(range(3), key=lambda i: dist2(corners[i], point))
+            best = (s, point, tuple(x / length for x in normal), m.materials[vs[nearest]])
+    return best
+
+
+def _ray_triangle(o, d, a, b, c, eps=1e-12):
+    """Möller-Trumbore, both sides: (distance, u, v) or None."""
+    e1, e2 = _sub(b, a), _sub(c, a)
+    p = _cross(d, e2)
+    det = _dot(e1, p)
+    if abs(det) < eps:
+        return None
+    t = _sub(o, a)
+    u = _dot(t, p) / det
+    if u < -1e-9 or u > 1 + 1e-9:
+        return None
+    q = _cross(t, e1)
+    v = _dot(d, q) / det
+    if v < -1e-9 or u + v > 1 + 1e-9:
+        return None
+    s = _dot(e2, q) / det
+    return (s, u, v) if s >= 0 else None

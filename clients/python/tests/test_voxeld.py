@@ -3,12 +3,16 @@
 Run: VOXELD=/path/to/voxeld /usr/bin/python3 -m unittest -v test_voxeld   (from this folder)
 """
 import math
+import os
 import struct
+import time
 import unittest
 
 import checks
 import harness as h
 from harness import Shared
+from voxelclient import Client, volumes
+from voxelclient.server import Voxeld
 
 ORIGIN_VIEW = (16.0, 16.0, 16.0)  # centre chunk (0, 0, 0)
 
@@ -207,6 +211,7 @@ class T3bResend(Case):
         self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
         self.assertFalse(result.already_applied)
         self.assertTrue(result.changed_chunks)
+        self.assertTrue(result.volumes, "an accepted explosion yields material (4.4)")
         first.close()
         again = self.connect("resender")  # a reconnect: the same player resends it
         rid = again.edit("explosion", edit_id=0x5eed, center=p, radius=4, power=2)
@@ -214,6 +219,7 @@ class T3bResend(Case):
         self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
         self.assertTrue(result.already_applied, "the resend was applied again")
         self.assertEqual(len(result.changed_chunks), 0)
+        self.assertEqual(len(result.volumes), 0, "a resend yields nothing (4.4)")
         other = self.connect("someone-else")  # another player's edit with the same id
         rid = other.edit("explosion", edit_id=0x5eed, center=p, radius=4, power=2)
         result = other.wait_result(rid)
@@ -429,6 +435,219 @@ class T6LevelOfDetail(Case):
         c.set_view(ORIGIN_VIEW, 1, lod_level=7)
         err = c.wait_error()
         self.assertEqual(err.code, Shared.pb.Error.BAD_VALUE)
+
+
+class T7Queries(Case):
+    """Section 4.13 (queries) and the material yield of section 4.4, on the shared server."""
+
+    def status(self, answer):
+        return answer.status_name
+
+    def test_welcome_limits(self):
+        w = self.connect("query-limits").welcome
+        self.assertEqual((w.max_query_distance, w.max_query_samples, w.max_queries_in_flight,
+                          w.queries_per_second), (512, 32768, 8, 20))
+
+    def test_ground_raycast_and_samples_agree(self):
+        c = self.connect("ground")
+        g = c.ground(0, 0, 200, 400)
+        self.assertEqual(self.status(g), "OK", g.reason)
+        self.assertTrue(g.hit)
+        x, y, z = g.point
+        self.assertEqual((x, z), (0, 0))
+        self.assertGreater(g.normal[1], 0, "the normal points into the air, upwards")
+        self.assertAlmostEqual(math.hypot(*g.normal), 1, places=5)
+        self.assertAlmostEqual(g.distance, 200 - y, places=3)
+        self.assertIn(g.material, range(1, 256))
+        # the same ray as a raycast (direction of any length)
+        r = c.raycast((0, 200, 0), (0, -3, 0), 400)
+        self.assertEqual(self.status(r), "OK", r.reason)
+        self.assertEqual((r.hit, r.point, r.normal, r.material, r.distance),
+                         (True, g.point, g.normal, g.material, g.distance))
+        up = c.raycast((0, y + 5, 0), (0, 1, 0), 100)
+        self.assertEqual((self.status(up), up.hit, up.point), ("OK", False, None))
+        # the samples around it: a 4 x 5 x 6 box, x fastest
+        fy = math.floor(y)
+        lo, hi = (-1, fy - 2, -2), (2, fy + 2, 3)
+        s = c.samples(lo, hi)
+        self.assertEqual(self.status(s), "OK", s.reason)
+        self.assertEqual((s.box, s.size), ((lo, hi), (4, 5, 6)))
+        self.assertEqual((len(s.densities), len(s.materials)), (120, 120))
+        self.assertEqual((len(s.result.densities), s.densities.typecode), (240, "h"))
+        column = [s.sample(0, yy, 0) for yy in range(lo[1], hi[1] + 1)]
+        self.assertEqual([d > 0 for d, _ in column], [yy <= fy for yy in range(lo[1], hi[1] + 1)],
+                         "solid below the ground point, air above: %s" % column)
+        for d, m in zip(s.densities, s.materials):
+            if d > 0:
+                self.assertNotEqual(m, 0, "a solid sample of material 0 (air)")
+        # the crossing on the y-edge under (0, 0), interpolated from the two samples
+        below, above = s.sample(0, fy, 0)[0], s.sample(0, fy + 1, 0)[0]
+        self.assertAlmostEqual(fy + below / (below - above), y, delta=0.5 / 1024 + 1e-6)
+        # single samples agree with the box: the order is x fastest, then y, then z
+        for p in [(2, fy - 1, 3), (-1, fy, -2), (0, fy + 1, 1), (1, fy, 0)]:
+            one = c.samples(p, p)
+            self.assertEqual((one.size, one.sample(*p)), ((1, 1, 1), s.sample(*p)), p)
+
+    def test_rays_hit_the_drawn_surface(self):
+        """The hit is where the ray meets the level-0 meshes this client decoded."""
+        c = self.connect("rays")
+        h.load_view(c, ORIGIN_VIEW, 1, 1)
+        rays = [((6.25, 40, 7.5), (0.3, -1, 0.2)), ((20.5, 30, 9.75), (-0.2, -1, 0.4)),
+                ((11.3, 25, 22.6), (0.05, -1, -0.1)), ((9.5, 30, 12.5), (1, -2, 0)),
+                ((8.5, -10, 8.5), (0, 1, 0))]  # from inside the rock: its surface from below
+        for origin, direction in rays:
+            with self.subTest(origin=origin, direction=direction):
+                got = c.raycast(origin, direction, 80)
+                self.assertEqual(self.status(got), "OK", got.reason)
+                want = checks.first_hit(c.chunks, origin, direction, 80)
+                self.assertIsNotNone(want, "the ray meets no held triangle")
+                self.assertTrue(got.hit)
+                distance, point, normal, material = want
+                self.assertAlmostEqual(got.distance, distance, delta=1e-4)
+                for a, b in zip(got.point, point):
+                    self.assertAlmostEqual(a, b, delta=1e-4)
+                self.assertGreater(sum(a * b for a, b in zip(got.normal, normal)), 0.99,
+                                   (got.normal, normal))
+                self.assertEqual(got.material, material)
+                self.assertGreater(got.normal[1], 0)
+
+    def test_explosion_yield(self):
+        c = self.connect("miner")
+        g = c.ground(-10.5, -9.5, 200, 400)
+        self.assertTrue(g.hit, g)
+        cx, cy, cz = (math.floor(v) for v in g.point)
+        lo, hi = (cx - 7, cy - 7, cz - 7), (cx + 7, cy + 7, cz + 7)
+        before = c.samples(lo, hi)
+        self.assertEqual(self.status(before), "OK", before.reason)
+        rid = c.edit("explosion", center=g.point, radius=4, power=2)
+        qid = c.query("samples", min=lo, max=hi)  # sent after the edit: it sees it
+        result, after = c.wait_result(rid), c.wait_query(qid)
+        self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
+        got = volumes(result)
+        self.assertTrue(any(removed > 0 for removed, _ in got.values()), got)
+        materials = [v.material for v in result.volumes]
+        self.assertEqual(materials, sorted(set(materials)), "one entry per material, in order")
+        self.assertTrue(all(1 <= m <= 255 for m in materials))
+        self.assert_yield(got, checks.yield_between(before, after))
+        # a paint changes materials only: old material removed, new one added, whole
+        rid = c.edit("paint", center=g.point, radius=5, material=7)
+        painted = c.wait_query(c.query("samples", min=lo, max=hi))
+        result = c.wait_result(rid)
+        self.assertEqual(result.status, Shared.pb.EditResult.ACCEPTED, result.reason)
+        self.assertEqual(painted.densities, after.densities)
+        self.assertGreater(volumes(result)[7][1], 0)
+        self.assert_yield(volumes(result), checks.yield_between(after, painted))
+
+    def assert_yield(self, got, want):
+        self.assertEqual(sorted(got), sorted(want))
+        for m, (removed, added) in want.items():
+            self.assertAlmostEqual(got[m][0], removed, delta=1e-6, msg="material %d" % m)
+            self.assertAlmostEqual(got[m][1], added, delta=1e-6, msg="material %d" % m)
+
+    def test_refused(self):
+        c = self.connect("bad-queries")
+        w = c.welcome
+        far, side = w.max_query_distance, 32
+        cases = [
+            ("raycast", dict(origin=(0, 10, 0), direction=(0, 0, 0), max_distance=10)),
+            ("raycast", dict(origin=(0, 10, 0), direction=(1e-7, 0, 0), max_distance=10)),
+            ("raycast", dict(origin=(math.nan, 10, 0), direction=(0, -1, 0), max_distance=10)),
+            ("raycast", dict(origin=(0, 10, 0), direction=(0, -1, math.inf), max_distance=10)),
+            ("raycast", dict(origin=(0, 10, 0), direction=(0, -1, 0), max_distance=far * 1.01)),
+            ("raycast", dict(origin=(0, 10, 0), direction=(0, -1, 0), max_distance=0)),
+            ("raycast", dict(origin=(0, 5000, 0), direction=(0, -1, 0), max_distance=10)),
+            ("ground", dict(x=0, z=0, from_y=math.nan, max_depth=10)),
+            ("ground", dict(x=0, z=0, from_y=10, max_depth=far + 1)),
+            ("ground", dict(x=0, z=0, from_y=10, max_depth=-1)),
+            ("samples", dict(min=(0, 0, 0), max=(side, side - 1, side - 1))),  # 33 * 32 * 32
+            ("samples", dict(min=(1, 0, 0), max=(0, 0, 0))),
+            ("samples", dict(min=(0, 4095, 0), max=(0, 4096, 0))),
+            (None, {}),
+        ]
+        for kind, fields in cases:
+            with self.subTest(kind=kind, fields=fields):
+                a = c.wait_query(c.query(kind, **fields))
+                self.assertEqual(self.status(a), "BAD_VALUE", a)
+                self.assertTrue(a.reason)
+                self.assertEqual((a.hit, a.box, len(a.result.densities), len(a.result.materials)),
+                                 (False, None, 0, 0))
+        ok = c.samples((0, 0, 0), (side - 1, side - 1, side - 1))  # exactly the cap
+        self.assertEqual((self.status(ok), len(ok.densities)), ("OK", w.max_query_samples))
+        self.assertEqual(c.errors, [])
+
+    def test_rate_limited(self):
+        c = self.connect("query-rate")
+        rate = c.welcome.queries_per_second
+        self.assertGreater(rate, 0)
+        burst, window = int(2 * rate), min(4, c.welcome.max_queries_in_flight)
+        start, answers = time.monotonic(), []
+        while len(answers) < 3 * burst and "RATE_LIMITED" not in [a.status_name for a in answers]:
+            ids = [c.query("samples", min=(0, 0, 0), max=(0, 0, 0)) for _ in range(window)]
+            answers += [c.wait_query(i) for i in ids]
+        elapsed = time.monotonic() - start
+        names = [a.status_name for a in answers]
+        self.assertLessEqual(set(names), {"OK", "RATE_LIMITED"})
+        self.assertIn("RATE_LIMITED", names)
+        accepted = names.index("RATE_LIMITED")
+        self.assertGreaterEqual(accepted, burst)
+        self.assertLessEqual(accepted, burst + rate * elapsed + window)
+        limited = answers[accepted]
+        self.assertGreater(limited.retry_after_ms, 0)
+        self.assertLessEqual(limited.retry_after_ms, 1000 / rate + 1)
+        self.assertEqual((limited.hit, limited.box), (False, None))
+        c.pause(limited.retry_after_ms / 1000 + 0.01)
+        again = c.wait_query(c.query("samples", min=(0, 0, 0), max=(0, 0, 0)))
+        self.assertEqual(again.status_name, "OK", "not accepted after retry_after_ms")
+
+    def test_in_flight_cap(self):
+        """More queries at once than max_queries_in_flight: each answered once, the extra
+        ones TOO_MANY (how many depends on timing). Answers may overtake each other."""
+        c = self.connect("query-flood")
+        cap = c.welcome.max_queries_in_flight
+        ids = [c.query("samples", min=(0, 0, 0), max=(15, 15, 15)) for _ in range(3 * cap)]
+        answers = [c.wait_query(i) for i in ids]
+        h.sync(c, 7)
+        self.assertEqual(sorted(c.query_log), sorted(ids), "one answer per query")
+        names = [a.status_name for a in answers]
+        self.assertLessEqual(set(names), {"OK", "TOO_MANY"})
+        self.assertGreaterEqual(names.count("OK"), cap)
+
+    def test_query_before_hello(self):
+        c = self.raw()
+        c.query("ground", x=0, z=0, from_y=10, max_depth=20)
+        err = c.wait_error()
+        self.assertEqual(Shared.pb.Error.Code.Name(err.code), "NOT_HELLO", err.message)
+        c.wait_closed()
+        self.assertTrue(c.closed)
+
+
+class T7bQueryTerrain(unittest.TestCase):
+    """Section 4.13 on servers of their own: a fresh world (nothing loaded), a viewer."""
+
+    def server(self, *args):
+        server = Voxeld(os.environ["VOXELD"], seed=1,
+                        extra_args=["--threads", "2", "--http-port", "0", *args])
+        self.addCleanup(server.stop)
+        client = Client(server.host, server.port, pb=Shared.pb, table=Shared.table)
+        self.addCleanup(client.close)
+        client.hello("terrain")
+        return client
+
+    def test_viewer_may_ask(self):
+        c = self.server("--open-role", "viewer")
+        rid = c.edit("brush", center=(0, 0, 0), radius=2, strength=1)
+        self.assertEqual(c.wait_result(rid).status, Shared.pb.EditResult.FORBIDDEN)
+        g = c.ground(0, 0, 200, 400)
+        self.assertEqual((g.status_name, g.hit), ("OK", True), g.reason)
+
+    def test_long_ray_through_unloaded_terrain(self):
+        """A query needing more than 16 chunks loaded: SERVER_BUSY, retry_after_ms 50, and
+        the retries go on from there (a voxeld of its own: fresh terrain)."""
+        c = self.server()
+        first = c.raycast((16.5, 200.5, 16.5), (0, 1, 0), 512, busy_retries=0)
+        self.assertEqual((first.status_name, first.retry_after_ms), ("SERVER_BUSY", 50))
+        done = c.raycast((16.5, 200.5, 16.5), (0, 1, 0), 512, busy_retries=20)
+        self.assertEqual((done.status_name, done.hit), ("OK", False), done.reason)
 
 
 def big_hello(pb, size):

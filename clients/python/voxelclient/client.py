@@ -1,7 +1,10 @@
-"""A voxeld session (PROTOCOL.md section 4): handshake, views, edits, held chunk meshes."""
+"""A voxeld session (PROTOCOL.md section 4): handshake, views, edits, queries, held chunk
+meshes."""
 import itertools
 import socket
+import sys
 import time
+from array import array
 
 from . import compression, mesh, proto
 from .framing import FrameReader, encode_frame
@@ -29,6 +32,76 @@ def coord_of(c):
     return (c.x, c.y, c.z)
 
 
+def xyz(v):
+    return (v.x, v.y, v.z)
+
+
+def volumes(edit_result):
+    """An EditResult's material yield (section 4.4): {material: (removed, added)} in voxels,
+    empty for a refused edit or a resend."""
+    return {v.material: (v.removed, v.added) for v in edit_result.volumes}
+
+
+class QueryAnswer:
+    """A QueryResult (section 4.13), decoded. `result` is the message itself; `status` its
+    status (compare with `pb.QueryResult.OK` etc.), `status_name` the name.
+
+    raycast, ground: `hit`, and when it hit `point`, `normal` (x, y, z), `material`,
+    `distance`. samples: `box` ((min_x, min_y, min_z), (max_x, max_y, max_z)), `size`
+    (samples per axis), `densities` (array of int16, solid when > 0) and `materials`
+    (bytes), x fastest, then y, then z; `sample(x, y, z)` reads one by world coordinates."""
+
+    def __init__(self, result, pb):
+        self.result = result
+        self.request_id, self.status, self.reason = result.request_id, result.status, result.reason
+        self.status_name = pb.QueryResult.Status.Name(result.status)
+        self.ok = result.status == pb.QueryResult.OK
+        self.retry_after_ms = result.retry_after_ms
+        self.hit = result.hit
+        self.point = xyz(result.point) if result.hit else None
+        self.normal = xyz(result.normal) if result.hit else None
+        self.material = result.material if result.hit else None
+        self.distance = result.distance if result.hit else None
+        self.box = self.size = None
+        self.densities, self.materials = array("h"), b""
+        if result.HasField("box"):
+            b = result.box
+            self.box = ((b.min_x, b.min_y, b.min_z), (b.max_x, b.max_y, b.max_z))
+            self.size = tuple(hi - lo + 1 for lo, hi in zip(*self.box))
+            count = self.size[0] * self.size[1] * self.size[2]
+            if len(result.densities) != 2 * count or len(result.materials) != count:
+                raise ValueError("QueryResult %d: %d density and %d material bytes for %d "
+                                 "samples" % (result.request_id, len(result.densities),
+                                              len(result.materials), count))
+            self.densities = array("h", result.densities)  # little-endian int16
+            if sys.byteorder == "big":
+                self.densities.byteswap()
+            self.materials = result.materials
+
+    def index(self, x, y, z):
+        """The position of world sample (x, y, z) in `densities` and `materials`."""
+        (x0, y0, z0), (sx, sy, sz) = self.box[0], self.size
+        i, j, k = x - x0, y - y0, z - z0
+        if not (0 <= i < sx and 0 <= j < sy and 0 <= k < sz):
+            raise IndexError("sample %s is outside the box %s" % ((x, y, z), self.box))
+        return i + sx * (j + sy * k)
+
+    def sample(self, x, y, z):
+        """(density, material) of world sample (x, y, z)."""
+        i = self.index(x, y, z)
+        return self.densities[i], self.materials[i]
+
+    def __repr__(self):
+        if self.box:
+            return "QueryAnswer(%d %s box=%s)" % (self.request_id, self.status_name, self.box)
+        if self.hit:
+            return "QueryAnswer(%d %s point=%s normal=%s material=%d distance=%g)" % (
+                self.request_id, self.status_name, self.point, self.normal, self.material,
+                self.distance)
+        return "QueryAnswer(%d %s hit=False%s)" % (
+            self.request_id, self.status_name, " " + self.reason if self.reason else "")
+
+
 def _detail(kind, env):
     if kind == "chunk_mesh":
         m = env.chunk_mesh
@@ -37,6 +110,8 @@ def _detail(kind, env):
         return env.view_ready.view_id
     if kind == "edit_result":
         return env.edit_result.request_id
+    if kind == "query_result":
+        return env.query_result.request_id
     if kind == "error":
         return env.error.code
     return None
@@ -65,6 +140,8 @@ class Client:
         self.view_ready = {}      # view_id -> ViewReady
         self.results = {}         # request_id -> EditResult
         self.result_log = []      # request ids of every EditResult, in arrival order
+        self.queries = {}         # request_id -> QueryAnswer
+        self.query_log = []       # request ids of every QueryResult, in arrival order
         self.pongs = set()
         self.errors = []          # Error messages
         self.log = []             # (kind, detail) of every message, in arrival order
@@ -123,6 +200,52 @@ class Client:
             args[key] = value
         return cls(**args)
 
+    def query(self, kind, request_id=None, **fields):
+        """Sends a Query of `kind` (raycast, ground, samples; None: an empty one) without
+        waiting; returns its request id (wait_query reads the answer). raycast: origin,
+        direction (x, y, z), max_distance; ground: x, z, from_y, max_depth; samples: min,
+        max (x, y, z), inclusive samples (or box, a VoxelBox)."""
+        request_id = next(self._ids) if request_id is None else request_id
+        msg = self.pb.Query(request_id=request_id)
+        if kind == "raycast":
+            msg.raycast.CopyFrom(self.pb.Raycast(
+                origin=self.vec3(fields["origin"]), direction=self.vec3(fields["direction"]),
+                max_distance=fields["max_distance"]))
+        elif kind == "ground":
+            msg.ground.CopyFrom(self.pb.GroundQuery(**fields))
+        elif kind == "samples":
+            box = fields.get("box") or self.voxel_box(fields["min"], fields["max"])
+            msg.samples.CopyFrom(self.pb.SampleQuery(box=box))
+        elif kind is not None:
+            raise ValueError("unknown query kind %r" % kind)
+        self.send_message(query=msg)
+        return request_id
+
+    def ask(self, kind, timeout=10, busy_retries=20, **fields):
+        """Sends a query and waits for its answer (a QueryAnswer, whatever its status). A
+        SERVER_BUSY answer (terrain still loading, section 4.13) is retried after its
+        retry_after_ms, up to `busy_retries` times."""
+        for attempt in range(busy_retries + 1):
+            answer = self.wait_query(self.query(kind, **fields), timeout)
+            if answer.status != self.pb.QueryResult.SERVER_BUSY or attempt == busy_retries:
+                return answer
+            self.pause(answer.retry_after_ms / 1000.0)
+
+    def raycast(self, origin, direction, max_distance, **kw):
+        """Where the ray from `origin` along `direction` first meets the surface within
+        `max_distance` voxels: a QueryAnswer (hit, point, normal, material, distance)."""
+        return self.ask("raycast", origin=origin, direction=direction,
+                        max_distance=max_distance, **kw)
+
+    def ground(self, x, z, from_y, max_depth, **kw):
+        """The first surface below (x, from_y, z) within `max_depth` voxels."""
+        return self.ask("ground", x=x, z=z, from_y=from_y, max_depth=max_depth, **kw)
+
+    def samples(self, min, max, **kw):
+        """The samples of the inclusive box `min`..`max`: a QueryAnswer with `densities`
+        (int16) and `materials`, x fastest, then y, then z."""
+        return self.ask("samples", min=min, max=max, **kw)
+
     def ping(self, nonce):
         self.send_message(ping=self.pb.Ping(nonce=nonce))
 
@@ -141,6 +264,10 @@ class Client:
 
     def chunk_coord(self, c):
         return self.pb.ChunkCoord(x=c[0], y=c[1], z=c[2])
+
+    def voxel_box(self, lo, hi):
+        return self.pb.VoxelBox(min_x=lo[0], min_y=lo[1], min_z=lo[2],
+                                max_x=hi[0], max_y=hi[1], max_z=hi[2])
 
     # ---- waiting ----------------------------------------------------------------------
 
@@ -169,6 +296,18 @@ class Client:
         if not self.pump(lambda: request_id in self.results, timeout):
             raise ConnectionError("closed before EditResult %d" % request_id)
         return self.results[request_id]
+
+    def wait_query(self, request_id, timeout=10):
+        if not self.pump(lambda: request_id in self.queries, timeout):
+            raise ConnectionError("closed before QueryResult %d" % request_id)
+        return self.queries[request_id]
+
+    def pause(self, seconds):
+        """Handles incoming messages for `seconds`."""
+        try:
+            self.pump(lambda: False, seconds)
+        except socket.timeout:
+            pass
 
     def wait_pong(self, nonce, timeout=10):
         if not self.pump(lambda: nonce in self.pongs, timeout):
@@ -213,6 +352,9 @@ class Client:
         elif kind == "edit_result":
             self.results[env.edit_result.request_id] = env.edit_result
             self.result_log.append(env.edit_result.request_id)
+        elif kind == "query_result":
+            self.queries[env.query_result.request_id] = QueryAnswer(env.query_result, self.pb)
+            self.query_log.append(env.query_result.request_id)
         elif kind == "pong":
             self.pongs.add(env.pong.nonce)
         elif kind == "error":

@@ -1,9 +1,10 @@
-// The session (PROTOCOL §4.2–§4.10) over any transport: Hello/Welcome, SetView and
-// ViewReady, held chunks with their deltas and Resync, edits and their results, Ping.
+// The session (PROTOCOL §4.2–§4.13) over any transport: Hello/Welcome, SetView and
+// ViewReady, held chunks with their deltas and Resync, edits and their results, queries
+// (raycast, ground, samples) and theirs, Ping.
 import { ChunkCache, chunkKey } from "./chunks.js";
 import { Emitter } from "./emitter.js";
 import {
-  decodeEnvelope, editStatusName, encodeEnvelope, Envelope, errorCodeName, StampShape, toBigInt, toUint64,
+  decodeEnvelope, editStatusName, encodeEnvelope, Envelope, errorCodeName, queryStatusName, StampShape, toBigInt, toUint64,
 } from "./messages.js";
 import { DEFAULT_TABLE } from "./table.js";
 
@@ -91,6 +92,58 @@ export function editBody(kind, p) {
   }
 }
 
+const voxelBox = (min, max) => {
+  const lo = vec(min, "min");
+  const hi = vec(max, "max");
+  if (!lo || !hi) throw new TypeError("samples: min and max [x, y, z] are required");
+  for (const c of [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]) {
+    if (!Number.isInteger(c)) throw new TypeError("samples: min and max are integer sample coordinates");
+  }
+  return { min_x: lo.x, min_y: lo.y, min_z: lo.z, max_x: hi.x, max_y: hi.y, max_z: hi.z };
+};
+
+/**
+ * The samples of a SampleQuery's answer (§4.13): densities as int16 read little-endian
+ * (solid above 0), materials one byte each, both x fastest, then y, then z; size is the
+ * echoed box's samples per axis ([0, 0, 0] for a refused query, whose box is empty).
+ * @param {{box: {minX:number,minY:number,minZ:number,maxX:number,maxY:number,maxZ:number}, densities: Uint8Array, materials: Uint8Array}} result
+ * @returns {{size: number[], densities: Int16Array, materials: Uint8Array}}
+ */
+export function decodeSamples(result) {
+  const bytes = result.densities instanceof Uint8Array ? result.densities : Uint8Array.from(result.densities ?? []);
+  const b = result.box;
+  const size = bytes.length === 0 || !b ? [0, 0, 0] : [b.maxX - b.minX + 1, b.maxY - b.minY + 1, b.maxZ - b.minZ + 1];
+  const n = size[0] * size[1] * size[2];
+  if (bytes.length !== 2 * n || (result.materials?.length ?? 0) !== n) {
+    throw new Error(`QueryResult: ${bytes.length} density bytes and ${result.materials?.length ?? 0} materials for a box of ${n} samples`);
+  }
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const densities = new Int16Array(n);
+  for (let i = 0; i < n; i++) densities[i] = view.getInt16(2 * i, true);
+  const materials = new Uint8Array(n);
+  materials.set(result.materials ?? []);
+  return { size, densities, materials };
+}
+
+/**
+ * The Query message of a query kind and its parameters (§4.13).
+ * @param {"raycast"|"ground"|"samples"} kind
+ * @param {object} p
+ * @param {number} [defaultDistance] maxDistance / maxDepth when not given
+ */
+export function queryBody(kind, p, defaultDistance = 512) {
+  switch (kind) {
+    case "raycast":
+      return { raycast: { origin: vec(p.origin, "origin"), direction: vec(p.direction, "direction"), max_distance: p.maxDistance ?? defaultDistance } };
+    case "ground":
+      return { ground: { x: p.x, z: p.z, from_y: p.fromY, max_depth: p.maxDepth ?? defaultDistance } };
+    case "samples":
+      return { samples: { box: voxelBox(p.min, p.max) } };
+    default:
+      throw new TypeError(`unknown query kind "${kind}": raycast, ground or samples`);
+  }
+}
+
 /**
  * A voxeld client.
  *
@@ -99,7 +152,7 @@ export function editBody(kind, p) {
  *  - "chunkunloaded" (chunk): the server said to forget it (ChunkUnload)
  *  - "chunkfailed" (key, error): a payload did not apply; the chunk was dropped and asked
  *    for again with Resync
- *  - "viewready" (viewReady), "editresult" (result), "welcome" (welcome)
+ *  - "viewready" (viewReady), "editresult" (result), "queryresult" (result), "welcome" (welcome)
  *  - "servererror" (ServerError): an Error message of the server
  *  - "message" (kind, message): every Envelope received (protobufjs objects), unknown ones too
  *  - "close" (error?): the connection ended
@@ -125,7 +178,7 @@ export class Client extends Emitter {
     this.nextNonce = 1;
     /** @type {Map<bigint, object>} the ViewReady of each view id received */
     this.viewReady = new Map();
-    this.pending = { hello: null, edits: new Map(), views: new Map(), pings: new Map() };
+    this.pending = { hello: null, edits: new Map(), views: new Map(), pings: new Map(), queries: new Map() };
     this.resyncQueue = new Map();  // level -> Set of "x,y,z"
     this.resyncScheduled = false;
     this.lastSend = Date.now();
@@ -215,7 +268,8 @@ export class Client extends Emitter {
    * @param {object} params center [x, y, z], radius, strength, power, remove, material,
    *   and for a stamp shape ("box"|"sphere"), min, max, solid
    * @param {{timeoutMs?: number}} [options]
-   * @returns {Promise<{requestId: bigint, status: number, statusName: string, reason: string, changedChunks: {x:number,y:number,z:number}[], retryAfterMs: number, clippedBy: bigint[]}>}
+   * @returns {Promise<{requestId: bigint, status: number, statusName: string, reason: string, changedChunks: {x:number,y:number,z:number}[], retryAfterMs: number, clippedBy: bigint[], alreadyApplied: boolean, volumes: {material: number, removed: number, added: number}[]}>}
+   *   volumes (ACCEPTED, not a resend): voxels of each material the edit took away and put in
    */
   edit(kind, params, options = {}) {
     const requestId = BigInt(this.nextRequestId++);
@@ -223,6 +277,79 @@ export class Client extends Emitter {
     const promise = this.#waitFor(this.pending.edits, requestId, options.timeoutMs, `EditResult of edit ${requestId}`);
     this.#send({ edit: { request_id: toUint64(requestId), ...body } });
     return promise;
+  }
+
+  /**
+   * Sends a Query (§4.13) and resolves with its QueryResult, whatever its status (check
+   * result.status === 0, "OK" in result.statusName; RATE_LIMITED, TOO_MANY, SERVER_BUSY and
+   * STORAGE_UNAVAILABLE are worth retrying after result.retryAfterMs). Rejects if the
+   * connection ends first (or after timeoutMs), before hello(), or when the server's
+   * Welcome has no max_query_distance (a server without queries).
+   * @param {"raycast"|"ground"|"samples"} kind
+   * @param {object} params raycast: origin, direction, maxDistance; ground: x, z, fromY,
+   *   maxDepth; samples: min, max (inclusive integer sample coordinates)
+   * @param {{timeoutMs?: number}} [options]
+   * @returns {Promise<{requestId: bigint, status: number, statusName: string, reason: string, retryAfterMs: number, hit: boolean, point: {x:number,y:number,z:number}, normal: {x:number,y:number,z:number}, material: number, distance: number, box: object, densities: Uint8Array, materials: Uint8Array}>}
+   */
+  query(kind, params, options = {}) {
+    const body = queryBody(kind, params, this.welcome?.maxQueryDistance || 512);
+    if (!this.welcome) return Promise.reject(new Error("query before hello()"));
+    // A server before queries sends no query limits (and would answer UNKNOWN_MESSAGE,
+    // with no request id to match): every server that answers them has a ray length.
+    if (!(this.welcome.maxQueryDistance > 0)) return Promise.reject(new Error("this server answers no queries (Welcome.max_query_distance is 0)"));
+    const requestId = BigInt(this.nextRequestId++);
+    const promise = this.#waitFor(this.pending.queries, requestId, options.timeoutMs, `QueryResult of query ${requestId}`);
+    try {
+      this.#send({ query: { request_id: toUint64(requestId), ...body } });
+    } catch (e) {
+      const entry = this.pending.queries.get(requestId);
+      this.pending.queries.delete(requestId);
+      clearTimeout(entry?.timer);
+      throw e;
+    }
+    return promise;
+  }
+
+  /**
+   * Where a ray first meets the surface (§4.13): result.hit, point, normal (unit, towards
+   * the air), material, distance.
+   * @param {number[]|{x:number,y:number,z:number}} origin world voxels
+   * @param {number[]|{x:number,y:number,z:number}} direction any length but zero
+   * @param {number} [maxDistance] voxels (default Welcome.max_query_distance)
+   * @param {{timeoutMs?: number}} [options]
+   */
+  raycast(origin, direction, maxDistance, options) {
+    return this.query("raycast", { origin, direction, maxDistance }, options);
+  }
+
+  /**
+   * The first surface straight down from (x, fromY, z) within maxDepth voxels (§4.13),
+   * answered as a raycast. Start in the air above the ground.
+   * @param {number} x
+   * @param {number} z
+   * @param {number} fromY
+   * @param {number} [maxDepth] voxels (default Welcome.max_query_distance)
+   * @param {{timeoutMs?: number}} [options]
+   */
+  ground(x, z, fromY, maxDepth, options) {
+    return this.query("ground", { x, z, fromY, maxDepth }, options);
+  }
+
+  /**
+   * The samples of the inclusive box min..max (§4.13), at most Welcome.max_query_samples.
+   * Resolves with the QueryResult, its densities replaced by an Int16Array (decoded
+   * little-endian; solid above 0) and materials a Uint8Array, x fastest, then y, then z;
+   * size is [nx, ny, nz] and index(x, y, z) the position of a world sample in both arrays.
+   * @param {number[]|{x:number,y:number,z:number}} min
+   * @param {number[]|{x:number,y:number,z:number}} max
+   * @param {{timeoutMs?: number}} [options]
+   */
+  async samples(min, max, options) {
+    const result = await this.query("samples", { min, max }, options);
+    const { size, densities, materials } = decodeSamples(result);
+    const b = result.box;
+    const index = (x, y, z) => (x - b.minX) + size[0] * ((y - b.minY) + size[1] * (z - b.minZ));
+    return { ...result, size, densities, materials, index };
   }
 
   /**
@@ -318,6 +445,16 @@ export class Client extends Emitter {
         this.#settle(this.pending.edits, result.requestId, result);
         break;
       }
+      case "query_result": {
+        const result = plain(message, typeOf("query_result"));
+        // bytes fields: a Uint8Array always (protobufjs' default for a missing one is []).
+        result.densities = Uint8Array.from(result.densities);
+        result.materials = Uint8Array.from(result.materials);
+        result.statusName = queryStatusName(result.status);
+        this.emit("queryresult", result);
+        this.#settle(this.pending.queries, result.requestId, result);
+        break;
+      }
       case "view_ready": {
         const ready = plain(message, typeOf("view_ready"));
         this.viewReady.set(ready.viewId, ready);
@@ -381,7 +518,7 @@ export class Client extends Emitter {
     if (error && !this.closeError) this.closeError = error;
     const reason = this.closeError ?? new Error("connection closed");
     this.pending.hello?.reject(reason);
-    for (const map of [this.pending.edits, this.pending.views, this.pending.pings]) {
+    for (const map of [this.pending.edits, this.pending.views, this.pending.pings, this.pending.queries]) {
       for (const entry of map.values()) {
         clearTimeout(entry.timer);
         entry.reject(reason);

@@ -14,9 +14,11 @@ export const ErrorCode = root.lookupEnum("vox.wire.Error.Code").values;
 export const EditStatus = root.lookupEnum("vox.wire.EditResult.Status").values;
 export const RegionStatus = root.lookupEnum("vox.wire.RegionResult.Status").values;
 export const StampShape = root.lookupEnum("vox.wire.Stamp.Shape").values;
+export const QueryStatus = root.lookupEnum("vox.wire.QueryResult.Status").values;
 const names = (values) => Object.fromEntries(Object.entries(values).map(([k, v]) => [v, k]));
 export const errorCodeName = (code) => names(ErrorCode)[code] ?? `code ${code}`;
 export const editStatusName = (status) => names(EditStatus)[status] ?? `status ${status}`;
+export const queryStatusName = (status) => names(QueryStatus)[status] ?? `status ${status}`;
 
 /**
  * A uint64 field as a BigInt (protobufjs gives a Long, a number, or a string).

@@ -1,8 +1,8 @@
 // The session logic over a fake server speaking through the WebSocket transport (the `ws`
 // package in Node; one binary message = one Envelope): Welcome and the table revision, a
 // delta that does not apply is dropped and asked for with one Resync, edits resolve by
-// request id, Error codes that close reject what waits. Also: the browser entry point
-// imports nothing of Node's.
+// request id, queries resolve by request id (samples decoded), Error codes that close
+// reject what waits. Also: the browser entry point imports nothing of Node's.
 import assert from "node:assert/strict";
 import { readFileSync } from "node:fs";
 import { dirname, join, resolve } from "node:path";
@@ -106,6 +106,86 @@ test("an Error that closes rejects the edits waiting, with the server's reason",
     await assert.rejects(client.edit("explosion", { center: [0, 0, 0], radius: 1, power: 1 }), /SHUTTING_DOWN: stopping/);
     assert.throws(() => client.setView({ position: [0, 0, 0], radius: 1 }), /SHUTTING_DOWN/);
   } finally {
+    await server.close();
+  }
+});
+
+test("queries: each QueryResult goes to its request by request_id, samples decoded, close rejects", async () => {
+  const held = [];
+  const server = await fakeServer((kind, m, send, socket) => {
+    if (kind === "hello") send(welcome({ max_query_distance: 512, max_query_samples: 32768, max_queries_in_flight: 8, queries_per_second: 20 }));
+    if (kind !== "query") return;
+    held.push(m);
+    if (held.length === 3) {
+      // Answered last first: each result must reach the promise of its own request.
+      const [ray, ground, samples] = held;
+      // Densities 1, -2, 300, -32767 as int16 little-endian; materials 3, 0, 4, 0.
+      send({
+        query_result: {
+          request_id: samples.request_id, status: 0, box: samples.samples.box,
+          densities: Uint8Array.from([1, 0, 0xfe, 0xff, 0x2c, 0x01, 0x01, 0x80]), materials: Uint8Array.from([3, 0, 4, 0]),
+        },
+      });
+      send({ query_result: { request_id: ground.request_id, status: 0, hit: true, point: { x: 5, y: 7.5, z: 6 }, normal: { x: 0, y: 1, z: 0 }, material: 2, distance: 92.5 } });
+      send({ query_result: { request_id: ray.request_id, status: 1, reason: "the raycast's direction has no length" } });
+    }
+    if (held.length === 4) socket.close();
+  });
+  const client = new Client(await connectWebSocket(server.url, { WebSocket }), { keepaliveMs: 0 });
+  try {
+    await assert.rejects(client.ground(0, 0, 1, 1), /before hello/);
+    const w = await client.hello();
+    assert.equal(w.maxQuerySamples, 32768);
+    assert.equal(w.queriesPerSecond, 20);
+    const seen = [];
+    client.on("queryresult", (r) => seen.push(r.requestId));
+    const ray = client.raycast([1, 2, 3], [0, 0, 0], 10);
+    const ground = client.ground(5, 6, 100);
+    const samples = client.samples([10, -1, 4], [11, 0, 4]);
+    const [r, g, s] = await Promise.all([ray, ground, samples]);
+    assert.equal(r.statusName, "BAD_VALUE");
+    assert.match(r.reason, /no length/);
+    assert.equal(r.hit, false);
+    assert.equal(g.statusName, "OK");
+    assert.deepEqual([g.hit, g.point, g.material, g.distance], [true, { x: 5, y: 7.5, z: 6 }, 2, 92.5]);
+    assert.equal(s.statusName, "OK");
+    assert.deepEqual(s.size, [2, 2, 1]);
+    assert.deepEqual([...s.densities], [1, -2, 300, -32767]);
+    assert.deepEqual([...s.materials], [3, 0, 4, 0]);
+    assert.equal(s.index(11, 0, 4), 3);
+    assert.equal(seen.length, 3);
+    assert.deepEqual([r.requestId, g.requestId, s.requestId], [1n, 2n, 3n]);
+    // What went out: the fields of proto/voxel.proto, the ground's depth defaulted to Welcome's.
+    const sent = server.received.filter((x) => x.kind === "query").map((x) => x.message);
+    assert.deepEqual(sent.map((q) => q.kind), ["raycast", "ground", "samples"]);
+    const d = sent[0].raycast.direction;
+    assert.deepEqual([d.x, d.y, d.z], [0, 0, 0]);
+    assert.equal(sent[0].raycast.max_distance, 10);
+    assert.equal(sent[1].ground.from_y, 100);
+    assert.equal(sent[1].ground.max_depth, 512);
+    const box = sent[2].samples.box;
+    assert.deepEqual([box.min_x, box.min_y, box.min_z, box.max_x, box.max_y, box.max_z], [10, -1, 4, 11, 0, 4]);
+    assert.throws(() => client.query("dig", {}), /unknown query kind "dig"/);
+    await assert.rejects(client.samples([0, 0, 0], [1.5, 0, 0]), /integer/);
+    // The connection ends with a query waiting: it is rejected.
+    await assert.rejects(client.raycast([0, 0, 0], [0, -1, 0], 1), /connection closed|closed/);
+  } finally {
+    client.close();
+    await server.close();
+  }
+});
+
+test("a server without queries (no max_query_distance in Welcome): queries refused at once", async () => {
+  const server = await fakeServer((kind, m, send) => {
+    if (kind === "hello") send(welcome());
+  });
+  const client = new Client(await connectWebSocket(server.url, { WebSocket }), { keepaliveMs: 0 });
+  try {
+    await client.hello();
+    await assert.rejects(client.raycast([0, 0, 0], [0, -1, 0], 1), /answers no queries/);
+    assert.equal(server.received.filter((x) => x.kind === "query").length, 0);
+  } finally {
+    client.close();
     await server.close();
   }
 });

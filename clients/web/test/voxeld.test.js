@@ -1,8 +1,9 @@
 // End to end against a real voxeld over TCP (started here on port 0, in memory, in a
 // temporary directory; killed at the end, also on failure): Hello, a radius-2 view up to
 // ViewReady, an explosion ACCEPTED whose deltas change held chunks, a second client that
-// sees the first one's edit, every other edit kind, Ping, and a level-of-detail view whose
-// format-2 chunks decode.
+// sees the first one's edit, every other edit kind, Ping, a level-of-detail view whose
+// format-2 chunks decode, and queries (§4.13: ground, raycast, samples) with an edit's
+// material yield (§4.4 volumes).
 import assert from "node:assert/strict";
 import { spawn } from "node:child_process";
 import { mkdtempSync, readFileSync, rmSync } from "node:fs";
@@ -86,6 +87,151 @@ function waitChunk(client, pred, ms, what) {
     const off2 = client.on("chunkadded", (c) => check(c, undefined));
   });
 }
+
+// Asks again while the server says to (terrain loaded over several tries, or the rate).
+async function ask(fn) {
+  for (let i = 0; ; i++) {
+    const r = await fn();
+    if (!["SERVER_BUSY", "RATE_LIMITED"].includes(r.statusName) || i === 20) return r;
+    await sleep(Math.max(r.retryAfterMs, 10));
+  }
+}
+
+const near = (a, b, eps, what) => assert.ok(Math.abs(a - b) <= eps, `${what}: ${a} vs ${b}`);
+
+// First, on terrain no other test has edited yet.
+test("queries: ground, raycast, samples, an explosion's volumes, BAD_VALUE", { skip, timeout: 90000 }, async () => {
+  const { client, welcome } = await connect("web-query");
+  assert.ok(welcome.maxQueryDistance >= 400, `max_query_distance ${welcome.maxQueryDistance}`);
+  assert.ok(welcome.maxQuerySamples >= 120);
+  assert.ok(welcome.maxQueriesInFlight > 0);
+  assert.ok(welcome.queriesPerSecond >= 0);
+  const t = { timeoutMs: 20000 };
+
+  // Ground under (0, 0), from high above.
+  const g = await ask(() => client.ground(0, 0, 200, 400, t));
+  assert.equal(g.statusName, "OK", g.reason);
+  assert.equal(g.hit, true);
+  assert.equal(g.point.x, 0);
+  assert.equal(g.point.z, 0);
+  assert.ok(g.point.y < 200 && g.point.y > -200);
+  assert.ok(g.normal.y > 0, `normal ${JSON.stringify(g.normal)}`);
+  near(Math.hypot(g.normal.x, g.normal.y, g.normal.z), 1, 1e-4, "|normal|");
+  near(g.distance, 200 - g.point.y, 1e-3, "distance");
+  assert.ok(g.material >= 1 && g.material <= 255);
+
+  // A ray straight down agrees (also with a direction not of unit length); one upward misses.
+  for (const dir of [[0, -1, 0], [0, -5, 0]]) {
+    const r = await ask(() => client.raycast([0, 200, 0], dir, 400, t));
+    assert.equal(r.statusName, "OK", r.reason);
+    assert.equal(r.hit, true);
+    for (const k of ["x", "y", "z"]) near(r.point[k], g.point[k], 1e-3, `ray point ${k}`);
+    near(r.distance, g.distance, 1e-3, "ray distance");
+    assert.equal(r.material, g.material);
+  }
+  const up = await ask(() => client.raycast([0, g.point.y + 1, 0], [0, 1, 0], 400, t));
+  assert.equal(up.statusName, "OK", up.reason);
+  assert.equal(up.hit, false);
+
+  // Samples of a 4×5×6 box around the ground point: sizes, the box echoed, and the column
+  // (0, y, 0) solid below the ground point and air above, crossing where ground says.
+  const y0 = Math.floor(g.point.y);
+  const s = await ask(() => client.samples([-2, y0 - 2, -3], [1, y0 + 2, 2], t));
+  assert.equal(s.statusName, "OK", s.reason);
+  assert.deepEqual(s.box, { minX: -2, minY: y0 - 2, minZ: -3, maxX: 1, maxY: y0 + 2, maxZ: 2 });
+  assert.deepEqual(s.size, [4, 5, 6]);
+  assert.ok(s.densities instanceof Int16Array);
+  assert.ok(s.materials instanceof Uint8Array);
+  assert.equal(s.densities.length, 120);
+  assert.equal(s.materials.length, 120);
+  for (let y = y0 - 2; y <= y0 + 2; y++) {
+    const i = s.index(0, y, 0);
+    const solid = s.densities[i] > 0;
+    assert.equal(solid, y <= y0, `sample (0, ${y}, 0): density ${s.densities[i]}`);
+    assert.equal(s.materials[i] !== 0, solid, `sample (0, ${y}, 0): material ${s.materials[i]}`);
+  }
+  const d0 = s.densities[s.index(0, y0, 0)];
+  const d1 = s.densities[s.index(0, y0 + 1, 0)];
+  near(g.point.y, y0 + d0 / (d0 - d1), 1 / 1024, "the crossing between the two samples");
+
+  // The surface is the drawn one: the held level-0 meshes have a vertex at the ground point.
+  await client.waitViewReady(client.setView({ position: [0, g.point.y, 0], radius: 1 }), { timeoutMs: 60000 });
+  let vertex;
+  for (const c of client.chunks.values()) {
+    const p = c.mesh.positions;
+    for (let i = 0; i < p.length && !vertex; i += 3) {
+      if (c.origin[0] + p[i] === 0 && c.origin[2] + p[i + 2] === 0 && Math.abs(c.origin[1] + p[i + 1] - g.point.y) < 1e-6) {
+        vertex = { normal: c.mesh.normals.subarray(i, i + 3), material: c.mesh.materials[i / 3] };
+      }
+    }
+  }
+  assert.ok(vertex, "a mesh vertex at the ground point");
+  assert.equal(vertex.material, g.material);
+  const dot = vertex.normal[0] * g.normal.x + vertex.normal[1] * g.normal.y + vertex.normal[2] * g.normal.z;
+  assert.ok(dot > 0.999, `the vertex's normal within 2.5° of the query's (cos ${dot})`);
+
+  // An explosion at the ground point: its volumes are what the samples say (§4.4).
+  const c = [g.point.x, g.point.y, g.point.z];
+  const lo = [-6, y0 - 6, -6];
+  const hi = [6, y0 + 6, 6];
+  const before = await ask(() => client.samples(lo, hi, t));
+  const e = await client.edit("explosion", { center: c, radius: 4, power: 2 }, t);
+  assert.equal(e.statusName, "ACCEPTED", e.reason);
+  const after = await ask(() => client.samples(lo, hi, t));
+  assert.equal(before.statusName, "OK");
+  assert.equal(after.statusName, "OK");
+  assert.ok(e.volumes.length > 0, "volumes listed");
+  assert.ok(e.volumes.some((v) => v.removed > 0), "an explosion removes some material");
+  for (const [i, v] of e.volumes.entries()) {
+    assert.ok(v.material >= 1 && v.material <= 255);
+    assert.ok(v.removed >= 0 && v.added >= 0);
+    if (i) assert.ok(v.material > e.volumes[i - 1].material, "in material order");
+  }
+  const expected = new Map();
+  const put = (m, key, amount) => {
+    if (!m || !amount) return;
+    const v = expected.get(m) ?? { material: m, removed: 0n, added: 0n };
+    v[key] += amount;
+    expected.set(m, v);
+  };
+  for (let i = 0; i < before.densities.length; i++) {
+    const ob = BigInt(before.densities[i] + 32767);
+    const oa = BigInt(after.densities[i] + 32767);
+    const mb = before.materials[i];
+    const ma = after.materials[i];
+    if (mb === ma) put(ma, oa > ob ? "added" : "removed", oa > ob ? oa - ob : ob - oa);
+    else {
+      put(mb, "removed", ob);
+      put(ma, "added", oa);
+    }
+  }
+  const mine = [...expected.values()].sort((a, b) => a.material - b.material);
+  assert.deepEqual(e.volumes.map((v) => v.material), mine.map((v) => v.material));
+  for (const [i, v] of e.volumes.entries()) {
+    near(v.removed, Number(mine[i].removed) / 65534, 1e-9, `material ${v.material} removed`);
+    near(v.added, Number(mine[i].added) / 65534, 1e-9, `material ${v.material} added`);
+  }
+  // A query sent after the edit sees it.
+  const g2 = await ask(() => client.ground(0, 0, 200, 400, t));
+  assert.equal(g2.hit, true);
+  assert.ok(g2.point.y < g.point.y, `ground went down: ${g.point.y} -> ${g2.point.y}`);
+
+  // Refused: a direction of no length, a box over the sample cap (its fields empty).
+  const zero = await client.raycast([0, 200, 0], [0, 0, 0], 100, t);
+  assert.equal(zero.statusName, "BAD_VALUE");
+  assert.ok(zero.reason.length > 0);
+  assert.equal(zero.hit, false);
+  const side = Math.ceil(Math.cbrt(welcome.maxQuerySamples)) + 1;
+  const big = await client.samples([0, 0, 0], [side - 1, side - 1, side - 1], t);
+  assert.equal(big.statusName, "BAD_VALUE");
+  assert.ok(big.reason.length > 0);
+  assert.deepEqual(big.size, [0, 0, 0]);
+  assert.equal(big.densities.length, 0);
+  assert.equal(big.materials.length, 0);
+  const far = await client.raycast([0, 200, 0], [0, -1, 0], welcome.maxQueryDistance * 2, t);
+  assert.equal(far.statusName, "BAD_VALUE");
+  assert.deepEqual(client.failures, []);
+});
 
 test("two clients: view, explosion, deltas on both, every edit kind, ping", { skip, timeout: 90000 }, async () => {
   const { client: a, welcome } = await connect("web-a");
