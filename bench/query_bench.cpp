@@ -90,6 +90,37 @@ void BM_QueryCold(benchmark::State& state) {
 }
 BENCHMARK(BM_QueryCold)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
+// The worst ray for its length: parallel to a flat surface and just inside the rock, so
+// every cell it crosses straddles the surface and none has a triangle it meets; Arg(1)
+// runs it along a chunk border, where the samples around each cell lie in two chunks.
+void BM_QuerySkimming(benchmark::State& state) {
+  world::ChunkMap map;
+  world::Chunk flat;
+  for (int z = 0; z < world::kChunkSize; ++z)
+    for (int x = 0; x < world::kChunkSize; ++x) {
+      flat.set(x, 0, z, {16384, world::kStone});
+      for (int y = 1; y < world::kChunkSize; ++y) flat.set(x, y, z, {-16384, world::kAir});
+    }
+  for (int z = -1; z <= 1; ++z)
+    for (int x = -1; x <= 17; ++x) {
+      map.insert({x, 0, z}, flat);
+      map.insert({x, -1, z}, world::Chunk(world::Sample{world::kDensityMax, world::kStone}));
+      map.insert({x, 1, z}, world::Chunk());
+    }
+  mesh::ChunkMapSource source(map);
+  const float z = state.range(0) == 1 ? 31.9f : 10.5f;
+  const mesh::Ray ray{{0.5f, 0.25f, z}, {1, 0, 0}, 512};
+  for (auto _ : state) {
+    const mesh::RayHit h = mesh::raycast(source, ray);
+    if (h.hit) state.SkipWithError("the skimming ray hit");
+    benchmark::DoNotOptimize(h);
+  }
+  state.SetLabel(state.range(0) == 1 ? "along a chunk border" : "inside chunks");
+  state.counters["queries_per_s"] =
+      benchmark::Counter(state.iterations(), benchmark::Counter::kIsRate);
+}
+BENCHMARK(BM_QuerySkimming)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
 void BM_SampleBox32(benchmark::State& state) {
   const world::TerrainGenerator gen(1);
   const world::ChunkMap map = area(gen);

@@ -117,6 +117,35 @@ BENCHMARK(BM_ExplosionNearRegions)
     ->Arg(4096)
     ->Unit(benchmark::kMicrosecond);
 
+// What counting an edit's yield (material_volume.hpp) costs: a radius-8 brush at the
+// surface, adding and taking away in turn (every sample in reach changes each time), with
+// no tally (0) and with the pipeline's tally per chunk (1).
+void BM_BrushYield(benchmark::State& state) {
+  const TerrainGenerator gen(1);
+  const float y = gen.height_at(16, 16);
+  const Edit add = Brush{{16, y, 16}, 8, 1, false, Material{5}};
+  const Edit take = Brush{{16, y, 16}, 8, 1, true, Material{0}};
+  const std::vector<ChunkCoord> touched = chunks_overlapping(touched_box(add));
+  ChunkMap map;
+  for (const ChunkCoord& c : touched) map.insert(c, gen.generate(c));
+  const bool count = state.range(0) == 1;
+  bool adding = true;
+  for (auto _ : state) {
+    VolumeTally total;
+    for (const ChunkCoord& c : touched) {
+      VolumeTally part;
+      benchmark::DoNotOptimize(
+          apply_edit(adding ? add : take, c, *map.find(c), nullptr, {}, count ? &part : nullptr));
+      if (count) total.merge(part);
+    }
+    benchmark::DoNotOptimize(total);
+    adding = !adding;
+  }
+  state.SetLabel(count ? "with the yield" : "without");
+  state.counters["chunks"] = static_cast<double>(touched.size());
+}
+BENCHMARK(BM_BrushYield)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
 // A rollback's engine (edit_undo.hpp): 20,000 explosions of two players in turn over a
 // 1,024 x 1,024 voxel surface (about 1,000 chunks), then one player's 10,000 undone: the
 // chunks recomputed from the seed with the other's edits applied again. What an online
