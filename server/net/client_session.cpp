@@ -56,7 +56,12 @@ ClientSession::ClientSession(std::unique_ptr<Connection> connection, std::string
       view_budget_(config_.set_view_rate, config_.set_view_burst),
       message_budget_(config_.message_rate, config_.message_burst),
       error_budget_(config_.protocol_error_rate, config_.protocol_error_burst),
-      query_budget_(config_.query_rate, std::max(1.0, 2 * config_.query_rate)),
+      queries_(pipeline.config().limits,
+               QueryLimits{.max_distance = config_.max_query_distance,
+                           .max_samples = config_.max_query_samples,
+                           .max_in_flight = config_.max_queries_in_flight,
+                           .rate = config_.query_rate,
+                           .cluster = pipeline.config().zones != nullptr}),
       feed_(pipeline.meshes(), pipeline.lod_meshes(),
             pipeline_wants(pipeline, id_, std::hash<std::string>{}(address_) | 1),  // never 0
             counters_) {

@@ -23,6 +23,7 @@
 #include "server/net/live_settings.hpp"
 #include "server/net/log_hygiene.hpp"
 #include "server/net/player_registry.hpp"
+#include "server/net/query_gate.hpp"
 #include "server/net/result_order.hpp"
 #include "server/net/server_config.hpp"
 #include "server/net/server_counters.hpp"
@@ -176,8 +177,7 @@ class ClientSession : public std::enable_shared_from_this<ClientSession>,
   size_t admin_commands_in_flight_ = 0;  // bans sent to the BanKeeper, not yet answered
   EditGate edits_;  // role, validity, in-flight cap and budget of the client's edits
   pipeline::TokenBucket view_budget_, message_budget_, error_budget_;
-  pipeline::TokenBucket query_budget_;
-  size_t queries_in_flight_ = 0;  // sent to the pipeline, not yet answered
+  QueryGate queries_;  // validity, in-flight cap and rate of the client's queries
   ResultOrder results_;
   std::optional<PendingView> pending_view_;  // coalesced SetView waiting for view_budget_
   ViewFeed feed_;  // what the client sees: its view, what it holds, the next mesh
