@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "server/world/chunk_map.hpp"
+#include "server/world/collapse.hpp"
 #include "server/world/edit_apply.hpp"
 #include "server/world/edit_undo.hpp"
 #include "server/world/region.hpp"
@@ -145,6 +146,40 @@ void BM_BrushYield(benchmark::State& state) {
   state.counters["chunks"] = static_cast<double>(touched.size());
 }
 BENCHMARK(BM_BrushYield)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
+// Collapse detection (collapse.hpp) over a 64^3 search box: a radius-10 explosion at the
+// surface of generated terrain (caves below), its emptied samples, the pieces it cut loose.
+void BM_CollapseSearch64(benchmark::State& state) {
+  const TerrainGenerator gen(1);
+  const float y = gen.height_at(16, 16);
+  const Edit boom = Explosion{{16, y - 4, 16}, 10, 3};
+  CollapseLimits limits;
+  limits.max_side = 64;
+  limits.margin = 32;
+  const VoxelBox search = collapse_search_box(touched_box(boom), limits);
+  ChunkMap map;
+  for (const ChunkCoord& c : chunks_overlapping(
+           {{search.lo[0], search.lo[1] - limits.max_fall, search.lo[2]}, search.hi}))
+    map.insert(c, gen.generate(c));
+  ChunkMap before;
+  for (const auto& [c, chunk] : map) before.insert(c, chunk);
+  for (const ChunkCoord& c : chunks_overlapping(touched_box(boom)))
+    apply_edit(boom, c, *map.find(c), nullptr);
+  std::vector<std::array<int32_t, 3>> emptied;
+  const VoxelBox t = touched_box(boom);
+  for (int z = t.lo[2]; z <= t.hi[2]; ++z)
+    for (int yy = t.lo[1]; yy <= t.hi[1]; ++yy)
+      for (int x = t.lo[0]; x <= t.hi[0]; ++x)
+        if (is_solid(before.sample_at(x, yy, z).density) &&
+            !is_solid(map.sample_at(x, yy, z).density))
+          emptied.push_back({x, yy, z});
+  const SampleAt read = [&](int32_t x, int32_t yy, int32_t z) { return map.sample_at(x, yy, z); };
+  size_t pieces = 0;
+  for (auto _ : state) pieces = find_detached(read, search, emptied, limits).size();
+  state.counters["emptied"] = static_cast<double>(emptied.size());
+  state.counters["pieces"] = static_cast<double>(pieces);
+}
+BENCHMARK(BM_CollapseSearch64)->Unit(benchmark::kMillisecond);
 
 // A rollback's engine (edit_undo.hpp): 20,000 explosions of two players in turn over a
 // 1,024 x 1,024 voxel surface (about 1,000 chunks), then one player's 10,000 undone: the
