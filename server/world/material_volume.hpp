@@ -1,9 +1,9 @@
 // What an edit removed and added of each material, in voxels, from the density change
 // (docs/PROTOCOL.md 4.4, "Material yield"). A sample's share of solid is its density mapped
-// from [-1, 1] onto [0, 1] (deep rock 1, open air 0, a sample on the surface a half); on a
-// linear ramp across the surface the shares of a column add up to the solid below the
-// surface. A sample whose material changed gave up its old share of the old material and
-// holds its new share of the new one. Counted in density steps (exact integers, the same on
+// from [-1, 1] onto [0, 1] (deep rock 1, open air 0, a sample on the surface a half). A
+// sample whose material changed gave up its old share of the old material and holds its new
+// share of the new one; air samples have material 0, so a sample dug out gives up all it
+// held, and the figures come close to, not exactly to, the volume under the drawn surface. Counted in density steps (exact integers, the same on
 // every machine); material 0 (none) is not counted.
 #pragma once
 
