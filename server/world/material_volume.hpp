@@ -3,8 +3,8 @@
 // from [-1, 1] onto [0, 1] (deep rock 1, open air 0, a sample on the surface a half). A
 // sample whose material changed gave up its old share of the old material and holds its new
 // share of the new one; air samples have material 0, so a sample dug out gives up all it
-// held, and the figures come close to, not exactly to, the volume under the drawn surface. Counted in density steps (exact integers, the same on
-// every machine); material 0 (none) is not counted.
+// held, and the figures come close to, not exactly to, the volume under the drawn surface. Counted
+// in density steps (exact integers, the same on every machine); material 0 (none) is not counted.
 #pragma once
 
 #include <array>
